@@ -1,0 +1,1 @@
+"""Shared foundation: wire messages, bus, network model, runtimes, config."""

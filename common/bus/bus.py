@@ -1,0 +1,186 @@
+"""The typed bus: publish and subscribe tidelink messages over one Zenoh session."""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any
+
+import zenoh
+
+from common.bus.keys import Keys
+from common.bus.session import open_session
+from common.config.bus import BusConfig
+from common.messages import Message, WireError, decode, encode
+
+log = logging.getLogger("tidelink.bus")
+
+
+@dataclass(frozen=True, slots=True)
+class Received:
+    """A decoded message and where it came from."""
+
+    key: str
+    msg: Message
+    attachment: bytes | None
+
+
+@dataclass(frozen=True, slots=True)
+class Liveliness:
+    """A liveliness token appeared (alive=True) or vanished (alive=False)."""
+
+    key: str
+    alive: bool
+
+
+Event = Received | Liveliness
+
+
+class Inbox:
+    """One queue that every subscription of a process feeds; the process's loop drains it.
+
+    Zenoh callbacks only enqueue raw bytes (they run on Zenoh's threads holding the GIL);
+    decoding happens in `get`, on the caller's thread. Payloads that fail to decode are
+    counted per key and logged once per key; the inbox carries on with the next sample.
+    """
+
+    def __init__(self) -> None:
+        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness] = queue.SimpleQueue()
+        self.decode_errors: dict[str, int] = {}
+        self.last_error: dict[str, str] = {}
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        att = sample.attachment
+        self._q.put((str(sample.key_expr), sample.payload.to_bytes(),
+                     att.to_bytes() if att is not None else None))
+
+    def _on_liveliness(self, sample: zenoh.Sample) -> None:
+        self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+    def get(self, timeout: float | None = None) -> Event | None:
+        """The next valid event, or None when `timeout` seconds pass with nothing valid."""
+        while True:
+            try:
+                item = self._q.get(timeout=timeout)
+            except queue.Empty:
+                return None
+            if isinstance(item, Liveliness):
+                return item
+            key, payload, att = item
+            try:
+                return Received(key, decode(payload), att)
+            except WireError as exc:
+                self._reject(key, str(exc))
+
+    def _reject(self, key: str, why: str) -> None:
+        n = self.decode_errors.get(key, 0) + 1
+        self.decode_errors[key] = n
+        self.last_error[key] = why
+        if n == 1:
+            log.warning("dropping undecodable payload on %s: %s (further ones only counted)", key, why)
+
+
+class Publisher:
+    """Publishes one stream's messages reliably (our network model is the only loss)."""
+
+    def __init__(self, pub: Any, key: str) -> None:
+        self._pub = pub
+        self.key = key
+
+    def put(self, msg: Message, attachment: bytes | None = None) -> int:
+        """Encode and send; returns the payload size in bytes."""
+        data = encode(msg)
+        self._pub.put(data, attachment=attachment)
+        return len(data)
+
+    def put_bytes(self, data: bytes, attachment: bytes | None = None) -> None:
+        """Send an already encoded payload (used by runtimes that needed the size first)."""
+        self._pub.put(data, attachment=attachment)
+
+
+class Bus:
+    """A Zenoh session plus every declaration made through it, closed together on exit."""
+
+    def __init__(self, cfg: BusConfig, keys: Keys) -> None:
+        self.cfg = cfg
+        self.keys = keys
+        self._session: zenoh.Session | None = None
+        self._declared: list[Any] = []
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> Bus:
+        self._session = open_session(self.cfg)
+        return self
+
+    def __exit__(
+        self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    @property
+    def session(self) -> zenoh.Session:
+        if self._session is None:
+            raise RuntimeError("bus is not open (use `with Bus(...) as bus:`)")
+        return self._session
+
+    def close(self) -> None:
+        """Undeclare everything, then close the session (a left-open callback hangs exit)."""
+        with self._lock:
+            declared, self._declared = self._declared, []
+            session, self._session = self._session, None
+        for obj in reversed(declared):
+            try:
+                obj.undeclare()
+            except Exception as exc:  # noqa: BLE001 - closing must go on whatever one object says
+                log.debug("undeclare failed: %s", exc)
+        if session is not None:
+            session.close()
+
+    def _keep(self, obj: Any) -> Any:
+        with self._lock:
+            self._declared.append(obj)
+        return obj
+
+    def publisher(self, service: str, stream: str, *, express: bool = False) -> Publisher:
+        key = self.keys.stream(service, stream)
+        pub = self.session.declare_publisher(
+            key,
+            reliability=zenoh.Reliability.RELIABLE,  # zenoh-python's default is best-effort
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            express=express,
+        )
+        return Publisher(self._keep(pub), key)
+
+    def subscribe(self, key_expr: str, inbox: Inbox) -> None:
+        """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it)."""
+        self._keep(self.session.declare_subscriber(key_expr, inbox._on_sample))
+
+    def subscribe_stream(self, service: str, stream: str, inbox: Inbox) -> None:
+        self.subscribe(self.keys.stream(service, stream), inbox)
+
+    def subscribe_callback(self, key_expr: str, callback: Callable[[str, bytes], None]) -> None:
+        """Raw bytes to a callback (recorders: store what arrived, decode later)."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.payload.to_bytes())
+
+        self._keep(self.session.declare_subscriber(key_expr, on_sample))
+
+    def declare_alive(self, service: str) -> None:
+        """Declare this process's liveliness token, withdrawn when the bus closes or dies."""
+        self._keep(self.session.liveliness().declare_token(self.keys.alive(service)))
+
+    def watch_alive(self, inbox: Inbox, key_expr: str | None = None) -> None:
+        """Liveliness events (with history: tokens already present are reported) into inbox."""
+        sub = self.session.liveliness().declare_subscriber(
+            key_expr or self.keys.all_alive, inbox._on_liveliness, history=True
+        )
+        self._keep(sub)
+
+    def put_raw(self, key: str, data: bytes) -> None:
+        """Publish raw bytes on a key (tools and tests that must send arbitrary payloads)."""
+        self.session.put(key, data)

@@ -1,0 +1,51 @@
+"""Key expressions of a run: tidelink/<run>/<vehicle>/<service>/<stream> and liveliness."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+_ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+@dataclass(frozen=True)
+class Keys:
+    """Builds the key expressions of one run and vehicle, so no code formats keys by hand."""
+
+    run: str
+    vehicle: str
+
+    def __post_init__(self) -> None:
+        for what, v in (("run", self.run), ("vehicle", self.vehicle)):
+            if not _ID.match(v):
+                raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
+
+    @property
+    def root(self) -> str:
+        return f"tidelink/{self.run}/{self.vehicle}"
+
+    def stream(self, service: str, stream: str) -> str:
+        """The key of one service's output stream, e.g. tidelink/demo/auv1/sensor/nav."""
+        return f"{self.root}/{service}/{stream}"
+
+    def alive(self, service: str) -> str:
+        """The liveliness token key of a service."""
+        return f"{self.root}/alive/{service}"
+
+    @property
+    def all_alive(self) -> str:
+        return f"{self.root}/alive/*"
+
+    @property
+    def everything(self) -> str:
+        return f"{self.root}/**"
+
+    def split(self, key: str) -> tuple[str, str]:
+        """(service, stream) of a stream key of this run; ValueError for any other key."""
+        prefix = self.root + "/"
+        if not key.startswith(prefix):
+            raise ValueError(f"{key!r} is not a key of run {self.run}/{self.vehicle}")
+        service, sep, stream = key[len(prefix):].partition("/")
+        if not sep or "/" in stream:
+            raise ValueError(f"{key!r} is not a <service>/<stream> key")
+        return service, stream

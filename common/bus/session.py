@@ -1,0 +1,28 @@
+"""Open a Zenoh session from a BusConfig, with explicit settings instead of Zenoh defaults."""
+
+from __future__ import annotations
+
+import json
+
+import zenoh
+
+from common.config.bus import BusConfig
+
+
+def zenoh_config(cfg: BusConfig) -> zenoh.Config:
+    """Translate our BusConfig into a zenoh.Config (multicast scouting off unless asked)."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(cfg.mode))
+    conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
+    conf.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
+    if cfg.mode != "client":
+        # peers/routers: retry connecting so start order between processes does not matter
+        conf.insert_json5("connect/timeout_ms", json.dumps(-1))
+    conf.insert_json5("connect/exit_on_failure", json.dumps(False))
+    return conf
+
+
+def open_session(cfg: BusConfig) -> zenoh.Session:
+    """Open a session; the caller must close it (Bus does, deterministically)."""
+    return zenoh.open(zenoh_config(cfg))

@@ -1,0 +1,1 @@
+"""Scenario configuration: TOML parsed once, at the edge, into frozen dataclasses."""

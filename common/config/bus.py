@@ -1,0 +1,25 @@
+"""Zenoh session settings of a process: mode, endpoints, scouting."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+
+@dataclass(frozen=True, kw_only=True)
+class BusConfig:
+    """How a process joins the Zenoh network (see ../shared/ZENOH.md for why the defaults)."""
+
+    mode: Literal["peer", "client", "router"] = "peer"
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    # Off by default: multicast leaves loopback and lets unrelated runs find each other.
+    multicast_scouting: bool = False
+
+    def __post_init__(self) -> None:
+        for ep in (*self.listen, *self.connect):
+            proto, sep, rest = ep.partition("/")
+            if not sep or not rest or proto not in ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic"):
+                raise ValueError(f"listen/connect: {ep!r} is not a Zenoh endpoint like tcp/127.0.0.1:7447")
+        if self.mode == "client" and not self.connect:
+            raise ValueError("connect: a client must connect to at least one router endpoint")

@@ -1,0 +1,50 @@
+"""Run-level settings: identity, seed, duration, which mission, and runtime tuning."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+_ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunConfig:
+    """Identity and scope of one run."""
+
+    name: str = "demo"  # the run id in every key: tidelink/<name>/<vehicle>/...
+    vehicle: str = "auv1"
+    seed: int = 1
+    max_time_s: float = 300.0  # virtual seconds; the mission ends here if not before
+    # "module:Class" of the mission (the cores of the dataflow, its end and its metrics)
+    mission: str = "services.mission:AuvMission"
+
+    def __post_init__(self) -> None:
+        for name in ("name", "vehicle"):
+            if not _ID.match(getattr(self, name)):
+                raise ValueError(f"{name}: must be letters, digits, '_' or '-'")
+        if not 0 <= self.seed < 2**63:
+            raise ValueError("seed: must be in [0, 2**63)")
+        if self.max_time_s <= 0:
+            raise ValueError("max_time_s: must be > 0")
+        if ":" not in self.mission:
+            raise ValueError("mission: expected 'module:Class'")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RuntimeConfig:
+    """Which runtime and how it behaves."""
+
+    kind: Literal["inproc", "lockstep", "realtime"] = "inproc"
+    time_scale: float = 1.0  # realtime only: 5.0 runs five times faster than the wall clock
+    stats_period_s: float = 1.0  # virtual seconds between LinkStats publications
+    start_timeout_s: float = 30.0  # for every service process to declare liveliness
+    tick_timeout_s: float = 30.0  # lockstep: a service that does not acknowledge a tick fails
+
+    def __post_init__(self) -> None:
+        if not 0.01 <= self.time_scale <= 1000:
+            raise ValueError("time_scale: must be in [0.01, 1000]")
+        for name in ("stats_period_s", "start_timeout_s", "tick_timeout_s"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name}: must be > 0")

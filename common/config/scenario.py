@@ -1,0 +1,47 @@
+"""The scenario: every section of a TOML scenario file as one frozen dataclass."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from common.config.bus import BusConfig
+from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
+from common.config.network import NetworkConfig
+from common.config.run import RunConfig, RuntimeConfig
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A whole scenario; sections default to their dataclass defaults when absent."""
+
+    run: RunConfig = field(default_factory=RunConfig)
+    runtime: RuntimeConfig = field(default_factory=RuntimeConfig)
+    bus: BusConfig = field(default_factory=BusConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+
+
+def load_scenario(path: str | Path, overrides: list[str] | None = None,
+                  seed: int | None = None) -> tuple[Scenario, dict[str, Any]]:
+    """Read, override (`--set key=value`) and validate a scenario; returns it and its raw data.
+
+    The raw mapping is returned so it can be handed to child processes unchanged.
+    """
+    raw = read_toml(path)
+    for text in overrides or []:
+        parts, value = parse_override(text)
+        apply_override(raw, parts, value)
+    if seed is not None:
+        apply_override(raw, ["run", "seed"], seed)
+    return scenario_from_raw(raw, str(path)), raw
+
+
+def scenario_from_raw(raw: dict[str, Any], file: str = "") -> Scenario:
+    """Validate a raw mapping (from TOML or a parent process) into a Scenario."""
+    try:
+        return build(Scenario, raw, file=file)
+    except ConfigError:
+        raise
+    except TypeError as exc:  # a programming error in a config dataclass, still say where
+        raise ConfigError(file, "", str(exc)) from None

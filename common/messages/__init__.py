@@ -1,0 +1,50 @@
+"""The tidelink wire: typed frozen messages and the only codec entry points, encode/decode."""
+
+from common.messages.base import WIRE_VERSION, Message, WireError
+from common.messages.codec import decode, decode_routing, encode, encode_routing
+from common.messages.types import (
+    MESSAGE_TYPES,
+    Detection,
+    LinkCounters,
+    LinkStats,
+    NavFix,
+    ObstacleDetections,
+    ObstacleTracks,
+    PathMsg,
+    PathStatus,
+    StateEstimate,
+    Tick,
+    TickAck,
+    Track,
+    TruthState,
+    VehicleMode,
+    VehicleStatus,
+    VelocityCommand,
+)
+
+__all__ = [
+    "MESSAGE_TYPES",
+    "WIRE_VERSION",
+    "Detection",
+    "LinkCounters",
+    "LinkStats",
+    "Message",
+    "NavFix",
+    "ObstacleDetections",
+    "ObstacleTracks",
+    "PathMsg",
+    "PathStatus",
+    "StateEstimate",
+    "Tick",
+    "TickAck",
+    "Track",
+    "TruthState",
+    "VehicleMode",
+    "VehicleStatus",
+    "VelocityCommand",
+    "WireError",
+    "decode",
+    "decode_routing",
+    "encode",
+    "encode_routing",
+]

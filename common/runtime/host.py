@@ -1,0 +1,166 @@
+"""Host one core: envelope and seq numbers, the link model on its outputs, modelled deliveries.
+
+This is the part every runtime shares, so inproc and lockstep behave identically:
+- a tick at virtual time T (integer microseconds) hands over deliveries due at or before T
+  that were sent in an earlier tick (a message is never delivered in the tick it was sent),
+  in the fixed order (delivery time, source, stream, seq, copy);
+- deliveries to `wake` inputs go to the core at once; the others wait in a ready buffer until
+  the core's next step, where the input's queue policy applies (NEWEST keeps the last one);
+- each output gets (source, seq, sent) and, per receiving service, the link model's delivery
+  times, decided on the sending side from (seed, link, seq) so no arrival order matters.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass, replace
+
+from common.messages import LinkCounters, LinkStats, Message, encode
+from common.netmodel import NetworkModel
+from common.runtime.core import Delivery, Emit, InputSpec, QueuePolicy, ServiceCore
+from common.runtime.dataflow import Dataflow
+
+STATS_STREAM = "stats"
+NEVER = 2**62
+
+
+def to_us(t: float) -> int:
+    return round(t * 1e6)
+
+
+@dataclass(frozen=True, slots=True)
+class Outgoing:
+    """One published message: its bytes and modelled delivery times (us) per receiver."""
+
+    stream: str
+    msg: Message
+    data: bytes
+    schedule: dict[str, tuple[int, ...]]
+
+
+class Host:
+    """Runs one core inside any runtime (see the module docstring for the rules)."""
+
+    def __init__(self, core: ServiceCore, flow: Dataflow, net: NetworkModel, *,
+                 stats_period_s: float = 1.0) -> None:
+        self.core = core
+        self.name = core.spec.name
+        self.flow = flow
+        self.net = net
+        spec = core.spec
+        self.period_us = to_us(spec.period_s)
+        self.next_step_us = to_us(spec.offset_s)
+        self.stats_period_us = to_us(stats_period_s)
+        self.next_stats_us = self.stats_period_us
+        self._inputs: dict[tuple[str, str], InputSpec] = {(i.source, i.stream): i for i in spec.inputs}
+        self._seq: dict[str, int] = {o.stream: 0 for o in spec.outputs}
+        self._seq[STATS_STREAM] = 0
+        # (deliver_us, source, stream, seq, copy, sent_tick, msg)
+        self._pending: list[tuple[int, str, str, int, int, int, Message]] = []
+        self._ready: list[Delivery] = []
+        self.delivered = 0
+        self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
+
+    # -- receiving ---------------------------------------------------------------------------
+    def accept(self, msg: Message, source: str, stream: str, times_us: tuple[int, ...],
+               sent_tick: int) -> None:
+        """Queue a message sent to this host, with its modelled delivery times."""
+        if (source, stream) not in self._inputs:
+            return
+        for copy, t in enumerate(times_us):
+            heapq.heappush(self._pending, (t, source, stream, msg.seq, copy, sent_tick, msg))
+
+    def next_event_us(self) -> int:
+        """The next time this host needs a tick: its next step or a due wake delivery."""
+        nxt = self.next_step_us
+        for t, src, stream, *_ in self._pending:
+            if t < nxt and self._inputs[(src, stream)].wake:
+                nxt = t
+        return nxt
+
+    # -- one tick ----------------------------------------------------------------------------
+    def run_tick(self, tick: int, t_us: int) -> list[Outgoing]:
+        """Hand over due deliveries, step if due, and publish what the core emitted."""
+        emits: list[Emit] = []
+        later = []
+        while self._pending and self._pending[0][0] <= t_us:
+            item = heapq.heappop(self._pending)
+            if item[5] >= tick:  # sent in this tick: never delivered in the tick it was sent
+                later.append(item)
+                continue
+            d_us, src, stream, _seq, _copy, _tick, msg = item
+            d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
+            self.delivered += 1
+            if self._inputs[(src, stream)].wake:
+                emits.extend(self.core.deliver(d))
+            else:
+                self._ready.append(d)
+        for item in later:
+            heapq.heappush(self._pending, item)
+        if self.next_step_us <= t_us:
+            t = t_us / 1e6
+            for d in self._policy(self._ready):
+                emits.extend(self.core.deliver(d))
+            self._ready = []
+            emits.extend(self.core.step(t))
+            self.next_step_us += self.period_us
+        out = [self._publish(e.stream, e.msg, tick, t_us) for e in emits]
+        if t_us >= self.next_stats_us:
+            out.append(self._publish(STATS_STREAM, self.link_stats(t_us / 1e6), tick, t_us))
+            while self.next_stats_us <= t_us:
+                self.next_stats_us += self.stats_period_us
+        return out
+
+    def _policy(self, ready: list[Delivery]) -> list[Delivery]:
+        newest: dict[tuple[str, str], int] = {}
+        for i, d in enumerate(ready):
+            if self._inputs[(d.source, d.stream)].policy is QueuePolicy.NEWEST:
+                newest[(d.source, d.stream)] = i
+        if not newest:
+            return ready
+        kept = [
+            d for i, d in enumerate(ready)
+            if self._inputs[(d.source, d.stream)].policy is not QueuePolicy.NEWEST
+            or newest[(d.source, d.stream)] == i
+        ]
+        self.superseded += len(ready) - len(kept)
+        return kept
+
+    def _publish(self, stream: str, msg: Message, tick: int, t_us: int) -> Outgoing:
+        if stream not in self._seq:
+            raise ValueError(f"{self.name}: emitted on undeclared stream {stream!r}")
+        self._seq[stream] += 1
+        seq = self._seq[stream]
+        t = t_us / 1e6
+        msg = replace(msg, source=self.name, seq=seq, sent=t)
+        data = encode(msg)
+        schedule: dict[str, tuple[int, ...]] = {}
+        for receiver, _spec in self.flow.receivers.get((self.name, stream), ()):
+            dec = self.net.decide(self.name, stream, receiver, seq, t, len(data))
+            schedule[receiver] = tuple(to_us(x) for x in dec.delivered_at)
+        return Outgoing(stream, msg, data, schedule)
+
+    def wake_deliveries_us(self, out: list[Outgoing]) -> int:
+        """Earliest delivery to a wake input among messages just sent (the coordinator's need)."""
+        best = NEVER
+        for o in out:
+            for receiver, spec in self.flow.receivers.get((self.name, o.stream), ()):
+                if spec.wake and o.schedule.get(receiver):
+                    best = min(best, o.schedule[receiver][0])
+        return best
+
+    def published(self) -> dict[str, int]:
+        """Last seq published per output stream."""
+        return dict(self._seq)
+
+    def link_stats(self, t: float) -> LinkStats:
+        """Counters of every outgoing link so far, as the wire message."""
+        links = tuple(
+            LinkCounters(
+                link=name, sent=s.sent, delivered=s.delivered, dropped_loss=s.dropped_loss,
+                dropped_outage=s.dropped_outage, dropped_queue=s.dropped_queue,
+                duplicated=s.duplicated, delay_p50=s.delay_p50_s, delay_p99=s.delay_p99_s,
+            )
+            for name, s in self.net.snapshots().items()
+        )
+        return LinkStats(stamp=t, links=links)

@@ -1,0 +1,143 @@
+"""A lockstep service process: hosts one core, steps only when the coordinator ticks."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from common.bus import Bus, Inbox, Keys, Liveliness, Received
+from common.config.bus import BusConfig
+from common.config.scenario import scenario_from_raw
+from common.messages import Tick, TickAck, WireError, decode_routing, encode_routing
+from common.netmodel import NetworkModel
+from common.runtime.dataflow import Dataflow
+from common.runtime.host import STATS_STREAM, Host
+from common.runtime.mission import load_mission
+from common.runtime.signals import Shutdown, install_shutdown_handlers
+
+log = logging.getLogger("tidelink.lockstep")
+CLOCK = "runtime"  # the coordinator's service name in keys: .../runtime/tick, .../runtime/ack
+
+
+class LockstepService:
+    """Waits for each tick, makes sure it holds every message sent before it, runs the tick."""
+
+    def __init__(self, name: str, raw: dict[str, object], connect: str) -> None:
+        self.scenario = scenario_from_raw(raw)
+        mission = load_mission(self.scenario)
+        cores = {n: mission.make_core(n) for n in mission.names}
+        if name not in cores:
+            raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(cores)}")
+        flow = Dataflow.of([c.spec for c in cores.values()])
+        self.name = name
+        self.host = Host(cores[name], flow, NetworkModel(self.scenario.network,
+                                                          seed=self.scenario.run.seed),
+                         stats_period_s=self.scenario.runtime.stats_period_s)
+        self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
+        self.bus_cfg = BusConfig(mode="client", connect=(connect,))
+        self.received: dict[str, int] = {f"{i.source}/{i.stream}": 0 for i in self.host.core.spec.inputs}
+        self.timeout_s = self.scenario.runtime.tick_timeout_s
+
+    def run(self) -> int:
+        with Bus(self.bus_cfg, self.keys) as bus:
+            inbox = Inbox()
+            for i in self.host.core.spec.inputs:
+                bus.subscribe_stream(i.source, i.stream, inbox)
+            bus.subscribe_stream(CLOCK, "tick", inbox)
+            bus.watch_alive(inbox, self.keys.alive(CLOCK))
+            pubs = {o.stream: bus.publisher(self.name, o.stream) for o in self.host.core.spec.outputs}
+            pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM)
+            ack_pub = bus.publisher(CLOCK, "ack")
+            bus.declare_alive(self.name)
+            while True:
+                tick = self._next_tick(inbox)
+                self._wait_for(inbox, tick.watermarks)
+                if tick.stop:
+                    out = [self.host._publish(STATS_STREAM, self.host.link_stats(tick.time_us / 1e6),
+                                              tick.tick, tick.time_us)]
+                else:
+                    out = self.host.run_tick(tick.tick, tick.time_us)
+                for o in out:
+                    pubs[o.stream].put_bytes(o.data, encode_routing(tick.tick, o.schedule))
+                nxt = min(self.host.next_event_us(), self.host.wake_deliveries_us(out))
+                ack_pub.put(TickAck(stamp=tick.time_us / 1e6, tick=tick.tick, service=self.name,
+                                    published={f"{self.name}/{k}": v
+                                               for k, v in self.host.published().items()},
+                                    next_us=nxt))
+                if tick.stop:
+                    self._await_release(inbox)
+                    return 0
+
+    def _await_release(self, inbox: Inbox) -> None:
+        """Stay connected until the coordinator leaves, so the final ack is surely delivered."""
+        deadline = time.monotonic() + self.timeout_s
+        while time.monotonic() < deadline:
+            ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
+            if isinstance(ev, Liveliness) and not ev.alive:
+                return
+        log.warning("%s: coordinator did not release us in %s s; exiting", self.name, self.timeout_s)
+
+    def _handle(self, ev: Received | Liveliness | None) -> Tick | None:
+        if ev is None:
+            raise TimeoutError(f"{self.name}: nothing from the coordinator for {self.timeout_s} s")
+        if isinstance(ev, Liveliness):
+            if not ev.alive:
+                raise SystemExit(f"{self.name}: the coordinator went away; exiting")
+            return None
+        if isinstance(ev.msg, Tick):
+            return ev.msg
+        service, stream = self.keys.split(ev.key)
+        key = f"{service}/{stream}"
+        self.received[key] = self.received.get(key, 0) + 1
+        if ev.attachment is None:
+            log.warning("%s: message on %s without routing; ignored", self.name, ev.key)
+            return None
+        try:
+            sent_tick, schedule = decode_routing(ev.attachment)
+        except WireError as exc:
+            log.warning("%s: bad routing on %s: %s", self.name, ev.key, exc)
+            return None
+        times = schedule.get(self.name, ())
+        if times:
+            self.host.accept(ev.msg, service, stream, times, sent_tick)
+        return None
+
+    def _next_tick(self, inbox: Inbox) -> Tick:
+        while True:
+            tick = self._handle(inbox.get(timeout=self.timeout_s))
+            if tick is not None:
+                return tick
+
+    def _wait_for(self, inbox: Inbox, watermarks: dict[str, int]) -> None:
+        deadline = time.monotonic() + self.timeout_s
+        for key, seq in watermarks.items():
+            while key in self.received and self.received[key] < seq:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"{self.name}: {key} seq {seq} never arrived")
+                if self._handle(inbox.get(timeout=left)) is not None:
+                    raise RuntimeError(f"{self.name}: a new tick came before the data of the last")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("name")
+    p.add_argument("--scenario-json", required=True, type=Path)
+    p.add_argument("--connect", required=True)
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s")
+    install_shutdown_handlers()
+    raw = json.loads(a.scenario_json.read_text())
+    try:
+        return LockstepService(a.name, raw, a.connect).run()
+    except Shutdown as exc:
+        log.info("stopping on %s", exc)
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,35 @@
+"""What a runtime runs: a mission names its cores, says when it is over and computes metrics."""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any, Protocol
+
+from common.config.scenario import Scenario
+from common.runtime.core import ServiceCore
+from common.runtime.record import Record
+
+
+class Mission(Protocol):
+    """A dataflow of cores plus its end condition and metrics (pure; runtime-independent)."""
+
+    names: tuple[str, ...]
+    max_time_s: float
+
+    def make_core(self, name: str) -> ServiceCore: ...
+
+    def observe(self, record: Record) -> str | None:
+        """Called after each tick with everything published so far: an end reason, or None."""
+
+    def metrics(self, record: Record) -> dict[str, Any]: ...
+
+
+def load_mission(scenario: Scenario) -> Mission:
+    """Instantiate the scenario's `[run] mission = "module:Class"`."""
+    module_name, _, cls_name = scenario.run.mission.partition(":")
+    try:
+        cls = getattr(importlib.import_module(module_name), cls_name)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"run.mission: cannot load {scenario.run.mission!r}: {exc}") from None
+    mission: Mission = cls(scenario)
+    return mission

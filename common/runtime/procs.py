@@ -1,0 +1,78 @@
+"""Child service processes: spawn with a log file, stop politely then firmly, report deaths."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago (the OS picks it)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Child:
+    """One service process and its log file."""
+
+    name: str
+    proc: subprocess.Popen[bytes]
+    log_path: Path
+    _log: object = field(default=None, repr=False)
+
+    def tail(self, n: int = 12) -> str:
+        """The last lines of its log, for error reports."""
+        try:
+            with self.log_path.open("r", errors="replace") as fh:
+                return "".join(deque(fh, maxlen=n))
+        except OSError:
+            return ""
+
+    def describe_exit(self) -> str:
+        code = self.proc.poll()
+        how = "is still running" if code is None else (
+            f"was killed by signal {-code}" if code < 0 else f"exited with code {code}")
+        tail = self.tail()
+        return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
+
+
+def spawn(name: str, args: list[str], log_dir: Path, env: dict[str, str] | None = None) -> Child:
+    """Start `python -m ...args` with stdout and stderr into log_dir/<name>.log."""
+    log_dir.mkdir(parents=True, exist_ok=True)
+    log_path = log_dir / f"{name}.log"
+    fh = log_path.open("wb")
+    full_env = dict(os.environ)
+    full_env.update(env or {})
+    full_env.setdefault("PYTHONUNBUFFERED", "1")
+    proc = subprocess.Popen([sys.executable, *args], stdout=fh, stderr=subprocess.STDOUT,
+                            stdin=subprocess.DEVNULL, env=full_env)
+    return Child(name, proc, log_path, fh)
+
+
+def stop_all(children: list[Child], *, grace_s: float = 3.0) -> None:
+    """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; always reaps."""
+    for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, grace_s), (signal.SIGKILL, 5.0)):
+        alive = [c for c in children if c.proc.poll() is None]
+        if not alive:
+            break
+        for c in alive:
+            with contextlib.suppress(ProcessLookupError):
+                c.proc.send_signal(sig)
+        deadline = time.monotonic() + wait_s
+        for c in alive:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+    for c in children:
+        if c._log is not None:
+            with contextlib.suppress(Exception):
+                c._log.close()  # type: ignore[attr-defined]

@@ -1,0 +1,159 @@
+"""A small closed loop of toy cores (sensor, filter, P controller, integrator plant).
+
+It exercises the runtimes end to end without the AUV services: a noisy sensor samples the
+plant, a filter smooths it, a proportional controller drives the plant to a set-point, the
+plant integrates the command. Select it with `[run] mission = "common.runtime.testloop:TestLoop"`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+import numpy as np
+
+from common.messages import NavFix, StateEstimate, TruthState, VelocityCommand
+from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from common.runtime.record import Record, trajectory_sha256
+
+_COV = tuple(0.0 for _ in range(25))
+
+
+class Plant:
+    """Integrator plant: x' = u, with u the last delivered command (applied at delivery)."""
+
+    def __init__(self) -> None:
+        self.spec = CoreSpec(
+            name="plant",
+            inputs=(InputSpec(source="ctrl", stream="cmd", msg_type=VelocityCommand),),
+            outputs=(OutputSpec(stream="truth", msg_type=TruthState),),
+            period_s=0.05,
+        )
+        self.x, self.u, self.t = 0.0, 0.0, 0.0
+
+    def _advance(self, t: float) -> None:
+        if t > self.t:
+            self.x += self.u * (t - self.t)
+            self.t = t
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        assert isinstance(d.msg, VelocityCommand)
+        self._advance(d.t)
+        self.u = d.msg.v
+        return []
+
+    def step(self, t: float) -> list[Emit]:
+        self._advance(t)
+        return [Emit(stream="truth", msg=TruthState(stamp=t, x=self.x, y=0.0, theta=0.0,
+                                                    v=self.u, w=0.0))]
+
+
+class Sensor:
+    """Samples the newest truth with seeded Gaussian noise."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.spec = CoreSpec(
+            name="sensor",
+            inputs=(InputSpec(source="plant", stream="truth", msg_type=TruthState,
+                              policy=QueuePolicy.NEWEST),),
+            outputs=(OutputSpec(stream="nav", msg_type=NavFix),),
+            period_s=0.1,
+        )
+        self.rng = rng
+        self.last: TruthState | None = None
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        assert isinstance(d.msg, TruthState)
+        self.last = d.msg
+        return []
+
+    def step(self, t: float) -> list[Emit]:
+        if self.last is None:
+            return []
+        z = self.last.x + float(self.rng.normal(0.0, 0.2))
+        return [Emit(stream="nav", msg=NavFix(stamp=self.last.stamp, x=z, y=0.0, heading=0.0,
+                                              speed=0.0, std_xy=0.2, std_heading=0.0,
+                                              std_speed=0.0))]
+
+
+class Filter:
+    """First-order lag on the fixes (eq. 3 of the paper), published every period."""
+
+    def __init__(self) -> None:
+        self.spec = CoreSpec(
+            name="filter",
+            inputs=(InputSpec(source="sensor", stream="nav", msg_type=NavFix),),
+            outputs=(OutputSpec(stream="state", msg_type=StateEstimate),),
+            period_s=0.1,
+        )
+        self.x: float | None = None
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        assert isinstance(d.msg, NavFix)
+        # eq. (3): u_i = (dt e_i + T u_{i-1}) / (dt + T), dt = 0.1, T = 0.2
+        self.x = d.msg.x if self.x is None else (0.1 * d.msg.x + 0.2 * self.x) / 0.3
+        return []
+
+    def step(self, t: float) -> list[Emit]:
+        if self.x is None:
+            return []
+        return [Emit(stream="state", msg=StateEstimate(stamp=t, x=self.x, y=0.0, theta=0.0,
+                                                       v=0.0, w=0.0, covariance=_COV))]
+
+
+class Controller:
+    """Proportional controller towards the set-point 10."""
+
+    def __init__(self) -> None:
+        self.spec = CoreSpec(
+            name="ctrl",
+            inputs=(InputSpec(source="filter", stream="state", msg_type=StateEstimate,
+                              policy=QueuePolicy.NEWEST),),
+            outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
+            period_s=0.1,
+            offset_s=0.05,
+        )
+        self.x: float | None = None
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        assert isinstance(d.msg, StateEstimate)
+        self.x = d.msg.x
+        return []
+
+    def step(self, t: float) -> list[Emit]:
+        if self.x is None:
+            return []
+        u = max(-2.0, min(2.0, 0.8 * (10.0 - self.x)))
+        return [Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=u, w=0.0, path_id=0))]
+
+
+def _rng(seed: int, name: str) -> np.random.Generator:
+    h = int.from_bytes(hashlib.blake2b(name.encode(), digest_size=8).digest(), "little")
+    return np.random.default_rng([seed, h])
+
+
+class TestLoop:
+    """The toy mission: runs to max_time_s; metrics are the final error and the hash."""
+
+    names = ("ctrl", "filter", "plant", "sensor")
+    __test__ = False  # not a pytest class
+
+    def __init__(self, scenario: Any) -> None:
+        self.seed: int = scenario.run.seed
+        self.max_time_s: float = scenario.run.max_time_s
+
+    def make_core(self, name: str) -> Any:
+        makers = {"plant": Plant, "filter": Filter, "ctrl": Controller,
+                  "sensor": lambda: Sensor(_rng(self.seed, "sensor"))}
+        return makers[name]()
+
+    def observe(self, record: Record) -> str | None:
+        return None  # runs to max_time_s
+
+    def metrics(self, record: Record) -> dict[str, Any]:
+        truth = [m for m in record.stream("plant", "truth") if isinstance(m, TruthState)]
+        return {
+            "final_x": truth[-1].x if truth else None,
+            "final_error": abs(10.0 - truth[-1].x) if truth else None,
+            "trajectory_sha256": trajectory_sha256(truth),
+        }

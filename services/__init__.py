@@ -1,0 +1,1 @@
+"""One sub-package per tidelink process and the tools around them."""
