@@ -39,6 +39,8 @@ class ServiceFailed(RuntimeError):
 class Coordinator:
     """Starts the service processes, drives the ticks, records the run."""
 
+    service_module = "common.runtime.lockstep_service"
+
     def __init__(self, scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> None:
         self.scenario = scenario
         self.raw = raw
@@ -69,11 +71,11 @@ class Coordinator:
                 try:
                     for name in self.mission.names:
                         self.children[name] = spawn(
-                            name, ["-m", "common.runtime.lockstep_service", name,
+                            name, ["-m", self.service_module, name,
                                    "--scenario-json", str(raw_path), "--connect", endpoint],
                             self.log_dir)
                     self._await_alive(inbox)
-                    result = self._drive(inbox, tick_pub)
+                    result = self.drive(inbox, tick_pub)
                 except BaseException:
                     stop_all(list(self.children.values()))
                     raise
@@ -149,7 +151,7 @@ class Coordinator:
             self._pump(inbox, deadline, f"data of tick {k} on {', '.join(missing)}")
         return new_marks
 
-    def _drive(self, inbox: Inbox, pub: Any) -> RunResult:
+    def drive(self, inbox: Inbox, pub: Any) -> RunResult:
         max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, marks, reason = 0, 0, {}, "max_time"
         wall0 = time.monotonic()

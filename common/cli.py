@@ -1,0 +1,133 @@
+"""The `tidelink` command line: check, run, router (one sub-command per job)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from common.config.loader import ConfigError
+
+log = logging.getLogger("tidelink")
+
+
+def _scenario_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", type=Path, help="scenario TOML file, e.g. configs/default.toml")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)")
+    p.add_argument("--seed", type=int, default=None, help="override run.seed")
+
+
+def cmd_check(a: argparse.Namespace) -> int:
+    from common.config.scenario import load_scenario
+    from common.runtime.mission import load_mission
+
+    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed)
+    mission = load_mission(scenario)
+    print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {', '.join(mission.names)})")
+    return 0
+
+
+def cmd_run(a: argparse.Namespace) -> int:
+    from common.config.scenario import load_scenario
+    from common.runtime.run import run_scenario, write_outputs
+
+    overrides = list(a.overrides)
+    if a.runtime:
+        overrides.append(f'runtime.kind="{a.runtime}"')
+    if a.time_scale is not None:
+        overrides.append(f"runtime.time_scale={a.time_scale}")
+    scenario, raw = load_scenario(a.scenario, overrides, a.seed)
+    out = a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
+    wall0 = time.monotonic()
+    result = run_scenario(scenario, raw, log_dir=out / "logs")
+    metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    if a.json:
+        print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
+    else:
+        print_metrics(metrics, out)
+    return 0
+
+
+def _json_default(v: Any) -> Any:
+    raise TypeError(f"not JSON: {v!r}")
+
+
+def print_metrics(metrics: dict[str, Any], out: Path) -> None:
+    """A readable table of the scalar metrics (the JSON file has everything)."""
+    width = max(len(k) for k in metrics)
+    for k, v in sorted(metrics.items()):
+        if isinstance(v, dict | list):
+            continue
+        if isinstance(v, float):
+            v = f"{v:.4g}" if math.isfinite(v) else str(v)
+        print(f"  {k:<{width}}  {v}")
+    print(f"metrics: {out / 'metrics.json'}")
+
+
+def cmd_router(a: argparse.Namespace) -> int:
+    from common.bus import Bus, Keys
+    from common.config.bus import BusConfig
+    from common.runtime.signals import Shutdown, install_shutdown_handlers
+
+    install_shutdown_handlers()
+    cfg = BusConfig(mode="router", listen=tuple(a.listen))
+    try:
+        with Bus(cfg, Keys("router", "router")):
+            print(f"zenoh router listening on {', '.join(a.listen)}; Ctrl-C to stop", flush=True)
+            while True:
+                time.sleep(3600)  # the router works on Zenoh's threads; we only wait for a signal
+    except Shutdown:
+        return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="tidelink", description="Networked AUV path control over Zenoh.")
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    c = sub.add_parser("check", help="validate a scenario file and exit non-zero on any problem")
+    _scenario_args(c)
+    c.set_defaults(func=cmd_check)
+
+    r = sub.add_parser("run", help="run one mission and write DIR/metrics.json")
+    _scenario_args(r)
+    r.add_argument("--runtime", choices=("inproc", "lockstep", "realtime"), default=None,
+                   help="override runtime.kind (default: the scenario's, else inproc)")
+    r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
+    r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
+    r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    r.set_defaults(func=cmd_run)
+
+    z = sub.add_parser("router", help="run a Zenoh router (no zenohd is installable here)")
+    z.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
+                   help="e.g. tcp/127.0.0.1:7447 (repeatable)")
+    z.set_defaults(func=cmd_router)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = build_parser()
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if a.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    try:
+        return int(a.func(a))
+    except ConfigError as exc:
+        print(f"tidelink: config error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("tidelink: interrupted", file=sys.stderr)
+        return 130
+    except (RuntimeError, ValueError, TimeoutError) as exc:
+        print(f"tidelink: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

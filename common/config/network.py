@@ -1,0 +1,224 @@
+"""Network-model configuration: per-link profiles, per-link overrides and scheduled outages.
+
+A *link* is one stream as seen by one receiving service, named ``"<source>/<stream>-><receiver>"``
+(e.g. ``"sensor/nav->estimator"``). Overrides and outages name links exactly or by one of two
+patterns: ``"<source>/<stream>->*"`` (that stream, to every receiver) or ``"*-><receiver>"``
+(every stream into that receiver).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+JitterKind = Literal["none", "normal", "uniform", "exponential", "pareto"]
+LossKind = Literal["none", "bernoulli", "gilbert_elliott"]
+
+_NAME = r"[A-Za-z0-9_.\-]+"  # service / stream names: no '/', '>' or '*'
+_LINK_RE = re.compile(rf"^(?P<src>{_NAME})/(?P<stream>{_NAME})->(?P<dst>{_NAME})$")
+_SRC_PATTERN_RE = re.compile(rf"^(?P<src>{_NAME})/(?P<stream>{_NAME})->\*$")
+_DST_PATTERN_RE = re.compile(rf"^\*->(?P<dst>{_NAME})$")
+_SERVICE_RE = re.compile(rf"^{_NAME}$")
+
+
+def link_name(source_service: str, stream: str, receiver: str) -> str:
+    """Canonical link name ``"source/stream->receiver"``; raises ValueError on a bad part."""
+    name = f"{source_service}/{stream}->{receiver}"
+    if _LINK_RE.match(name) is None:
+        raise ValueError(
+            f"link: {name!r} is not a valid link name, expected 'source/stream->receiver'"
+        )
+    return name
+
+
+def parse_link(link: str) -> tuple[str, str, str]:
+    """Split an exact link name into (source_service, stream, receiver)."""
+    m = _LINK_RE.match(link)
+    if m is None:
+        raise ValueError(
+            f"link: {link!r} is not a valid link name, expected 'source/stream->receiver'"
+        )
+    return m["src"], m["stream"], m["dst"]
+
+
+def _check_link_pattern(field: str, pattern: str) -> None:
+    if not (
+        _LINK_RE.match(pattern) or _SRC_PATTERN_RE.match(pattern) or _DST_PATTERN_RE.match(pattern)
+    ):
+        raise ValueError(
+            f"{field}: {pattern!r} is not a link or link pattern, expected "
+            "'source/stream->receiver', 'source/stream->*' or '*->receiver'"
+        )
+
+
+def link_matches(pattern: str, link: str) -> bool:
+    """Whether an exact link name, or a ``src/stream->*`` / ``*->dst`` pattern, covers ``link``."""
+    if pattern == link:
+        return True
+    src, stream, dst = parse_link(link)
+    if pattern.endswith("->*"):
+        return pattern == f"{src}/{stream}->*"
+    if pattern.startswith("*->"):
+        return pattern == f"*->{dst}"
+    return False
+
+
+def _check_prob(field: str, p: float) -> None:
+    if not (0.0 <= p <= 1.0):
+        raise ValueError(f"{field}: {p!r} is not a probability, expected a value in [0, 1]")
+
+
+def _check_nonneg(field: str, x: float) -> None:
+    if not (math.isfinite(x) and x >= 0.0):
+        raise ValueError(f"{field}: {x!r} is invalid, expected a finite value >= 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinkProfile:
+    """How one link behaves: delay + jitter (or a trace), loss, duplication, order, bandwidth.
+
+    The defaults describe an ideal link: no delay, no loss, FIFO, unlimited bandwidth.
+    """
+
+    # one-way delay = delay_s + jitter (jitter >= 0 except 'uniform', which is centred)
+    delay_s: float = 0.0
+    # jitter distribution; jitter_s is its scale:
+    #   normal: std of N(0, jitter_s^2), the total delay truncated (conditioned) to >= 0;
+    #   uniform: half-width, jitter ~ U(-jitter_s, +jitter_s) (needs jitter_s <= delay_s);
+    #   exponential: mean of Exp(1/jitter_s);
+    #   pareto: scale of a Lomax (Pareto II) jitter jitter_s*((1-u)^(-1/shape) - 1) >= 0,
+    #           mean jitter_s/(shape-1), finite variance needs pareto_shape > 2
+    jitter: JitterKind = "none"
+    jitter_s: float = 0.0
+    pareto_shape: float = 3.0
+    # text/CSV file of one-way delays (s), replayed cyclically by seq; "" = none.
+    # With a trace the delay is delay_s + trace[seq % len(trace)] and jitter must be 'none'.
+    trace_file: str = ""
+    # loss model: bernoulli uses loss_p; gilbert_elliott uses the ge_* fields
+    loss: LossKind = "none"
+    loss_p: float = 0.0
+    ge_p_gb: float = 0.01  # P(good -> bad) per message
+    ge_p_bg: float = 0.3  # P(bad -> good) per message
+    ge_loss_good: float = 0.0  # loss probability in the good state
+    ge_loss_bad: float = 1.0  # loss probability in the bad state
+    # probability that a delivered message arrives twice (the copy has its own delay draw)
+    duplicate_p: float = 0.0
+    # True: a message never overtakes an earlier one on this link (TCP-like, Zenoh default)
+    fifo: bool = True
+    # serialisation bandwidth (bit/s) of the link; 0 = unlimited (no queue)
+    bandwidth_bps: float = 0.0
+    # messages that may wait behind the one being transmitted; more are tail-dropped
+    queue_len: int = 64
+
+    def __post_init__(self) -> None:
+        _check_nonneg("delay_s", self.delay_s)
+        _check_nonneg("jitter_s", self.jitter_s)
+        if self.jitter not in ("none", "normal", "uniform", "exponential", "pareto"):
+            raise ValueError(
+                f"jitter: {self.jitter!r} is unknown, expected one of "
+                "'none', 'normal', 'uniform', 'exponential', 'pareto'"
+            )
+        if self.jitter == "none" and self.jitter_s != 0.0:
+            raise ValueError(f"jitter_s: {self.jitter_s!r} given but jitter is 'none', expected 0")
+        if self.jitter == "uniform" and self.jitter_s > self.delay_s:
+            raise ValueError(
+                f"jitter_s: uniform half-width {self.jitter_s!r} exceeds delay_s {self.delay_s!r}, "
+                "expected jitter_s <= delay_s so the delay stays >= 0"
+            )
+        if not (math.isfinite(self.pareto_shape) and self.pareto_shape > 2.0):
+            raise ValueError(
+                f"pareto_shape: {self.pareto_shape!r} is invalid, expected > 2 (finite variance)"
+            )
+        if self.trace_file and self.jitter != "none":
+            raise ValueError(
+                f"jitter: {self.jitter!r} given with trace_file {self.trace_file!r}, "
+                "expected 'none' (a trace replaces the jitter)"
+            )
+        if self.loss not in ("none", "bernoulli", "gilbert_elliott"):
+            raise ValueError(
+                f"loss: {self.loss!r} is unknown, expected 'none', 'bernoulli' or 'gilbert_elliott'"
+            )
+        _check_prob("loss_p", self.loss_p)
+        if self.loss != "bernoulli" and self.loss_p != 0.0:
+            raise ValueError(f"loss_p: {self.loss_p!r} given but loss is {self.loss!r}, expected 0")
+        for name in ("ge_p_gb", "ge_p_bg", "ge_loss_good", "ge_loss_bad", "duplicate_p"):
+            _check_prob(name, getattr(self, name))
+        if self.loss == "gilbert_elliott" and self.ge_p_gb + self.ge_p_bg <= 0.0:
+            raise ValueError(
+                "ge_p_bg: ge_p_gb + ge_p_bg is 0, expected > 0 (the chain needs a stationary state)"
+            )
+        _check_nonneg("bandwidth_bps", self.bandwidth_bps)
+        if self.queue_len < 1:
+            raise ValueError(f"queue_len: {self.queue_len!r} is invalid, expected an integer >= 1")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Outage:
+    """A window [start_s, end_s) in which a link, or every link touching a service, is down.
+
+    Exactly one of ``link`` (a link name or pattern) and ``service`` (sender or receiver) is set.
+    """
+
+    start_s: float
+    end_s: float  # may be inf: a permanent partition
+    link: str = ""
+    service: str = ""
+
+    def __post_init__(self) -> None:
+        _check_nonneg("start_s", self.start_s)
+        if math.isnan(self.end_s) or self.end_s <= self.start_s:
+            raise ValueError(
+                f"end_s: {self.end_s!r} is invalid, expected end_s > start_s ({self.start_s!r})"
+            )
+        if bool(self.link) == bool(self.service):
+            raise ValueError("link: exactly one of link and service must be set for an outage")
+        if self.link:
+            _check_link_pattern("link", self.link)
+        elif _SERVICE_RE.match(self.service) is None:
+            raise ValueError(f"service: {self.service!r} is not a valid service name")
+
+    def applies_to(self, link: str) -> bool:
+        """Whether this outage takes ``link`` down (by name/pattern, or as sender or receiver)."""
+        if self.link:
+            return link_matches(self.link, link)
+        src, _, dst = parse_link(link)
+        return self.service in (src, dst)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinkOverride:
+    """A complete profile for the links a name or pattern covers (it does not merge fields)."""
+
+    link: str  # "src/stream->dst", "src/stream->*" or "*->dst"
+    profile: LinkProfile
+
+    def __post_init__(self) -> None:
+        _check_link_pattern("link", self.link)
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkConfig:
+    """The modelled network: a default profile, per-link overrides and scheduled outages."""
+
+    default: LinkProfile = LinkProfile()
+    links: tuple[LinkOverride, ...] = ()
+    outages: tuple[Outage, ...] = ()
+
+    def __post_init__(self) -> None:
+        seen: set[str] = set()
+        for o in self.links:
+            if o.link in seen:
+                raise ValueError(f"links: {o.link!r} is overridden twice, expected each once")
+            seen.add(o.link)
+
+
+def profile_for(cfg: NetworkConfig, link: str) -> LinkProfile:
+    """Resolve a link's profile: exact name, then 'src/stream->*', then '*->dst', then default."""
+    src, stream, dst = parse_link(link)
+    by_name = {o.link: o.profile for o in cfg.links}
+    for key in (link, f"{src}/{stream}->*", f"*->{dst}"):
+        if key in by_name:
+            return by_name[key]
+    return cfg.default

@@ -1,0 +1,120 @@
+"""A realtime service process: hosts one core on the (optionally scaled) wall clock."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from common.bus import Bus, Inbox, Keys, Liveliness, Received
+from common.config.bus import BusConfig
+from common.config.scenario import scenario_from_raw
+from common.messages import Tick, WireError, decode_routing, encode_routing
+from common.netmodel import NetworkModel
+from common.runtime.dataflow import Dataflow
+from common.runtime.host import STATS_STREAM, Host, to_us
+from common.runtime.lockstep_service import CLOCK
+from common.runtime.mission import load_mission
+from common.runtime.signals import Shutdown, install_shutdown_handlers
+
+log = logging.getLogger("tidelink.realtime")
+
+
+class RealtimeService:
+    """Steps its core when the scaled wall clock reaches each period; applies the link model's
+    delivery times as timers (a message is handed over at max(modelled time, arrival))."""
+
+    def __init__(self, name: str, raw: dict[str, object], bus_cfg: BusConfig) -> None:
+        self.scenario = scenario_from_raw(raw)
+        mission = load_mission(self.scenario)
+        cores = {n: mission.make_core(n) for n in mission.names}
+        if name not in cores:
+            raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(cores)}")
+        flow = Dataflow.of([c.spec for c in cores.values()])
+        self.name = name
+        self.host = Host(cores[name], flow, NetworkModel(self.scenario.network,
+                                                          seed=self.scenario.run.seed),
+                         stats_period_s=self.scenario.runtime.stats_period_s)
+        self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
+        self.bus_cfg = bus_cfg
+        self.scale = self.scenario.runtime.time_scale
+        self.t0: float | None = None
+        self.ticks = 0
+
+    def now_us(self) -> int:
+        assert self.t0 is not None
+        return to_us((time.monotonic() - self.t0) * self.scale)
+
+    def run(self) -> int:
+        with Bus(self.bus_cfg, self.keys) as bus:
+            inbox = Inbox()
+            for i in self.host.core.spec.inputs:
+                bus.subscribe_stream(i.source, i.stream, inbox)
+            bus.subscribe_stream(CLOCK, "tick", inbox)
+            pubs = {o.stream: bus.publisher(self.name, o.stream) for o in self.host.core.spec.outputs}
+            pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM)
+            bus.declare_alive(self.name)
+            while True:
+                timeout = None
+                if self.t0 is not None:
+                    nxt = self.host.next_step_us
+                    timeout = max(0.0, (nxt - self.now_us()) / 1e6 / self.scale)
+                ev = inbox.get(timeout=timeout)
+                if ev is not None and self._handle(ev):
+                    final = self.host.link_stats(self.now_us() / 1e6)
+                    pubs[STATS_STREAM].put(final)
+                    return 0
+                if self.t0 is not None and self.now_us() >= self.host.next_step_us:
+                    self.ticks += 1
+                    # the core sees its scheduled step time; late wake-ups do not skew periods
+                    t_us = self.host.next_step_us
+                    for o in self.host.run_tick(self.ticks, t_us):
+                        pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
+
+    def _handle(self, ev: Received | Liveliness) -> bool:
+        """Take one event; True when the run is over."""
+        if isinstance(ev, Liveliness):
+            return False
+        if isinstance(ev.msg, Tick):
+            if ev.msg.stop:
+                return True
+            if self.t0 is None:
+                self.t0 = time.monotonic() - ev.msg.time_us / 1e6 / self.scale
+            return False
+        if self.t0 is None or ev.attachment is None:
+            return False
+        try:
+            _, schedule = decode_routing(ev.attachment)
+        except WireError as exc:
+            log.warning("%s: bad routing on %s: %s", self.name, ev.key, exc)
+            return False
+        times = schedule.get(self.name, ())
+        if times:
+            arrived = self.now_us()
+            service, stream = self.keys.split(ev.key)
+            # -1: realtime has no shared tick numbers; delivery waits for the modelled time
+            self.host.accept(ev.msg, service, stream, tuple(max(t, arrived) for t in times), -1)
+        return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("name")
+    p.add_argument("--scenario-json", required=True, type=Path)
+    p.add_argument("--connect", required=True)
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s")
+    install_shutdown_handlers()
+    raw = json.loads(a.scenario_json.read_text())
+    try:
+        return RealtimeService(a.name, raw, BusConfig(mode="client", connect=(a.connect,))).run()
+    except Shutdown as exc:
+        log.info("stopping on %s", exc)
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,76 @@
+"""Run a scenario in the runtime it names and write its outputs (metrics.json)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from common.config.scenario import Scenario
+from common.runtime.inproc import RunResult, run_inproc
+
+
+def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunResult:
+    """Dispatch to the inproc, lockstep or realtime runtime."""
+    kind = scenario.runtime.kind
+    if kind == "inproc":
+        return run_inproc(scenario)
+    if kind == "lockstep":
+        from common.runtime.lockstep import run_lockstep
+
+        return run_lockstep(scenario, raw, log_dir)
+    from common.runtime.realtime import run_realtime
+
+    return run_realtime(scenario, raw, log_dir)
+
+
+def _clean(v: Any) -> Any:
+    """JSON-safe: non-finite floats become None (JSON has no NaN)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: _clean(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_clean(x) for x in v]
+    return v
+
+
+def write_outputs(result: RunResult, scenario: Scenario, out: Path, *, wall_s: float) -> dict[str, Any]:
+    """Write out/metrics.json (atomically) and return the metrics with the run's facts added."""
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = dict(result.metrics)
+    metrics.update({
+        "end_reason": result.reason,
+        "t_end_s": result.t_end,
+        "ticks": result.ticks,
+        "runtime": scenario.runtime.kind,
+        "seed": scenario.run.seed,
+        "wall_s": round(wall_s, 3),
+        "link_stats": link_stats(result),
+    })
+    metrics = _clean(metrics)
+    tmp = out / "metrics.json.tmp"
+    tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
+    tmp.replace(out / "metrics.json")
+    return metrics
+
+
+def link_stats(result: RunResult) -> dict[str, dict[str, Any]]:
+    """The last LinkStats of every service, by link name."""
+    from common.messages import LinkStats
+
+    out: dict[str, dict[str, Any]] = {}
+    for service, stream in result.record.keys():
+        if stream != "stats":
+            continue
+        msgs = [m for m in result.record.stream(service, stream) if isinstance(m, LinkStats)]
+        if msgs:
+            for c in msgs[-1].links:
+                out[c.link] = {
+                    "sent": c.sent, "delivered": c.delivered, "dropped_loss": c.dropped_loss,
+                    "dropped_outage": c.dropped_outage, "dropped_queue": c.dropped_queue,
+                    "duplicated": c.duplicated, "delay_p50_s": c.delay_p50,
+                    "delay_p99_s": c.delay_p99,
+                }
+    return out
