@@ -48,3 +48,18 @@ class RuntimeConfig:
         for name in ("stats_period_s", "start_timeout_s", "tick_timeout_s"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name}: must be > 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TestLoopConfig:
+    """The runtime self-test dataflow (common.runtime.testloop): set-point and fault injection."""
+
+    __test__ = False  # not a pytest class
+
+    setpoint: float = 10.0
+    crash_service: str = ""  # this service's process exits with code 3 at crash_at_s ...
+    crash_at_s: float = 0.0  # ... so tests can check that a dead service fails the run fast
+
+    def __post_init__(self) -> None:
+        if self.crash_service and self.crash_service not in ("ctrl", "filter", "plant", "sensor"):
+            raise ValueError("crash_service: must be one of ctrl, filter, plant, sensor")

@@ -8,6 +8,7 @@ plant integrates the command. Select it with `[run] mission = "common.runtime.te
 from __future__ import annotations
 
 import hashlib
+import os
 from typing import Any
 
 import numpy as np
@@ -102,9 +103,10 @@ class Filter:
 
 
 class Controller:
-    """Proportional controller towards the set-point 10."""
+    """Proportional controller towards the set-point."""
 
-    def __init__(self) -> None:
+    def __init__(self, setpoint: float) -> None:
+        self.setpoint = setpoint
         self.spec = CoreSpec(
             name="ctrl",
             inputs=(InputSpec(source="filter", stream="state", msg_type=StateEstimate,
@@ -123,8 +125,23 @@ class Controller:
     def step(self, t: float) -> list[Emit]:
         if self.x is None:
             return []
-        u = max(-2.0, min(2.0, 0.8 * (10.0 - self.x)))
+        u = max(-2.0, min(2.0, 0.8 * (self.setpoint - self.x)))
         return [Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=u, w=0.0, path_id=0))]
+
+
+class _Crashing:
+    """Wraps a core so its process dies at a given time (fault injection for tests)."""
+
+    def __init__(self, core: Any, at_s: float) -> None:
+        self.core, self.at_s, self.spec = core, at_s, core.spec
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        return self.core.deliver(d)  # type: ignore[no-any-return]
+
+    def step(self, t: float) -> list[Emit]:
+        if t >= self.at_s:
+            os._exit(3)  # a hard death, as a segfault or the OOM killer would cause
+        return self.core.step(t)  # type: ignore[no-any-return]
 
 
 def _rng(seed: int, name: str) -> np.random.Generator:
@@ -141,11 +158,16 @@ class TestLoop:
     def __init__(self, scenario: Any) -> None:
         self.seed: int = scenario.run.seed
         self.max_time_s: float = scenario.run.max_time_s
+        self.cfg = scenario.testloop
 
     def make_core(self, name: str) -> Any:
-        makers = {"plant": Plant, "filter": Filter, "ctrl": Controller,
+        makers = {"plant": Plant, "filter": Filter,
+                  "ctrl": lambda: Controller(self.cfg.setpoint),
                   "sensor": lambda: Sensor(_rng(self.seed, "sensor"))}
-        return makers[name]()
+        core = makers[name]()
+        if name == self.cfg.crash_service:
+            core = _Crashing(core, self.cfg.crash_at_s)
+        return core
 
     def observe(self, record: Record) -> str | None:
         return None  # runs to max_time_s
@@ -154,6 +176,6 @@ class TestLoop:
         truth = [m for m in record.stream("plant", "truth") if isinstance(m, TruthState)]
         return {
             "final_x": truth[-1].x if truth else None,
-            "final_error": abs(10.0 - truth[-1].x) if truth else None,
+            "final_error": abs(self.cfg.setpoint - truth[-1].x) if truth else None,
             "trajectory_sha256": trajectory_sha256(truth),
         }

@@ -1,0 +1,48 @@
+"""Shared fixtures: scenario files for the runtime self-test loop."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A network profile with everything the acceptance asks for: delay, jitter, Bernoulli and
+# Gilbert-Elliott loss, duplication and an outage.
+LOSSY_TESTLOOP = """
+[run]
+mission = "common.runtime.testloop:TestLoop"
+max_time_s = {max_time}
+
+[network.default]
+delay_s = 0.05
+jitter = "normal"
+jitter_s = 0.03
+loss = "bernoulli"
+loss_p = 0.1
+duplicate_p = 0.05
+fifo = false
+
+[[network.links]]
+link = "ctrl/cmd->plant"
+[network.links.profile]
+delay_s = 0.08
+jitter = "exponential"
+jitter_s = 0.02
+loss = "gilbert_elliott"
+ge_p_gb = 0.05
+ge_p_bg = 0.3
+
+[[network.outages]]
+start_s = 4.0
+end_s = 5.5
+service = "filter"
+"""
+
+
+@pytest.fixture
+def testloop_toml(tmp_path: Path) -> Path:
+    p = tmp_path / "testloop.toml"
+    p.write_text(LOSSY_TESTLOOP.format(max_time=10.0))
+    return p
