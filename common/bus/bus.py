@@ -145,7 +145,7 @@ class Bus:
             self._declared.append(obj)
         return obj
 
-    def publisher(self, service: str, stream: str, *, express: bool = False) -> Publisher:
+    def publisher(self, service: str, stream: str, *, express: bool = True) -> Publisher:
         key = self.keys.stream(service, stream)
         pub = self.session.declare_publisher(
             key,

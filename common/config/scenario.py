@@ -7,9 +7,15 @@ from pathlib import Path
 from typing import Any
 
 from common.config.bus import BusConfig
+from common.config.controller import ControllerConfig
+from common.config.estimator import EstimatorConfig
 from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
 from common.config.network import NetworkConfig
-from common.config.run import RunConfig, RuntimeConfig
+from common.config.planner import PlannerConfig
+from common.config.run import RunConfig, RuntimeConfig, TestLoopConfig
+from common.config.sensor import SensorConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import WorldConfig
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -20,6 +26,13 @@ class Scenario:
     runtime: RuntimeConfig = field(default_factory=RuntimeConfig)
     bus: BusConfig = field(default_factory=BusConfig)
     network: NetworkConfig = field(default_factory=NetworkConfig)
+    world: WorldConfig = field(default_factory=WorldConfig)
+    vehicle: VehicleConfig = field(default_factory=VehicleConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    testloop: TestLoopConfig = field(default_factory=TestLoopConfig)
 
 
 def load_scenario(path: str | Path, overrides: list[str] | None = None,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import types
 import typing
 from collections.abc import Callable
@@ -17,6 +18,11 @@ from common.messages.types import MESSAGE_TYPES
 # A converter turns one decoded msgpack value into the field's Python value, or raises WireError.
 Converter = Callable[[str, Any], Any]
 Encoder = Callable[[Any], Any]
+# A fast converter does the same for the common, valid case without building field names; it
+# returns _SLOW for anything unusual, and the checked converters then decide and name the error.
+# So the fast path only ever returns what the checked path would have returned.
+FastConverter = Callable[[Any], Any]
+_SLOW: Any = object()
 
 _ENVELOPE = ("stamp", "source", "seq", "sent")
 _MAX_BYTES = 16 * 1024 * 1024
@@ -27,7 +33,7 @@ def _float(name: str, v: Any) -> float:
     if t is float:
         if not math.isfinite(v):
             raise WireError(f"{name}: {v!r} is not a finite number")
-        return v  # type: ignore[no-any-return]
+        return v
     if t is int:
         return float(v)
     raise WireError(f"{name}: expected a number, got {t.__name__}")
@@ -36,26 +42,26 @@ def _float(name: str, v: Any) -> float:
 def _int(name: str, v: Any) -> int:
     if type(v) is not int:
         raise WireError(f"{name}: expected an integer, got {type(v).__name__}")
-    return v  # type: ignore[no-any-return]
+    return v
 
 
 def _str(name: str, v: Any) -> str:
     if type(v) is not str:
         raise WireError(f"{name}: expected a string, got {type(v).__name__}")
-    return v  # type: ignore[no-any-return]
+    return v
 
 
 def _bool(name: str, v: Any) -> bool:
     if type(v) is not bool:
         raise WireError(f"{name}: expected true/false, got {type(v).__name__}")
-    return v  # type: ignore[no-any-return]
+    return v
 
 
 def _literal(allowed: tuple[str, ...]) -> Converter:
     def conv(name: str, v: Any) -> str:
         if v not in allowed or type(v) is not str:
             raise WireError(f"{name}: {v!r} is not one of {', '.join(allowed)}")
-        return v  # type: ignore[no-any-return]
+        return v
 
     return conv
 
@@ -78,6 +84,74 @@ def _dict_str_int(name: str, v: Any) -> dict[str, int]:
 _SCALARS: dict[Any, Converter] = {float: _float, int: _int, str: _str, bool: _bool}
 
 
+def _fast_float(v: Any) -> Any:
+    # x - x is 0.0 exactly for every finite float, NaN for NaN and the infinities
+    return v if type(v) is float and v - v == 0.0 else _SLOW
+
+
+def _fast_exact(t: type) -> FastConverter:
+    def conv(v: Any) -> Any:
+        return v if type(v) is t else _SLOW
+
+    return conv
+
+
+def _fast_literal(allowed: tuple[str, ...]) -> FastConverter:
+    names = frozenset(allowed)
+
+    def conv(v: Any) -> Any:
+        return v if type(v) is str and v in names else _SLOW
+
+    return conv
+
+
+_FLOAT_ONLY = {float}
+
+
+def _fast_floats(v: Any) -> Any:
+    """A list of finite floats as a tuple (covariances, knots: the long lists on the wire)."""
+    if type(v) is not list:
+        return _SLOW
+    if not v:
+        return ()
+    if set(map(type, v)) != _FLOAT_ONLY:
+        return _SLOW
+    total = sum(v)  # finite if every item is (an overflow only sends us to the checked path)
+    return tuple(v) if total - total == 0.0 else _SLOW
+
+
+def _fast_tuple_of(item: FastConverter) -> FastConverter:
+    def conv(v: Any) -> Any:
+        if type(v) is not list:
+            return _SLOW
+        out = []
+        for x in v:
+            y = item(x)
+            if y is _SLOW:
+                return _SLOW
+            out.append(y)
+        return tuple(out)
+
+    return conv
+
+
+def _fast_dict_str_int(v: Any) -> Any:
+    if type(v) is not dict:
+        return _SLOW
+    for k, x in v.items():
+        if type(k) is not str or type(x) is not int:
+            return _SLOW
+    return v
+
+
+_FAST_SCALARS: dict[Any, FastConverter] = {
+    float: _fast_float,
+    int: _fast_exact(int),
+    str: _fast_exact(str),
+    bool: _fast_exact(bool),
+}
+
+
 class _Schema:
     """Field converters and encoders of one dataclass, derived once from its type hints."""
 
@@ -89,6 +163,7 @@ class _Schema:
         names = [f.name for f in dataclasses.fields(cls) if f.name not in skip]
         self.fields: dict[str, Converter] = {}
         self.encoders: dict[str, Encoder] = {}
+        fast: dict[str, FastConverter] = {}
         self.required = frozenset(
             f.name
             for f in dataclasses.fields(cls)
@@ -97,31 +172,58 @@ class _Schema:
             and f.default_factory is dataclasses.MISSING
         )
         for name in names:
-            self.fields[name], self.encoders[name] = self._compile(hints[name])
+            self.fields[name], self.encoders[name], fast[name] = self._compile(hints[name])
+        # Fast path plan: the exact key set of an encoded body (encode writes every field),
+        # finite-float fields checked inline, the others through their fast converters.
+        self.keyset = frozenset(names)
+        self.float_names = tuple(n for n in names if fast[n] is _fast_float)
+        self.fast_others = tuple((n, f) for n, f in fast.items() if f is not _fast_float)
 
-    def _compile(self, hint: Any) -> tuple[Converter, Encoder]:
+    def _compile(self, hint: Any) -> tuple[Converter, Encoder, FastConverter]:
         if hint in _SCALARS:
-            return _SCALARS[hint], (float if hint is float else _identity)
+            return _SCALARS[hint], (float if hint is float else _identity), _FAST_SCALARS[hint]
         origin = typing.get_origin(hint)
         args = typing.get_args(hint)
         if origin is typing.Literal:
-            return _literal(tuple(args)), _identity
+            return _literal(tuple(args)), _identity, _fast_literal(tuple(args))
         if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
-            item_conv, item_enc = self._compile(args[0])
+            item_conv, item_enc, item_fast = self._compile(args[0])
+            fast = _fast_floats if item_fast is _fast_float else _fast_tuple_of(item_fast)
             if item_enc is _identity:
-                return _tuple_of(item_conv), list
-            return _tuple_of(item_conv), lambda v: [item_enc(x) for x in v]
+                return _tuple_of(item_conv), list, fast
+            return _tuple_of(item_conv), lambda v: [item_enc(x) for x in v], fast
         if origin is dict and args == (str, int):
-            return _dict_str_int, _identity
+            return _dict_str_int, _identity, _fast_dict_str_int
         if dataclasses.is_dataclass(hint) and isinstance(hint, type):
             nested = _Schema(hint)
-            return nested.convert, nested.encode
+            return nested.convert, nested.encode, nested.fast_convert
         if origin is types.UnionType or origin is typing.Union:
             raise TypeError(f"{self.cls.__name__}: optional fields are not on the wire ({hint})")
         raise TypeError(f"{self.cls.__name__}: unsupported field type {hint!r}")
 
     def encode(self, obj: Any) -> dict[str, Any]:
         return {name: enc(getattr(obj, name)) for name, enc in self.encoders.items()}
+
+    def fast_convert(self, body: Any, envelope: dict[str, Any] | None = None) -> Any:
+        """The instance for a regular, valid body; _SLOW for anything else (never raises)."""
+        if type(body) is not dict or body.keys() != self.keyset:
+            return _SLOW
+        for name in self.float_names:
+            v = body[name]
+            if type(v) is not float or v - v != 0.0:
+                return _SLOW
+        kwargs = dict(body)  # never modify `body`: the checked path may still need it as is
+        for name, fast in self.fast_others:
+            v = fast(body[name])
+            if v is _SLOW:
+                return _SLOW
+            kwargs[name] = v
+        if envelope:
+            kwargs.update(envelope)
+        try:
+            return self.cls(**kwargs)
+        except Exception:  # noqa: BLE001 - a value out of range: let the checked path say so
+            return _SLOW
 
     def convert(self, where: str, body: Any, envelope: dict[str, Any] | None = None) -> Any:
         if type(body) is not dict:
@@ -146,17 +248,36 @@ _BY_NAME: dict[str, _Schema] = {cls.__name__: _Schema(cls) for cls in MESSAGE_TY
 _BY_CLASS: dict[type, tuple[str, _Schema]] = {s.cls: (n, s) for n, s in _BY_NAME.items()}
 
 
+class _Packer(threading.local):
+    """One reusable msgpack Packer per thread (msgpack.packb builds a new one per call)."""
+
+    def __init__(self) -> None:
+        self.pack = msgpack.Packer(use_bin_type=True).pack  # resets itself after errors too
+
+
+_PACKER = _Packer()
+
+
 def encode(msg: Message) -> bytes:
     """Serialise a message: [version, type, source, seq, stamp, sent, {field: value}]."""
     try:
         name, schema = _BY_CLASS[type(msg)]
     except KeyError:
-        raise WireError(f"cannot encode {type(msg).__name__}: not a tidelink message type") from None
-    return msgpack.packb(  # type: ignore[no-any-return]
-        [WIRE_VERSION, name, msg.source, msg.seq, float(msg.stamp), float(msg.sent),
-         schema.encode(msg)],
-        use_bin_type=True,
+        raise WireError(
+            f"cannot encode {type(msg).__name__}: not a tidelink message type"
+        ) from None
+    data: bytes = _PACKER.pack(
+        [
+            WIRE_VERSION,
+            name,
+            msg.source,
+            msg.seq,
+            float(msg.stamp),
+            float(msg.sent),
+            schema.encode(msg),
+        ]
     )
+    return data
 
 
 def decode(data: bytes) -> Message:
@@ -170,7 +291,7 @@ def decode(data: bytes) -> Message:
 
 
 def _decode(data: bytes) -> Message:
-    if not isinstance(data, bytes | bytearray | memoryview):
+    if not isinstance(data, (bytes, bytearray, memoryview)):  # a tuple: faster than a union
         raise WireError(f"expected bytes, got {type(data).__name__}")
     if len(data) == 0:
         raise WireError("empty payload")
@@ -192,6 +313,19 @@ def _decode(data: bytes) -> Message:
     schema = _BY_NAME.get(name)
     if schema is None:
         raise WireError(f"unknown message type {name!r}")
+    if (
+        type(source) is str
+        and type(seq) is int
+        and type(stamp) is float
+        and stamp - stamp == 0.0
+        and type(sent) is float
+        and sent - sent == 0.0
+    ):
+        fast: Message = schema.fast_convert(
+            body, {"source": source, "seq": seq, "stamp": stamp, "sent": sent}
+        )
+        if fast is not _SLOW:
+            return fast
     envelope = {
         "source": _str("source", source),
         "seq": _int("seq", seq),
@@ -205,7 +339,7 @@ def _decode(data: bytes) -> Message:
 def encode_routing(tick: int, deliveries: dict[str, tuple[int, ...]]) -> bytes:
     """The attachment a runtime sends with a message: its tick and modelled delivery times (us)
     per receiving service (an empty tuple: the model dropped it for that receiver)."""
-    return msgpack.packb([tick, {k: list(v) for k, v in deliveries.items()}])  # type: ignore[no-any-return]
+    return msgpack.packb([tick, {k: list(v) for k, v in deliveries.items()}])
 
 
 def decode_routing(data: bytes) -> tuple[int, dict[str, tuple[int, ...]]]:

@@ -56,12 +56,14 @@ class Coordinator:
         self.timeout_s = scenario.runtime.tick_timeout_s
 
     def run(self) -> RunResult:
-        port = free_port()
-        endpoint = f"tcp/127.0.0.1:{port}"
+        # [bus] listen: a fixed endpoint lets monitors on other machines join the run
+        listen = self.scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
+        endpoint = _connectable(listen[0])
         with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
             raw_path = Path(tmp) / "scenario.json"
             raw_path.write_text(json.dumps(self.raw))
-            bus_cfg = BusConfig(mode="router", listen=(endpoint,))
+            bus_cfg = BusConfig(mode="router", listen=listen,
+                                multicast_scouting=self.scenario.bus.multicast_scouting)
             with Bus(bus_cfg, self.keys) as bus:
                 inbox = Inbox()
                 bus.subscribe(self.keys.everything, inbox)
@@ -74,18 +76,23 @@ class Coordinator:
                             name, ["-m", self.service_module, name,
                                    "--scenario-json", str(raw_path), "--connect", endpoint],
                             self.log_dir)
+                    t_spawn = time.monotonic()
                     self._await_alive(inbox)
+                    log.info("all %d services alive after %.2f s", len(self.children),
+                             time.monotonic() - t_spawn)
                     result = self.drive(inbox, tick_pub)
                 except BaseException:
                     stop_all(list(self.children.values()))
                     raise
             # the bus is closed: our token vanished, which releases the services
+            t_close = time.monotonic()
             for child in self.children.values():
                 try:
                     child.proc.wait(timeout=10.0)
                 except Exception:  # noqa: BLE001 - stop_all below makes sure
                     log.warning("%s did not exit after the run; stopping it", child.name)
             stop_all(list(self.children.values()))
+            log.info("services exited %.2f s after the run", time.monotonic() - t_close)
             return result
 
     def _await_alive(self, inbox: Inbox) -> None:
@@ -169,6 +176,11 @@ class Coordinator:
         log.info("lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
                  t_us / 1e6, k + 1, time.monotonic() - wall0, reason)
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))
+
+
+def _connectable(endpoint: str) -> str:
+    """The endpoint children on this machine connect to (a wildcard listen maps to loopback)."""
+    return endpoint.replace("0.0.0.0", "127.0.0.1").replace("[::]", "127.0.0.1")
 
 
 def run_lockstep(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:

@@ -15,6 +15,7 @@ class Record:
 
     def __init__(self) -> None:
         self._streams: dict[tuple[str, str], dict[int, Message]] = {}
+        self._last: dict[tuple[str, str], Message] = {}
         self.count = 0
 
     def add(self, service: str, stream: str, msg: Message) -> None:
@@ -22,6 +23,13 @@ class Record:
         if msg.seq not in bucket:
             bucket[msg.seq] = msg
             self.count += 1
+            last = self._last.get((service, stream))
+            if last is None or msg.seq > last.seq:
+                self._last[(service, stream)] = msg
+
+    def last(self, service: str, stream: str) -> Message | None:
+        """The message with the highest seq on a stream so far (None if none)."""
+        return self._last.get((service, stream))
 
     def stream(self, service: str, stream: str) -> list[Message]:
         bucket = self._streams.get((service, stream), {})

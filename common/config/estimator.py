@@ -1,0 +1,92 @@
+"""Estimator configuration: pre-filters (eqs. 2, 3), vehicle EKF/UKF, obstacle tracks, buffer."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+PrefilterKind = Literal["none", "mean", "lag", "mean+lag"]
+VehicleFilterKind = Literal["ekf", "ukf"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstimatorConfig:
+    """How navigation fixes and obstacle detections are fused, and how often to publish."""
+
+    period_s: float = 0.1  # publish "state" and "tracks" every period
+    # paper's smoothing stage on the fixes: eq. (2) mean over mean_window, eq. (3) lag
+    prefilter: PrefilterKind = "none"
+    mean_window: int = 4  # m of eq. (2), in fixes
+    lag_time_constant_s: float = 0.2  # T of eq. (3)
+    vehicle_filter: VehicleFilterKind = "ekf"
+    # continuous white-noise intensities driving the unicycle's v and w (random walks)
+    accel_psd_m2_s3: float = 0.05  # of the surge acceleration
+    yaw_accel_psd_rad2_s3: float = 0.01  # of the yaw acceleration
+    max_predict_dt_s: float = 0.1  # longer predictions are split into equal sub-steps
+    init_std_xy_m: float = 1.0  # initial belief around the configured start pose
+    init_std_theta_rad: float = 0.1
+    init_std_v_mps: float = 0.5
+    init_std_w_rps: float = 0.1
+    ukf_alpha: float = 0.3  # Merwe scaled sigma points
+    ukf_beta: float = 2.0
+    ukf_kappa: float = 0.0
+    # obstacle tracks: an IMM per id of a constant-velocity and a constant-acceleration
+    # Kalman filter (a single CA filter is either too noisy on steady obstacles or too slow
+    # on weaving ones); white-noise intensities of each mode
+    track_cv_accel_psd_m2_s3: float = 1e-5  # CV mode: white acceleration
+    track_jerk_psd_m2_s5: float = 3e-3  # CA mode: white jerk
+    track_cv_sojourn_s: float = 100.0  # mean time an obstacle keeps a steady velocity
+    track_ca_sojourn_s: float = 2.0  # mean time a manoeuvre lasts
+    track_init_std_v_mps: float = 1.0
+    track_init_std_a_mps2: float = 0.5
+    track_gate_probability: float = 0.9999  # chi-square (2 dof) Mahalanobis gate
+    track_timeout_s: float = 3.0  # a track not updated for this long is dropped
+    # out-of-sequence fusion: measurements up to history_s older than the newest are re-fused
+    history_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "period_s",
+            "lag_time_constant_s",
+            "max_predict_dt_s",
+            "init_std_xy_m",
+            "init_std_theta_rad",
+            "init_std_v_mps",
+            "init_std_w_rps",
+            "ukf_alpha",
+            "track_init_std_v_mps",
+            "track_init_std_a_mps2",
+            "track_timeout_s",
+            "track_cv_sojourn_s",
+            "track_ca_sojourn_s",
+            "history_s",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: {value!r} must be a finite number > 0")
+        for name in (
+            "accel_psd_m2_s3",
+            "yaw_accel_psd_rad2_s3",
+            "track_cv_accel_psd_m2_s3",
+            "track_jerk_psd_m2_s5",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: {value!r} must be a finite number >= 0")
+        if self.prefilter not in ("none", "mean", "lag", "mean+lag"):
+            raise ValueError(
+                f"prefilter: {self.prefilter!r}, expected 'none', 'mean', 'lag' or 'mean+lag'"
+            )
+        if self.vehicle_filter not in ("ekf", "ukf"):
+            raise ValueError(f"vehicle_filter: {self.vehicle_filter!r}, expected 'ekf' or 'ukf'")
+        if not (isinstance(self.mean_window, int) and self.mean_window >= 1):
+            raise ValueError(f"mean_window: {self.mean_window!r} must be an integer >= 1")
+        if not 0.0 < self.track_gate_probability < 1.0:
+            raise ValueError(
+                f"track_gate_probability: {self.track_gate_probability!r}, expected (0, 1)"
+            )
+        if not math.isfinite(self.ukf_beta) or not math.isfinite(self.ukf_kappa):
+            raise ValueError("ukf_beta: ukf_beta and ukf_kappa must be finite")
+        if self.ukf_kappa + 5 <= 0:
+            raise ValueError(f"ukf_kappa: {self.ukf_kappa!r} must be > -5 (n + kappa > 0)")

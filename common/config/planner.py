@@ -1,0 +1,100 @@
+"""Planner configuration: cost grid, graph search, NURBS fit/refinement and replan events.
+
+Vehicle radius, minimum turning radius R_min, cruise speed v_ref and the area are not here:
+they live in the vehicle / world sections and are handed to the planner as arguments.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+SearchKind = Literal["dijkstra", "astar"]
+RefineMethod = Literal["levenberg_marquardt", "lbfgsb"]
+
+
+def _positive(name: str, x: float) -> None:
+    if not (math.isfinite(x) and x > 0.0):
+        raise ValueError(f"{name}: {x!r} is invalid, expected a finite value > 0")
+
+
+def _nonneg(name: str, x: float) -> None:
+    if not (math.isfinite(x) and x >= 0.0):
+        raise ValueError(f"{name}: {x!r} is invalid, expected a finite value >= 0")
+
+
+def _int_range(name: str, x: int, lo: int, hi: int) -> None:
+    if not (lo <= x <= hi):
+        raise ValueError(f"{name}: {x!r} is out of range, expected an integer in [{lo}, {hi}]")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlannerConfig:
+    """Tunables of the replan pipeline (cost map -> graph search -> NURBS fit -> refinement)."""
+
+    # --- cost grid, eq. (5)-(6) and (17)
+    resolution_m: float = 0.5  # grid cell size; 100 m x 40 m -> 200 x 80 cells
+    rho0_m: float = 1.0  # eq. (6) minimum safe distance (vehicle surface to obstacle surface)
+    rho_m: float = 4.0  # eq. (5)-(6) range of the repulsive potential (surface to surface)
+    k_r: float = 0.05  # eq. (5)-(6) repulsive constant K_r (m^2; the cost is dimensionless)
+    cost_cap: float = 10.0  # cap on the per-cell repulsive cost (eq. (6) diverges at rho0)
+    smoothing_len: int = 2  # eq. (17) filter length l in cells (kernel of 2l+1 taps); 0 = off
+    # --- graph search, eq. (15)-(16), (18)
+    search: SearchKind = "dijkstra"  # dijkstra: scipy csgraph (C); astar: heapq (pure Python)
+    connectivity: int = 8  # 8 or 16 neighbours per grid node (16: ~2x search time)
+    moving_window_s: float = 3.0  # a moving obstacle blocks its predicted disc over +- this
+    accel_horizon_s: float = 5.0  # beyond this, predictions drop the (tracked) acceleration
+    escape_len_m: float = 3.0  # a start inside the safety margin may leave it within this
+    # --- NURBS fit and refinement, eq. (8)-(13), (19)-(20)
+    nurbs_degree: int = 3
+    ctrl_spacing_m: float = 6.0  # max spacing of initial control points along the grid path
+    samples_per_span: int = 6  # refinement samples per knot span (Gauss-Legendre nodes)
+    refine_method: RefineMethod = "levenberg_marquardt"  # or scipy "lbfgsb"
+    refine_max_iter: int = 15  # solver iterations per refinement round
+    refine_rounds: int = 3  # rounds (tighter penalties, more control points) before NO_PATH
+    penalty_clearance: float = 1.0e3  # eq. (9) c_n for obstacle constraints (12)-(13)
+    penalty_curvature: float = 3.0e2  # eq. (9) c_n for the turning constraint (11)/(19)
+    clearance_margin_m: float = 0.15  # refinement aims this far beyond the required clearance
+    curvature_margin: float = 0.85  # refinement aims at k <= curvature_margin / R_min
+    n_samples_check: int = 2000  # dense samples of the final checks, eq. (12)-(13), (20)
+    # --- replan events
+    corridor_halfwidth_m: float = 3.0  # a tracked obstacle this close to the path ahead: replan
+    deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
+    min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
+
+    def __post_init__(self) -> None:
+        for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):
+            _positive(name, getattr(self, name))
+        for name in ("rho0_m", "moving_window_s", "accel_horizon_s", "escape_len_m"):
+            _nonneg(name, getattr(self, name))
+        for name in ("penalty_clearance", "penalty_curvature", "clearance_margin_m"):
+            _nonneg(name, getattr(self, name))
+        for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
+            _nonneg(name, getattr(self, name))
+        if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
+            raise ValueError(
+                f"rho_m: {self.rho_m!r} is invalid, expected a finite value > rho0_m "
+                f"({self.rho0_m!r}): the potential range must exceed the safe distance"
+            )
+        if self.resolution_m > 5.0:
+            raise ValueError(f"resolution_m: {self.resolution_m!r} is too coarse, expected <= 5")
+        _int_range("smoothing_len", self.smoothing_len, 0, 20)
+        if self.search not in ("dijkstra", "astar"):
+            raise ValueError(f"search: {self.search!r} is unknown, expected 'dijkstra' or 'astar'")
+        if self.refine_method not in ("levenberg_marquardt", "lbfgsb"):
+            raise ValueError(
+                f"refine_method: {self.refine_method!r} is unknown, "
+                "expected 'levenberg_marquardt' or 'lbfgsb'"
+            )
+        if self.connectivity not in (8, 16):
+            raise ValueError(f"connectivity: {self.connectivity!r} is invalid, expected 8 or 16")
+        _int_range("nurbs_degree", self.nurbs_degree, 2, 5)
+        _int_range("samples_per_span", self.samples_per_span, 2, 20)
+        _int_range("refine_max_iter", self.refine_max_iter, 0, 10_000)
+        _int_range("refine_rounds", self.refine_rounds, 1, 10)
+        _int_range("n_samples_check", self.n_samples_check, 100, 1_000_000)
+        if not (0.0 < self.curvature_margin <= 1.0):
+            raise ValueError(
+                f"curvature_margin: {self.curvature_margin!r} is invalid, expected in (0, 1]"
+            )

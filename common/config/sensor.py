@@ -1,0 +1,60 @@
+"""Sensor configuration: navigation fix (USBL/compass/DVL) and obstacle sonar noise and rates."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorConfig:
+    """Rates and noise of the navigation fix and of the obstacle scans.
+
+    The core steps at the faster rate; the slower rate must divide it (integer tick counts).
+    """
+
+    nav_rate_hz: float = 10.0
+    obstacle_rate_hz: float = 5.0
+    nav_std_xy_m: float = 0.5  # USBL/GPS-like position noise, per axis
+    nav_std_heading_rad: float = 0.02  # compass
+    nav_std_speed_mps: float = 0.05  # DVL
+    det_range_m: float = 30.0  # to the obstacle's surface (centre distance - radius)
+    det_fov_half_angle_rad: float = 1.0471975511965976  # 60 deg either side of the heading
+    det_std_xy_m: float = 0.2  # sonar/camera position of an obstacle's centre, per axis
+    det_std_radius_m: float = 0.1
+    p_detect: float = 0.9  # per obstacle per scan
+
+    def __post_init__(self) -> None:
+        for name in ("nav_rate_hz", "obstacle_rate_hz", "det_range_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: {value!r} must be a finite number > 0")
+        for name in (
+            "nav_std_xy_m",
+            "nav_std_heading_rad",
+            "nav_std_speed_mps",
+            "det_std_xy_m",
+            "det_std_radius_m",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: {value!r} must be a finite number >= 0")
+        if not 0.0 < self.det_fov_half_angle_rad <= math.pi:
+            raise ValueError(
+                f"det_fov_half_angle_rad: {self.det_fov_half_angle_rad!r}, expected (0, pi]"
+            )
+        if not 0.0 <= self.p_detect <= 1.0:
+            raise ValueError(f"p_detect: {self.p_detect!r}, expected a probability in [0, 1]")
+        slow = min(self.nav_rate_hz, self.obstacle_rate_hz)
+        ratio = self.base_rate_hz / slow
+        if abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise ValueError(
+                f"obstacle_rate_hz: {self.base_rate_hz} / {slow} = {ratio:g} Hz ratio, "
+                "expected the faster of nav_rate_hz/obstacle_rate_hz to be an integer "
+                "multiple of the slower"
+            )
+
+    @property
+    def base_rate_hz(self) -> float:
+        """The core's step rate: the faster of the two streams."""
+        return max(self.nav_rate_hz, self.obstacle_rate_hz)

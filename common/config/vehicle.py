@@ -1,0 +1,181 @@
+"""Vehicle configuration: REMUS-100-like hull, eq. (11) bounds, actuators, current, watchdog.
+
+Sources for the defaults (REMUS-100, Hydroid/Kongsberg):
+- T. Prestero, "Verification of a six-degree of freedom simulation model for the REMUS
+  autonomous underwater vehicle", MSc thesis, MIT/WHOI 2001: length 1.33-1.6 m (1.6 m with
+  the usual payload sections), hull diameter 0.191 m, mass 30.5-31.9 kg, surge added mass
+  X_udot = -0.93 kg (~3 %; we take 10 % to cover the entrained flow of fins and sensors).
+- Hydroid REMUS-100 datasheet: max speed ~2.3 m/s (4.5 kn), typical 1.5 m/s (3 kn).
+- ITTC-1957 friction line and a correlation allowance dCf = 4e-4 (ITTC 1978 practice for
+  hydraulically rough model-scale hulls); seawater rho 1025 kg/m^3, nu 1.19e-6 m^2/s (15 C).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+
+def _positive(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value > 0")
+
+
+def _nonneg(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value >= 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CurrentConfig:
+    """Ocean current: constant part plus a first-order Gauss-Markov part per axis.
+
+    The Gauss-Markov part b obeys db = -b/tau dt + sigma sqrt(2/tau) dW (stationary std sigma),
+    sampled exactly every `update_s` and linearly interpolated in between, so the current is
+    a function of time and seed only (not of how often commands arrive).
+    """
+
+    x_mps: float = 0.0  # constant current, east (world x) component
+    y_mps: float = 0.0  # constant current, north (world y) component
+    sigma_mps: float = 0.0  # stationary std of the Gauss-Markov part (0 = off)
+    tau_s: float = 120.0  # correlation time of the Gauss-Markov part
+    update_s: float = 1.0  # knot spacing; must be a multiple of dt_internal_s
+
+    def __post_init__(self) -> None:
+        for name in ("x_mps", "y_mps"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: {getattr(self, name)!r} is not a finite number")
+        _nonneg("sigma_mps", self.sigma_mps)
+        _positive("tau_s", self.tau_s)
+        _positive("update_s", self.update_s)
+
+
+@dataclass(frozen=True, kw_only=True)
+class WatchdogConfig:
+    """Command watchdog: reject stale/out-of-order commands, HOLD then FAILSAFE on silence."""
+
+    max_command_age_s: float = 1.0  # reject a command whose age (t_now - stamp) exceeds this
+    hold_after_s: float = 2.0  # applied command older than this: ramp to zero speed, w = 0
+    failsafe_after_s: float = 5.0  # older than this: report FAILSAFE until a fresh command
+    hold_decel_mps2: float = 0.2  # speed ramp-down rate of the commanded speed in HOLD
+
+    def __post_init__(self) -> None:
+        _positive("max_command_age_s", self.max_command_age_s)
+        _positive("hold_after_s", self.hold_after_s)
+        _positive("failsafe_after_s", self.failsafe_after_s)
+        _positive("hold_decel_mps2", self.hold_decel_mps2)
+        if self.hold_after_s < self.max_command_age_s:
+            raise ValueError(
+                f"hold_after_s: {self.hold_after_s!r} is below max_command_age_s "
+                f"({self.max_command_age_s!r}), expected hold_after_s >= max_command_age_s"
+            )
+        if self.failsafe_after_s <= self.hold_after_s:
+            raise ValueError(
+                f"failsafe_after_s: {self.failsafe_after_s!r} must exceed hold_after_s "
+                f"({self.hold_after_s!r})"
+            )
+
+
+@dataclass(frozen=True, kw_only=True)
+class VehicleConfig:
+    """The simulated vehicle: plant, eq. (11) bounds, actuator loops, current and watchdog."""
+
+    period_s: float = 0.05  # publishing period of truth and status
+    dt_internal_s: float = 0.01  # fixed RK4 step (sub-stepped to exact delivery times)
+    # eq. (11): bounds on surge speed v and yaw rate w. No reverse: v_min >= 0.
+    v_min_mps: float = 0.0
+    v_max_mps: float = 2.0
+    w_min_rps: float = -0.5
+    w_max_rps: float = 0.5
+    accel_max_mps2: float = 0.3  # |dv/dt| bound ("must follow the rules of acceleration")
+    yaw_accel_max_rps2: float = 0.5  # |dw/dt| bound
+    cruise_speed_mps: float = 1.5  # v_ref: REMUS-100 survey speed (3 kn)
+    # eq. (12) r: radius of the vehicle's bounding circle in the plane (half the length)
+    radius_m: float = 0.8
+    # minimum turning radius R_min of eqs. (19)-(20); REMUS-100 turns in ~10 m diameter.
+    # Not enforced by the plant (eq. 11 does not contain it); the planner and the NURBS
+    # tracker respect it.
+    turn_radius_min_m: float = 5.0
+    # hull (eq. 14): S = pi D L * wetted_fraction (the cylinder minus nose/tail taper)
+    length_m: float = 1.6
+    diameter_m: float = 0.19
+    mass_kg: float = 31.9
+    added_mass_ratio: float = 0.1  # surge added mass as a fraction of the mass
+    wetted_fraction: float = 0.85
+    rho_kgpm3: float = 1025.0
+    nu_m2ps: float = 1.19e-6
+    delta_cf: float = 4.0e-4  # eq. (14) dCf: roughness / correlation allowance (ITTC)
+    # eq. (14) Cpv: viscous pressure (form) drag. A bare body of revolution with D/L = 0.12
+    # has Hoerner's form factor k = 1.5 (D/L)^1.5 + 7 (D/L)^3 ~ 0.07, i.e. ~3e-4; fins, nose
+    # transducers and the tail cone of a REMUS roughly triple it, hence 1e-3.
+    c_pv: float = 1.0e-3
+    # thrust bound: with the defaults R(2.05 m/s) = 9.1 N, so full thrust gives a steady top
+    # speed of ~2.05 m/s, just above v_max (the speed loop can reach and hold v_max).
+    thrust_max_n: float = 9.1
+    thrust_min_n: float = -5.0  # reverse thrust for braking (the prop can back down)
+    # inner speed loop: T = R(v_cmd) + kp (v_cmd - v) + ki int(v_cmd - v), bounded
+    speed_kp_npmps: float = 35.0  # ~ m_eff / 1 s: 1 s speed time constant before limits
+    # ki: half of critical damping ((kp + dR/dv)^2 / (4 m_eff) ~ 12 N/m); the drag
+    # feed-forward already makes the steady state exact, so the integral only trims model
+    # mismatch; a step from rest overshoots by < 1 % and settles in ~10 s.
+    speed_ki_npm: float = 6.0
+    # integration window: the integrand is weighted by exp(-((v_cmd - v) / band)^2)
+    speed_int_band_mps: float = 0.05
+    # yaw: first-order response of w towards the command, time constant yaw_tau_s
+    yaw_tau_s: float = 0.5
+    current: CurrentConfig = field(default_factory=CurrentConfig)
+    watchdog: WatchdogConfig = field(default_factory=WatchdogConfig)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "period_s", "dt_internal_s", "v_max_mps", "w_max_rps", "accel_max_mps2",
+            "yaw_accel_max_rps2", "cruise_speed_mps", "radius_m", "turn_radius_min_m",
+            "length_m", "diameter_m", "mass_kg", "wetted_fraction", "rho_kgpm3", "nu_m2ps",
+            "thrust_max_n", "yaw_tau_s", "speed_kp_npmps", "speed_int_band_mps",
+        ):  # fmt: skip
+            _positive(name, getattr(self, name))
+        for name in (
+            "v_min_mps", "added_mass_ratio", "delta_cf", "c_pv", "speed_ki_npm",
+        ):  # fmt: skip
+            _nonneg(name, getattr(self, name))
+        if self.v_min_mps >= self.v_max_mps:
+            raise ValueError(
+                f"v_min_mps: {self.v_min_mps!r} must be below v_max_mps ({self.v_max_mps!r})"
+            )
+        if not (math.isfinite(self.w_min_rps) and self.w_min_rps < 0.0):
+            raise ValueError(f"w_min_rps: {self.w_min_rps!r} is invalid, expected a value < 0")
+        if not (self.v_min_mps <= self.cruise_speed_mps <= self.v_max_mps):
+            raise ValueError(
+                f"cruise_speed_mps: {self.cruise_speed_mps!r} is outside [v_min_mps, v_max_mps] "
+                f"= [{self.v_min_mps!r}, {self.v_max_mps!r}]"
+            )
+        if self.cruise_speed_mps / self.turn_radius_min_m > min(self.w_max_rps, -self.w_min_rps):
+            raise ValueError(
+                f"turn_radius_min_m: {self.turn_radius_min_m!r} is too tight: turning on it at "
+                f"cruise speed needs a yaw rate above the eq. (11) bound, expected "
+                f"R_min >= cruise_speed_mps / min(w_max_rps, -w_min_rps)"
+            )
+        if self.wetted_fraction > 1.0:
+            raise ValueError(f"wetted_fraction: {self.wetted_fraction!r} must be <= 1")
+        if not (math.isfinite(self.thrust_min_n) and self.thrust_min_n <= 0.0):
+            raise ValueError(f"thrust_min_n: {self.thrust_min_n!r} is invalid, expected <= 0")
+        if self.dt_internal_s > self.period_s:
+            raise ValueError(
+                f"dt_internal_s: {self.dt_internal_s!r} exceeds period_s ({self.period_s!r})"
+            )
+        ratio = self.current.update_s / self.dt_internal_s
+        if abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise ValueError(
+                f"current: update_s {self.current.update_s!r} is not a multiple of "
+                f"dt_internal_s ({self.dt_internal_s!r})"
+            )
+
+    @property
+    def wetted_area_m2(self) -> float:
+        """Wetted surface S of eq. (14): pi D L times the wetted fraction."""
+        return math.pi * self.diameter_m * self.length_m * self.wetted_fraction
+
+    @property
+    def mass_eff_kg(self) -> float:
+        """Surge inertia including added mass."""
+        return self.mass_kg * (1.0 + self.added_mass_ratio)

@@ -1,0 +1,195 @@
+"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+MovingKind = Literal["line", "waypoints", "sinusoid"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class AreaConfig:
+    """The rectangular operating area X of the boundary constraint (paper: 100 x 40 m)."""
+
+    x_min_m: float = 0.0
+    x_max_m: float = 100.0
+    y_min_m: float = 0.0
+    y_max_m: float = 40.0
+
+    def __post_init__(self) -> None:
+        for name in ("x_min_m", "x_max_m", "y_min_m", "y_max_m"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(
+                    f"{name}: {getattr(self, name)!r} is not finite, expected a number"
+                )
+        if self.x_min_m >= self.x_max_m:
+            raise ValueError(f"x_min_m: {self.x_min_m} must be < x_max_m ({self.x_max_m})")
+        if self.y_min_m >= self.y_max_m:
+            raise ValueError(f"y_min_m: {self.y_min_m} must be < y_max_m ({self.y_max_m})")
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.x_min_m <= x <= self.x_max_m and self.y_min_m <= y <= self.y_max_m
+
+
+@dataclass(frozen=True, kw_only=True)
+class PoseConfig:
+    """A planar pose (x, y, heading theta measured from the x axis, counter-clockwise)."""
+
+    x_m: float
+    y_m: float
+    theta_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "theta_rad"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(
+                    f"{name}: {getattr(self, name)!r} is not finite, expected a number"
+                )
+
+
+@dataclass(frozen=True, kw_only=True)
+class CircleObstacleConfig:
+    """A static circular obstacle."""
+
+    id: int
+    x_m: float
+    y_m: float
+    radius_m: float
+
+    def __post_init__(self) -> None:
+        _check_id(self.id)
+        if not self.radius_m > 0.0:
+            raise ValueError(f"radius_m: {self.radius_m!r} must be > 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PolygonObstacleConfig:
+    """A static simple polygon obstacle; vertices flat (x0, y0, x1, y1, ...), any winding."""
+
+    id: int
+    vertices_m: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        _check_id(self.id)
+        if len(self.vertices_m) % 2 or len(self.vertices_m) < 6:
+            raise ValueError(
+                f"vertices_m: {len(self.vertices_m)} numbers, expected an even count >= 6 "
+                "(at least three x, y vertices)"
+            )
+        if not all(math.isfinite(v) for v in self.vertices_m):
+            raise ValueError("vertices_m: every coordinate must be finite")
+        # Lazy import: common.world imports this module, so a top-level import would be circular.
+        from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
+
+        v = vertices_array(self.vertices_m)
+        if not polygon_is_simple(v):
+            raise ValueError("vertices_m: edges cross each other, expected a simple polygon")
+        if abs(polygon_area(v)) < 1e-9:
+            raise ValueError("vertices_m: the polygon has zero area, expected a proper polygon")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MovingObstacleConfig:
+    """A moving circular obstacle whose centre follows alpha_k(t) (paper §2).
+
+    kind "line": alpha(t) = p0 + v t (constant velocity, forever).
+    kind "waypoints": loops p0 -> waypoints_m[0] -> ... -> back to p0 at speed_mps.
+    kind "sinusoid": alpha(t) = p0 + v t + A sin(2 pi f t + phase) n, n the left normal of v
+    (a crossing obstacle weaving across its direction of travel).
+    """
+
+    id: int
+    kind: MovingKind = "line"
+    radius_m: float = 1.0
+    x0_m: float
+    y0_m: float
+    vx_mps: float = 0.0  # line, sinusoid
+    vy_mps: float = 0.0  # line, sinusoid
+    waypoints_m: tuple[float, ...] = ()  # waypoints: further vertices of the loop, flat x, y
+    speed_mps: float = 0.0  # waypoints
+    amplitude_m: float = 0.0  # sinusoid
+    frequency_hz: float = 0.0  # sinusoid
+    phase_rad: float = 0.0  # sinusoid
+
+    def __post_init__(self) -> None:
+        _check_id(self.id)
+        if self.kind not in ("line", "waypoints", "sinusoid"):
+            raise ValueError(f"kind: {self.kind!r}, expected 'line', 'waypoints' or 'sinusoid'")
+        if not self.radius_m > 0.0:
+            raise ValueError(f"radius_m: {self.radius_m!r} must be > 0")
+        numbers = (self.x0_m, self.y0_m, self.vx_mps, self.vy_mps, self.speed_mps)
+        if not all(math.isfinite(v) for v in numbers + self.waypoints_m):
+            raise ValueError("x0_m: positions, velocities and waypoints must all be finite")
+        if self.kind == "waypoints":
+            if len(self.waypoints_m) % 2 or not self.waypoints_m:
+                raise ValueError(
+                    "waypoints_m: expected an even, non-empty list of x, y (the loop after p0)"
+                )
+            if not self.speed_mps > 0.0:
+                raise ValueError(f"speed_mps: {self.speed_mps!r} must be > 0 for kind 'waypoints'")
+            pts = ((self.x0_m, self.y0_m), *_pairs(self.waypoints_m))
+            loop = sum(math.dist(a, b) for a, b in zip(pts, pts[1:] + pts[:1], strict=True))
+            if loop < 1e-9:
+                raise ValueError("waypoints_m: the loop has zero length")
+        if self.kind == "sinusoid":
+            if math.hypot(self.vx_mps, self.vy_mps) <= 0.0:
+                raise ValueError("vx_mps: a 'sinusoid' needs a non-zero drift velocity (vx, vy)")
+            if not (self.amplitude_m >= 0.0 and self.frequency_hz >= 0.0):
+                raise ValueError("amplitude_m: amplitude_m and frequency_hz must be >= 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class WorldConfig:
+    """The scenario's world: area, start and goal poses, obstacles (ids unique over all)."""
+
+    area: AreaConfig = field(default_factory=AreaConfig)
+    start: PoseConfig = field(default_factory=lambda: PoseConfig(x_m=5.0, y_m=20.0))
+    goal: PoseConfig = field(default_factory=lambda: PoseConfig(x_m=95.0, y_m=20.0))
+    goal_tolerance_m: float = 1.0
+    circles: tuple[CircleObstacleConfig, ...] = ()
+    polygons: tuple[PolygonObstacleConfig, ...] = ()
+    moving: tuple[MovingObstacleConfig, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.goal_tolerance_m > 0.0:
+            raise ValueError(f"goal_tolerance_m: {self.goal_tolerance_m!r} must be > 0")
+        for name, pose in (("start", self.start), ("goal", self.goal)):
+            if not self.area.contains(pose.x_m, pose.y_m):
+                raise ValueError(f"{name}: ({pose.x_m}, {pose.y_m}) lies outside the area")
+        ids = [c.id for c in self.circles] + [p.id for p in self.polygons]
+        ids += [m.id for m in self.moving]
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        if dup:
+            raise ValueError(f"circles/polygons/moving: obstacle ids {dup} are used twice")
+        for i, c in enumerate(self.circles):
+            if not self.area.contains(c.x_m, c.y_m):
+                raise ValueError(f"circles[{i}]: centre ({c.x_m}, {c.y_m}) lies outside the area")
+        for i, p in enumerate(self.polygons):
+            xs, ys = p.vertices_m[::2], p.vertices_m[1::2]
+            if not all(self.area.contains(x, y) for x, y in zip(xs, ys, strict=True)):
+                raise ValueError(f"polygons[{i}]: a vertex lies outside the area")
+        for i, m in enumerate(self.moving):
+            pts = ((m.x0_m, m.y0_m), *_pairs(m.waypoints_m))
+            if not all(self.area.contains(x, y) for x, y in pts):
+                raise ValueError(f"moving[{i}]: its start or a waypoint lies outside the area")
+        self._check_free("start", self.start)
+        self._check_free("goal", self.goal)
+
+    def _check_free(self, name: str, pose: PoseConfig) -> None:
+        # Lazy import: common.world imports this module, so a top-level import would be circular.
+        from common.world.model import World
+
+        # eq. (12) with r = 0 and the obstacles at t = 0: the pose must not lie inside any.
+        if World(self).clearance(pose.x_m, pose.y_m, 0.0, 0.0) <= 0.0:
+            raise ValueError(f"{name}: ({pose.x_m}, {pose.y_m}) lies inside an obstacle at t = 0")
+
+
+def _check_id(i: int) -> None:
+    if not isinstance(i, int) or isinstance(i, bool) or i < 0:
+        raise ValueError(f"id: {i!r} must be an integer >= 0")
+
+
+def _pairs(flat: tuple[float, ...]) -> tuple[tuple[float, float], ...]:
+    return tuple(zip(flat[::2], flat[1::2], strict=True))

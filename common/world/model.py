@@ -1,0 +1,130 @@
+"""The world model: obstacles at time t and the safety clearance of eq. (12)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from common.config.world import WorldConfig
+from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
+from common.world.trajectory import Trajectory, make_trajectory
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ObstacleState:
+    """One obstacle at one time: centre, velocity, acceleration, radius.
+
+    Polygons report their area centroid and circumradius (what a sonar would see); their
+    exact geometry is kept inside `World` for the clearance.
+    """
+
+    id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    ax: float
+    ay: float
+    radius: float
+    moving: bool
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class _Polygon:
+    id: int
+    vertices: FloatArray
+    cx: float
+    cy: float
+    circumradius: float
+
+
+class World:
+    """Static circles and polygons plus moving circles following alpha_k(t)."""
+
+    def __init__(self, cfg: WorldConfig) -> None:
+        self.cfg = cfg
+        self._circle_ids = tuple(c.id for c in cfg.circles)
+        self._cxy = np.array([(c.x_m, c.y_m) for c in cfg.circles], dtype=np.float64)
+        self._cr = np.array([c.radius_m for c in cfg.circles], dtype=np.float64)
+        self._polygons: list[_Polygon] = []
+        for p in cfg.polygons:
+            v = vertices_array(p.vertices_m)
+            cx, cy = polygon_centroid(v)
+            rc = float(np.max(np.hypot(v[:, 0] - cx, v[:, 1] - cy)))
+            self._polygons.append(_Polygon(id=p.id, vertices=v, cx=cx, cy=cy, circumradius=rc))
+        self._moving: list[tuple[int, float, Trajectory]] = [
+            (m.id, m.radius_m, make_trajectory(m)) for m in cfg.moving
+        ]
+        ids = self._circle_ids + tuple(p.id for p in self._polygons)
+        self.obstacle_ids: tuple[int, ...] = tuple(sorted(ids + tuple(m[0] for m in self._moving)))
+
+    def obstacles_at(self, t: float) -> tuple[ObstacleState, ...]:
+        """Every obstacle at time t (s), sorted by id."""
+        out: list[ObstacleState] = []
+        for i, cid in enumerate(self._circle_ids):
+            x, y = float(self._cxy[i, 0]), float(self._cxy[i, 1])
+            out.append(_static(cid, x, y, float(self._cr[i])))
+        for p in self._polygons:
+            out.append(_static(p.id, p.cx, p.cy, p.circumradius))
+        for mid, r, traj in self._moving:
+            pos, vel, acc = traj.state(t)
+            out.append(
+                ObstacleState(
+                    id=mid,
+                    x=float(pos[0]),
+                    y=float(pos[1]),
+                    vx=float(vel[0]),
+                    vy=float(vel[1]),
+                    ax=float(acc[0]),
+                    ay=float(acc[1]),
+                    radius=r,
+                    moving=True,
+                )
+            )
+        return tuple(sorted(out, key=lambda o: o.id))
+
+    def clearance(self, x: float, y: float, r_vehicle: float, t: float) -> float:
+        """eq. (12): min_k ||x - alpha_k(t)|| - (r + r_k); negative means collision.
+
+        Polygons use the exact signed distance to their boundary minus r. +inf when empty.
+        """
+        best = math.inf
+        for i in range(len(self._circle_ids)):
+            d = math.hypot(x - self._cxy[i, 0], y - self._cxy[i, 1]) - (r_vehicle + self._cr[i])
+            best = min(best, float(d))
+        for p in self._polygons:
+            d = polygon_signed_distance(p.vertices, np.array(x), np.array(y))
+            best = min(best, float(d) - r_vehicle)
+        for _, rk, traj in self._moving:
+            pos, _, _ = traj.state(t)
+            d = math.hypot(x - float(pos[0]), y - float(pos[1])) - (r_vehicle + rk)
+            best = min(best, d)
+        return best
+
+    def clearance_many(
+        self, xs: ArrayLike, ys: ArrayLike, r_vehicle: ArrayLike, ts: ArrayLike
+    ) -> FloatArray:
+        """eq. (12) over whole trajectories: xs, ys, r, ts broadcast to one shape."""
+        bx, by, br, bt = np.broadcast_arrays(
+            *(np.asarray(a, dtype=np.float64) for a in (xs, ys, r_vehicle, ts))
+        )
+        best = np.full(bx.shape, np.inf)
+        if len(self._circle_ids):
+            d = np.hypot(bx[..., None] - self._cxy[:, 0], by[..., None] - self._cxy[:, 1])
+            best = np.minimum(best, np.min(d - self._cr, axis=-1) - br)
+        for p in self._polygons:
+            best = np.minimum(best, polygon_signed_distance(p.vertices, bx, by) - br)
+        for _, rk, traj in self._moving:
+            pos, _, _ = traj.state(bt)
+            d = np.hypot(bx - pos[..., 0], by - pos[..., 1]) - (br + rk)
+            best = np.minimum(best, d)
+        return best
+
+
+def _static(oid: int, x: float, y: float, r: float) -> ObstacleState:
+    return ObstacleState(id=oid, x=x, y=y, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=r, moving=False)

@@ -1,0 +1,129 @@
+"""Interacting multiple models for one obstacle: constant velocity + constant acceleration.
+
+Both modes share the state [x, vx, ax, y, vy, ay] (filterpy's order_by_dim); the CV mode
+holds the acceleration at zero. Mixing and combination follow Bar-Shalom's IMM; the
+per-mode predict/update run through filterpy's KalmanFilter.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection sees x, y
+
+
+def transition(dt: float, constant_acceleration: bool) -> FloatArray:
+    """F over dt: constant acceleration, or constant velocity with the acceleration zeroed."""
+    if constant_acceleration:
+        f = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    else:
+        f = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]])
+    return np.kron(np.eye(2), f)
+
+
+def process_noise(dt: float, constant_acceleration: bool, psd: float) -> FloatArray:
+    """Q over dt from filterpy's Q_discrete_white_noise, its var scaled so that the injected
+    noise matches white jerk (CA) or white acceleration (CV) of intensity psd: Q_aa = psd dt
+    (CA) and Q_vv = psd dt (CV), whatever the step.
+    """
+    if constant_acceleration:
+        return np.asarray(Q_discrete_white_noise(dim=3, dt=dt, var=psd * dt, block_size=2))
+    q2 = np.asarray(Q_discrete_white_noise(dim=2, dt=dt, var=psd / dt))
+    Q = np.zeros((6, 6))
+    for base in (0, 3):
+        Q[base : base + 2, base : base + 2] = q2
+    return Q
+
+
+def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatArray:
+    """Mode transition probabilities M[i, j] = P(j at t + dt | i at t) for mean times
+    sojourn_cv_s and sojourn_ca_s spent in each mode (a continuous-time Markov chain).
+    """
+    p = 1.0 - math.exp(-dt / sojourn_cv_s)
+    q = 1.0 - math.exp(-dt / sojourn_ca_s)
+    return np.array([[1.0 - p, p], [q, 1.0 - q]])
+
+
+def combine(
+    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Moment-matched mixture: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx')."""
+    x = sum((m * xj for m, xj in zip(mu, xs, strict=True)), np.zeros(6))
+    P = np.zeros((6, 6))
+    for m, xj, Pj in zip(mu, xs, Ps, strict=True):
+        d = xj - x
+        P += m * (Pj + np.outer(d, d))
+    return x, P
+
+
+def mix(
+    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, M: FloatArray
+) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
+    """IMM interaction: each mode's initial (x0_j, P0_j) and predicted probabilities cbar."""
+    cbar = mu @ M  # cbar_j = sum_i M_ij mu_i
+    w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)  # w[i, j] = mu_{i|j}
+    x0s, P0s = [], []
+    for j in range(len(xs)):
+        x0, P0 = combine(xs, Ps, w[:, j])
+        x0s.append(x0)
+        P0s.append(P0)
+    return tuple(x0s), tuple(P0s), cbar
+
+
+class ImmFilter:
+    """Predict / update of the two-mode IMM through one filterpy KalmanFilter (no state)."""
+
+    def __init__(
+        self, cv_accel_psd: float, ca_jerk_psd: float, sojourn_cv_s: float, sojourn_ca_s: float
+    ) -> None:
+        self._psd = (cv_accel_psd, ca_jerk_psd)
+        self._sojourn = (sojourn_cv_s, sojourn_ca_s)
+        self._kf = KalmanFilter(dim_x=6, dim_z=2)
+        self._kf.H = H_POS
+
+    def predict(
+        self, xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, dt: float
+    ) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
+        """Mix, then predict each mode dt ahead; returns the modes and their probabilities."""
+        if dt <= 0.0:
+            return xs, Ps, mu
+        x0s, P0s, cbar = mix(xs, Ps, mu, switch_matrix(dt, *self._sojourn))
+        kf = self._kf
+        out_x, out_P = [], []
+        for j, ca in enumerate((False, True)):
+            kf.x, kf.P = x0s[j].copy(), P0s[j].copy()
+            kf.predict(F=transition(dt, ca), Q=process_noise(dt, ca, self._psd[j]))
+            out_x.append(kf.x.copy())
+            out_P.append(0.5 * (kf.P + kf.P.T))
+        return tuple(out_x), tuple(out_P), cbar
+
+    def update(
+        self,
+        xs: tuple[FloatArray, ...],
+        Ps: tuple[FloatArray, ...],
+        mu: FloatArray,
+        z: FloatArray,
+        R: FloatArray,
+    ) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
+        """Update every mode with z; mode probabilities follow their likelihoods."""
+        kf = self._kf
+        out_x, out_P, loglik = [], [], []
+        for xj, Pj in zip(xs, Ps, strict=True):
+            y = z - H_POS @ xj
+            S = H_POS @ Pj @ H_POS.T + R
+            _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
+            loglik.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
+            kf.x, kf.P = xj.copy(), Pj.copy()
+            kf.update(z, R=R)
+            out_x.append(kf.x.copy())
+            out_P.append(0.5 * (kf.P + kf.P.T))
+        ll = np.array(loglik)
+        post = mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
+        return tuple(out_x), tuple(out_P), post / post.sum()

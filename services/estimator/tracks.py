@@ -1,0 +1,142 @@
+"""Obstacle tracks: one IMM (constant velocity + constant acceleration) per detected id."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from common.config.estimator import EstimatorConfig
+from common.messages import ObstacleDetections, Track
+from services.estimator.imm import H_POS, ImmFilter, combine
+
+FloatArray = NDArray[np.float64]
+
+# filter state [x, vx, ax, y, vy, ay]; published as Track fields and covariance in the
+# order [x, y, vx, vy, ax, ay]
+_TO_MSG = np.array([0, 3, 1, 4, 2, 5])
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class TrackBelief:
+    """One track at `stamp` (its last accepted detection): per-mode Gaussians (CV, CA), mode
+    probabilities and the radius estimate. Arrays are never modified once stored.
+    """
+
+    id: int
+    xs: tuple[FloatArray, ...]
+    Ps: tuple[FloatArray, ...]
+    mu: FloatArray
+    stamp: float
+    radius: float
+    radius_var: float
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class TrackerState:
+    """All tracks after some scans, and how many detections the gate rejected on the way."""
+
+    tracks: Mapping[int, TrackBelief]  # never mutated: fuse builds a new mapping
+    gated_out: int = 0
+
+
+class ObstacleTracker:
+    """Associates detections to tracks by id, gates them (Mahalanobis, chi-square) and fuses."""
+
+    def __init__(self, cfg: EstimatorConfig) -> None:
+        self.cfg = cfg
+        self.gate = float(chi2.ppf(cfg.track_gate_probability, df=2))
+        self._imm = ImmFilter(
+            cfg.track_cv_accel_psd_m2_s3,
+            cfg.track_jerk_psd_m2_s5,
+            cfg.track_cv_sojourn_s,
+            cfg.track_ca_sojourn_s,
+        )
+
+    def _start(
+        self, oid: int, stamp: float, z: FloatArray, var: float, r: float, r_var: float
+    ) -> TrackBelief:
+        x = np.array([z[0], 0.0, 0.0, z[1], 0.0, 0.0])
+        axis = [var, self.cfg.track_init_std_v_mps**2, self.cfg.track_init_std_a_mps2**2]
+        P = np.diag(axis * 2)
+        return TrackBelief(
+            id=oid,
+            xs=(x, x.copy()),
+            Ps=(P, P.copy()),
+            mu=np.array([0.5, 0.5]),
+            stamp=stamp,
+            radius=r,
+            radius_var=r_var,
+        )
+
+    def fuse(self, state: TrackerState, msg: ObstacleDetections) -> TrackerState:
+        """The tracks after one scan (stamped msg.stamp, fused in id order)."""
+        timeout = self.cfg.track_timeout_s
+        # forget tracks that can never be published again (t >= msg.stamp from now on); a
+        # detection of a forgotten id starts a fresh track
+        out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= timeout}
+        gated_out = state.gated_out
+        for det in sorted(msg.detections, key=lambda d: d.id):
+            z = np.array([det.x, det.y])
+            var = max(det.std_xy**2, 1e-12)
+            r_var = max(det.std_radius**2, 1e-12)
+            b = out.get(det.id)
+            if b is None:
+                out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
+                continue
+            xs, Ps, cbar = self._imm.predict(b.xs, b.Ps, b.mu, msg.stamp - b.stamp)
+            R = np.eye(2) * var
+            x, P = combine(xs, Ps, cbar)
+            y = z - H_POS @ x
+            S = H_POS @ P @ H_POS.T + R
+            if float(y @ np.linalg.solve(S, y)) > self.gate:  # Mahalanobis distance squared
+                gated_out += 1
+                continue
+            xs, Ps, mu = self._imm.update(xs, Ps, cbar, z, R)
+            # the radius is constant: inverse-variance weighted mean of its measurements
+            w = b.radius_var / (b.radius_var + r_var)
+            out[det.id] = TrackBelief(
+                id=det.id,
+                xs=xs,
+                Ps=Ps,
+                mu=mu,
+                stamp=msg.stamp,
+                radius=b.radius + w * (det.radius - b.radius),
+                radius_var=b.radius_var * r_var / (b.radius_var + r_var),
+            )
+        return TrackerState(tracks=out, gated_out=gated_out)
+
+    def live(self, state: TrackerState, t: float) -> dict[int, TrackBelief]:
+        """The tracks updated within track_timeout_s of t (the others are dropped)."""
+        timeout = self.cfg.track_timeout_s
+        return {k: b for k, b in state.tracks.items() if t - b.stamp <= timeout}
+
+    def predict(self, b: TrackBelief, t: float) -> tuple[FloatArray, FloatArray]:
+        """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
+        xs, Ps, mu = self._imm.predict(b.xs, b.Ps, b.mu, t - b.stamp)
+        return combine(xs, Ps, mu)
+
+    def tracks_at(self, state: TrackerState, t: float) -> tuple[Track, ...]:
+        """Live tracks predicted to t, as wire tracks ([x, y, vx, vy, ax, ay] covariance)."""
+        out: list[Track] = []
+        live = self.live(state, t)
+        for oid in sorted(live):
+            x, P = self.predict(live[oid], t)
+            xm, Pm = x[_TO_MSG], P[np.ix_(_TO_MSG, _TO_MSG)]
+            out.append(
+                Track(
+                    id=oid,
+                    x=float(xm[0]),
+                    y=float(xm[1]),
+                    vx=float(xm[2]),
+                    vy=float(xm[3]),
+                    ax=float(xm[4]),
+                    ay=float(xm[5]),
+                    radius=max(0.0, live[oid].radius),
+                    covariance=tuple(float(v) for v in Pm.ravel()),
+                )
+            )
+        return tuple(out)

@@ -1,0 +1,146 @@
+"""Vehicle-state filters (filterpy EKF or UKF) over the unicycle model, as pure x, P maps."""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+from filterpy.kalman import ExtendedKalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
+from numpy.typing import NDArray
+
+from common.config.estimator import EstimatorConfig
+from services.estimator.unicycle import (
+    DIM_X,
+    DIM_Z,
+    circular_mean,
+    fx,
+    hx,
+    jacobian_f,
+    jacobian_h,
+    process_noise,
+    residual_x,
+    residual_z,
+    wrap_angle,
+)
+
+FloatArray = NDArray[np.float64]
+
+
+class VehicleFilter(Protocol):
+    """Predict and update a Gaussian belief (x, P); inputs are never modified."""
+
+    def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+        """The belief dt seconds later (dt <= 0 returns it unchanged)."""
+        ...
+
+    def update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The belief after fusing the fix z = [x, y, heading, speed] with noise R."""
+        ...
+
+
+def _substeps(dt: float, max_dt: float) -> tuple[int, float]:
+    # equal sub-steps, a pure function of dt: replaying a prediction repeats it exactly
+    n = max(1, math.ceil(dt / max_dt - 1e-9))
+    return n, dt / n
+
+
+def _tidy(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    x = np.array(x, dtype=np.float64).reshape(DIM_X)
+    x[2] = wrap_angle(float(x[2]))
+    return x, 0.5 * (P + P.T)
+
+
+class _UnicycleEKF(ExtendedKalmanFilter):
+    """filterpy's EKF with the nonlinear unicycle state propagation."""
+
+    x: FloatArray
+    step_dt: float = 0.0
+
+    def predict_x(self, u: object = 0) -> None:
+        self.x = fx(self.x, self.step_dt)
+
+
+class EkfVehicleFilter:
+    """Extended Kalman filter (filterpy.kalman.ExtendedKalmanFilter)."""
+
+    def __init__(self, cfg: EstimatorConfig) -> None:
+        self._q = (cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
+        self._max_dt = cfg.max_predict_dt_s
+        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=DIM_Z)
+
+    def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+        if dt <= 0.0:
+            return x.copy(), P.copy()
+        n, h = _substeps(dt, self._max_dt)
+        ekf = self._ekf
+        ekf.x, ekf.P = x.copy(), P.copy()
+        ekf.step_dt = h
+        for _ in range(n):
+            ekf.F = jacobian_f(ekf.x, h)  # P = F P F' + Q, linearised at the prior
+            ekf.Q = process_noise(ekf.x, h, *self._q)
+            ekf.predict()
+        return _tidy(ekf.x, ekf.P)
+
+    def update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        ekf = self._ekf
+        ekf.x, ekf.P = x.copy(), P.copy()
+        ekf.update(z, jacobian_h, hx, R=R, residual=residual_z)
+        return _tidy(ekf.x, ekf.P)
+
+
+class UkfVehicleFilter:
+    """Unscented Kalman filter (filterpy UnscentedKalmanFilter, Merwe scaled sigma points)."""
+
+    def __init__(self, cfg: EstimatorConfig) -> None:
+        self._q = (cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
+        self._max_dt = cfg.max_predict_dt_s
+        points = MerweScaledSigmaPoints(
+            DIM_X, alpha=cfg.ukf_alpha, beta=cfg.ukf_beta, kappa=cfg.ukf_kappa, subtract=residual_x
+        )
+        self._ukf = UnscentedKalmanFilter(
+            dim_x=DIM_X,
+            dim_z=DIM_Z,
+            dt=cfg.max_predict_dt_s,
+            hx=hx,
+            fx=fx,
+            points=points,
+            x_mean_fn=circular_mean,
+            z_mean_fn=circular_mean,
+            residual_x=residual_x,
+            residual_z=residual_z,
+        )
+
+    def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
+        if dt <= 0.0:
+            return x.copy(), P.copy()
+        n, h = _substeps(dt, self._max_dt)
+        ukf = self._ukf
+        ukf.x, ukf.P = x.copy(), P.copy()
+        for _ in range(n):
+            ukf.Q = process_noise(ukf.x, h, *self._q)
+            ukf.predict(dt=h)
+            ukf.x, ukf.P = _tidy(ukf.x, ukf.P)
+        return ukf.x.copy(), ukf.P.copy()
+
+    def update(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        ukf = self._ukf
+        ukf.x, ukf.P = x.copy(), P.copy()
+        # sigma points of this belief (dt = 0), so the update never depends on an earlier
+        # predict call: a rolled-back belief can be updated directly
+        ukf.compute_process_sigmas(0.0)
+        ukf.update(z, R=R)
+        return _tidy(ukf.x, ukf.P)
+
+
+def make_vehicle_filter(cfg: EstimatorConfig) -> VehicleFilter:
+    """The configured vehicle filter, chosen once."""
+    if cfg.vehicle_filter == "ukf":
+        return UkfVehicleFilter(cfg)
+    return EkfVehicleFilter(cfg)

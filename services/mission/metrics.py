@@ -1,0 +1,134 @@
+"""Metrics of an AUV run, computed from its record against truth (DESIGN.md "Metrics of a run")."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from common.config.scenario import Scenario
+from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
+from common.runtime.record import Record, trajectory_sha256
+from common.world import World
+from services.planner.nurbs import Nurbs
+
+# A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
+# within this distance of the first planned path at the moment the command is issued.
+ON_PATH_TOL_M = 0.5
+# executed curvature |w| / v is only meaningful while the vehicle actually moves
+MIN_SPEED_FOR_CURVATURE = 0.3
+
+
+def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
+    """Dense samples of a planned NURBS path, (n, 2)."""
+    cp = np.asarray(p.control_points, dtype=np.float64).reshape(-1, 2)
+    curve = Nurbs(p.degree, cp, np.asarray(p.weights), np.asarray(p.knots))
+    u = np.linspace(curve.u_min, curve.u_max, n)
+    return np.asarray(curve.evaluate(u, n_ders=0)[0])
+
+
+def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
+    return [m for m in record.stream(service, stream) if isinstance(m, cls)]
+
+
+def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]:
+    """Every scalar metric of the run (the runtime adds end reason, link stats, timing)."""
+    truth: list[TruthState] = _typed(record, "vehicle", "truth", TruthState)
+    m: dict[str, Any] = {"trajectory_sha256": trajectory_sha256(truth), "controller": s.controller.kind}
+    if not truth:
+        return m | {"reached_goal": False}
+    arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
+    t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
+    g, st = s.world.goal, s.world.start
+    dist_goal = np.hypot(x - g.x_m, y - g.y_m)
+    at_goal = np.flatnonzero(dist_goal <= s.world.goal_tolerance_m)
+    end = int(at_goal[0]) if len(at_goal) else len(t) - 1
+    seg = np.hypot(np.diff(x[: end + 1]), np.diff(y[: end + 1]))
+    length = float(seg.sum())
+    straight = math.hypot(g.x_m - st.x_m, g.y_m - st.y_m)
+    travel = float(t[end] - t[0])
+    m.update({
+        "reached_goal": bool(len(at_goal)),
+        "travel_time_s": travel,  # eq. (21): Rtime = Rdist / Rspace (= length / mean speed)
+        "mean_speed_mps": length / travel if travel > 0 else 0.0,
+        "path_length_m": length,
+        "f_l_executed": length / straight if straight > 0 else math.nan,
+        "final_distance_to_goal_m": float(dist_goal[-1]),
+    })
+    clear = world.clearance_many(x, y, s.vehicle.radius_m, t)
+    collided = clear < 0.0
+    m["min_clearance_m"] = float(clear.min())
+    m["collisions"] = int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0]))
+    moving = v > MIN_SPEED_FOR_CURVATURE
+    m["max_executed_curvature"] = float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
+    m.update(_path_metrics(record, t, x, y, end))
+    m.update(_estimation_metrics(record, t, x, y))
+    statuses: list[VehicleStatus] = _typed(record, "vehicle", "status", VehicleStatus)
+    if statuses:
+        last = statuses[-1]
+        dt = s.vehicle.period_s
+        m.update({
+            "commands_applied": last.commands_applied,
+            "commands_rejected_stale": last.commands_rejected,
+            "commands_clamped": last.commands_clamped,
+            "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),
+            "failsafe_time_s": dt * sum(1 for q in statuses if q.mode == "FAILSAFE"),
+        })
+    return m
+
+
+def _path_metrics(record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray,
+                  end: int) -> dict[str, Any]:
+    paths: list[PathMsg] = _typed(record, "planner", "path", PathMsg)
+    cmds: list[VelocityCommand] = _typed(record, "planner", "cmd", VelocityCommand)
+    ok = [p for p in paths if p.status == "OK"]
+    out: dict[str, Any] = {
+        "replans": len(paths),
+        "no_path_events": sum(1 for p in paths if p.status == "NO_PATH"),
+        "control_actions": len(cmds),
+    }
+    if not ok:
+        return out
+    first = ok[0]  # the "optimal path": planned at the start with the whole chart
+    tree = cKDTree(path_points(first))
+    xte, _ = tree.query(np.column_stack([x[: end + 1], y[: end + 1]]))
+    out.update({
+        "planned_length_m": first.length,
+        "planned_f_l": first.f_l,
+        "planned_max_curvature": first.max_curvature,
+        "xte_optimal_rms_m": float(np.sqrt(np.mean(xte**2))),
+        "xte_optimal_max_m": float(np.max(xte)),
+    })
+    # cross-track error against the path in force at each moment
+    stamps = np.array([p.stamp for p in ok])
+    which = np.searchsorted(stamps, t[: end + 1], side="right") - 1
+    errs = np.full(end + 1, np.nan)
+    for i, p in enumerate(ok):
+        sel = np.flatnonzero(which == i)
+        if len(sel):
+            errs[sel] = cKDTree(path_points(p)).query(np.column_stack([x[sel], y[sel]]))[0]
+    errs = errs[~np.isnan(errs)]
+    if len(errs):
+        out["xte_planned_rms_m"] = float(np.sqrt(np.mean(errs**2)))
+        out["xte_planned_max_m"] = float(np.max(errs))
+    # paper §4.1: control actions, and how many were issued while on the optimal path
+    if cmds:
+        ct = np.array([c.stamp for c in cmds])
+        cx, cy = np.interp(ct, t, x), np.interp(ct, t, y)
+        d, _ = tree.query(np.column_stack([cx, cy]))
+        out["control_actions_on_path"] = int(np.count_nonzero(d <= ON_PATH_TOL_M))
+    return out
+
+
+def _estimation_metrics(record: Record, t: np.ndarray, x: np.ndarray,
+                        y: np.ndarray) -> dict[str, Any]:
+    est: list[StateEstimate] = _typed(record, "estimator", "state", StateEstimate)
+    est = [e for e in est if t[0] <= e.stamp <= t[-1]]
+    if not est:
+        return {}
+    et = np.array([e.stamp for e in est])
+    err = np.hypot(np.array([e.x for e in est]) - np.interp(et, t, x),
+                   np.array([e.y for e in est]) - np.interp(et, t, y))
+    return {"estimation_rms_m": float(np.sqrt(np.mean(err**2))), "estimation_max_m": float(err.max())}

@@ -1,0 +1,118 @@
+"""Dense final checks of a planned curve: eq. (20) curvature, eq. (12)-(13) clearance, area."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from services.planner.fit import FitProblem
+from services.planner.geometry import FloatArray, moving_distance
+from services.planner.nurbs import Nurbs, curvature
+
+
+FailKind = Literal["", "curvature", "static", "moving", "area"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CurveCheck:
+    """Outcome of the dense check; clearances are hull-to-surface distances (m)."""
+
+    ok: bool
+    reason: str
+    failed: FailKind  # which constraint failed first ("" when ok)
+    length_m: float
+    max_curvature: float  # 1/m, over the dense samples
+    min_clearance_m: float  # min over static and moving obstacles (moving at t = s / v_ref);
+    # samples far from every obstacle report the grid's lower bound, not the exact distance
+    min_static_clearance_m: float
+    min_moving_clearance_m: float
+    turn_penalty: float  # eq. (19) f_R = sum 1 / (r_k - R_min) (inf if any r_k < R_min)
+
+
+def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
+    xg, wg = np.polynomial.legendre.leggauss(per_span)
+    brk = np.unique(knots)
+    half = 0.5 * np.diff(brk)
+    u = (0.5 * (brk[:-1] + brk[1:]))[:, None] + half[:, None] * xg[None, :]
+    return u.ravel(), (half[:, None] * wg[None, :]).ravel()
+
+
+def turn_penalty(k: FloatArray, r_min_m: float) -> float:
+    """Eq. (19): sum over samples of 1 / (r_k - R_min), r_k = 1 / k; infinite if r_k < R_min."""
+    kk = k[k > 1e-12]  # straight samples have r_k = inf and contribute 0
+    r = 1.0 / kk
+    if np.any(r <= r_min_m):
+        return math.inf
+    return float(np.sum(1.0 / (r - r_min_m)))
+
+
+def check_curve(curve: Nurbs, prob: FitProblem, n_samples: int) -> CurveCheck:
+    """Sample the curve densely (uniform in u) and test every hard constraint."""
+    u = np.linspace(curve.u_min, curve.u_max, n_samples)
+    c, d1, d2 = curve.evaluate(u, n_ders=2)
+    speed = np.hypot(d1[:, 0], d1[:, 1])
+    du = np.diff(u)
+    s = np.concatenate([[0.0], np.cumsum(0.5 * du * (speed[1:] + speed[:-1]))])
+    # reported length by Gauss-Legendre on every knot span (eq. (16)/(18) for the curve)
+    uq, wq = _gauss_legendre(curve.knots, 6)
+    dq = curve.evaluate(uq, n_ders=1)[1]
+    length = float(wq @ np.hypot(dq[:, 0], dq[:, 1]))
+    k = curvature(d1, d2)
+    k_max = float(np.max(k))
+    # exact static distances only where the grid cannot vouch for the sample: the bilinear
+    # clearance is within resolution * sqrt(2) of the exact one (1-Lipschitz, lower-bound grid)
+    d_static, _ = prob.grid.static_clearance_at(c)
+    need = prob.required(s) - 1e-9
+    near = d_static < need + prob.grid.resolution_m * math.sqrt(2.0) + 1e-6
+    if near.any():
+        d_static[near] = prob.static.distance(c[near])[0]
+    d_moving, _ = moving_distance(prob.moving, c, s / prob.v_ref_mps, prob.accel_horizon_s)
+    r = prob.vehicle_radius_m
+    min_static = float(d_static.min()) - r
+    min_moving = float(d_moving.min()) - r
+    a = prob.area
+    inside = (
+        (c[:, 0] >= a.x_min + r - 1e-9)
+        & (c[:, 0] <= a.x_max - r + 1e-9)
+        & (c[:, 1] >= a.y_min + r - 1e-9)
+        & (c[:, 1] <= a.y_max - r + 1e-9)
+    )
+    reason = ""
+    failed: FailKind = ""
+    if not np.isfinite(k_max) or k_max >= 1.0 / prob.r_min_m:  # eq. (20), strict
+        reason = (
+            f"curvature {k_max:.3f} 1/m >= 1/R_min = {1.0 / prob.r_min_m:.3f} 1/m "
+            f"(turning radius {1.0 / max(k_max, 1e-12):.2f} m < R_min = {prob.r_min_m:.2f} m)"
+        )
+        failed = "curvature"
+    elif np.any(d_static < need):
+        j = int(np.argmin(d_static - need))
+        reason = (
+            f"static clearance {d_static[j] - r:.2f} m < required {need[j] - r:.2f} m "
+            f"at ({c[j, 0]:.1f}, {c[j, 1]:.1f})"
+        )
+        failed = "static"
+    elif np.any(d_moving < need):
+        j = int(np.argmin(d_moving - need))
+        reason = (
+            f"moving-obstacle clearance {d_moving[j] - r:.2f} m < required {need[j] - r:.2f} m "
+            f"at ({c[j, 0]:.1f}, {c[j, 1]:.1f}), t = {s[j] / prob.v_ref_mps:.1f} s"
+        )
+        failed = "moving"
+    elif not np.all(inside):
+        reason = "curve leaves the area"
+        failed = "area"
+    return CurveCheck(
+        ok=not reason,
+        reason=reason,
+        failed=failed,
+        length_m=length,
+        max_curvature=k_max,
+        min_clearance_m=min(min_static, min_moving),
+        min_static_clearance_m=min_static,
+        min_moving_clearance_m=min_moving,
+        turn_penalty=turn_penalty(k, prob.r_min_m),
+    )

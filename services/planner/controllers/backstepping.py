@@ -1,0 +1,96 @@
+"""Backstepping: the Kanayama et al. (1990) tracking law, the paper's first baseline.
+
+Y. Kanayama, Y. Kimura, F. Miyazaki, T. Noguchi, "A stable tracking control method for an
+autonomous mobile robot", IEEE ICRA 1990. A reference posture p_r = (x_r, y_r, theta_r)
+moves along the path with speed v_r and yaw rate w_r = v_r kappa(s_r). The error posture in
+the vehicle frame is
+
+    [e_x, e_y]^T = R(theta)^T [x_r - x, y_r - y]^T,   e_theta = wrap(theta_r - theta)
+
+and the law (their eq. 6) is
+
+    v = v_r cos(e_theta) + k_x e_x
+    w = w_r + v_r (k_y e_y + k_theta sin(e_theta))
+
+with V = (e_x^2 + e_y^2) / 2 + (1 - cos e_theta) / k_y as a Lyapunov function (stable for
+k_x, k_y, k_theta > 0, v_r > 0). Gains (BacksteppingGains): k_x = 0.5 /s, k_y = 0.04 /m^2,
+k_theta = 0.4 /m = 2 sqrt(k_y) (their critical-damping choice), giving a linearised natural
+frequency v_r sqrt(k_y) = 0.3 rad/s at v_r = 1.5 m/s.
+
+Virtual reference point: s_r starts at the projection of the first pose and advances at v_r
+with the caller's clock (Kanayama's time-parameterised reference), kept on a leash
+s_proj <= s_r <= s_proj + max_lead_m so that a vehicle slowed down (or cut off by a network
+outage) is not asked to chase a reference that ran away. At the end of the path v_r = 0.
+
+Delay compensation (off unless ControllerConfig.compensate_baselines): the pose is predicted
+forward by latency_s with eq. (7); the virtual point keeps running on the caller's clock and
+is not advanced further (the downlink part of latency_s is small next to the leash). Off by
+default because the paper compares the published laws; switching it on isolates the control
+law from the compensation in the experiments. Saturation: eq. (11) only (R_min is not part of
+this law).
+"""
+
+from __future__ import annotations
+
+import math
+
+from common.config.controller import BacksteppingGains
+from services.planner.controllers.base import Limits, Pose, clamp, predict_pose, wrap
+from services.planner.controllers.reference import Reference
+
+
+class Backstepping:
+    """Kanayama tracking of a virtual point running along the path."""
+
+    name = "backstepping"
+
+    def __init__(
+        self, gains: BacksteppingGains, limits: Limits, *, compensate_delay: bool = False
+    ) -> None:
+        self.gains = gains
+        self.limits = limits
+        self.compensate_delay = compensate_delay
+        self._s_r: float | None = None
+        self._t_prev: float | None = None
+        self._s_hint: float | None = None
+        self.last_errors = (0.0, 0.0, 0.0)  # (e_x, e_y, e_theta) of the last call
+
+    def reset(self) -> None:
+        self._s_r = None
+        self._t_prev = None
+        self._s_hint = None
+        self.last_errors = (0.0, 0.0, 0.0)
+
+    def command(
+        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+    ) -> tuple[float, float]:
+        """(v, w) from the Kanayama law, saturated to eq. (11)."""
+        g, lim = self.gains, self.limits
+        v_r = clamp(ref.v_ref, lim.v_min, lim.v_max)
+        if self.compensate_delay and latency_s > 0.0:
+            pose = predict_pose(pose, latency_s)
+        x, y, theta, _, _ = pose
+        s_proj = ref.project(x, y, self._s_hint)
+        self._s_hint = s_proj
+        # the virtual reference: advanced at v_r by the caller's clock, on a leash
+        if self._s_r is None or self._t_prev is None:
+            s_r = s_proj
+        else:
+            s_r = self._s_r + v_r * max(0.0, t - self._t_prev)
+        s_r = clamp(s_r, s_proj, min(s_proj + g.max_lead_m, ref.length))
+        self._s_r, self._t_prev = s_r, t
+        s_eval = s_r
+        if s_eval >= ref.length:
+            v_r = 0.0  # the reference stopped at the end of the path
+        xr, yr = ref.point(s_eval)
+        th_r = ref.heading(s_eval)
+        w_r = v_r * ref.curvature(s_eval)
+        # error posture in the vehicle frame (Kanayama eq. 3)
+        c, sn = math.cos(theta), math.sin(theta)
+        e_x = c * (xr - x) + sn * (yr - y)
+        e_y = -sn * (xr - x) + c * (yr - y)
+        e_th = wrap(th_r - theta)
+        self.last_errors = (e_x, e_y, e_th)
+        v = v_r * math.cos(e_th) + g.k_x_ps * e_x
+        w = w_r + v_r * (g.k_y_pm2 * e_y + g.k_theta_pm * math.sin(e_th))
+        return lim.saturate(v, w)

@@ -1,0 +1,102 @@
+"""Mamdani fuzzy inference for gain scheduling: 7 terms, 49 rules, centroid (vectorised).
+
+Inputs e and de are normalised to the universe [-3, 3] and described by seven triangular
+terms NB, NM, NS, ZO, PS, PM, PB centred at -3 .. 3 (unit half-width; values beyond the
+universe are clipped, which makes NB and PB shoulders). Each rule "if e is A_i and de is B_j
+then dK is C_ij" fires with min(mu_Ai(e), mu_Bj(de)); the clipped consequents are aggregated
+by max and defuzzified by their centroid on a 121-point grid of the output universe.
+
+The three tables are the fuzzy self-tuning PID tables widely reproduced in the fuzzy-PID
+literature (rows: e = NB .. PB, columns: de = NB .. PB):
+
+    dKp                          dKi                          dKd
+NB  PB PB PM PM PS ZO ZO        NB NB NM NM NS ZO ZO         PS NS NB NB NB NM PS
+NM  PB PB PM PS PS ZO NS        NB NB NM NS NS ZO ZO         PS NS NB NM NM NS ZO
+NS  PM PM PM PS ZO NS NS        NB NM NS NS ZO PS PS         ZO NS NM NM NS NS ZO
+ZO  PM PM PS ZO NS NM NM        NM NM NS ZO PS PM PM         ZO NS NS NS NS NS ZO
+PS  PS PS ZO NS NS NM NM        NM NS ZO PS PS PM PB         ZO ZO ZO ZO ZO ZO ZO
+PM  PS ZO NS NM NM NM NB        ZO ZO PS PS PM PB PB         PB NS PS PS PS PS PB
+PB  ZO ZO NM NM NM NB NB        ZO ZO PS PM PM PB PB         PB PM PM PM PS PS PB
+
+Their reasoning: a large error wants a large Kp, a small Ki (no wind-up) and a small Kd; a
+medium error a smaller Kp and a moderate Kd; near the set point a larger Ki for zero
+steady-state error and a Kd that depends on how fast the error moves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+TERMS = ("NB", "NM", "NS", "ZO", "PS", "PM", "PB")
+_INDEX = {name: i - 3 for i, name in enumerate(TERMS)}  # term -> centre in [-3, 3]
+
+DKP_TABLE = """
+PB PB PM PM PS ZO ZO
+PB PB PM PS PS ZO NS
+PM PM PM PS ZO NS NS
+PM PM PS ZO NS NM NM
+PS PS ZO NS NS NM NM
+PS ZO NS NM NM NM NB
+ZO ZO NM NM NM NB NB
+"""
+DKI_TABLE = """
+NB NB NM NM NS ZO ZO
+NB NB NM NS NS ZO ZO
+NB NM NS NS ZO PS PS
+NM NM NS ZO PS PM PM
+NM NS ZO PS PS PM PB
+ZO ZO PS PS PM PB PB
+ZO ZO PS PM PM PB PB
+"""
+DKD_TABLE = """
+PS NS NB NB NB NM PS
+PS NS NB NM NM NS ZO
+ZO NS NM NM NS NS ZO
+ZO NS NS NS NS NS ZO
+ZO ZO ZO ZO ZO ZO ZO
+PB NS PS PS PS PS PB
+PB PM PM PM PS PS PB
+"""
+
+
+def parse_table(text: str) -> npt.NDArray[np.int64]:
+    """A 7x7 table of term names -> consequent centres in [-3, 3]."""
+    rows = [line.split() for line in text.strip().splitlines()]
+    if len(rows) != 7 or any(len(r) != 7 for r in rows):
+        raise ValueError("rule table: expected 7 rows of 7 terms")
+    return np.array([[_INDEX[name] for name in row] for row in rows], dtype=np.int64)
+
+
+_CENTRES = np.arange(-3.0, 4.0)  # (7,)
+_GRID = np.linspace(-3.0, 3.0, 121)  # output universe samples
+
+
+def memberships(x: float | FloatArray) -> FloatArray:
+    """Triangular memberships of the 7 terms at x (clipped to [-3, 3]); last axis = term."""
+    xc = np.clip(np.asarray(x, dtype=np.float64), -3.0, 3.0)
+    return np.maximum(0.0, 1.0 - np.abs(xc[..., None] - _CENTRES))
+
+
+_GRID_MU = memberships(_GRID).T  # (7 terms, 121 grid points)
+
+
+class MamdaniTables:
+    """Several 49-rule tables sharing the inputs, evaluated together."""
+
+    def __init__(self, *tables: str) -> None:
+        rules = np.stack([parse_table(t) for t in tables])  # (n, 7, 7)
+        # one-hot consequent: hot[n, i, j, k] = rule (i, j) of table n concludes term k
+        self._hot = rules[..., None] == (np.arange(7) - 3)
+
+    def infer(self, e_n: float, de_n: float) -> FloatArray:
+        """Centroid outputs (one per table) in [-3, 3] for normalised inputs."""
+        w = np.minimum.outer(memberships(e_n), memberships(de_n))  # (7, 7) firing strengths
+        # strength of each output term: max over the rules concluding it
+        strength = np.where(self._hot, w[None, :, :, None], 0.0).max(axis=(1, 2))  # (n, 7)
+        agg = np.minimum(strength[:, :, None], _GRID_MU[None]).max(axis=1)  # (n, 121)
+        den = agg.sum(axis=1)
+        out: FloatArray = (agg @ _GRID) / np.where(den > 0.0, den, 1.0)
+        return out

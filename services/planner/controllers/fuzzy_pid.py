@@ -1,0 +1,104 @@
+"""ImmuneFuzzyPid: the paper's second baseline, an immune fuzzy PID on the heading error.
+
+Error: cross-track and heading combined through a look-ahead (line-of-sight) angle,
+
+    e = wrap(chi - e_theta),  chi = -atan(e_y / L)
+
+i.e. the desired heading minus the actual one (rad; > 0 asks for a left turn).
+
+Fuzzy PID (Mamdani, fuzzy.py): e and de/dt (de/dt filtered by the first-order lag of eq. (3),
+the "virtual damping") are normalised to [-3, 3]; the three 49-rule tables give dKp, dKi,
+dKd in [-3, 3], scaled to +- (dkp, dki, dkd) around the base gains (kp, ki, kd).
+
+Immune feedback (the helper/suppressor T-cell model of Takahashi & Yamada, "Application of
+an immune feedback mechanism to control systems", JSME Int. J. C, 1998, in the immune-PID
+form u(k) = K [1 - eta f(u(k), du(k))] e(k) used by immune fuzzy PID controllers): the
+whole PID output is scaled by
+
+    K = K1 [1 - eta f(du)],   f(du) = 1 - exp(-du^2 / a)
+
+with du the last change of the output (the suppressor signal grows with how hard the control
+is moving), so K in (K1 (1 - eta), K1]: full gain when the command is steady, less gain when
+it is changing fast, which damps oscillation.
+
+Output w = K (Kp e + Ki int e dt + Kd de/dt), saturated to eq. (11) (conditional integration:
+the integral only grows when the output is not saturated in the error's direction).
+Speed: v = v_ref / (1 + slow_k |e|), at least v_floor_ratio * v_ref. No curvature
+feed-forward (the integral carries the steady turn on curves), no R_min constraint: this is
+the published baseline. Gains in FuzzyPidGains; delay compensation only if asked (see
+Backstepping for why it is off by default).
+"""
+
+from __future__ import annotations
+
+import math
+
+from common.config.controller import FuzzyPidGains
+from services.planner.controllers.base import Limits, Pose, clamp, path_errors, predict_pose, wrap
+from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
+from services.planner.controllers.reference import Reference
+
+_TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
+
+
+class ImmuneFuzzyPid:
+    """Immune-regulated fuzzy self-tuning PID producing a yaw rate from the LOS error."""
+
+    name = "fuzzy_pid"
+
+    def __init__(
+        self, gains: FuzzyPidGains, limits: Limits, *, compensate_delay: bool = False
+    ) -> None:
+        self.gains = gains
+        self.limits = limits
+        self.compensate_delay = compensate_delay
+        self.reset()
+
+    def reset(self) -> None:
+        self._s_hint: float | None = None
+        self._t_prev: float | None = None
+        self._e_prev = 0.0
+        self._de = 0.0  # filtered de/dt
+        self._integral = 0.0
+        self._u_prev = 0.0
+        self._du_prev = 0.0
+        self.last_gains = (self.gains.kp_ps, self.gains.ki_ps2, self.gains.kd, 1.0)
+
+    def command(
+        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+    ) -> tuple[float, float]:
+        """(v, w) from the immune fuzzy PID, saturated to eq. (11)."""
+        g, lim = self.gains, self.limits
+        if self.compensate_delay and latency_s > 0.0:
+            pose = predict_pose(pose, latency_s)
+        x, y, theta, _, _ = pose
+        s = ref.project(x, y, self._s_hint)
+        self._s_hint = s
+        e_y, e_th = path_errors(x, y, theta, ref, s)
+        e = wrap(-math.atan(e_y / g.lookahead_m) - e_th)
+        dt = 0.0 if self._t_prev is None else max(0.0, t - self._t_prev)
+        if dt > 0.0:
+            de_raw = wrap(e - self._e_prev) / dt
+            # eq. (3): u_i = (dt e_i + T u_{i-1}) / (dt + T), a first-order lag on de/dt
+            self._de = (dt * de_raw + g.de_filter_s * self._de) / (dt + g.de_filter_s)
+        # fuzzy self-tuning of the PID gains
+        d_kp, d_ki, d_kd = _TABLES.infer(3.0 * e / g.e_scale_rad, 3.0 * self._de / g.de_scale_rps)
+        kp = max(0.0, g.kp_ps + float(d_kp) / 3.0 * g.dkp_ps)
+        ki = max(0.0, g.ki_ps2 + float(d_ki) / 3.0 * g.dki_ps2)
+        kd = max(0.0, g.kd + float(d_kd) / 3.0 * g.dkd)
+        # immune regulation: K = K1 [1 - eta f(du)], f = 1 - exp(-du^2 / a)
+        f = 1.0 - math.exp(-(self._du_prev * self._du_prev) / g.immune_a)
+        k_imm = g.immune_k1 * (1.0 - g.immune_eta * f)
+        integral = self._integral + e * dt
+        u = k_imm * (kp * e + ki * integral + kd * self._de)
+        v_ref = clamp(ref.v_ref, lim.v_min, lim.v_max)
+        v = max(g.v_floor_ratio * v_ref, v_ref / (1.0 + g.slow_k * abs(e)))
+        v, w = lim.saturate(v, u)
+        if w == u or (u > w) != (e > 0.0):  # conditional integration (anti-windup)
+            self._integral = integral
+        self._du_prev = w - self._u_prev
+        self._u_prev = w
+        self._e_prev = e
+        self._t_prev = t
+        self.last_gains = (kp, ki, kd, k_imm)
+        return v, w

@@ -1,0 +1,144 @@
+"""The planner service core: replans on events and tracks the path with the chosen controller.
+
+The command it sends crosses the modelled network to the vehicle, so the network sits inside
+the control loop. Static obstacles come from the chart (the scenario's world); moving ones
+from the estimator's tracks, predicted with their velocity and acceleration (paper §2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from common.config.controller import ControllerConfig
+from common.config.planner import PlannerConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import WorldConfig
+from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
+from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from services.planner.controllers.base import Limits
+from services.planner.controllers.factory import make_controller
+from services.planner.geometry import Area, Circle, MovingCircle, Obstacles, Polygon, Pose2D
+from services.planner.nurbs_path import NurbsPath
+from services.planner.plan import PlanRequest, PlanResult, plan_path
+from services.planner.replan import ReplanPolicy
+from services.planner.tracking_ref import NurbsReference
+
+
+def _flat(a: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(v) for v in np.asarray(a, dtype=np.float64).ravel())
+
+
+class PlannerCore:
+    """Consumes estimator/state and estimator/tracks; publishes path (on replans) and cmd."""
+
+    def __init__(self, planner: PlannerConfig, controller: ControllerConfig,
+                 vehicle: VehicleConfig, world: WorldConfig, *, period_s: float = 0.1,
+                 expected_downlink_s: float = 0.0) -> None:
+        self.spec = CoreSpec(
+            name="planner",
+            inputs=(
+                InputSpec(source="estimator", stream="state", msg_type=StateEstimate,
+                          policy=QueuePolicy.NEWEST),
+                InputSpec(source="estimator", stream="tracks", msg_type=ObstacleTracks,
+                          policy=QueuePolicy.NEWEST),
+            ),
+            outputs=(OutputSpec(stream="path", msg_type=PathMsg),
+                     OutputSpec(stream="cmd", msg_type=VelocityCommand)),
+            period_s=period_s,
+            offset_s=period_s / 2,  # half a period after the estimator publishes
+        )
+        self.cfg = planner
+        self.vehicle = vehicle
+        self.world = world
+        self.kind = controller.kind
+        self.expected_downlink_s = expected_downlink_s
+        a = world.area
+        self.area = Area(x_min=a.x_min_m, x_max=a.x_max_m, y_min=a.y_min_m, y_max=a.y_max_m)
+        self.goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
+        self.circles = tuple(Circle(x=c.x_m, y=c.y_m, radius=c.radius_m) for c in world.circles)
+        self.polygons = tuple(
+            Polygon(vertices=tuple(zip(p.vertices_m[0::2], p.vertices_m[1::2], strict=True)))
+            for p in world.polygons)
+        self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
+            p.id for p in world.polygons)
+        self.policy = ReplanPolicy(planner, vehicle_radius_m=vehicle.radius_m,
+                                   v_ref_mps=vehicle.cruise_speed_mps)
+        self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
+        self.state: StateEstimate | None = None
+        self.tracks: ObstacleTracks | None = None
+        self.ref: NurbsReference | None = None
+        self.path_id = 0
+        self.last_result: PlanResult | None = None
+        self.arrived = False
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        if isinstance(d.msg, StateEstimate):
+            self.state = d.msg
+        elif isinstance(d.msg, ObstacleTracks):
+            self.tracks = d.msg
+        return []
+
+    def _obstacles(self, t: float) -> Obstacles:
+        moving = []
+        if self.tracks is not None:
+            dt = max(0.0, t - self.tracks.stamp)  # predict the tracks to now (constant accel.)
+            for k in self.tracks.tracks:
+                if k.id in self.static_ids:
+                    continue  # charted static obstacles are planned from the chart
+                moving.append(MovingCircle(
+                    id=k.id, x=k.x + k.vx * dt + 0.5 * k.ax * dt * dt,
+                    y=k.y + k.vy * dt + 0.5 * k.ay * dt * dt,
+                    vx=k.vx + k.ax * dt, vy=k.vy + k.ay * dt, ax=k.ax, ay=k.ay, radius=k.radius))
+        return Obstacles(circles=self.circles, polygons=self.polygons, moving=tuple(moving))
+
+    def step(self, t: float) -> list[Emit]:
+        if self.state is None:
+            return []
+        s = self.state
+        pose = (s.x, s.y, s.theta, s.v, s.w)
+        out: list[Emit] = []
+        if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
+            self.arrived = True
+        if self.arrived:
+            return [Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=0.0, w=0.0,
+                                                           path_id=self.path_id,
+                                                           controller=self.kind))]
+        here = Pose2D(x=s.x, y=s.y, theta=s.theta)
+        obstacles = self._obstacles(t)
+        decision = self.policy.check(t, here, self.goal, obstacles)
+        if decision.replan:
+            out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
+        if self.ref is None:
+            v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
+        else:
+            # delay compensation: the estimate's uplink age plus the expected downlink delay
+            latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+            v, w = self.controller.command(t, pose, self.ref, latency)
+        out.append(Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=v, w=w, path_id=self.path_id,
+                                                          controller=self.kind)))
+        return out
+
+    def _replan(self, t: float, here: Pose2D, obstacles: Obstacles, why: str) -> PathMsg:
+        req = PlanRequest(start=here, goal=self.goal, area=self.area, obstacles=obstacles,
+                          vehicle_radius_m=self.vehicle.radius_m,
+                          r_min_m=self.vehicle.turn_radius_min_m,
+                          v_ref_mps=self.vehicle.cruise_speed_mps)
+        result = plan_path(req, self.cfg)
+        self.policy.on_planned(t, result, self.goal, obstacles)
+        self.last_result = result
+        self.path_id += 1
+        if result.ok:
+            self.ref = NurbsReference(NurbsPath(result.curve()), self.vehicle.cruise_speed_mps)
+            self.controller.reset()
+            return PathMsg(stamp=t, path_id=self.path_id, status="OK", reason=why,
+                           degree=result.degree, control_points=_flat(result.control_points),
+                           weights=_flat(result.weights), knots=_flat(result.knots),
+                           waypoints=_flat(result.grid_path), length=result.length_m,
+                           f_l=result.f_l, max_curvature=result.max_curvature,
+                           v_ref=self.vehicle.cruise_speed_mps)
+        self.ref = None
+        return PathMsg(stamp=t, path_id=self.path_id, status="NO_PATH",
+                       reason=f"{why}: {result.reason}", degree=0, control_points=(), weights=(),
+                       knots=(), waypoints=(), length=0.0, f_l=0.0, max_curvature=0.0, v_ref=0.0)

@@ -1,0 +1,190 @@
+"""Occupancy and repulsive-cost grid over the area: eq. (5)-(6) potential, eq. (17) smoothing."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import convolve1d
+
+from common.config.planner import PlannerConfig
+from services.planner.geometry import Area, Circle, FloatArray, StaticField
+
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True, eq=False)
+class CostMap:
+    """A cell-centred grid: clearance, occupancy and cost. Row iy is y, column ix is x."""
+
+    area: Area
+    resolution_m: float
+    nx: int
+    ny: int
+    clearance: FloatArray  # (ny, nx) centre-to-nearest-surface distance (m), capped far away
+    static_clearance: FloatArray  # (ny, nx) the same for static obstacles only
+    blocked: BoolArray  # (ny, nx) inside an obstacle inflated by r + rho0 (or off the area)
+    cost: FloatArray  # (ny, nx) dimensionless repulsive cost after eq. (17) smoothing, >= 0
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """(ix, iy) of the cell containing (x, y), clamped into the grid."""
+        ix = int((x - self.area.x_min) / self.resolution_m)
+        iy = int((y - self.area.y_min) / self.resolution_m)
+        return min(max(ix, 0), self.nx - 1), min(max(iy, 0), self.ny - 1)
+
+    def centre(self, ix: NDArray[np.intp], iy: NDArray[np.intp]) -> FloatArray:
+        """World coordinates (k, 2) of cell centres."""
+        x = self.area.x_min + (np.asarray(ix) + 0.5) * self.resolution_m
+        y = self.area.y_min + (np.asarray(iy) + 0.5) * self.resolution_m
+        return np.stack([x, y], axis=-1).astype(np.float64)
+
+    def lookup(self, pts: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """(ix, iy) cell indices of points (k, 2), clamped into the grid (vectorised)."""
+        ix = ((pts[:, 0] - self.area.x_min) / self.resolution_m).astype(np.intp)
+        iy = ((pts[:, 1] - self.area.y_min) / self.resolution_m).astype(np.intp)
+        return np.clip(ix, 0, self.nx - 1), np.clip(iy, 0, self.ny - 1)
+
+    def static_clearance_at(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Bilinear interpolation of the static clearance (m,) and its gradient (m, 2).
+
+        The clearance is 1-Lipschitz, so the interpolant is within resolution * sqrt(2) of
+        the exact distance; the refinement uses it for speed, the final check uses exact
+        geometry.
+        """
+        res = self.resolution_m
+        gx = (pts[:, 0] - self.area.x_min) / res - 0.5
+        gy = (pts[:, 1] - self.area.y_min) / res - 0.5
+        ix = np.clip(np.floor(gx).astype(np.intp), 0, self.nx - 2)
+        iy = np.clip(np.floor(gy).astype(np.intp), 0, self.ny - 2)
+        fx = np.clip(gx - ix, 0.0, 1.0)
+        fy = np.clip(gy - iy, 0.0, 1.0)
+        c = self.static_clearance
+        v00, v10 = c[iy, ix], c[iy, ix + 1]
+        v01, v11 = c[iy + 1, ix], c[iy + 1, ix + 1]
+        bottom = v00 + fx * (v10 - v00)
+        top = v01 + fx * (v11 - v01)
+        val = bottom + fy * (top - bottom)
+        dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
+        dy = (top - bottom) / res
+        return val, np.stack([dx, dy], axis=1)
+
+
+def grid_shape(area: Area, resolution_m: float) -> tuple[int, int]:
+    """(nx, ny) cells covering the area at the given resolution."""
+    nx = max(1, math.ceil((area.x_max - area.x_min) / resolution_m - 1e-9))
+    ny = max(1, math.ceil((area.y_max - area.y_min) / resolution_m - 1e-9))
+    return nx, ny
+
+
+def smoothing_kernel(l_cells: int) -> FloatArray:
+    """Eq. (17) filter: taps [1, 2, ..., 2, 1] over 2l+1 cells, normalised to unit sum.
+
+    The printed eq. (17) reads h_k = (h_{k-l} + 2h_{k-l+1} + ... + 2h_{k+l-1}) / (2l+1), which
+    is garbled: the closing h_{k+l} term is missing and 2l+1 does not normalise those weights.
+    We read it as the symmetric 2l+1-tap kernel with end taps 1 and inner taps 2, divided by
+    its sum 4l so a uniform density stays unchanged; it is applied separably along x and y.
+    """
+    if l_cells <= 0:
+        return np.ones(1)
+    k = np.full(2 * l_cells + 1, 2.0)
+    k[0] = k[-1] = 1.0
+    return k / k.sum()
+
+
+def repulsive_cost(rho: FloatArray, cfg: PlannerConfig) -> FloatArray:
+    """Eq. (6) F_rep as a cost: K_r (1/(rho-rho0)^2 - 1/(rho_m-rho0)^2) for rho <= rho_m.
+
+    rho is the surface-to-surface distance (vehicle to obstacle). Eq. (6) diverges at rho0,
+    where cells are occupied anyway, so the cost is capped at `cost_cap`.
+    """
+    gap = np.maximum(rho - cfg.rho0_m, 1e-9)
+    f = cfg.k_r * (1.0 / (gap * gap) - 1.0 / (cfg.rho_m - cfg.rho0_m) ** 2)
+    f = np.where(rho > cfg.rho_m, 0.0, f)
+    return np.clip(f, 0.0, cfg.cost_cap)
+
+
+def build_costmap(
+    area: Area,
+    static: StaticField,
+    extra_discs: tuple[Circle, ...],
+    vehicle_radius_m: float,
+    cfg: PlannerConfig,
+) -> CostMap:
+    """Clearance, occupancy and cost grid for the static field plus extra (predicted) discs.
+
+    Distances use exact geometry (circles and polygon edges), evaluated only in each obstacle's
+    window of influence (bounding box grown by r + rho_m); beyond it nothing is blocked and
+    eq. (5)-(6) give zero cost, so the clearance there is only a lower bound (reach).
+    """
+    res = cfg.resolution_m
+    nx, ny = grid_shape(area, res)
+    reach = vehicle_radius_m + cfg.rho_m + res  # farthest distance that still matters
+    # cells outside every window are farther than `reach` from all obstacles: the cap is a
+    # lower bound of the true clearance, which the final check relies on
+    clear = np.full((ny, nx), reach)
+    xs = area.x_min + (np.arange(nx) + 0.5) * res
+    ys = area.y_min + (np.arange(ny) + 0.5) * res
+
+    def window(x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice]:
+        i0 = max(0, int((x0 - reach - area.x_min) / res))
+        i1 = min(nx, int((x1 + reach - area.x_min) / res) + 2)
+        j0 = max(0, int((y0 - reach - area.y_min) / res))
+        j1 = min(ny, int((y1 + reach - area.y_min) / res) + 2)
+        return slice(j0, j1), slice(i0, i1)
+
+    def add_disc(grid: FloatArray, cx: float, cy: float, cr: float) -> None:
+        sy, sx = window(cx - cr, cy - cr, cx + cr, cy + cr)
+        if sy.start < sy.stop and sx.start < sx.stop:
+            d = np.hypot(xs[None, sx] - cx, ys[sy, None] - cy) - cr
+            grid[sy, sx] = np.minimum(grid[sy, sx], d)
+
+    for cx, cy, cr in static.circ.tolist():
+        add_disc(clear, cx, cy, cr)
+    n_circ = len(static.circ)
+    for p in range(len(static.poly_starts)):
+        box = static.bbox[n_circ + p]
+        sy, sx = window(*box)
+        if sy.start >= sy.stop or sx.start >= sx.stop:
+            continue
+        sel = static.edge_poly == p
+        single = StaticField(
+            np.zeros((0, 3)),
+            static.edge_a[sel],
+            static.edge_b[sel],
+            np.zeros(1, np.intp),
+            np.zeros(int(sel.sum()), np.intp),
+            box[None, :],
+        )
+        gx, gy = np.meshgrid(xs[sx], ys[sy])
+        d, _ = single.distance(np.stack([gx.ravel(), gy.ravel()], axis=1))
+        clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
+    static_clear = clear.copy()
+    for c in extra_discs:
+        add_disc(clear, c.x, c.y, c.radius)
+
+    rho = clear - vehicle_radius_m  # eq. (5): surface-to-surface distance
+    blocked = rho < cfg.rho0_m  # inflated by r + rho0 -> occupied
+    # the vehicle body must stay inside the area X (eq. (10))
+    edge_gap = np.minimum.outer(
+        np.minimum(ys - area.y_min, area.y_max - ys), np.minimum(xs - area.x_min, area.x_max - xs)
+    )
+    blocked |= edge_gap < vehicle_radius_m
+    cost = repulsive_cost(rho, cfg)
+    if cfg.smoothing_len > 0:  # eq. (17), separable along both axes
+        kern = smoothing_kernel(cfg.smoothing_len)
+        cost = convolve1d(
+            convolve1d(cost, kern, axis=0, mode="nearest"), kern, axis=1, mode="nearest"
+        )
+    cost = np.where(blocked, cfg.cost_cap, cost)
+    return CostMap(
+        area=area,
+        resolution_m=res,
+        nx=nx,
+        ny=ny,
+        clearance=clear,
+        static_clearance=static_clear,
+        blocked=blocked,
+        cost=cost,
+    )

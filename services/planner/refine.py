@@ -1,0 +1,214 @@
+"""Refinement of the fitted NURBS by the penalised path-length objective of eq. (8)-(9).
+
+Over the free control points x (see fit.Layout) we minimise
+
+    F(x) = L(P) + c_k sum_j max(0, k_j - k_t)^2 + c_d sum_j max(0, d_t,j - d_j)^2
+
+L is the curve length (eq. (8): a quadrature of |C'|, here Gauss-Legendre on each knot
+span), k_j the curvature at sample j (turning constraint eq. (11) with w_max / v = 1 / R_min,
+eq. (19)-(20)), d_j the clearance to static obstacles (eq. (12)) and to moving ones where
+they are when the vehicle passes, t_j = s_j / v_ref (eq. (13)). Eq. (9)'s hinge max(0, .) is
+squared so F is smooth; the targets k_t < 1/R_min and d_t > r + rho0 carry margins so the
+dense final check passes strictly. Knots and weights stay fixed: C, C', C'' are linear in P.
+
+Default solver: Levenberg-Marquardt on F with a Gauss-Newton Hessian for the squared hinges
+and the majoriser w/|C'| (C'^T C') of the length (the IRLS view of |v|), which gives the flat
+"slide along the curve" directions of L the curvature L-BFGS lacks; a step is kept only if
+it lowers the true F. scipy's L-BFGS-B on the same F and gradient is the alternative.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from services.planner.fit import FitProblem, Layout
+from services.planner.geometry import FloatArray
+from services.planner.nurbs import Nurbs, rational_basis
+
+_BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
+_BAND_K = 0.1  # curvature hinges within this fraction of the target do too
+_LBFGS_STEP_M = 0.05  # L-BFGS-B variable scale: its first step moves the points ~5 cm
+
+
+@dataclass(frozen=True, kw_only=True)
+class RefineWeights:
+    """Penalty weights c_n of eq. (9) and the targets the refinement aims at."""
+
+    c_d: float  # clearance penalty (m^-1)
+    c_k: float  # curvature penalty (m^3)
+    clear_margin_m: float  # aim this far beyond the required clearance
+    k_target: float  # aim at curvature <= this (1/m), below 1/R_min
+
+
+def quadrature(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
+    """Sample parameters and length weights: Gauss-Legendre nodes on every knot span, plus
+    the knots themselves with weight 0.
+
+    For a cubic C'' is piecewise linear with its extremes at the knots, so curvature peaks
+    sit near them; sampling only the interior nodes would let the solver hide a peak there.
+    """
+    xg, wg = np.polynomial.legendre.leggauss(per_span)
+    brk = np.unique(knots)
+    lo, hi = brk[:-1], brk[1:]
+    u = (0.5 * (lo + hi))[:, None] + (0.5 * (hi - lo))[:, None] * xg[None, :]
+    w = (0.5 * (hi - lo))[:, None] * wg[None, :]
+    u_all = np.concatenate([u, lo[:, None]], axis=1).ravel()
+    w_all = np.concatenate([w, np.zeros((len(lo), 1))], axis=1).ravel()
+    u_all, w_all = np.append(u_all, brk[-1]), np.append(w_all, 0.0)
+    order = np.argsort(u_all, kind="stable")
+    return u_all[order], w_all[order]
+
+
+class Objective:
+    """F(x) of eq. (9) with its gradient and a Gauss-Newton / majoriser Hessian."""
+
+    def __init__(self, prob: FitProblem, curve: Nurbs, per_span: int, wts: RefineWeights) -> None:
+        self.prob, self.wts = prob, wts
+        self.lay = Layout(prob, len(curve.ctrl))
+        u, self.wq = quadrature(curve.knots, per_span)
+        self.r0, self.r1, self.r2 = rational_basis(curve.knots, curve.degree, curve.weights, u, 2)
+        # sample times on the starting curve, held for this round (eq. (13): t = s / v_ref)
+        d1 = self.r1 @ curve.ctrl
+        ds = self.wq * np.hypot(d1[:, 0], d1[:, 1])
+        s = np.cumsum(ds) - 0.5 * ds
+        self.d_t = prob.required(s) + wts.clear_margin_m
+        t_s = s / prob.v_ref_mps
+        self.centres = np.zeros((len(prob.moving), len(u), 2))  # alpha_k(t_j), eq. (12)
+        for i, o in enumerate(prob.moving):
+            self.centres[i] = o.positions(t_s, prob.accel_horizon_s)
+        self.radii = np.array([o.radius for o in prob.moving])[:, None]
+
+    def __call__(
+        self, x: FloatArray, hessian: bool = False
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """F(x), dF/dx and (if asked) the PSD Hessian model; the last is empty otherwise."""
+        wts, n = self.wts, self.lay.n
+        p = self.lay.ctrl(x)
+        c, v1, v2 = self.r0 @ p, self.r1 @ p, self.r2 @ p
+        sp = np.maximum(np.hypot(v1[:, 0], v1[:, 1]), 1e-9)
+        f = float(self.wq @ sp)  # eq. (8): length
+        g1 = (self.wq / sp)[:, None] * v1
+        # eq. (19)-(20): curvature k = |x'y'' - y'x''| / |C'|^3 and its hinge
+        cross = v1[:, 0] * v2[:, 1] - v1[:, 1] * v2[:, 0]
+        k = np.abs(cross) / sp**3
+        vk = np.maximum(k - wts.k_target, 0.0)
+        f += wts.c_k * float(vk @ vk)
+        sg = np.sign(cross) / sp**3
+        kk = 3.0 * k / sp**2
+        dk1 = np.stack([sg * v2[:, 1] - kk * v1[:, 0], -sg * v2[:, 0] - kk * v1[:, 1]], axis=1)
+        dk2 = np.stack([-sg * v1[:, 1], sg * v1[:, 0]], axis=1)
+        g1 += (2.0 * wts.c_k * vk)[:, None] * dk1
+        g2 = (2.0 * wts.c_k * vk)[:, None] * dk2
+        # eq. (12)-(13): clearance to static (bilinear grid) and moving (exact) obstacles
+        dist, grad = self.prob.grid.static_clearance_at(c)
+        dists, dirs = [dist], [grad]
+        if len(self.centres):
+            diff = c[None, :, :] - self.centres
+            rr = np.maximum(np.sqrt(np.einsum("kmd,kmd->km", diff, diff)), 1e-9)
+            dm = rr - self.radii
+            kmin = np.argmin(dm, axis=0)  # nearest moving obstacle per sample
+            cols = np.arange(len(c))
+            dists.append(dm[kmin, cols])
+            dirs.append(diff[kmin, cols] / rr[kmin, cols][:, None])
+        gc = np.zeros_like(c)
+        for dist_m, dd in zip(dists, dirs, strict=True):
+            vd = np.maximum(self.d_t - dist_m, 0.0)
+            f += wts.c_d * float(vd @ vd)
+            gc -= (2.0 * wts.c_d * vd)[:, None] * dd
+        gp = self.r0.T @ gc + self.r1.T @ g1 + self.r2.T @ g2
+        gx = self.lay.m.T @ gp.ravel()
+        if not hessian:
+            return f, gx, np.zeros((0, 0))
+        # length majoriser: sum_j (w_j / |C'_j|) C'_j^T C'_j, the same for x and y
+        kmat = self.r1.T @ ((self.wq / sp)[:, None] * self.r1)
+        hp = np.kron(kmat, np.eye(2))
+        # Gauss-Newton rows sqrt(2c) dv/dP of the hinges, (m_act, n, 2). Hinges within a
+        # small band of becoming active are included too: the model then "sees" a wall the
+        # step is about to hit instead of overshooting into it and being rejected.
+        rows = []
+        act = k > wts.k_target * (1.0 - _BAND_K)
+        if act.any():
+            jk = (
+                dk1[act, None, :] * self.r1[act, :, None]
+                + dk2[act, None, :] * self.r2[act, :, None]
+            )
+            rows.append(np.sqrt(2.0 * wts.c_k) * jk)
+        for dist_m, dd in zip(dists, dirs, strict=True):
+            act = dist_m < self.d_t + _BAND_M
+            if act.any():
+                rows.append(np.sqrt(2.0 * wts.c_d) * dd[act, None, :] * self.r0[act, :, None])
+        if rows:
+            jac = np.concatenate(rows).reshape(-1, 2 * n)
+            hp += jac.T @ jac
+        return f, gx, self.lay.m.T @ hp @ self.lay.m
+
+
+def levenberg_marquardt(
+    obj: Objective, x0: FloatArray, lo: FloatArray, hi: FloatArray, max_iter: int
+) -> FloatArray:
+    """Damped Newton steps on the Hessian model, projected on the box, kept if F drops."""
+    x = np.clip(x0, lo, hi)
+    f, g, h = obj(x, hessian=True)
+    lam = 1.0
+    eye = np.eye(len(x))
+    for _ in range(max_iter):
+        step = np.linalg.solve(h + lam * (np.diag(np.diag(h)) + 1e-6 * eye), -g)
+        xn = np.clip(x + step, lo, hi)
+        fn, gn, hn = obj(xn, hessian=True)
+        if fn < f:
+            done = f - fn < 1e-6 * abs(f)
+            x, f, g, h = xn, fn, gn, hn
+            lam = max(lam / 3.0, 1e-9)
+            if done:
+                break
+        else:
+            lam *= 8.0
+            if lam > 1e6:
+                break
+    return x
+
+
+def lbfgsb(
+    obj: Objective, x0: FloatArray, lo: FloatArray, hi: FloatArray, max_iter: int
+) -> FloatArray:
+    """scipy L-BFGS-B on F, in variables scaled so its first step is a few centimetres."""
+    x0 = np.clip(x0, lo, hi)
+    sc = _LBFGS_STEP_M
+
+    def fun(z: FloatArray) -> tuple[float, FloatArray]:
+        f, g, _ = obj(x0 + sc * z)
+        return f, sc * g
+
+    bounds = list(zip(((lo - x0) / sc).tolist(), ((hi - x0) / sc).tolist(), strict=True))
+    res = minimize(
+        fun,
+        np.zeros_like(x0),
+        jac=True,
+        method="L-BFGS-B",
+        bounds=bounds,
+        options={"maxiter": max_iter},
+    )
+    return np.asarray(x0 + sc * res.x)
+
+
+def refine(
+    prob: FitProblem,
+    curve: Nurbs,
+    wts: RefineWeights,
+    *,
+    per_span: int,
+    max_iter: int,
+    method: str = "levenberg_marquardt",
+) -> Nurbs:
+    """One refinement round: minimise eq. (9) over the free control points."""
+    obj = Objective(prob, curve, per_span, wts)
+    lay = obj.lay
+    lo, hi = lay.bounds(prob.area, prob.vehicle_radius_m, 4.0 * prob.r_min_m + 10.0)
+    x0 = lay.to_x(curve.ctrl)
+    if max_iter > 0 and lay.dim:
+        solve = lbfgsb if method == "lbfgsb" else levenberg_marquardt
+        x0 = solve(obj, x0, lo, hi, max_iter)
+    return Nurbs(curve.degree, lay.ctrl(x0), curve.weights, curve.knots)

@@ -1,0 +1,168 @@
+"""When to replan: a small pure policy over the current path, the vehicle pose and obstacles.
+
+Events (any one triggers a replan, but never sooner than min_replan_interval_s after the
+last replan, so noisy tracks cannot make the planner chatter):
+  no_path       there is no usable path yet (none planned, or the last attempt failed);
+  goal_changed  the goal moved;
+  deviation     the vehicle is farther than deviation_threshold_m from its path;
+  infeasible    the rest of the path violates eq. (12)-(13): some obstacle (static, or moving
+                at the time the vehicle will pass) is closer than r + rho0;
+  corridor      a tracked moving obstacle the current plan did not account for is predicted
+                to come within corridor_halfwidth_m of the path ahead when the vehicle passes.
+A replan should start from the vehicle's current pose (see `replan_request`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from common.config.planner import PlannerConfig
+from services.planner.geometry import FloatArray, Obstacles, Pose2D, StaticField
+from services.planner.plan import PlanRequest, PlanResult
+
+ReplanReason = Literal["", "no_path", "goal_changed", "deviation", "infeasible", "corridor"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReplanDecision:
+    """Whether to replan now, the event that asks for it, and a human-readable detail."""
+
+    replan: bool
+    reason: ReplanReason = ""
+    detail: str = ""
+
+
+def replan_request(base: PlanRequest, pose: Pose2D, obstacles: Obstacles) -> PlanRequest:
+    """The same problem, planned from the vehicle's current pose with the current obstacles."""
+    return dataclasses.replace(base, start=pose, obstacles=obstacles)
+
+
+class ReplanPolicy:
+    """Keeps the current path (dense samples with arc length) and decides on replans."""
+
+    def __init__(
+        self,
+        cfg: PlannerConfig,
+        *,
+        vehicle_radius_m: float,
+        v_ref_mps: float,
+        n_samples: int = 400,
+    ) -> None:
+        self.cfg = cfg
+        self.r = vehicle_radius_m
+        self.v_ref = v_ref_mps
+        self.n_samples = n_samples
+        self.pts: FloatArray | None = None  # (K, 2) samples of the current path
+        self.s: FloatArray = np.zeros(0)  # (K,) arc length of each sample
+        self.goal: Pose2D | None = None
+        self.known_ids: frozenset[int] = frozenset()  # tracks the current plan accounted for
+        self.last_replan_t: float | None = None
+        self.s_now = 0.0  # progress along the path (m), monotone
+        self.last_check_t: float | None = None
+
+    # --- state updates -------------------------------------------------------------------
+    def on_planned(self, t: float, result: PlanResult, goal: Pose2D, obstacles: Obstacles) -> None:
+        """Record a replan attempt at time t (its result may be NO_PATH)."""
+        self.last_replan_t = t
+        self.goal = goal
+        self.s_now = 0.0
+        self.last_check_t = t
+        if not result.ok:
+            self.pts = None
+            return
+        curve = result.curve()
+        u = np.linspace(curve.u_min, curve.u_max, self.n_samples)
+        self.pts = curve.evaluate(u, n_ders=0)[0]
+        self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.pts, axis=0).T))])
+        gap, ids = self._moving_gaps(obstacles, 0, 0.0)
+        self.known_ids = frozenset(ids[gap < self.cfg.corridor_halfwidth_m].tolist())
+
+    # --- the decision --------------------------------------------------------------------
+    def check(self, t: float, pose: Pose2D, goal: Pose2D, obstacles: Obstacles) -> ReplanDecision:
+        """Decide at time t; obstacles are given by their state at time t."""
+        if (
+            self.last_replan_t is not None
+            and t - self.last_replan_t < self.cfg.min_replan_interval_s
+        ):
+            return ReplanDecision(replan=False, detail="within the minimum replan interval")
+        if self.pts is None:
+            return ReplanDecision(replan=True, reason="no_path", detail="no usable path")
+        if self.goal is None or _moved(self.goal, goal):
+            return ReplanDecision(replan=True, reason="goal_changed", detail="the goal moved")
+        i_now, dev = self._progress(t, pose)
+        if dev > self.cfg.deviation_threshold_m:
+            return ReplanDecision(
+                replan=True,
+                reason="deviation",
+                detail=f"{dev:.2f} m from the path > {self.cfg.deviation_threshold_m:.2f} m",
+            )
+        d_req = self.r + self.cfg.rho0_m
+        ahead = self.pts[i_now:]
+        static = StaticField.build(obstacles.circles, obstacles.polygons)
+        if not static.empty and len(ahead):
+            d, _ = static.distance(ahead)
+            j = int(np.argmin(d))
+            if d[j] < d_req - 1e-6:
+                return ReplanDecision(
+                    replan=True,
+                    reason="infeasible",
+                    detail=f"static obstacle {d[j] - self.r:.2f} m from the path ahead "
+                    f"at ({ahead[j, 0]:.1f}, {ahead[j, 1]:.1f}) < rho0",
+                )
+        gap, ids = self._moving_gaps(obstacles, i_now, self.s_now)
+        if len(gap):
+            j = int(np.argmin(gap))
+            if gap[j] < self.cfg.rho0_m - 1e-6:
+                return ReplanDecision(
+                    replan=True,
+                    reason="infeasible",
+                    detail=f"moving obstacle {ids[j]} predicted {gap[j]:.2f} m from the path",
+                )
+            new = [k for k in range(len(ids)) if ids[k] not in self.known_ids]
+            hit = [k for k in new if gap[k] < self.cfg.corridor_halfwidth_m]
+            if hit:
+                k = min(hit, key=lambda q: gap[q])
+                return ReplanDecision(
+                    replan=True,
+                    reason="corridor",
+                    detail=f"moving obstacle {ids[k]} predicted {gap[k]:.2f} m from the path",
+                )
+        return ReplanDecision(replan=False)
+
+    # --- helpers -------------------------------------------------------------------------
+    def _progress(self, t: float, pose: Pose2D) -> tuple[int, float]:
+        """Nearest sample in a window ahead of the last progress, and the distance to it."""
+        assert self.pts is not None
+        dt = 0.0 if self.last_check_t is None else max(t - self.last_check_t, 0.0)
+        self.last_check_t = t
+        lo = self.s_now - 2.0
+        hi = self.s_now + 2.0 * self.v_ref * dt + 10.0
+        win = np.flatnonzero((self.s >= lo) & (self.s <= hi))
+        d = np.hypot(self.pts[win, 0] - pose.x, self.pts[win, 1] - pose.y)
+        k = int(win[int(np.argmin(d))])
+        self.s_now = max(self.s_now, float(self.s[k]))
+        return k, float(d.min())
+
+    def _moving_gaps(
+        self, obstacles: Obstacles, i_now: int, s_now: float
+    ) -> tuple[FloatArray, np.ndarray]:
+        """Per moving obstacle: the least hull-to-surface gap to the path ahead, eq. (12)-(13),
+        each path sample compared with the obstacle at the time the vehicle gets there."""
+        if self.pts is None or not obstacles.moving:
+            return np.zeros(0), np.zeros(0, dtype=np.int64)
+        ahead = self.pts[i_now:]
+        tau = (self.s[i_now:] - s_now) / self.v_ref
+        gaps = []
+        for o in obstacles.moving:
+            c = o.positions(tau, self.cfg.accel_horizon_s)
+            gaps.append(float(np.min(np.hypot(*(ahead - c).T))) - o.radius - self.r)
+        return np.array(gaps), np.array([o.id for o in obstacles.moving], dtype=np.int64)
+
+
+def _moved(a: Pose2D, b: Pose2D) -> bool:
+    return math.hypot(a.x - b.x, a.y - b.y) > 1e-6 or abs(a.theta - b.theta) > 1e-9

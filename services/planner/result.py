@@ -1,0 +1,74 @@
+"""The planner's request and result types (plain frozen dataclasses over numpy arrays)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from services.planner.geometry import Area, FloatArray, Obstacles, Pose2D
+from services.planner.nurbs import Nurbs
+
+PlanStatus = Literal["OK", "NO_PATH"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanRequest:
+    """One planning problem. Moving obstacles are given by their state at plan time t = 0."""
+
+    start: Pose2D
+    goal: Pose2D
+    area: Area = field(default_factory=Area)
+    obstacles: Obstacles = field(default_factory=Obstacles)
+    vehicle_radius_m: float = 0.1  # REMUS-100: 0.19 m diameter
+    r_min_m: float = 2.0  # minimum turning radius R_min (eq. (19)-(20))
+    v_ref_mps: float = 1.5  # cruise speed: converts arc length to passing time, eq. (13)
+    fix_goal_heading: bool = True  # eq. (10): also impose theta_f at the goal
+
+    def __post_init__(self) -> None:
+        for name in ("vehicle_radius_m", "r_min_m", "v_ref_mps"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name}: {v!r} is invalid, expected a finite value > 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanTiming:
+    """Seconds spent per stage (all zero when no clock was handed to plan_path)."""
+
+    costmap_s: float = 0.0
+    search_s: float = 0.0  # graph search and line-of-sight pruning
+    fit_s: float = 0.0  # initial fit and refinement rounds
+    check_s: float = 0.0  # dense final checks
+    total_s: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class PlanResult:
+    """A planned NURBS path (status OK) or NO_PATH with its reason."""
+
+    status: PlanStatus
+    reason: str
+    degree: int = 0
+    control_points: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # (n, 2)
+    weights: FloatArray = field(default_factory=lambda: np.zeros(0))
+    knots: FloatArray = field(default_factory=lambda: np.zeros(0))
+    grid_path: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # pruned waypoints
+    length_m: float = 0.0  # eq. (16)/(18) length of the curve
+    f_l: float = 0.0  # L / straight-line start-goal distance
+    max_curvature: float = 0.0  # 1/m over the dense samples; < 1/R_min when OK (eq. (20))
+    min_clearance_m: float = 0.0  # hull-to-obstacle-surface minimum; >= rho0 when OK
+    turn_penalty: float = 0.0  # eq. (19) f_R of the final curve
+    rounds: int = 0  # refinement rounds used (over all search attempts)
+    timing: PlanTiming = field(default_factory=PlanTiming)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "OK"
+
+    def curve(self) -> Nurbs:
+        if not self.ok:
+            raise ValueError(f"no curve: {self.reason}")
+        return Nurbs(self.degree, self.control_points, self.weights, self.knots)

@@ -1,0 +1,222 @@
+"""The vehicle service core: plant + current + watchdog behind the ServiceCore contract.
+
+Time handling: the plant is integrated with RK4 on a fixed absolute grid of dt_internal_s
+(cells [k dt, (k+1) dt]). Every accepted command becomes a command *schedule* in force from
+its exact delivery time; a cell is integrated once it is complete, split only where the
+applied (v, w) actually changes (a delivery that changes it, a watchdog mode change). So a
+command takes effect exactly when it is delivered, yet re-sending the same command at other
+times leaves the trajectory bit-identical. States at off-grid output times are integrated
+on a scratch copy. Everything depends only on the sequence of (deliver, step) calls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from common.config.vehicle import VehicleConfig
+from common.messages import TruthState, VehicleStatus, VelocityCommand
+from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from services.vehicle.current import OceanCurrent
+from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
+from services.vehicle.watchdog import Applied, Schedule, Verdict, Watchdog
+
+Clearance = Callable[[float, float, float], float]  # (x, y, t) -> signed clearance (eq. 12), m
+
+# a remaining sub-step shorter than this is not integrated (it only absorbs float noise)
+_MIN_STEP_S = 1e-12
+# times this close to a grid point are on it (k * 0.05 and m * 0.01 differ in the last bits)
+_GRID_TOL_S = 1e-9
+
+
+class VehicleCore:
+    """Simulated AUV: takes planner/cmd, publishes truth and status every period_s."""
+
+    def __init__(
+        self,
+        cfg: VehicleConfig,
+        start: tuple[float, float, float],
+        rng: np.random.Generator,
+        clearance: Clearance | None = None,
+        *,
+        t0: float = 0.0,
+    ) -> None:
+        self.spec = CoreSpec(
+            name="vehicle",
+            inputs=(
+                InputSpec(
+                    source="planner", stream="cmd", msg_type=VelocityCommand, policy=QueuePolicy.ALL
+                ),
+            ),
+            outputs=(
+                OutputSpec(stream="truth", msg_type=TruthState),
+                OutputSpec(stream="status", msg_type=VehicleStatus),
+            ),
+            period_s=cfg.period_s,
+        )
+        self._cfg = cfg
+        self._p = PlantParams.from_config(cfg)
+        self._dt = cfg.dt_internal_s
+        self._state: State = (float(start[0]), float(start[1]), float(start[2]), 0.0, 0.0, 0.0)
+        self._t = float(t0)  # committed time: the plant state is known up to here
+        self._pieces: list[tuple[float, Schedule]] = [(self._t, Schedule())]
+        self._current = OceanCurrent(cfg.current, cfg.dt_internal_s, rng)
+        self._watchdog = Watchdog(
+            cfg.watchdog,
+            v_min=cfg.v_min_mps,
+            v_max=cfg.v_max_mps,
+            w_min=cfg.w_min_rps,
+            w_max=cfg.w_max_rps,
+        )
+        self._clearance = clearance
+        self.min_clearance_m = math.inf  # smallest clearance seen at any step
+        self.collisions = 0  # steps at which the clearance was negative
+        self.last_verdict: Verdict | None = None
+
+    # -- ServiceCore -------------------------------------------------------------------------
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        """Integrate to the delivery time with the old command, then judge the new one."""
+        msg = d.msg
+        if not isinstance(msg, VelocityCommand):
+            return []
+        self._commit(d.t)
+        before = self._watchdog.schedule
+        self.last_verdict = self._watchdog.offer(d.t, msg.stamp, msg.v, msg.w)
+        after = self._watchdog.schedule
+        if after is not before:
+            start = max(d.t, self._t)  # a delivery in the plant's past takes effect now
+            if self._pieces[-1][0] == start:
+                self._pieces[-1] = (start, after)
+            else:
+                self._pieces.append((start, after))
+        return []
+
+    def step(self, t: float) -> list[Emit]:
+        """Integrate to t and publish the true state and the vehicle status."""
+        x, y, theta, v, w, _ = self.state_at(t)
+        collided = False
+        if self._clearance is not None:
+            c = self._clearance(x, y, t)  # eq. (12): d = |x - a_k| - (r + r_k), < 0 = contact
+            self.min_clearance_m = min(self.min_clearance_m, c)
+            collided = c < 0.0
+            self.collisions += int(collided)
+        now = self.applied(t)
+        wd = self._watchdog
+        return [
+            Emit(
+                stream="truth",
+                msg=TruthState(stamp=t, x=x, y=y, theta=_wrap(theta), v=v, w=w, collided=collided),
+            ),
+            Emit(
+                stream="status",
+                msg=VehicleStatus(
+                    stamp=t,
+                    mode=now.mode,
+                    v_applied=now.v,
+                    w_applied=now.w,
+                    command_age=now.age_s,
+                    commands_applied=wd.applied,
+                    commands_rejected=wd.rejected,
+                    commands_clamped=wd.clamped,
+                ),
+            ),
+        ]
+
+    # -- plant ---------------------------------------------------------------------------------
+
+    def state_at(self, t: float) -> State:
+        """The plant state at time t >= the committed time (commits every complete cell)."""
+        self._commit(t)
+        if t - self._t <= _GRID_TOL_S:
+            return self._state
+        k = self._cell(self._t)
+        return self._integrate(self._state, k, self._t, t)  # scratch: not committed
+
+    def _cell(self, t: float) -> int:
+        """Index k of the grid cell [k dt, (k+1) dt) that starts at or contains t."""
+        k = math.floor(t / self._dt + 1e-9)
+        if (k + 1) * self._dt <= t + _GRID_TOL_S:  # float noise: t is the end of cell k
+            k += 1
+        return k
+
+    def _commit(self, t: float) -> None:
+        """Integrate every grid cell that ends at or before t (within float noise)."""
+        while True:
+            k = self._cell(self._t)
+            end = (k + 1) * self._dt
+            if end > t + _GRID_TOL_S:
+                return
+            self._state = self._integrate(self._state, k, self._t, end)
+            self._t = end
+            # keep only the schedule in force from the new committed time on
+            self._pieces = [(end, self._in_force(end))]
+
+    def _in_force(self, t: float) -> Schedule:
+        sched = self._pieces[0][1]
+        for start, sc in self._pieces:
+            if start <= t:
+                sched = sc
+        return sched
+
+    def _applied_vw(self, t: float) -> tuple[float, float]:
+        a = self._in_force(t).at(t)
+        return a.v, a.w
+
+    def _integrate(self, state: State, k: int, t_a: float, t_b: float) -> State:
+        """RK4 over [t_a, t_b] inside cell k, split where the applied (v, w) changes."""
+        cands = {start for start, _ in self._pieces}
+        for _, sc in self._pieces:
+            cands.update(sc.transitions)
+        seg_a, cur = t_a, self._applied_vw(t_a)
+        for c in sorted(x for x in cands if t_a < x < t_b):
+            val = self._applied_vw(c)
+            if val != cur:
+                state = self._rk4(state, k, seg_a, c, cur)
+                seg_a, cur = c, val
+        return self._rk4(state, k, seg_a, t_b, cur)
+
+    def _rk4(self, state: State, k: int, t_a: float, t_b: float, vw: tuple[float, float]) -> State:
+        h = t_b - t_a
+        if h < _MIN_STEP_S:
+            return state
+        return rk4_step(state, h, vw[0], vw[1], self._current.segment(k, t_a), self._p)
+
+    def applied(self, t: float) -> Applied:
+        """Mode and command the watchdog applies at time t."""
+        return self._watchdog.command(t)
+
+    @property
+    def time(self) -> float:
+        """The plant's committed time (s)."""
+        return self._t
+
+    @property
+    def pose(self) -> tuple[float, float, float, float, float]:
+        """True (x, y, theta, v, w) at the committed time; theta unwrapped (continuous)."""
+        x, y, theta, v, w, _ = self._state
+        return x, y, theta, v, w
+
+    @property
+    def watchdog(self) -> Watchdog:
+        """The command watchdog (for its counters)."""
+        return self._watchdog
+
+    @property
+    def thrust_n(self) -> float:
+        """Thrust the speed loop produces at the committed time (N)."""
+        v_cmd, _ = self._applied_vw(self._t)
+        _, _, _, v, _, z = self._state
+        return thrust_n(v_cmd, drag_n(v_cmd, self._p), v, z, self._p)[0]
+
+    @property
+    def drag_n(self) -> float:
+        """Hydrodynamic resistance at the committed time, eq. (14) (N)."""
+        return drag_n(self._state[3], self._p)
+
+
+def _wrap(a: float) -> float:
+    """Angle wrapped to [-pi, pi]."""
+    return math.remainder(a, 2.0 * math.pi)

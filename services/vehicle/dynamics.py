@@ -1,0 +1,154 @@
+"""Vehicle plant: eq. (7) kinematics, eq. (14) surge drag, speed and yaw loops, one RK4 step.
+
+State (Fossen-style names in the comments): eta = (x, y, theta), nu = (v, w), plus the speed
+loop integrator z. Plain floats and `math` only: fast for scalar RK4 and bit-reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from common.config.vehicle import VehicleConfig
+
+# ITTC-1957 is fitted for Re >= ~1e5; below that (V -> 0) we hold Cf at its Re = 1e5 value.
+# The drag still vanishes as V^2, so the guard only avoids log10(Re) <= 2 (a pole).
+RE_MIN = 1.0e5
+
+State = tuple[float, float, float, float, float, float]  # x, y, theta, v, w, z
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class PlantParams:
+    """The constants the plant needs, precomputed once from a VehicleConfig."""
+
+    half_rho_s: float  # 0.5 rho S of eq. (14)
+    length_m: float
+    nu_m2ps: float
+    delta_cf: float
+    c_pv: float
+    mass_eff_kg: float
+    thrust_min_n: float
+    thrust_max_n: float
+    kp: float
+    ki: float
+    int_band: float
+    accel_max: float
+    yaw_tau_s: float
+    yaw_accel_max: float
+    v_max: float
+    w_min: float
+    w_max: float
+
+    @staticmethod
+    def from_config(cfg: VehicleConfig) -> PlantParams:
+        return PlantParams(
+            half_rho_s=0.5 * cfg.rho_kgpm3 * cfg.wetted_area_m2,
+            length_m=cfg.length_m,
+            nu_m2ps=cfg.nu_m2ps,
+            delta_cf=cfg.delta_cf,
+            c_pv=cfg.c_pv,
+            mass_eff_kg=cfg.mass_eff_kg,
+            thrust_min_n=cfg.thrust_min_n,
+            thrust_max_n=cfg.thrust_max_n,
+            kp=cfg.speed_kp_npmps,
+            ki=cfg.speed_ki_npm,
+            int_band=cfg.speed_int_band_mps,
+            accel_max=cfg.accel_max_mps2,
+            yaw_tau_s=cfg.yaw_tau_s,
+            yaw_accel_max=cfg.yaw_accel_max_rps2,
+            v_max=cfg.v_max_mps,
+            w_min=cfg.w_min_rps,
+            w_max=cfg.w_max_rps,
+        )
+
+
+def friction_coefficient(speed: float, length_m: float, nu_m2ps: float) -> float:
+    """ITTC-1957 line Cf = 0.075 / (log10(Re) - 2)^2 with Re = V L / nu (guarded at V -> 0)."""
+    re = max(abs(speed) * length_m / nu_m2ps, RE_MIN)
+    return 0.075 / (math.log10(re) - 2.0) ** 2
+
+
+def drag_n(v: float, p: PlantParams) -> float:
+    """eq. (14): R = 0.5 rho V^2 S (Cf + dCf + Cpv), signed so that it opposes v."""
+    cf = friction_coefficient(v, p.length_m, p.nu_m2ps)
+    return p.half_rho_s * v * abs(v) * (cf + p.delta_cf + p.c_pv)
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+def thrust_n(v_cmd: float, ff_n: float, v: float, z: float, p: PlantParams) -> tuple[float, float]:
+    """Speed loop: T = R(v_cmd) + kp e + ki z, bounded; returns (T, dz/dt) with anti-windup.
+
+    The drag feed-forward R(v_cmd) keeps the integrator near zero (it only trims model
+    mismatch), so the loop settles fast. Anti-windup, written to keep the right-hand side
+    continuous (a jump would cost RK4 its accuracy wherever a step straddles it):
+    - the integrand is weighted by g(e) = exp(-(e / int_band)^2): integration happens only
+      near the set point, so large speed changes do not wind the integrator up;
+    - back-calculation (T - T_raw) / kp bleeds the integrator while the thrust saturates.
+    """
+    e = v_cmd - v
+    t_raw = ff_n + p.kp * e + p.ki * z
+    t = _clamp(t_raw, p.thrust_min_n, p.thrust_max_n)
+    x = e / p.int_band
+    g = math.exp(-x * x)
+    return t, g * (e + (t - t_raw) / p.kp)
+
+
+def derivatives(
+    s: State, v_cmd: float, w_cmd: float, ff_n: float, cx: float, cy: float, p: PlantParams
+) -> State:
+    """Time derivative of the state under a (v, w) command and a current (cx, cy)."""
+    _, _, theta, v, w, z = s
+    # eq. (7): no-sideslip unicycle, advected by the current
+    dx = v * math.cos(theta) + cx
+    dy = v * math.sin(theta) + cy
+    # surge: m_eff dv/dt = T - R(v) (eq. 14), acceleration bounded
+    t, dz = thrust_n(v_cmd, ff_n, v, z, p)
+    dv = _clamp((t - drag_n(v, p)) / p.mass_eff_kg, -p.accel_max, p.accel_max)
+    # yaw: first-order towards the command, yaw acceleration bounded
+    dw = _clamp((w_cmd - w) / p.yaw_tau_s, -p.yaw_accel_max, p.yaw_accel_max)
+    return dx, dy, w, dv, dw, dz
+
+
+def rk4_step(
+    s: State,
+    h: float,
+    v_cmd: float,
+    w_cmd: float,
+    current: tuple[float, float, float, float],
+    p: PlantParams,
+) -> State:
+    """One classical RK4 step of length h with a command held over the step.
+
+    `current` = (cx0, cy0, dcx/dt, dcy/dt): the current is linear in time over the step.
+    After the step, v and w are projected onto their eq. (11) bounds (v never reverses).
+    """
+    cx0, cy0, dcx, dcy = current
+    ff = drag_n(v_cmd, p)
+    hh = 0.5 * h
+    cxm, cym = cx0 + hh * dcx, cy0 + hh * dcy
+    k1 = derivatives(s, v_cmd, w_cmd, ff, cx0, cy0, p)
+    k2 = derivatives(_axpy(s, hh, k1), v_cmd, w_cmd, ff, cxm, cym, p)
+    k3 = derivatives(_axpy(s, hh, k2), v_cmd, w_cmd, ff, cxm, cym, p)
+    k4 = derivatives(_axpy(s, h, k3), v_cmd, w_cmd, ff, cx0 + h * dcx, cy0 + h * dcy, p)
+    h6 = h / 6.0
+    x, y, theta, v, w, z = (
+        a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
+    )
+    return x, y, theta, _clamp(v, 0.0, p.v_max), _clamp(w, p.w_min, p.w_max), z
+
+
+def _axpy(s: State, h: float, k: State) -> State:
+    """s + h k for the 6-element state (an RK4 stage point)."""
+    return (
+        s[0] + h * k[0],
+        s[1] + h * k[1],
+        s[2] + h * k[2],
+        s[3] + h * k[3],
+        s[4] + h * k[4],
+        s[5] + h * k[5],
+    )

@@ -1,0 +1,166 @@
+"""The typed bus between real OS processes over Zenoh (tcp/127.0.0.1, peer to peer).
+
+The child is tests/helpers/bus_peer.py. Synchronisation is by liveliness tokens, a readiness
+line on stdout and timeouts on every wait; no sleeps.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+from helpers.bus_peer import (
+    GARBAGE_STREAM,
+    PARENT,
+    PEER,
+    VEHICLE,
+    garbage_navs,
+    stream_of,
+)
+from helpers.samples import one_of_each
+
+from common.bus import Bus, Inbox, Keys, Liveliness, Received
+from common.config.bus import BusConfig
+from common.runtime.procs import free_port
+
+pytestmark = pytest.mark.slow
+
+TESTS = Path(__file__).resolve().parent
+WAIT_S = 15.0  # generous upper bound for any one wait; the happy path takes well under 1 s
+
+
+@contextmanager
+def child(role: str, endpoint: str, run: str) -> Iterator[subprocess.Popen[str]]:
+    """Start the helper in its own process group; on the way out, kill the group if alive."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(TESTS), env.get("PYTHONPATH")]))
+    env["PYTHONUNBUFFERED"] = "1"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "helpers.bus_peer", role, "--endpoint", endpoint, "--run", run],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=WAIT_S)
+        assert proc.stdout is not None and proc.stderr is not None
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def _finish(proc: subprocess.Popen[str]) -> tuple[int, str]:
+    """Wait for the child to exit by itself; its exit code and stderr."""
+    try:
+        code = proc.wait(timeout=WAIT_S)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"child still running after {WAIT_S} s")
+    assert proc.stderr is not None
+    return code, proc.stderr.read()
+
+
+def _setup(tag: str) -> tuple[str, Keys]:
+    port = free_port()
+    return f"tcp/127.0.0.1:{port}", Keys(run=f"{tag}{port}", vehicle=VEHICLE)
+
+
+def _receive(inbox: Inbox, n: int) -> list[Received]:
+    """Up to `n` messages, each waited for at most WAIT_S."""
+    out: list[Received] = []
+    deadline = time.monotonic() + WAIT_S
+    while len(out) < n and (left := deadline - time.monotonic()) > 0:
+        ev = inbox.get(timeout=left)
+        if isinstance(ev, Received):
+            out.append(ev)
+    return out
+
+
+def test_every_message_type_crosses_between_processes() -> None:
+    endpoint, keys = _setup("x")
+    expected = {stream_of(type(m)): m for m in one_of_each()}
+    with Bus(BusConfig(listen=(endpoint,)), keys) as bus:
+        inbox = Inbox()
+        bus.subscribe(keys.stream(PEER, "*"), inbox)
+        bus.declare_alive(PARENT)  # after subscribing: the child publishes once it sees this
+        with child("exchange", endpoint, keys.run) as proc:
+            got = _receive(inbox, len(expected))
+            by_stream = {keys.split(r.key)[1]: r.msg for r in got}
+            assert len(got) == len(expected), f"got {sorted(by_stream)}"
+            assert by_stream == expected
+            assert inbox.decode_errors == {}
+            bus.close()  # withdraws our token: the child's cue to exit
+            code, err = _finish(proc)
+    assert code == 0, err
+
+
+def test_garbage_is_counted_and_the_next_valid_message_still_arrives() -> None:
+    endpoint, keys = _setup("g")
+    key = keys.stream(PEER, GARBAGE_STREAM)
+    with Bus(BusConfig(listen=(endpoint,)), keys) as bus:
+        inbox = Inbox()
+        bus.subscribe(key, inbox)
+        bus.declare_alive(PARENT)
+        with child("garbage", endpoint, keys.run) as proc:
+            got = _receive(inbox, 2)
+            assert [r.msg for r in got] == garbage_navs()
+            # both bad payloads were sent before the second valid one on one session
+            deadline = time.monotonic() + WAIT_S
+            while inbox.decode_errors.get(key, 0) < 2 and time.monotonic() < deadline:
+                inbox.get(timeout=0.1)  # drains (and counts) anything still queued
+            assert inbox.decode_errors == {key: 2}
+            assert "wrong wire version 99" in inbox.last_error[key]
+            bus.close()
+            code, err = _finish(proc)
+    assert code == 0, err
+
+
+def _read_line(proc: subprocess.Popen[str], timeout_s: float) -> str:
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], timeout_s)
+    return proc.stdout.readline().strip() if ready else ""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_process_with_open_subscribers_exits_promptly_on_a_signal(sig: signal.Signals) -> None:
+    endpoint, keys = _setup("s")
+    with child("idle", endpoint, keys.run) as proc:
+        line = _read_line(proc, WAIT_S)
+        assert line == "ready", f"no readiness line (got {line!r}); exit code {proc.poll()}"
+        with Bus(BusConfig(connect=(endpoint,)), keys) as bus:
+            inbox = Inbox()
+            bus.watch_alive(inbox, keys.alive(PEER))
+            ev = inbox.get(timeout=WAIT_S)
+            assert ev == Liveliness(keys.alive(PEER), True)  # connected: the child is live
+            # traffic into the child's inbox and callback subscribers while it runs
+            pub = bus.publisher(PARENT, "nav")
+            for msg in one_of_each()[:3]:
+                pub.put(msg)
+            t0 = time.monotonic()
+            proc.send_signal(sig)
+            try:
+                code = proc.wait(timeout=WAIT_S)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"no exit within {WAIT_S} s of {sig.name}")
+            exit_s = time.monotonic() - t0
+            gone = inbox.get(timeout=2.0)
+            gone_s = time.monotonic() - t0
+        assert proc.stderr is not None
+        err = proc.stderr.read()
+    assert code == 0, f"exit code {code} after {sig.name}; stderr:\n{err}"
+    assert exit_s < 2.0, f"took {exit_s:.3f} s to exit after {sig.name}"
+    # and the token was withdrawn (Bus closed on the way out, not only the process killed)
+    assert gone == Liveliness(keys.alive(PEER), False), f"{gone!r} after {gone_s:.3f} s"

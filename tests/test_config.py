@@ -1,0 +1,290 @@
+"""Scenario loading: errors name the file, the key path and the expectation; overrides; `check`."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common.config.loader import ConfigError
+from common.config.scenario import load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
+
+GOOD = """\
+[run]
+name = "cfgtest"
+mission = "common.runtime.testloop:TestLoop"
+max_time_s = 2.0
+seed = 7
+
+[bus]
+listen = ["tcp/127.0.0.1:7447"]
+
+[network.default]
+delay_s = 0.05
+jitter = "normal"
+jitter_s = 0.01
+
+[[network.links]]
+link = "sensor/nav->filter"
+profile = { loss = "bernoulli", loss_p = 0.25 }
+
+[[network.outages]]
+service = "ctrl"
+start_s = 1.0
+end_s = 1.5
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "scenario.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _error(path: Path, overrides: list[str] | None = None) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        load_scenario(path, overrides)
+    return info.value
+
+
+def test_a_good_file_loads_into_the_dataclasses(tmp_path: Path) -> None:
+    scenario, raw = load_scenario(_write(tmp_path, GOOD))
+    assert scenario.run.name == "cfgtest"
+    assert scenario.run.seed == 7
+    assert scenario.run.max_time_s == 2.0
+    assert scenario.bus.listen == ("tcp/127.0.0.1:7447",)
+    assert scenario.network.default.delay_s == 0.05
+    assert scenario.network.default.jitter == "normal"
+    assert scenario.network.links[0].profile.loss_p == 0.25
+    assert scenario.network.outages[0].service == "ctrl"
+    assert (scenario.network.outages[0].start_s, scenario.network.outages[0].end_s) == (1.0, 1.5)
+    # an absent section takes its defaults
+    assert scenario.runtime.kind == "inproc"
+    assert raw["run"]["name"] == "cfgtest"
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "needles"),
+    [
+        pytest.param(
+            GOOD.replace("seed = 7", "sede = 7"),
+            "run.sede",
+            ["unknown key", "known keys:", "seed"],
+            id="unknown key",
+        ),
+        pytest.param(
+            GOOD + "\n[planet]\nx = 1\n", "planet", ["unknown key", "network"], id="unknown section"
+        ),
+        pytest.param(
+            GOOD.replace("seed = 7", 'seed = "seven"'),
+            "run.seed",
+            ["expected an integer", "got a string"],
+            id="wrong type",
+        ),
+        pytest.param(
+            GOOD.replace("delay_s = 0.05", 'delay_s = "fast"'),
+            "network.default.delay_s",
+            ["expected a number", "got a string"],
+            id="wrong type nested",
+        ),
+        pytest.param(
+            GOOD.replace('listen = ["tcp/127.0.0.1:7447"]', 'listen = "tcp/127.0.0.1:7447"'),
+            "bus.listen",
+            ["expected an array", "got a string"],
+            id="scalar for array",
+        ),
+        pytest.param(
+            GOOD.replace('jitter = "normal"', 'jitter = "gauss"'),
+            "network.default.jitter",
+            ["'gauss' is not one of", "'normal'", "'pareto'"],
+            id="not a literal",
+        ),
+        pytest.param(
+            GOOD.replace("delay_s = 0.05", "delay_s = -0.05"),
+            "network.default.delay_s",
+            ["-0.05", "expected a finite value >= 0"],
+            id="out of range",
+        ),
+        pytest.param(
+            GOOD.replace("loss_p = 0.25", "loss_p = 1.5"),
+            "network.links[0].profile.loss_p",
+            ["1.5", "not a probability", "[0, 1]"],
+            id="out of range in array of tables",
+        ),
+        pytest.param(
+            GOOD.replace("max_time_s = 2.0", "max_time_s = nan"),
+            "run.max_time_s",
+            ["expected a finite number"],
+            id="nan",
+        ),
+        pytest.param(
+            GOOD.replace('jitter = "normal"', 'jitter = "uniform"').replace(
+                "jitter_s = 0.01", "jitter_s = 0.2"
+            ),
+            "network.default.jitter_s",
+            ["0.2", "exceeds delay_s 0.05", "expected jitter_s <= delay_s"],
+            id="inconsistent: uniform jitter wider than the delay",
+        ),
+        pytest.param(
+            GOOD.replace("end_s = 1.5", "end_s = 0.5"),
+            "network.outages[0].end_s",
+            ["0.5", "expected end_s > start_s (1.0)"],
+            id="inconsistent: outage ends before it starts",
+        ),
+        pytest.param(
+            GOOD.replace("[bus]", '[bus]\nmode = "client"').replace(
+                'listen = ["tcp/127.0.0.1:7447"]', ""
+            ),
+            "bus.connect",
+            ["a client must connect to at least one router endpoint"],
+            id="inconsistent: client without connect",
+        ),
+        pytest.param(
+            GOOD.replace("start_s = 1.0\n", ""),
+            "network.outages[0].start_s",
+            ["required key is missing"],
+            id="missing required key",
+        ),
+    ],
+)
+def test_errors_name_the_file_the_key_and_the_expectation(
+    tmp_path: Path, text: str, key: str, needles: list[str]
+) -> None:
+    path = _write(tmp_path, text)
+    err = _error(path)
+    assert err.file == str(path)
+    assert err.key == key
+    message = str(err)
+    assert message.startswith(f"{path}: {key}: "), message
+    for needle in needles:
+        assert needle in err.problem, f"{needle!r} not in {err.problem!r}"
+
+
+def test_a_missing_file_is_named(tmp_path: Path) -> None:
+    path = tmp_path / "nowhere.toml"
+    err = _error(path)
+    assert err.file == str(path)
+    assert "file not found" in err.problem
+    assert str(path) in str(err)
+
+
+def test_bad_toml_is_named_with_the_parser_position(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD.replace("seed = 7", "seed = = 7"))
+    err = _error(path)
+    assert err.file == str(path)
+    assert "not valid TOML" in err.problem
+    assert "line 5" in err.problem  # tomllib's position of the broken line
+
+
+def test_overrides_set_nested_keys_and_are_validated(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD)
+    scenario, raw = load_scenario(
+        path,
+        [
+            "network.default.delay_s=0.2",
+            'runtime.kind="lockstep"',
+            "runtime.time_scale=5",  # an integer for a float field is accepted as a number
+            "run.name=bare_word",  # not TOML: taken as a string
+            "bus.multicast_scouting=true",
+        ],
+        seed=42,
+    )
+    assert scenario.network.default.delay_s == 0.2
+    assert scenario.runtime.kind == "lockstep"
+    assert scenario.runtime.time_scale == 5.0
+    assert scenario.run.name == "bare_word"
+    assert scenario.bus.multicast_scouting is True
+    assert scenario.run.seed == 42
+    assert raw["network"]["default"]["delay_s"] == 0.2  # the raw data carries the overrides
+
+
+def test_an_override_creates_a_missing_section(tmp_path: Path) -> None:
+    path = _write(tmp_path, '[run]\nmission = "common.runtime.testloop:TestLoop"\n')
+    scenario, _ = load_scenario(path, ["runtime.stats_period_s=0.5"])
+    assert scenario.runtime.stats_period_s == 0.5
+
+
+@pytest.mark.parametrize(
+    ("override", "key", "needle"),
+    [
+        ("network.default.delay_s=-1", "network.default.delay_s", "expected a finite value >= 0"),
+        ("run.bogus=1", "run.bogus", "unknown key"),
+        ("runtime.kind=warp", "runtime.kind", "'warp' is not one of"),
+    ],
+)
+def test_bad_overrides_are_reported_at_their_key(
+    tmp_path: Path, override: str, key: str, needle: str
+) -> None:
+    err = _error(_write(tmp_path, GOOD), [override])
+    assert err.key == key
+    assert needle in err.problem
+
+
+def test_an_override_without_a_value_is_rejected(tmp_path: Path) -> None:
+    err = _error(_write(tmp_path, GOOD), ["run.seed"])
+    assert err.file == "--set"
+    assert "expected key.path=value" in err.problem
+
+
+def test_an_override_into_a_scalar_is_rejected(tmp_path: Path) -> None:
+    err = _error(_write(tmp_path, GOOD), ["run.seed.low=1"])
+    assert err.file == "--set"
+    assert err.key == "run.seed.low"
+    assert "seed is not a table" in err.problem
+
+
+# --- the `tidelink check` command, as a user runs it ---------------------------------------------
+
+
+def _check(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "common.cli", "check", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+        check=False,
+    )
+
+
+def test_check_accepts_a_good_file(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD)
+    res = _check(str(path))
+    assert res.returncode == 0, res.stderr
+    assert f"{path}: OK" in res.stdout
+    assert "services ctrl, filter, plant, sensor" in res.stdout
+
+
+def test_check_rejects_a_broken_file_with_the_message(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD.replace("loss_p = 0.25", "loss_p = -0.25"))
+    res = _check(str(path))
+    assert res.returncode != 0
+    assert res.stdout == ""
+    assert f"{path}: network.links[0].profile.loss_p: -0.25 is not a probability" in res.stderr
+
+
+def test_check_applies_set_overrides(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD)
+    res = _check(str(path), "--set", "network.default.jitter_s=-1")
+    assert res.returncode != 0
+    assert "network.default.jitter_s" in res.stderr
+    assert "expected a finite value >= 0" in res.stderr
+
+
+def test_check_rejects_a_mission_that_cannot_be_loaded(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD.replace("testloop:TestLoop", "testloop:NoSuchMission"))
+    res = _check(str(path))
+    assert res.returncode != 0
+    assert "run.mission" in res.stderr
+    assert "NoSuchMission" in res.stderr
+
+
+def test_check_names_a_missing_file(tmp_path: Path) -> None:
+    res = _check(str(tmp_path / "gone.toml"))
+    assert res.returncode != 0
+    assert "gone.toml" in res.stderr
+    assert "file not found" in res.stderr

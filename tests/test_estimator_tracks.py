@@ -1,0 +1,153 @@
+"""Obstacle tracks: velocity convergence, weaving obstacles, gating, timeout, radius, IMM parts."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from common.config.estimator import EstimatorConfig
+from common.config.sensor import SensorConfig
+from common.config.world import MovingObstacleConfig, WorldConfig
+from common.messages import Detection, ObstacleDetections, ObstacleTracks, Track, TruthState
+from common.runtime.core import Delivery
+from common.world import World
+from services.estimator import EstimatorCore
+from services.estimator.imm import combine, mix, switch_matrix
+from services.estimator.tracks import ObstacleTracker, TrackerState
+from services.sensor import SensorCore
+
+CV_OBSTACLES = (
+    MovingObstacleConfig(id=1, kind="line", x0_m=20, y0_m=10, vx_mps=0.5, vy_mps=0.3),
+    MovingObstacleConfig(id=2, kind="line", x0_m=25, y0_m=30, vx_mps=-0.4, vy_mps=-0.2),
+)
+WEAVER = MovingObstacleConfig(
+    id=3,
+    kind="sinusoid",
+    radius_m=1.5,
+    x0_m=30,
+    y0_m=5,
+    vy_mps=0.4,
+    amplitude_m=3.0,
+    frequency_hz=0.05,
+)
+
+
+def _simulate(world: World, seed: int, T: float, every: float = 0.1) -> list[ObstacleTracks]:
+    """Sensor (defaults) on a vehicle at rest at (5, 20) facing +x, feeding the estimator."""
+    sensor = SensorCore(SensorConfig(), world, np.random.default_rng(seed))
+    est = EstimatorCore(EstimatorConfig(), (5.0, 20.0, 0.0), np.random.default_rng(0))
+    out = []
+    for k in range(round(T / 0.1) + 1):
+        t = round(0.1 * k, 9)
+        truth = TruthState(stamp=t, x=5.0, y=20.0, theta=0.0, v=0.0, w=0.0)
+        sensor.deliver(Delivery(source="vehicle", stream="truth", msg=truth, t=t))
+        for e in sensor.step(t):
+            est.deliver(Delivery(source="sensor", stream=e.stream, msg=e.msg, t=t))
+        tracks = est.step(t)[1].msg
+        assert isinstance(tracks, ObstacleTracks)
+        out.append(tracks)
+    return out
+
+
+def test_constant_velocity_obstacles_converge_within_10_percent() -> None:
+    world = World(WorldConfig(moving=CV_OBSTACLES))
+    worst = 0.0
+    for seed in range(5):
+        last = _simulate(world, seed, T=30.0)[-1]
+        assert last.stamp == 30.0
+        truth = {o.id: o for o in world.obstacles_at(30.0)}
+        assert {tr.id for tr in last.tracks} == {1, 2}
+        for tr in last.tracks:
+            o = truth[tr.id]
+            rel = math.hypot(tr.vx - o.vx, tr.vy - o.vy) / math.hypot(o.vx, o.vy)
+            worst = max(worst, rel)
+            assert math.hypot(tr.x - o.x, tr.y - o.y) < 0.3  # det noise is 0.2 m per axis
+            assert tr.radius == pytest.approx(o.radius, abs=0.05)
+    assert worst <= 0.10, worst  # measured worst 0.036
+
+
+def test_weaving_obstacle_is_followed() -> None:
+    # sinusoid: speed up to ~1 m/s, acceleration up to 0.3 m/s^2
+    world = World(WorldConfig(moving=(WEAVER,)))
+    pos_err, vel_err = [], []
+    history = _simulate(world, 4, T=40.0)
+    for tracks in history[150:]:  # after 15 s
+        o = world.obstacles_at(tracks.stamp)[0]
+        (tr,) = tracks.tracks
+        pos_err.append(math.hypot(tr.x - o.x, tr.y - o.y))
+        vel_err.append(math.hypot(tr.vx - o.vx, tr.vy - o.vy))
+    assert math.sqrt(np.mean(np.square(pos_err))) < 0.35  # measured ~0.2 m
+    assert math.sqrt(np.mean(np.square(vel_err))) < 0.4  # measured ~0.25 m/s
+
+
+def _det(oid: int, x: float, y: float, r: float = 1.0) -> Detection:
+    return Detection(id=oid, x=x, y=y, radius=r, std_xy=0.2, std_radius=0.1)
+
+
+def _steady(tracker: ObstacleTracker, n: int, rng: np.random.Generator) -> TrackerState:
+    state = TrackerState(tracks={})
+    for k in range(n):
+        t = 0.2 * k
+        z = rng.standard_normal(2) * 0.2
+        scan = ObstacleDetections(stamp=t, detections=(_det(5, 10 + 0.5 * t + z[0], 8 + z[1]),))
+        state = tracker.fuse(state, scan)
+    return state
+
+
+def test_gate_rejects_20_sigma_outlier() -> None:
+    tracker = ObstacleTracker(EstimatorConfig())
+    state = _steady(tracker, 50, np.random.default_rng(1))  # up to t = 9.8 s
+    before = tracker.tracks_at(state, 10.0)
+    (pred,) = before
+    # one sigma of the innovation along x: predicted variance plus the detection's
+    sigma = math.sqrt(pred.covariance[0] + 0.2**2)
+    outlier = ObstacleDetections(stamp=10.0, detections=(_det(5, pred.x + 20 * sigma, pred.y),))
+    after = tracker.fuse(state, outlier)
+    assert after.gated_out == 1
+    assert tracker.tracks_at(after, 10.0) == before  # the track ignored it entirely
+    # a 3-sigma detection passes the gate (chi-square 2 dof at 0.9999: 18.4 > 9)
+    fine = ObstacleDetections(stamp=10.0, detections=(_det(5, pred.x + 3 * sigma, pred.y),))
+    again = tracker.fuse(after, fine)
+    assert again.gated_out == 1 and again.tracks[5].stamp == 10.0
+
+
+def test_track_dropped_after_timeout_and_restarted() -> None:
+    cfg = EstimatorConfig(track_timeout_s=3.0)
+    tracker = ObstacleTracker(cfg)
+    state = _steady(tracker, 26, np.random.default_rng(2))  # last detection at 5.0 s
+    assert [t.id for t in tracker.tracks_at(state, 7.95)] == [5]
+    assert tracker.tracks_at(state, 8.05) == ()
+    # seen again far away after the timeout: a fresh track, not a gated-out update
+    back = tracker.fuse(state, ObstacleDetections(stamp=9.0, detections=(_det(5, 60.0, 30.0),)))
+    (tr,) = tracker.tracks_at(back, 9.0)
+    assert (tr.x, tr.y, tr.vx, tr.vy) == (60.0, 30.0, 0.0, 0.0) and back.gated_out == 0
+
+
+def test_track_message_layout() -> None:
+    tracker = ObstacleTracker(EstimatorConfig())
+    state = _steady(tracker, 40, np.random.default_rng(3))
+    (tr,) = tracker.tracks_at(state, 8.0)
+    assert isinstance(tr, Track)
+    P = np.array(tr.covariance).reshape(6, 6)  # order [x, y, vx, vy, ax, ay]
+    np.testing.assert_allclose(P, P.T, atol=1e-15)
+    assert np.all(np.linalg.eigvalsh(P) > -1e-12)
+    assert P[0, 0] < 0.2**2 and P[2, 2] < 0.1**2  # position tighter than one detection
+    assert tr.vx == pytest.approx(0.5, abs=0.1) and tr.vy == pytest.approx(0.0, abs=0.1)
+
+
+def test_imm_pieces() -> None:
+    M = switch_matrix(0.2, 100.0, 2.0)
+    np.testing.assert_allclose(M.sum(axis=1), [1.0, 1.0], atol=1e-15)
+    assert M[0, 1] == pytest.approx(1 - math.exp(-0.002)) and M[1, 0] == pytest.approx(
+        1 - math.exp(-0.1)
+    )
+    xs = (np.arange(6.0), np.arange(6.0) + 1.0)
+    Ps = (np.eye(6), 2.0 * np.eye(6))
+    x, P = combine(xs, Ps, np.array([0.25, 0.75]))
+    np.testing.assert_allclose(x, np.arange(6.0) + 0.75, atol=1e-15)
+    # 0.25 * 1 + 0.75 * 2 + spread 0.25 * 0.75 on every entry
+    np.testing.assert_allclose(P, 1.75 * np.eye(6) + 0.1875, atol=1e-15)
+    _, _, cbar = mix(xs, Ps, np.array([0.25, 0.75]), np.eye(2))
+    np.testing.assert_allclose(cbar, [0.25, 0.75], atol=1e-15)

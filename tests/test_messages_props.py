@@ -1,0 +1,367 @@
+"""Codec properties: round trips, decode is total (WireError or a Message), errors say what.
+
+Strategies are derived from each message dataclass's type hints (so a new field is covered
+automatically), with per-type overrides for the fields that have a valid range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from collections.abc import Callable
+from typing import Any
+
+import msgpack
+import pytest
+from helpers.samples import one_of_each
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from common.messages import (
+    MESSAGE_TYPES,
+    WIRE_VERSION,
+    Detection,
+    LinkCounters,
+    Message,
+    NavFix,
+    PathMsg,
+    StateEstimate,
+    Tick,
+    TickAck,
+    Track,
+    VehicleStatus,
+    VelocityCommand,
+    WireError,
+    decode,
+    encode,
+)
+
+S = st.SearchStrategy
+FINITE = st.floats(allow_nan=False, allow_infinity=False)
+NONNEG = st.floats(min_value=0.0, allow_nan=False, allow_infinity=False)
+POSITIVE = st.floats(min_value=0.0, exclude_min=True, allow_nan=False, allow_infinity=False)
+INT64 = st.integers(-(2**63), 2**63 - 1)  # msgpack's signed range
+COUNT = st.integers(0, 2**63 - 1)
+TEXT = st.text(max_size=12)
+
+PROPS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@st.composite
+def _cov(draw: st.DrawFn, n: int) -> tuple[float, ...]:
+    """An n x n row-major matrix with a non-negative diagonal (what the wire requires)."""
+    diag = draw(st.lists(NONNEG, min_size=n, max_size=n))
+    off = draw(st.lists(FINITE, min_size=n * n, max_size=n * n))
+    return tuple(diag[i // n] if i // n == i % n else off[i] for i in range(n * n))
+
+
+# Fields with a valid range, per class; everything else comes from the type hint.
+OVERRIDES: dict[type, dict[str, S[Any]]] = {
+    Message: {"stamp": FINITE, "sent": FINITE, "seq": COUNT, "source": TEXT},
+    NavFix: {"std_xy": NONNEG, "std_heading": NONNEG, "std_speed": NONNEG},
+    Detection: {"id": COUNT, "radius": NONNEG, "std_xy": NONNEG, "std_radius": NONNEG},
+    StateEstimate: {"covariance": _cov(5)},
+    Track: {"id": COUNT, "radius": NONNEG, "covariance": _cov(6)},
+    VelocityCommand: {"path_id": COUNT},
+    VehicleStatus: {
+        "command_age": NONNEG,
+        "commands_applied": COUNT,
+        "commands_rejected": COUNT,
+        "commands_clamped": COUNT,
+    },
+    LinkCounters: {
+        **{
+            k: COUNT
+            for k in ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue")
+        },
+        "duplicated": COUNT,
+        "delay_p50": NONNEG,
+        "delay_p99": NONNEG,
+    },
+    Tick: {"tick": COUNT, "time_us": COUNT},
+    TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},
+}
+
+
+def strategy_for_hint(hint: Any) -> S[Any]:
+    """A strategy of valid values for one field type (float, int, str, bool, Literal, ...)."""
+    simple: dict[Any, S[Any]] = {float: FINITE, int: INT64, str: TEXT, bool: st.booleans()}
+    if hint in simple:
+        return simple[hint]
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Literal:
+        return st.sampled_from(args)
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        return st.lists(strategy_for_hint(args[0]), max_size=6).map(tuple)
+    if origin is dict and args == (str, int):
+        return st.dictionaries(TEXT, INT64, max_size=4)
+    if dataclasses.is_dataclass(hint) and isinstance(hint, type):
+        return strategy_for_class(hint)
+    raise TypeError(f"no strategy for field type {hint!r}")
+
+
+def strategy_for_class(cls: type) -> S[Any]:
+    """st.builds over the dataclass fields, with the class's (and its bases') overrides."""
+    if cls is PathMsg:
+        return path_msgs()
+    hints = typing.get_type_hints(cls)
+    over: dict[str, S[Any]] = {}
+    for base in reversed(cls.__mro__):
+        over.update(OVERRIDES.get(base, {}))
+    kwargs = {
+        f.name: over[f.name] if f.name in over else strategy_for_hint(hints[f.name])
+        for f in dataclasses.fields(cls)
+    }
+    return st.builds(cls, **kwargs)
+
+
+@st.composite
+def path_msgs(draw: st.DrawFn) -> PathMsg:
+    """A PathMsg whose counts agree: n control points, n weights > 0, n + degree + 1 knots."""
+    env = {k: draw(v) for k, v in OVERRIDES[Message].items()}
+    path_id = draw(COUNT)
+    if draw(st.booleans()):  # NO_PATH: only the status and reason are meaningful
+        return PathMsg(
+            **env,
+            path_id=path_id,
+            status="NO_PATH",
+            reason=draw(TEXT),
+            degree=0,
+            control_points=(),
+            weights=(),
+            knots=(),
+            waypoints=(),
+            length=0.0,
+            f_l=0.0,
+            max_curvature=0.0,
+            v_ref=0.0,
+        )
+    degree = draw(st.integers(1, 5))
+    n = draw(st.integers(degree + 1, degree + 6))
+    knots = sorted(draw(st.lists(FINITE, min_size=n + degree + 1, max_size=n + degree + 1)))
+    n_way = draw(st.integers(0, 6))
+    return PathMsg(
+        **env,
+        path_id=path_id,
+        status="OK",
+        reason="",
+        degree=degree,
+        control_points=tuple(draw(st.lists(FINITE, min_size=2 * n, max_size=2 * n))),
+        weights=tuple(draw(st.lists(POSITIVE, min_size=n, max_size=n))),
+        knots=tuple(knots),
+        waypoints=tuple(draw(st.lists(FINITE, min_size=2 * n_way, max_size=2 * n_way))),
+        length=draw(NONNEG),
+        f_l=draw(NONNEG),
+        max_curvature=draw(NONNEG),
+        v_ref=draw(NONNEG),
+    )
+
+
+BY_TYPE: dict[type[Message], S[Any]] = {cls: strategy_for_class(cls) for cls in MESSAGE_TYPES}
+ANY_MESSAGE: S[Message] = st.one_of(list(BY_TYPE.values()))
+
+
+# --- round trip ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cls", MESSAGE_TYPES, ids=lambda c: c.__name__)
+@PROPS
+@given(data=st.data())
+def test_round_trip_of_every_type(cls: type[Message], data: st.DataObject) -> None:
+    msg = data.draw(BY_TYPE[cls])
+    wire = encode(msg)
+    back = decode(wire)
+    assert type(back) is cls
+    assert back == msg
+    # canonical: re-encoding gives the same bytes (so -0.0, key order, ints vs floats survive)
+    assert encode(back) == wire
+
+
+# --- decode is total: a Message or WireError, never anything else -------------------------------
+
+
+def _decode_total(data: bytes) -> Message | WireError:
+    try:
+        msg = decode(data)
+    except WireError as exc:
+        assert str(exc), "a WireError must say what is wrong"
+        return exc
+    assert isinstance(msg, Message)
+    assert type(msg) in MESSAGE_TYPES
+    return msg
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.binary(max_size=600))
+def test_decode_of_arbitrary_bytes_raises_only_wire_error(data: bytes) -> None:
+    _decode_total(data)
+
+
+Mutation = Callable[[bytearray], None]
+
+
+@st.composite
+def _mutation(draw: st.DrawFn, size: int) -> tuple[str, int, int]:
+    kind = draw(st.sampled_from(["flip", "set", "insert", "delete", "truncate"]))
+    pos = draw(st.integers(0, max(0, size - 1)))
+    return kind, pos, draw(st.integers(0, 255))
+
+
+def _apply(buf: bytearray, kind: str, pos: int, val: int) -> None:
+    if kind == "flip":
+        buf[pos] ^= 1 << (val % 8)
+    elif kind == "set":
+        buf[pos] = val
+    elif kind == "insert":
+        buf.insert(pos, val)
+    elif kind == "delete":
+        del buf[pos]
+    else:
+        del buf[pos:]
+
+
+@st.composite
+def mutated_messages(draw: st.DrawFn) -> bytes:
+    """A valid encoded message with 1-4 flipped/overwritten/inserted/deleted bytes or truncated."""
+    buf = bytearray(encode(draw(ANY_MESSAGE | st.sampled_from(one_of_each()))))
+    for _ in range(draw(st.integers(1, 4))):
+        if buf:
+            _apply(buf, *draw(_mutation(len(buf))))
+    return bytes(buf)
+
+
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(mutated_messages())
+def test_decode_of_mutated_messages_raises_only_wire_error(data: bytes) -> None:
+    _decode_total(data)
+
+
+# Any msgpack value (what a buggy or hostile peer could send that still parses as msgpack).
+MSGPACK_VALUES: S[Any] = st.recursive(
+    st.none() | st.booleans() | INT64 | st.floats() | TEXT | st.binary(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(TEXT, inner, max_size=4),
+    max_leaves=12,
+)
+
+
+@st.composite
+def wellformed_envelopes_with_junk(draw: st.DrawFn) -> bytes:
+    """A valid envelope and type name whose body has the right keys but arbitrary values."""
+    msg = draw(st.sampled_from(one_of_each()))
+    frame = msgpack.unpackb(encode(msg))
+    body = frame[6]
+    for key in draw(st.lists(st.sampled_from(sorted(body)), min_size=1, max_size=3)):
+        body[key] = draw(MSGPACK_VALUES)
+    if draw(st.booleans()):
+        frame[draw(st.integers(2, 5))] = draw(MSGPACK_VALUES)
+    return bytes(msgpack.packb(frame, use_bin_type=True))
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(wellformed_envelopes_with_junk())
+def test_decode_of_junk_field_values_raises_only_wire_error(data: bytes) -> None:
+    _decode_total(data)
+
+
+@settings(max_examples=200, deadline=None)
+@given(MSGPACK_VALUES)
+def test_decode_of_arbitrary_msgpack_raises_only_wire_error(value: Any) -> None:
+    _decode_total(bytes(msgpack.packb(value, use_bin_type=True)))
+
+
+# --- each kind of error says what is wrong ------------------------------------------------------
+
+
+def _nav_frame() -> list[Any]:
+    """[version, type, source, seq, stamp, sent, body] of the sample NavFix."""
+    nav = one_of_each()[0]
+    assert isinstance(nav, NavFix)
+    frame: list[Any] = msgpack.unpackb(encode(nav))
+    return frame
+
+
+def _packed(frame: list[Any]) -> bytes:
+    return bytes(msgpack.packb(frame, use_bin_type=True))
+
+
+def _with(index: int, value: Any) -> bytes:
+    frame = _nav_frame()
+    frame[index] = value
+    return _packed(frame)
+
+
+def _with_field(name: str, value: Any) -> bytes:
+    frame = _nav_frame()
+    frame[6][name] = value
+    return _packed(frame)
+
+
+def _without_field(name: str) -> bytes:
+    frame = _nav_frame()
+    del frame[6][name]
+    return _packed(frame)
+
+
+def _track_with_cov(cov: list[float]) -> bytes:
+    frame: list[Any] = msgpack.unpackb(encode(one_of_each()[3]))
+    frame[6]["tracks"][0]["covariance"] = cov
+    return _packed(frame)
+
+
+_VALID = encode(one_of_each()[0])
+ERROR_CASES: list[tuple[str, bytes, list[str]]] = [
+    ("unknown type", _with(1, "Teleport"), ["unknown message type", "'Teleport'"]),
+    ("wrong version", _with(0, WIRE_VERSION + 1), ["wrong wire version", "2", "speaks 1"]),
+    ("version as float", _with(0, 1.0), ["wrong wire version"]),
+    ("missing field", _without_field("heading"), ["NavFix", "missing field", "heading"]),
+    ("extra field", _with_field("depth", 3.0), ["NavFix", "unexpected field", "depth"]),
+    ("wrong type", _with_field("x", "ten"), ["NavFix.x", "expected a number", "str"]),
+    ("bool for a float", _with_field("speed", True), ["NavFix.speed", "expected a number"]),
+    ("nan field", _with_field("y", math.nan), ["NavFix.y", "nan", "not a finite number"]),
+    ("inf field", _with_field("y", math.inf), ["NavFix.y", "inf", "not a finite number"]),
+    ("inf stamp", _with(4, -math.inf), ["stamp", "-inf", "not a finite number"]),
+    ("negative std", _with_field("std_xy", -0.5), ["std_xy", "-0.5", "out of range", ">= 0"]),
+    ("negative seq", _with(3, -1), ["seq", "-1", "out of range", ">= 0"]),
+    ("seq as float", _with(3, 1.5), ["seq", "expected an integer", "float"]),
+    ("source not text", _with(2, 7), ["source", "expected a string", "int"]),
+    ("truncated", _VALID[:-5], ["truncated or invalid msgpack"]),
+    ("trailing bytes", _VALID + b"\x00", ["trailing bytes"]),
+    ("empty", b"", ["empty payload"]),
+    ("not an envelope", _packed([1, "NavFix"]), ["not a tidelink envelope", "7-element"]),
+    ("body not a map", _with(6, [1, 2]), ["NavFix", "expected a map of fields", "list"]),
+    ("short covariance", _track_with_cov([1.0] * 35), ["track.covariance", "36", "got 35"]),
+    (
+        "negative variance",
+        _track_with_cov([-1.0] + [0.0] * 35),
+        ["track.covariance", "diagonal entry 0", "negative"],
+    ),
+]
+
+
+@pytest.mark.parametrize(("what", "data", "needles"), ERROR_CASES, ids=[c[0] for c in ERROR_CASES])
+def test_decode_errors_say_what_is_wrong(what: str, data: bytes, needles: list[str]) -> None:
+    with pytest.raises(WireError) as info:
+        decode(data)
+    text = str(info.value)
+    for needle in needles:
+        assert needle in text, f"{what}: {needle!r} not in {text!r}"
+
+
+def test_decode_rejects_what_is_not_bytes() -> None:
+    with pytest.raises(WireError, match="expected bytes, got str"):
+        decode("hello")  # type: ignore[arg-type]
+
+
+def test_encode_rejects_a_foreign_class() -> None:
+    @dataclasses.dataclass(frozen=True, kw_only=True, slots=True)
+    class Alien(Message):
+        """Not registered in MESSAGE_TYPES."""
+
+    with pytest.raises(WireError, match="cannot encode Alien"):
+        encode(Alien(stamp=0.0))
+
+
+def test_the_valid_frame_used_above_decodes() -> None:
+    # the error cases differ from a valid message only in what they name
+    assert decode(_packed(_nav_frame())) == one_of_each()[0]

@@ -1,0 +1,236 @@
+"""The full replan pipeline: safety, curvature, optimality and NO_PATH behaviour."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from matplotlib.path import Path as MplPath
+
+from common.config.planner import PlannerConfig
+from services.planner.costmap import build_costmap
+from services.planner.demo_field import paper_area, paper_goal, paper_obstacles, paper_start
+from services.planner.geometry import (
+    Area,
+    Circle,
+    MovingCircle,
+    Obstacles,
+    Polygon,
+    Pose2D,
+    StaticField,
+)
+from services.planner.nurbs import curvature
+from services.planner.plan import PlanRequest, PlanResult, plan_path, predicted_discs
+from services.planner.search import shortest_path
+
+CFG = PlannerConfig()
+N_DENSE = 5000  # independent dense check, finer than the planner's own 2000 samples
+
+
+def _seg_dist(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ab = b - a
+    t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
+    return np.hypot(*(p - (a + t[:, None] * ab)).T)
+
+
+def _verify(req: PlanRequest, res: PlanResult) -> dict[str, float]:
+    """Independent dense verification of an OK plan (matplotlib point-in-polygon, brute force)."""
+    assert res.ok, res.reason
+    curve = res.curve()
+    u = np.linspace(curve.u_min, curve.u_max, N_DENSE)
+    pts, d1, d2 = curve.evaluate(u, 2)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    r, rho0 = req.vehicle_radius_m, CFG.rho0_m
+    need = rho0 + r  # centre to obstacle surface: rho0 + r (+ r_k for circles, below)
+    worst = math.inf
+    for c in req.obstacles.circles:  # eq. (12): |x - c| >= rho0 + r + r_k
+        worst = min(worst, float(np.min(np.hypot(pts[:, 0] - c.x, pts[:, 1] - c.y))) - c.radius)
+    for poly in req.obstacles.polygons:
+        v = np.array(poly.vertices)
+        assert not MplPath(v).contains_points(pts).any(), "curve enters a polygon"
+        for a, b in zip(v, np.roll(v, -1, axis=0), strict=True):
+            worst = min(worst, float(_seg_dist(pts, a, b).min()))
+    assert worst >= need - 1e-9, f"static clearance {worst - r:.3f} m < rho0"
+    t = s / req.v_ref_mps  # eq. (13): obstacle where it is when the vehicle passes
+    worst_m = math.inf
+    for o in req.obstacles.moving:
+        c = o.positions(t, CFG.accel_horizon_s)
+        worst_m = min(worst_m, float(np.min(np.hypot(*(pts - c).T))) - o.radius)
+    assert worst_m >= need - 1e-9, f"moving clearance {worst_m - r:.3f} m < rho0"
+    k = curvature(d1, d2)
+    assert k.max() < 1.0 / req.r_min_m, f"curvature {k.max():.4f} >= 1/R_min"  # eq. (20)
+    a = req.area
+    assert np.all((pts[:, 0] >= a.x_min + r) & (pts[:, 0] <= a.x_max - r))
+    assert np.all((pts[:, 1] >= a.y_min + r) & (pts[:, 1] <= a.y_max - r))
+    # eq. (10): start/goal position and heading
+    assert np.allclose(pts[0], [req.start.x, req.start.y], atol=1e-9)
+    assert np.allclose(pts[-1], [req.goal.x, req.goal.y], atol=1e-9)
+    h0, hf = math.atan2(d1[0, 1], d1[0, 0]), math.atan2(d1[-1, 1], d1[-1, 0])
+    assert abs(math.remainder(h0 - req.start.theta, math.tau)) < 1e-9
+    assert abs(math.remainder(hf - req.goal.theta, math.tau)) < 1e-9
+    return {"static": worst - r, "moving": worst_m - r, "k_max": float(k.max()), "length": s[-1]}
+
+
+def _optimal_grid_length(req: PlanRequest) -> float:
+    """Reference: shortest 16-connected path on the SAME occupancy grid (static obstacles and
+    predicted moving discs inflated by r + rho0) with ZERO potential cost, its length being
+    the sum of its Euclidean segment lengths (eq. (18)), from the exact start to the exact goal.
+    """
+    static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
+    cmap = build_costmap(req.area, static, predicted_discs(req, CFG), req.vehicle_radius_m, CFG)
+    cmap = dataclasses.replace(cmap, cost=np.zeros_like(cmap.cost))
+    sx, sy = cmap.cell_of(req.start.x, req.start.y)
+    gx, gy = cmap.cell_of(req.goal.x, req.goal.y)
+    path = shortest_path(cmap, sy * cmap.nx + sx, gy * cmap.nx + gx, 16)
+    assert path is not None
+    xy = cmap.centre(path.cells % cmap.nx, path.cells // cmap.nx)
+    xy[0], xy[-1] = (req.start.x, req.start.y), (req.goal.x, req.goal.y)
+    return float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+
+
+def _paper_request(**kw: object) -> PlanRequest:
+    base = {
+        "start": paper_start(),
+        "goal": paper_goal(),
+        "area": paper_area(),
+        "obstacles": paper_obstacles(),
+    }
+    base.update(kw)
+    return PlanRequest(**base)  # type: ignore[arg-type]
+
+
+def test_obstacle_free_straight_line_has_f_l_one() -> None:
+    req = _paper_request(obstacles=Obstacles())
+    res = plan_path(req, CFG)
+    _verify(req, res)
+    assert len(res.grid_path) == 2  # line of sight start -> goal
+    assert res.f_l <= 1.01  # bound: grid error only (here the curve is exactly straight)
+    assert abs(res.f_l - 1.0) < 1e-9
+    assert res.length_m <= 1.05 * _optimal_grid_length(req)
+
+
+def test_paper_field_plan_is_safe_smooth_and_near_optimal() -> None:
+    req = _paper_request()
+    res = plan_path(req, CFG)
+    v = _verify(req, res)
+    # clearance >= rho0 (hull to surface), static and moving; curvature < 1/R_min = 0.5
+    assert v["static"] >= CFG.rho0_m - 1e-9 and v["moving"] >= CFG.rho0_m - 1e-9
+    assert v["k_max"] < 0.5
+    assert abs(res.length_m - v["length"]) < 1e-3 * v["length"]
+    l_opt = _optimal_grid_length(req)
+    # f_L within 5% of the zero-potential 16-connected optimal grid path
+    assert res.length_m <= 1.05 * l_opt, (res.length_m, l_opt)
+    d_min = math.hypot(req.goal.x - req.start.x, req.goal.y - req.start.y)
+    assert abs(res.f_l - res.length_m / d_min) < 1e-12
+    assert math.isfinite(res.turn_penalty)  # eq. (19) finite <=> every r_k > R_min
+
+
+def test_paper_field_from_varied_starts() -> None:
+    rng = np.random.default_rng(7)
+    for _ in range(8):
+        start = Pose2D(
+            x=float(rng.uniform(3.0, 8.0)),
+            y=float(rng.uniform(15.0, 25.0)),
+            theta=float(rng.uniform(-1.0, 1.0)),
+        )
+        req = _paper_request(start=start)
+        res = plan_path(req, CFG)
+        _verify(req, res)
+        assert res.length_m <= 1.05 * _optimal_grid_length(req)
+
+
+def test_random_fields_never_yield_a_colliding_path() -> None:
+    # any result is either NO_PATH or passes the independent dense check
+    rng = np.random.default_rng(2024)
+    n_ok = 0
+    for _ in range(12):
+        circles = tuple(
+            Circle(x=float(rng.uniform(15, 85)), y=float(rng.uniform(3, 37)), radius=float(rng.uniform(1, 4)))
+            for _ in range(int(rng.integers(4, 12)))
+        )
+        cx, cy = rng.uniform(20, 80), rng.uniform(8, 32)
+        square = Polygon(vertices=((cx, cy), (cx + 4, cy), (cx + 4, cy + 4), (cx, cy + 4)))
+        moving = (
+            MovingCircle(id=1, x=float(rng.uniform(30, 70)), y=float(rng.uniform(0, 40)),
+                         vx=float(rng.normal(0, 0.3)), vy=float(rng.normal(0, 0.3)), radius=1.0),
+        )
+        req = _paper_request(obstacles=Obstacles(circles=circles, polygons=(square,), moving=moving))
+        res = plan_path(req, CFG)
+        if res.ok:
+            n_ok += 1
+            _verify(req, res)
+        else:
+            assert res.reason
+    assert n_ok >= 6  # most random fields are passable
+
+
+def test_wall_across_the_area_gives_no_path() -> None:
+    wall = Polygon(vertices=((49.0, 0.0), (51.0, 0.0), (51.0, 40.0), (49.0, 40.0)))
+    res = plan_path(_paper_request(obstacles=Obstacles(polygons=(wall,))), CFG)
+    assert res.status == "NO_PATH"
+    assert "unreachable" in res.reason
+    assert len(res.control_points) == 0
+    with pytest.raises(ValueError):
+        res.curve()
+
+
+def test_goal_enclosed_by_a_ring_gives_no_path() -> None:
+    # 12 discs of radius 1 on a 6 m ring around the goal: gaps ~1.1 m < 2 (r + rho0) = 2.2 m
+    ring = tuple(
+        Circle(x=80.0 + 6.0 * math.cos(a), y=20.0 + 6.0 * math.sin(a), radius=1.0)
+        for a in np.linspace(0.0, math.tau, 12, endpoint=False)
+    )
+    goal = Pose2D(x=80.0, y=20.0, theta=0.0)
+    res = plan_path(_paper_request(goal=goal, obstacles=Obstacles(circles=ring)), CFG)
+    assert res.status == "NO_PATH" and "unreachable" in res.reason
+
+
+def test_goal_inside_the_safety_distance_gives_no_path() -> None:
+    obs = Obstacles(circles=(Circle(x=95.0, y=21.5, radius=1.0),))  # 0.5 m from goal centre
+    res = plan_path(_paper_request(obstacles=obs), CFG)
+    assert res.status == "NO_PATH" and "safety distance" in res.reason
+
+
+def test_start_inside_the_margin_escapes_then_keeps_clearance() -> None:
+    # start 0.6 m (hull) from a disc: inside rho0 = 1 m but not in contact
+    obs = Obstacles(circles=(Circle(x=5.0, y=22.0, radius=1.3),))
+    start = Pose2D(x=5.0, y=20.0, theta=0.0)
+    req = _paper_request(start=start, obstacles=obs)
+    res = plan_path(req, CFG)
+    assert res.ok, res.reason
+    curve = res.curve()
+    pts = curve.evaluate(np.linspace(0.0, 1.0, N_DENSE), 0)[0]
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    d = np.hypot(pts[:, 0] - 5.0, pts[:, 1] - 22.0) - 1.3 - req.vehicle_radius_m
+    assert d.min() > 0.0  # never in contact
+    assert d[s >= CFG.escape_len_m].min() >= CFG.rho0_m - 1e-9  # margin restored after escape
+
+
+def test_plan_is_deterministic() -> None:
+    a = plan_path(_paper_request(), CFG)
+    b = plan_path(_paper_request(), CFG)
+    assert np.array_equal(a.control_points, b.control_points)
+    assert np.array_equal(a.knots, b.knots) and np.array_equal(a.grid_path, b.grid_path)
+
+
+def test_astar_and_lbfgsb_variants_also_plan_safely() -> None:
+    req = _paper_request()
+    for cfg in (
+        PlannerConfig(search="astar"),
+        PlannerConfig(refine_method="lbfgsb", refine_max_iter=20),
+        PlannerConfig(connectivity=16, nurbs_degree=4),
+    ):
+        res = plan_path(req, cfg)
+        _verify(req, res)
+        assert res.length_m <= 1.05 * _optimal_grid_length(req)
+
+
+def test_outside_area_and_degenerate_requests() -> None:
+    area = Area()
+    assert plan_path(_paper_request(start=Pose2D(x=-1.0, y=5.0, theta=0.0)), CFG).status == "NO_PATH"
+    assert plan_path(_paper_request(goal=Pose2D(x=5.0, y=20.0, theta=0.0)), CFG).status == "NO_PATH"
+    assert area.contains(50.0, 20.0)
+    with pytest.raises(ValueError, match="r_min_m"):
+        _paper_request(r_min_m=0.0)

@@ -1,0 +1,131 @@
+"""Command watchdog: stale / reordered rejection, clamping, HOLD, FAILSAFE and recovery."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from common.config.vehicle import VehicleConfig, WatchdogConfig
+from common.messages import VehicleStatus, VelocityCommand
+from common.runtime.core import Delivery
+from services.vehicle.core import VehicleCore
+from services.vehicle.watchdog import Watchdog
+
+CFG = WatchdogConfig(max_command_age_s=1.0, hold_after_s=2.0, failsafe_after_s=5.0)
+
+
+def _wd() -> Watchdog:
+    return Watchdog(CFG, v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5)
+
+
+def test_rejects_stale_and_reordered_commands() -> None:
+    wd = _wd()
+    assert wd.command(0.0).mode == "IDLE"
+    assert wd.offer(1.0, 0.9, 1.0, 0.1) == "applied"
+    # older than the last applied one (overtaken on the network): rejected
+    assert wd.offer(1.1, 0.8, 1.5, 0.2) == "out_of_order"
+    # age 1.5 s > max_command_age_s = 1.0 s: rejected
+    assert wd.offer(3.0, 1.5, 1.5, 0.2) == "stale"
+    assert wd.offer(2.0, 2.0, 1.2, 0.0) == "applied"
+    # a duplicate (same stamp, arriving while still fresh) is idempotent
+    assert wd.offer(2.5, 2.0, 1.2, 0.0) == "applied"
+    assert (wd.rejected_out_of_order, wd.rejected_stale, wd.rejected, wd.applied) == (1, 1, 2, 3)
+    a = wd.command(3.1)
+    assert (a.mode, a.v, a.w) == ("RUN", 1.2, 0.0)
+    assert math.isclose(a.age_s, 1.1)
+
+
+def test_clamps_out_of_range_and_rejects_non_finite() -> None:
+    wd = _wd()
+    assert wd.offer(0.0, 0.0, 50.0, -3.0) == "applied"
+    a = wd.command(0.1)
+    assert (a.v, a.w, wd.clamped) == (2.0, -0.5, 1)  # eq. (11) bounds, never raw
+    assert wd.offer(0.2, 0.2, -1.0, 0.2) == "applied"
+    assert (wd.command(0.3).v, wd.clamped) == (0.0, 2)
+    assert wd.offer(0.4, 0.4, 1.0, 0.1) == "applied"
+    assert wd.clamped == 2  # in range: not counted
+    assert wd.offer(0.5, 0.5, math.nan, 0.0) == "non_finite"
+    assert wd.offer(0.5, 0.5, 1.0, math.inf) == "non_finite"
+    assert wd.rejected_non_finite == 2 and wd.command(0.6).v == 1.0
+
+
+def test_hold_ramp_failsafe_and_recovery_times() -> None:
+    # applied command stamped 1.0: RUN before 3.0, HOLD from 3.0 (speed ramps down at
+    # 0.2 m/s^2, w = 0), FAILSAFE from 6.0, RUN again on a fresh command
+    wd = _wd()
+    wd.offer(1.05, 1.0, 1.0, 0.3)
+    assert wd.command(2.999).mode == "RUN"
+    a = wd.command(3.0)
+    assert (a.mode, a.v, a.w) == ("HOLD", 1.0, 0.0)
+    assert math.isclose(wd.command(4.0).v, 0.8)
+    assert wd.command(5.999).mode == "HOLD"
+    f = wd.command(6.0)
+    assert (f.mode, f.w) == ("FAILSAFE", 0.0)
+    assert math.isclose(f.v, 0.4)
+    assert wd.command(20.0).v == 0.0  # ramp ends at zero speed
+    assert wd.offer(20.0, 19.9, 1.5, -0.1) == "applied"
+    r = wd.command(20.0)
+    assert (r.mode, r.v, r.w) == ("RUN", 1.5, -0.1)
+
+
+def _status(core: VehicleCore, t: float) -> VehicleStatus:
+    msg = core.step(t)[1].msg
+    assert isinstance(msg, VehicleStatus)
+    return msg
+
+
+def _send(core: VehicleCore, t: float, stamp: float, v: float, w: float) -> None:
+    msg = VelocityCommand(stamp=stamp, v=v, w=w, path_id=0)
+    core.deliver(Delivery(source="planner", stream="cmd", msg=msg, t=t))
+
+
+def test_core_hold_and_failsafe_at_the_configured_times() -> None:
+    # commands every 0.1 s until stamp 10.0, then silence. Mode at the configured times to
+    # within one internal step (10 ms): RUN at 11.99, HOLD at 12.01, FAILSAFE at 15.01;
+    # heading frozen in HOLD (|w| < 1e-3 rad/s 3 s after HOLD), the commanded speed ramps
+    # at 0.2 m/s^2 (0.4 m/s at 15 s, 0 at 17 s), the vehicle nearly stopped (< 0.05 m/s)
+    # by 19.9 s with its heading held (drift < 1e-3 rad); a
+    # fresh command at 20 s brings RUN back and the vehicle moves again (> 0.5 m/s at 25 s).
+    cfg = VehicleConfig(watchdog=CFG)
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    for k in range(101):
+        t = 0.1 * k
+        _send(core, t, t, 1.0, 0.1)
+        core.step(t)
+    assert _status(core, 11.99).mode == "RUN"
+    s = _status(core, 12.01)
+    assert (s.mode, s.w_applied) == ("HOLD", 0.0)
+    assert s.v_applied < 1.0 and math.isclose(s.command_age, 2.01)
+    assert _status(core, 14.99).mode == "HOLD"
+    assert abs(core.pose[4]) < 1e-3
+    s = _status(core, 15.01)
+    assert s.mode == "FAILSAFE"
+    assert math.isclose(s.v_applied, 1.0 - 0.2 * 3.01, abs_tol=0.2 * 0.01 + 1e-9)
+    theta_hold = core.pose[2]
+    assert _status(core, 19.9).mode == "FAILSAFE"
+    assert abs(core.pose[2] - theta_hold) < 1e-3 and core.pose[3] < 0.05
+    _send(core, 20.0, 19.95, 1.0, 0.0)
+    s = _status(core, 20.05)
+    assert (s.mode, s.v_applied) == ("RUN", 1.0)
+    _status(core, 25.0)
+    assert core.pose[3] > 0.5
+
+
+def test_core_counts_rejections_and_clamps_in_status() -> None:
+    cfg = VehicleConfig(watchdog=CFG)
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    _send(core, 1.0, 0.95, 9.0, 0.0)  # applied, clamped to v_max
+    _send(core, 1.2, 0.90, 1.0, 0.0)  # older than the last applied: rejected
+    _send(core, 2.6, 1.50, 1.0, 0.0)  # 1.1 s old: rejected
+    s = _status(core, 2.65)
+    assert (s.commands_applied, s.commands_rejected, s.commands_clamped) == (1, 2, 1)
+    assert s.v_applied == 2.0
+
+
+def test_watchdog_config_validation() -> None:
+    with pytest.raises(ValueError, match="failsafe_after_s"):
+        WatchdogConfig(hold_after_s=2.0, failsafe_after_s=2.0)
+    with pytest.raises(ValueError, match="hold_after_s"):
+        WatchdogConfig(max_command_age_s=3.0, hold_after_s=2.0)
