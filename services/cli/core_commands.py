@@ -1,4 +1,4 @@
-"""The `tidelink` command line: check, run, router (one sub-command per job)."""
+"""The core sub-commands: check, run, router."""
 
 from __future__ import annotations
 
@@ -6,17 +6,14 @@ import argparse
 import json
 import logging
 import math
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from common.config.loader import ConfigError
-
 log = logging.getLogger("tidelink")
 
 
-def _scenario_args(p: argparse.ArgumentParser) -> None:
+def scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", type=Path, help="scenario TOML file, e.g. configs/default.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)")
@@ -86,17 +83,14 @@ def cmd_router(a: argparse.Namespace) -> int:
         return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="tidelink", description="Networked AUV path control over Zenoh.")
-    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    sub = p.add_subparsers(dest="cmd", required=True)
-
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add check, run and router to the tidelink parser."""
     c = sub.add_parser("check", help="validate a scenario file and exit non-zero on any problem")
-    _scenario_args(c)
+    scenario_args(c)
     c.set_defaults(func=cmd_check)
 
     r = sub.add_parser("run", help="run one mission and write DIR/metrics.json")
-    _scenario_args(r)
+    scenario_args(r)
     r.add_argument("--runtime", choices=("inproc", "lockstep", "realtime"), default=None,
                    help="override runtime.kind (default: the scenario's, else inproc)")
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
@@ -108,26 +102,3 @@ def build_parser() -> argparse.ArgumentParser:
     z.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
                    help="e.g. tcp/127.0.0.1:7447 (repeatable)")
     z.set_defaults(func=cmd_router)
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = build_parser()
-    a = p.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if a.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
-    try:
-        return int(a.func(a))
-    except ConfigError as exc:
-        print(f"tidelink: config error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("tidelink: interrupted", file=sys.stderr)
-        return 130
-    except (RuntimeError, ValueError, TimeoutError) as exc:
-        print(f"tidelink: error: {exc}", file=sys.stderr)
-        return 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())
