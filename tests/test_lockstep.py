@@ -69,3 +69,15 @@ def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> No
     assert r.metrics["final_error"] < 1.0  # same loop, wall-clock timing: converges as well
     assert {k for k, _ in r.record.keys()} >= {"ctrl", "filter", "plant", "sensor"}
     assert all(c for c in os.listdir(tmp_path / "logs"))
+
+
+def test_lockstep_equals_inproc_with_event_driven_cores(testloop_toml: Path,
+                                                        tmp_path: Path) -> None:
+    """Wake inputs: time advances to each modelled delivery, not only to periodic steps."""
+    s, raw = load_scenario(testloop_toml, overrides=["testloop.event_driven=true"])
+    ref = run_inproc(s)
+    got = run_lockstep(s, raw, tmp_path / "logs")
+    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.ticks == ref.ticks
+    periodic = run_inproc(load_scenario(testloop_toml)[0])
+    assert ref.ticks > periodic.ticks  # deliveries really were events of their own

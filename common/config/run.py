@@ -57,6 +57,9 @@ class TestLoopConfig:
     __test__ = False  # not a pytest class
 
     setpoint: float = 10.0
+    # event-driven: filter and controller react to each delivery at once (wake inputs) and
+    # the plant reports each command's age on arrival, for latency benchmarks
+    event_driven: bool = False
     crash_service: str = ""  # this service's process exits with code 3 at crash_at_s ...
     crash_at_s: float = 0.0  # ... so tests can check that a dead service fails the run fast
 

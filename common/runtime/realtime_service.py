@@ -60,17 +60,17 @@ class RealtimeService:
             while True:
                 timeout = None
                 if self.t0 is not None:
-                    nxt = self.host.next_step_us
+                    nxt = self.host.next_event_us()
                     timeout = max(0.0, (nxt - self.now_us()) / 1e6 / self.scale)
                 ev = inbox.get(timeout=timeout)
                 if ev is not None and self._handle(ev):
                     final = self.host.link_stats(self.now_us() / 1e6)
                     pubs[STATS_STREAM].put(final)
                     return 0
-                if self.t0 is not None and self.now_us() >= self.host.next_step_us:
+                # run every event that is due (a step, or a delivery to a wake input)
+                while self.t0 is not None and self.now_us() >= (t_us := self.host.next_event_us()):
                     self.ticks += 1
-                    # the core sees its scheduled step time; late wake-ups do not skew periods
-                    t_us = self.host.next_step_us
+                    # the core sees the scheduled event time; late wake-ups do not skew periods
                     for o in self.host.run_tick(self.ticks, t_us):
                         pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
 
