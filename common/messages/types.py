@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from common.messages.base import Message, WireError, check_finite, check_range
@@ -133,10 +133,13 @@ class PathMsg(Message):
         if n <= self.degree:
             raise WireError(f"control_points: {n} points cannot carry a degree-{self.degree} curve")
         if len(self.weights) != n:
-            raise WireError(f"weights: expected {n} (one per control point), got {len(self.weights)}")
+            raise WireError(
+                f"weights: expected {n} (one per control point), got {len(self.weights)}"
+            )
         if len(self.knots) != n + self.degree + 1:
             raise WireError(
-                f"knots: expected {n + self.degree + 1} (points + degree + 1), got {len(self.knots)}"
+                f"knots: expected {n + self.degree + 1} (points + degree + 1), "
+                f"got {len(self.knots)}"
             )
         if any(w <= 0.0 for w in self.weights):
             raise WireError("weights: every weight must be > 0")
@@ -229,6 +232,7 @@ class Tick(Message):
     tick: int
     time_us: int
     watermarks: dict[str, int]
+    due: tuple[str, ...] = ()  # the services that run this tick (the others have nothing due)
     stop: bool = False  # end of run: publish final statistics, acknowledge and exit
 
     def validate(self) -> None:
@@ -244,6 +248,7 @@ class TickAck(Message):
     service: str
     published: dict[str, int]  # stream key -> last seq published so far
     next_us: int  # next time this service needs a tick (its next step or wake delivery)
+    wakes: dict[str, int] = field(default_factory=dict)  # receiver -> earliest wake delivery
     done: bool = False  # the service asks the run to end (e.g. the vehicle reached the goal)
 
     def validate(self) -> None:

@@ -140,13 +140,15 @@ class Host:
             schedule[receiver] = tuple(to_us(x) for x in dec.delivered_at)
         return Outgoing(stream, msg, data, schedule)
 
-    def wake_deliveries_us(self, out: list[Outgoing]) -> int:
-        """Earliest delivery to a wake input among messages just sent (the coordinator's need)."""
-        best = NEVER
+    def wake_deliveries_us(self, out: list[Outgoing]) -> dict[str, int]:
+        """Earliest delivery to a wake input per receiver, among messages just sent: what the
+        lockstep coordinator must know before the receivers themselves have seen them."""
+        best: dict[str, int] = {}
         for o in out:
             for receiver, spec in self.flow.receivers.get((self.name, o.stream), ()):
-                if spec.wake and o.schedule.get(receiver):
-                    best = min(best, o.schedule[receiver][0])
+                times = o.schedule.get(receiver)
+                if spec.wake and times:
+                    best[receiver] = min(best.get(receiver, NEVER), times[0])
         return best
 
     def published(self) -> dict[str, int]:

@@ -144,12 +144,13 @@ class Coordinator:
         self.record.add(service, stream, ev.msg)
 
     def _tick(self, inbox: Inbox, pub: Any, k: int, t_us: int, marks: dict[str, int],
-              stop: bool = False) -> dict[str, int]:
+              due: list[str], stop: bool = False) -> dict[str, int]:
         self.acks = {}
         self.stopping = stop
-        pub.put(Tick(stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, stop=stop))
+        pub.put(Tick(stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, due=tuple(due),
+                     stop=stop))
         deadline = time.monotonic() + self.timeout_s
-        while len(self.acks) < len(self.mission.names) or any(a.tick != k for a in self.acks.values()):
+        while any(self.acks.get(n) is None or self.acks[n].tick != k for n in due):
             self._pump(inbox, deadline, f"acknowledging tick {k}")
         new_marks = dict(marks)
         for a in self.acks.values():
@@ -161,18 +162,27 @@ class Coordinator:
     def drive(self, inbox: Inbox, pub: Any) -> RunResult:
         max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, marks, reason = 0, 0, {}, "max_time"
+        # when each service next needs a tick: its own next event (from its last ack) or a
+        # wake delivery someone sent it since (reported by the sender, before it arrives)
+        need = {n: 0 for n in self.mission.names}
         wall0 = time.monotonic()
         while True:
-            marks = self._tick(inbox, pub, k, t_us, marks)
+            due = [n for n in sorted(need) if need[n] <= t_us]
+            marks = self._tick(inbox, pub, k, t_us, marks, due)
+            for n in due:
+                need[n] = self.acks[n].next_us
+            for n in due:
+                for receiver, at in self.acks[n].wakes.items():
+                    need[receiver] = min(need[receiver], at)
             end = self.mission.observe(self.record)
             if end is not None:
                 reason = end
                 break
-            nxt = min(a.next_us for a in self.acks.values())
+            nxt = min(need.values())
             if nxt > max_us or nxt >= NEVER:
                 break
             t_us, k = nxt, k + 1
-        self._tick(inbox, pub, k + 1, t_us, marks, stop=True)
+        self._tick(inbox, pub, k + 1, t_us, marks, sorted(need), stop=True)
         log.info("lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
                  t_us / 1e6, k + 1, time.monotonic() - wall0, reason)
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))

@@ -55,6 +55,8 @@ class LockstepService:
             bus.declare_alive(self.name)
             while True:
                 tick = self._next_tick(inbox)
+                if not tick.stop and self.name not in tick.due:
+                    continue  # nothing due here: messages keep arriving into the host
                 self._wait_for(inbox, tick.watermarks)
                 if tick.stop:
                     out = [self.host._publish(STATS_STREAM, self.host.link_stats(tick.time_us / 1e6),
@@ -63,11 +65,11 @@ class LockstepService:
                     out = self.host.run_tick(tick.tick, tick.time_us)
                 for o in out:
                     pubs[o.stream].put_bytes(o.data, encode_routing(tick.tick, o.schedule))
-                nxt = min(self.host.next_event_us(), self.host.wake_deliveries_us(out))
                 ack_pub.put(TickAck(stamp=tick.time_us / 1e6, tick=tick.tick, service=self.name,
                                     published={f"{self.name}/{k}": v
                                                for k, v in self.host.published().items()},
-                                    next_us=nxt))
+                                    next_us=self.host.next_event_us(),
+                                    wakes=self.host.wake_deliveries_us(out)))
                 if tick.stop:
                     self._await_release(inbox)
                     return 0
