@@ -60,15 +60,21 @@ def bench_lockstep(seed: int) -> dict[str, float]:
     got = run_lockstep(s, raw)
     lockstep_s = time.perf_counter() - t0
     assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
-    return {"mission_s": ref.t_end, "inproc_s": inproc_s, "lockstep_s": lockstep_s,
-            "lockstep_loop_s": timer.loop_s, "ticks": float(got.ticks)}
+    return {
+        "mission_s": ref.t_end,
+        "inproc_s": inproc_s,
+        "lockstep_s": lockstep_s,
+        "lockstep_loop_s": timer.loop_s,
+        "ticks": float(got.ticks),
+    }
 
 
 def raw_hop_latency_us(n: int = 2000) -> tuple[float, float]:
     """One-way latency of raw zenoh-python between two processes (bench_bus's baseline)."""
     code = ROOT / "scripts" / "_raw_hop.py"
-    out = subprocess.run([sys.executable, str(code), str(n)], capture_output=True, text=True,
-                         check=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, str(code), str(n)], capture_output=True, text=True, check=True, timeout=120
+    )
     p50, p99 = (float(v) for v in out.stdout.split())
     return p50, p99
 
@@ -78,8 +84,9 @@ def bench_realtime_latency(seconds: float) -> tuple[float, float, int]:
     tmp.write_text(LOOP_TOML.format(seconds=seconds))
     s, raw = load_scenario(tmp)
     r = run_realtime(s, raw)
-    ages = np.array([m.command_age for m in r.record.stream("plant", "status")
-                     if isinstance(m, VehicleStatus)])
+    ages = np.array(
+        [m.command_age for m in r.record.stream("plant", "status") if isinstance(m, VehicleStatus)]
+    )
     return float(np.percentile(ages, 50) * 1e6), float(np.percentile(ages, 99) * 1e6), len(ages)
 
 
@@ -90,23 +97,33 @@ def main() -> None:
     a = p.parse_args()
     rows = [bench_lockstep(seed) for seed in range(1, a.seeds + 1)]
     med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
-    print(f"default mission: {med['mission_s']:.1f} s simulated, {med['ticks']:.0f} ticks "
-          f"(median of {a.seeds} seeds; lockstep hash == inproc hash every time)")
-    print(f"  inproc wall           {med['inproc_s']:7.2f} s   real-time factor "
-          f"{med['mission_s'] / med['inproc_s']:6.1f}x")
-    print(f"  lockstep wall (total) {med['lockstep_s']:7.2f} s   real-time factor "
-          f"{med['mission_s'] / med['lockstep_s']:6.1f}x   ratio to inproc "
-          f"{med['lockstep_s'] / med['inproc_s']:.2f}x  (target <= 3x)")
-    print(f"  lockstep tick loop    {med['lockstep_loop_s']:7.2f} s   real-time factor "
-          f"{med['mission_s'] / med['lockstep_loop_s']:6.1f}x  (target >= 20x; excludes process"
-          f" start-up), {1e3 * med['lockstep_loop_s'] / med['ticks']:.2f} ms per tick")
+    print(
+        f"default mission: {med['mission_s']:.1f} s simulated, {med['ticks']:.0f} ticks "
+        f"(median of {a.seeds} seeds; lockstep hash == inproc hash every time)"
+    )
+    print(
+        f"  inproc wall           {med['inproc_s']:7.2f} s   real-time factor "
+        f"{med['mission_s'] / med['inproc_s']:6.1f}x"
+    )
+    print(
+        f"  lockstep wall (total) {med['lockstep_s']:7.2f} s   real-time factor "
+        f"{med['mission_s'] / med['lockstep_s']:6.1f}x   ratio to inproc "
+        f"{med['lockstep_s'] / med['inproc_s']:.2f}x  (target <= 3x)"
+    )
+    print(
+        f"  lockstep tick loop    {med['lockstep_loop_s']:7.2f} s   real-time factor "
+        f"{med['mission_s'] / med['lockstep_loop_s']:6.1f}x  (target >= 20x; excludes process"
+        f" start-up), {1e3 * med['lockstep_loop_s'] / med['ticks']:.2f} ms per tick"
+    )
     raw50, raw99 = raw_hop_latency_us()
     rt50, rt99, n = bench_realtime_latency(a.realtime_s)
     print(f"realtime control loop, zero-delay profile ({n} commands):")
     print(f"  sensor sample -> command applied  p50 {rt50:8.0f} us   p99 {rt99:8.0f} us")
     print(f"  raw zenoh one-way hop (baseline)  p50 {raw50:8.0f} us   p99 {raw99:8.0f} us")
-    print(f"  loop / (3 raw hops)               p50 {rt50 / (3 * raw50):8.2f}x  p99 "
-          f"{rt99 / (3 * raw99):8.2f}x")
+    print(
+        f"  loop / (3 raw hops)               p50 {rt50 / (3 * raw50):8.2f}x  p99 "
+        f"{rt99 / (3 * raw99):8.2f}x"
+    )
 
 
 if __name__ == "__main__":

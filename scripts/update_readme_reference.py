@@ -18,7 +18,7 @@ def render(readme: str) -> str:
     if m is None:
         raise SystemExit("README.md has no config-reference markers")
     block = f"{START}{m.group(1)}-->\n{markdown()}\n{END}"
-    return readme[: m.start()] + block + readme[m.end():]
+    return readme[: m.start()] + block + readme[m.end() :]
 
 
 if __name__ == "__main__":

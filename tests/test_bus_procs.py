@@ -1,12 +1,13 @@
 """The typed bus between real OS processes over Zenoh (tcp/127.0.0.1, peer to peer).
 
 The child is tests/helpers/bus_peer.py. Synchronisation is by liveliness tokens, a readiness
-line on stdout and timeouts on every wait; no sleeps.
+line on stdout and timeouts on every wait; no sleeps. (Plus one fast Inbox test, no Zenoh.)
 """
 
 from __future__ import annotations
 
 import os
+import queue
 import select
 import signal
 import subprocess
@@ -30,8 +31,6 @@ from helpers.samples import one_of_each
 from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.runtime.procs import free_port
-
-pytestmark = pytest.mark.slow
 
 TESTS = Path(__file__).resolve().parent
 WAIT_S = 15.0  # generous upper bound for any one wait; the happy path takes well under 1 s
@@ -89,6 +88,7 @@ def _receive(inbox: Inbox, n: int) -> list[Received]:
     return out
 
 
+@pytest.mark.slow
 def test_every_message_type_crosses_between_processes() -> None:
     endpoint, keys = _setup("x")
     expected = {stream_of(type(m)): m for m in one_of_each()}
@@ -107,6 +107,7 @@ def test_every_message_type_crosses_between_processes() -> None:
     assert code == 0, err
 
 
+@pytest.mark.slow
 def test_garbage_is_counted_and_the_next_valid_message_still_arrives() -> None:
     endpoint, keys = _setup("g")
     key = keys.stream(PEER, GARBAGE_STREAM)
@@ -134,6 +135,7 @@ def _read_line(proc: subprocess.Popen[str], timeout_s: float) -> str:
     return proc.stdout.readline().strip() if ready else ""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_a_process_with_open_subscribers_exits_promptly_on_a_signal(sig: signal.Signals) -> None:
     endpoint, keys = _setup("s")
@@ -164,3 +166,38 @@ def test_a_process_with_open_subscribers_exits_promptly_on_a_signal(sig: signal.
     assert exit_s < 2.0, f"took {exit_s:.3f} s to exit after {sig.name}"
     # and the token was withdrawn (Bus closed on the way out, not only the process killed)
     assert gone == Liveliness(keys.alive(PEER), False), f"{gone!r} after {gone_s:.3f} s"
+
+
+class _GarbageTrickle:
+    """Stands in for the Inbox queue: garbage arrives after half of any wait; none is queued."""
+
+    def __init__(self, clock: list[float]) -> None:
+        self.clock = clock
+        self.calls = 0
+        self.delivered = 0
+
+    def get(self, timeout: float | None = None) -> tuple[str, bytes, None]:
+        self.calls += 1
+        assert self.calls < 1000, "Inbox.get keeps waiting while garbage trickles in"
+        assert timeout is not None, "Inbox.get lost its timeout"
+        if timeout <= 0.0:
+            raise queue.Empty  # nothing is waiting right now
+        self.clock[0] += timeout / 2 + 1e-3
+        self.delivered += 1
+        return ("tidelink/r/v/peer/nav", b"\xc1", None)
+
+
+def test_inbox_get_honours_its_timeout_while_garbage_trickles_in(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import common.bus.bus as bus_module
+
+    clock = [100.0]
+    monkeypatch.setattr(bus_module.time, "monotonic", lambda: clock[0])
+    inbox = Inbox()
+    fake = _GarbageTrickle(clock)
+    monkeypatch.setattr(inbox, "_q", fake)
+    assert inbox.get(timeout=1.0) is None
+    assert clock[0] - 100.0 <= 1.0 + 2e-3  # gave up at the deadline, not after it
+    assert fake.delivered >= 5
+    assert inbox.decode_errors == {"tidelink/r/v/peer/nav": fake.delivered}

@@ -242,7 +242,7 @@ def test_an_override_into_a_scalar_is_rejected(tmp_path: Path) -> None:
 
 def _check(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "common.cli", "check", *args],
+        [sys.executable, "-m", "services.cli", "check", *args],
         capture_output=True,
         text=True,
         timeout=60,

@@ -94,7 +94,7 @@ def test_delayed_300ms_equals_on_time(cfg: EstimatorConfig, later_fixes: bool) -
     differed = False
     for k in range(60):
         t = round(0.1 * k, 9)
-        arriving = [f for f in fixes[:n_fix] if f.stamp == t]
+        arriving: list[Message] = [f for f in fixes[:n_fix] if f.stamp == t]
         arriving += [s for s in scans[:n_scan] if s.stamp == t]
         for msg in arriving:
             _deliver(on_time, msg, t)

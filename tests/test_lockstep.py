@@ -18,8 +18,9 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_lockstep_equals_inproc_under_a_lossy_network(testloop_toml: Path, tmp_path: Path,
-                                                      seed: int) -> None:
+def test_lockstep_equals_inproc_under_a_lossy_network(
+    testloop_toml: Path, tmp_path: Path, seed: int
+) -> None:
     s, raw = load_scenario(testloop_toml, seed=seed)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
@@ -52,10 +53,12 @@ def test_lockstep_is_deterministic_under_cpu_load(testloop_toml: Path, tmp_path:
     assert second.metrics["trajectory_sha256"] == first.metrics["trajectory_sha256"]
 
 
-def test_a_dead_service_fails_lockstep_fast_and_names_it(testloop_toml: Path,
-                                                         tmp_path: Path) -> None:
-    s, raw = load_scenario(testloop_toml, overrides=['testloop.crash_service="filter"',
-                                                     "testloop.crash_at_s=2.0"])
+def test_a_dead_service_fails_lockstep_fast_and_names_it(
+    testloop_toml: Path, tmp_path: Path
+) -> None:
+    s, raw = load_scenario(
+        testloop_toml, overrides=['testloop.crash_service="filter"', "testloop.crash_at_s=2.0"]
+    )
     t0 = time.monotonic()
     with pytest.raises(ServiceFailed, match=r"service 'filter' exited with code 3"):
         run_lockstep(s, raw, tmp_path / "logs")
@@ -71,8 +74,9 @@ def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> No
     assert all(c for c in os.listdir(tmp_path / "logs"))
 
 
-def test_lockstep_equals_inproc_with_event_driven_cores(testloop_toml: Path,
-                                                        tmp_path: Path) -> None:
+def test_lockstep_equals_inproc_with_event_driven_cores(
+    testloop_toml: Path, tmp_path: Path
+) -> None:
     """Wake inputs: time advances to each modelled delivery, not only to periodic steps."""
     s, raw = load_scenario(testloop_toml, overrides=["testloop.event_driven=true"])
     ref = run_inproc(s)

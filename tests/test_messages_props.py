@@ -11,6 +11,7 @@ import math
 import typing
 from collections.abc import Callable
 from typing import Any
+from unittest import mock
 
 import msgpack
 import pytest
@@ -33,6 +34,7 @@ from common.messages import (
     VehicleStatus,
     VelocityCommand,
     WireError,
+    codec,
     decode,
     encode,
 )
@@ -45,7 +47,7 @@ INT64 = st.integers(-(2**63), 2**63 - 1)  # msgpack's signed range
 COUNT = st.integers(0, 2**63 - 1)
 TEXT = st.text(max_size=12)
 
-PROPS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPS = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @st.composite
@@ -192,7 +194,7 @@ def _decode_total(data: bytes) -> Message | WireError:
     return msg
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=600))
 def test_decode_of_arbitrary_bytes_raises_only_wire_error(data: bytes) -> None:
     _decode_total(data)
@@ -231,7 +233,7 @@ def mutated_messages(draw: st.DrawFn) -> bytes:
     return bytes(buf)
 
 
-@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated_messages())
 def test_decode_of_mutated_messages_raises_only_wire_error(data: bytes) -> None:
     _decode_total(data)
@@ -258,7 +260,7 @@ def wellformed_envelopes_with_junk(draw: st.DrawFn) -> bytes:
     return bytes(msgpack.packb(frame, use_bin_type=True))
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(wellformed_envelopes_with_junk())
 def test_decode_of_junk_field_values_raises_only_wire_error(data: bytes) -> None:
     _decode_total(data)
@@ -268,6 +270,35 @@ def test_decode_of_junk_field_values_raises_only_wire_error(data: bytes) -> None
 @given(MSGPACK_VALUES)
 def test_decode_of_arbitrary_msgpack_raises_only_wire_error(value: Any) -> None:
     _decode_total(bytes(msgpack.packb(value, use_bin_type=True)))
+
+
+# --- the codec's fast path is only a shortcut: same messages, same errors as the checked path ---
+
+
+def _outcome(data: bytes) -> tuple[str, Any]:
+    try:
+        msg = decode(data)
+    except WireError as exc:
+        return "error", str(exc)
+    return type(msg).__name__, msg
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(ANY_MESSAGE.map(encode), mutated_messages(), wellformed_envelopes_with_junk()))
+def test_fast_decoding_agrees_with_the_checked_path(data: bytes) -> None:
+    fast = _outcome(data)
+    declined = lambda self, body, envelope=None: codec._SLOW  # noqa: E731
+    with mock.patch.object(codec._Schema, "fast_convert", declined):
+        checked = _outcome(data)
+    assert fast == checked
+
+
+def test_the_fast_path_takes_every_regular_message() -> None:
+    # otherwise the agreement above would hold trivially
+    for msg in one_of_each():
+        _, name, source, seq, stamp, sent, body = msgpack.unpackb(encode(msg))
+        env = {"source": source, "seq": seq, "stamp": stamp, "sent": sent}
+        assert codec._BY_NAME[name].fast_convert(body, env) == msg, name
 
 
 # --- each kind of error says what is wrong ------------------------------------------------------

@@ -18,8 +18,11 @@ from common.runtime.inproc import run_inproc
 
 class Talker:
     def __init__(self) -> None:
-        self.spec = CoreSpec(name="talker", outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
-                             period_s=0.1)
+        self.spec = CoreSpec(
+            name="talker",
+            outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
+            period_s=0.1,
+        )
 
     def deliver(self, d: Delivery) -> list[Emit]:
         return []
@@ -30,8 +33,13 @@ class Talker:
 
 class Listener:
     def __init__(self, policy: QueuePolicy, period: float = 0.1) -> None:
-        self.spec = CoreSpec(name="listener", period_s=period, inputs=(
-            InputSpec(source="talker", stream="cmd", msg_type=VelocityCommand, policy=policy),))
+        self.spec = CoreSpec(
+            name="listener",
+            period_s=period,
+            inputs=(
+                InputSpec(source="talker", stream="cmd", msg_type=VelocityCommand, policy=policy),
+            ),
+        )
         self.got: list[tuple[float, float]] = []  # (delivery time, stamp)
         self.steps: list[float] = []
 
@@ -48,8 +56,11 @@ def _pair(policy: QueuePolicy, listener_period: float = 0.1) -> tuple[Host, Host
     talker, listener = Talker(), Listener(policy, listener_period)
     flow = Dataflow.of([talker.spec, listener.spec])
     net = NetworkConfig()
-    return (Host(talker, flow, NetworkModel(net, seed=1)),
-            Host(listener, flow, NetworkModel(net, seed=1)), listener)
+    return (
+        Host(talker, flow, NetworkModel(net, seed=1)),
+        Host(listener, flow, NetworkModel(net, seed=1)),
+        listener,
+    )
 
 
 def _run(th: Host, lh: Host, until_us: int) -> None:
@@ -91,8 +102,9 @@ def test_dataflow_rejects_an_input_nobody_publishes() -> None:
 
 def test_dataflow_rejects_a_type_mismatch() -> None:
     talker = Talker()
-    wrong = CoreSpec(name="listener", inputs=(InputSpec(source="talker", stream="cmd",
-                                                         msg_type=TruthState),))
+    wrong = CoreSpec(
+        name="listener", inputs=(InputSpec(source="talker", stream="cmd", msg_type=TruthState),)
+    )
     with pytest.raises(DataflowError, match="expects TruthState"):
         Dataflow.of([talker.spec, wrong])
 
@@ -117,4 +129,6 @@ def test_inproc_counts_link_drops(testloop_toml: Path) -> None:
     assert link.link == "filter/state->ctrl"
     assert link.dropped_outage > 0  # the outage on the filter's links (4.0 s to 5.5 s)
     assert link.dropped_loss > 0
-    assert link.sent == link.delivered + link.dropped_loss + link.dropped_outage + link.dropped_queue
+    assert (
+        link.sent == link.delivered + link.dropped_loss + link.dropped_outage + link.dropped_queue
+    )

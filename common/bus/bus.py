@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
@@ -49,23 +50,35 @@ class Inbox:
     """
 
     def __init__(self) -> None:
-        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness] = queue.SimpleQueue()
+        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness]
+        self._q = queue.SimpleQueue()
         self.decode_errors: dict[str, int] = {}
         self.last_error: dict[str, str] = {}
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         att = sample.attachment
-        self._q.put((str(sample.key_expr), sample.payload.to_bytes(),
-                     att.to_bytes() if att is not None else None))
+        self._q.put(
+            (
+                str(sample.key_expr),
+                sample.payload.to_bytes(),
+                att.to_bytes() if att is not None else None,
+            )
+        )
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
+        # One deadline for the whole call: a trickle of undecodable payloads must not keep
+        # restarting the wait (the caller's step would never come).
+        deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             try:
-                item = self._q.get(timeout=timeout)
+                if deadline is None:
+                    item = self._q.get()
+                else:
+                    item = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 return None
             if isinstance(item, Liveliness):
@@ -81,7 +94,9 @@ class Inbox:
         self.decode_errors[key] = n
         self.last_error[key] = why
         if n == 1:
-            log.warning("dropping undecodable payload on %s: %s (further ones only counted)", key, why)
+            log.warning(
+                "dropping undecodable payload on %s: %s (further ones only counted)", key, why
+            )
 
 
 class Publisher:
@@ -145,7 +160,7 @@ class Bus:
             self._declared.append(obj)
         return obj
 
-    def publisher(self, service: str, stream: str, *, express: bool = True) -> Publisher:
+    def publisher(self, service: str, stream: str, *, express: bool = False) -> Publisher:
         key = self.keys.stream(service, stream)
         pub = self.session.declare_publisher(
             key,

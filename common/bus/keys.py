@@ -45,7 +45,7 @@ class Keys:
         prefix = self.root + "/"
         if not key.startswith(prefix):
             raise ValueError(f"{key!r} is not a key of run {self.run}/{self.vehicle}")
-        service, sep, stream = key[len(prefix):].partition("/")
+        service, sep, stream = key[len(prefix) :].partition("/")
         if not sep or "/" in stream:
             raise ValueError(f"{key!r} is not a <service>/<stream> key")
         return service, stream

@@ -19,7 +19,13 @@ class BusConfig:
     def __post_init__(self) -> None:
         for ep in (*self.listen, *self.connect):
             proto, sep, rest = ep.partition("/")
-            if not sep or not rest or proto not in ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic"):
-                raise ValueError(f"listen/connect: {ep!r} is not a Zenoh endpoint like tcp/127.0.0.1:7447")
+            if (
+                not sep
+                or not rest
+                or proto not in ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic")
+            ):
+                raise ValueError(
+                    f"listen/connect: {ep!r} is not a Zenoh endpoint like tcp/127.0.0.1:7447"
+                )
         if self.mode == "client" and not self.connect:
             raise ValueError("connect: a client must connect to at least one router endpoint")

@@ -24,7 +24,7 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = 0.05  # of the surge acceleration
     yaw_accel_psd_rad2_s3: float = 0.01  # of the yaw acceleration
     max_predict_dt_s: float = 0.1  # longer predictions are split into equal sub-steps
-    init_std_xy_m: float = 1.0  # initial belief around the configured start pose
+    init_std_xy_m: float = 0.5  # initial belief around the configured start pose
     init_std_theta_rad: float = 0.1
     init_std_v_mps: float = 0.5
     init_std_w_rps: float = 0.1

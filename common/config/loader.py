@@ -14,7 +14,7 @@ T = TypeVar("T")
 
 
 class ConfigError(ValueError):
-    """A scenario or experiment file is wrong: names the file, the key path and what was expected."""
+    """A scenario or experiment file is wrong: names the file, the key path and the expectation."""
 
     def __init__(self, file: str, key: str, problem: str) -> None:
         self.file, self.key, self.problem = file, key, problem
@@ -43,12 +43,14 @@ def build(cls: type[T], data: Any, *, file: str = "", key: str = "") -> T:
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise ConfigError(
-            file, _join(key, unknown[0]),
+            file,
+            _join(key, unknown[0]),
             f"unknown key (known keys: {', '.join(sorted(fields))})",
         )
     kwargs = {name: _convert(hints[name], v, file, _join(key, name)) for name, v in data.items()}
     missing = [
-        n for n, f in fields.items()
+        n
+        for n, f in fields.items()
         if n not in kwargs
         and f.default is dataclasses.MISSING
         and f.default_factory is dataclasses.MISSING
@@ -73,8 +75,14 @@ def _join(key: str, name: str) -> str:
 
 
 def _kind(v: Any) -> str:
-    return {dict: "a table", list: "an array", str: "a string", bool: "a boolean",
-            int: "an integer", float: "a number"}.get(type(v), type(v).__name__)
+    return {
+        dict: "a table",
+        list: "an array",
+        str: "a string",
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+    }.get(type(v), type(v).__name__)
 
 
 def _convert(hint: Any, v: Any, file: str, key: str) -> Any:
@@ -109,7 +117,10 @@ def _convert(hint: Any, v: Any, file: str, key: str) -> Any:
             return tuple(_convert(args[0], x, file, f"{key}[{i}]") for i, x in enumerate(v))
         if len(v) != len(args):
             raise ConfigError(file, key, f"expected an array of {len(args)} values, got {len(v)}")
-        return tuple(_convert(a, x, file, f"{key}[{i}]") for i, (a, x) in enumerate(zip(args, v)))
+        return tuple(
+            _convert(a, x, file, f"{key}[{i}]")
+            for i, (a, x) in enumerate(zip(args, v, strict=True))
+        )
     if origin is dict and args and args[0] is str:
         if type(v) is not dict:
             raise ConfigError(file, key, f"expected a table, got {_kind(v)}")

@@ -16,11 +16,13 @@ def _type_name(hint: Any) -> str:
         return " \\| ".join(f'"{a}"' for a in args)
     if origin is tuple:
         inner = args[0]
-        if dataclasses.is_dataclass(inner):
+        if dataclasses.is_dataclass(inner) and isinstance(inner, type):
             return f"array of tables ({inner.__name__})"
         return f"array of {_type_name(inner)}"
     if isinstance(hint, type):
-        return {float: "number", int: "integer", str: "string", bool: "bool"}.get(hint, hint.__name__)
+        return {float: "number", int: "integer", str: "string", bool: "bool"}.get(
+            hint, hint.__name__
+        )
     return str(hint)
 
 

@@ -35,8 +35,9 @@ class Scenario:
     testloop: TestLoopConfig = field(default_factory=TestLoopConfig)
 
 
-def load_scenario(path: str | Path, overrides: list[str] | None = None,
-                  seed: int | None = None) -> tuple[Scenario, dict[str, Any]]:
+def load_scenario(
+    path: str | Path, overrides: list[str] | None = None, seed: int | None = None
+) -> tuple[Scenario, dict[str, Any]]:
     """Read, override (`--set key=value`) and validate a scenario; returns it and its raw data.
 
     The raw mapping is returned so it can be handed to child processes unchanged.

@@ -119,9 +119,20 @@ class MovingObstacleConfig:
             raise ValueError(f"kind: {self.kind!r}, expected 'line', 'waypoints' or 'sinusoid'")
         if not self.radius_m > 0.0:
             raise ValueError(f"radius_m: {self.radius_m!r} must be > 0")
-        numbers = (self.x0_m, self.y0_m, self.vx_mps, self.vy_mps, self.speed_mps)
-        if not all(math.isfinite(v) for v in numbers + self.waypoints_m):
-            raise ValueError("x0_m: positions, velocities and waypoints must all be finite")
+        for name in (
+            "x0_m",
+            "y0_m",
+            "vx_mps",
+            "vy_mps",
+            "speed_mps",
+            "amplitude_m",
+            "frequency_hz",
+            "phase_rad",
+        ):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: {getattr(self, name)!r}, expected a finite number")
+        if not all(math.isfinite(v) for v in self.waypoints_m):
+            raise ValueError("waypoints_m: every coordinate must be finite")
         if self.kind == "waypoints":
             if len(self.waypoints_m) % 2 or not self.waypoints_m:
                 raise ValueError(

@@ -271,4 +271,3 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     Tick,
     TickAck,
 )
-

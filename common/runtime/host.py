@@ -41,8 +41,9 @@ class Outgoing:
 class Host:
     """Runs one core inside any runtime (see the module docstring for the rules)."""
 
-    def __init__(self, core: ServiceCore, flow: Dataflow, net: NetworkModel, *,
-                 stats_period_s: float = 1.0) -> None:
+    def __init__(
+        self, core: ServiceCore, flow: Dataflow, net: NetworkModel, *, stats_period_s: float = 1.0
+    ) -> None:
         self.core = core
         self.name = core.spec.name
         self.flow = flow
@@ -52,7 +53,9 @@ class Host:
         self.next_step_us = to_us(spec.offset_s)
         self.stats_period_us = to_us(stats_period_s)
         self.next_stats_us = self.stats_period_us
-        self._inputs: dict[tuple[str, str], InputSpec] = {(i.source, i.stream): i for i in spec.inputs}
+        self._inputs: dict[tuple[str, str], InputSpec] = {
+            (i.source, i.stream): i for i in spec.inputs
+        }
         self._seq: dict[str, int] = {o.stream: 0 for o in spec.outputs}
         self._seq[STATS_STREAM] = 0
         # (deliver_us, source, stream, seq, copy, sent_tick, msg)
@@ -62,8 +65,9 @@ class Host:
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
 
     # -- receiving ---------------------------------------------------------------------------
-    def accept(self, msg: Message, source: str, stream: str, times_us: tuple[int, ...],
-               sent_tick: int) -> None:
+    def accept(
+        self, msg: Message, source: str, stream: str, times_us: tuple[int, ...], sent_tick: int
+    ) -> None:
         """Queue a message sent to this host, with its modelled delivery times."""
         if (source, stream) not in self._inputs:
             return
@@ -119,7 +123,8 @@ class Host:
         if not newest:
             return ready
         kept = [
-            d for i, d in enumerate(ready)
+            d
+            for i, d in enumerate(ready)
             if self._inputs[(d.source, d.stream)].policy is not QueuePolicy.NEWEST
             or newest[(d.source, d.stream)] == i
         ]
@@ -159,9 +164,15 @@ class Host:
         """Counters of every outgoing link so far, as the wire message."""
         links = tuple(
             LinkCounters(
-                link=name, sent=s.sent, delivered=s.delivered, dropped_loss=s.dropped_loss,
-                dropped_outage=s.dropped_outage, dropped_queue=s.dropped_queue,
-                duplicated=s.duplicated, delay_p50=s.delay_p50_s, delay_p99=s.delay_p99_s,
+                link=name,
+                sent=s.sent,
+                delivered=s.delivered,
+                dropped_loss=s.dropped_loss,
+                dropped_outage=s.dropped_outage,
+                dropped_queue=s.dropped_queue,
+                duplicated=s.duplicated,
+                delay_p50=s.delay_p50_s,
+                delay_p99=s.delay_p99_s,
             )
             for name, s in self.net.snapshots().items()
         )

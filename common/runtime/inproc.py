@@ -33,14 +33,19 @@ def build_hosts(scenario: Scenario, mission: Mission) -> dict[str, Host]:
     cores = [mission.make_core(n) for n in mission.names]
     flow = Dataflow.of([c.spec for c in cores])
     return {
-        c.spec.name: Host(c, flow, NetworkModel(scenario.network, seed=scenario.run.seed),
-                          stats_period_s=scenario.runtime.stats_period_s)
+        c.spec.name: Host(
+            c,
+            flow,
+            NetworkModel(scenario.network, seed=scenario.run.seed),
+            stats_period_s=scenario.runtime.stats_period_s,
+        )
         for c in cores
     }
 
 
-def route(out: list[Outgoing], source: str, tick: int, hosts: dict[str, Host],
-          record: Record) -> None:
+def route(
+    out: list[Outgoing], source: str, tick: int, hosts: dict[str, Host], record: Record
+) -> None:
     """Record what a host published and queue each message at its receivers."""
     for o in out:
         record.add(source, o.stream, o.msg)
@@ -76,8 +81,13 @@ def run_inproc(scenario: Scenario) -> RunResult:
     final_tick = tick + 1
     for name in sorted(hosts):  # final statistics, as the lockstep stop tick publishes them
         h = hosts[name]
-        route([h._publish("stats", h.link_stats(t_us / 1e6), final_tick, t_us)], name,
-              final_tick, hosts, record)
+        route(
+            [h._publish("stats", h.link_stats(t_us / 1e6), final_tick, t_us)],
+            name,
+            final_tick,
+            hosts,
+            record,
+        )
     log.info("inproc run ended at t=%.3f s after %d ticks: %s", t_us / 1e6, tick + 1, reason)
     metrics = mission.metrics(record)
     return RunResult(reason, t_us / 1e6, tick + 1, record, metrics)

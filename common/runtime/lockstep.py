@@ -62,24 +62,39 @@ class Coordinator:
         with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
             raw_path = Path(tmp) / "scenario.json"
             raw_path.write_text(json.dumps(self.raw))
-            bus_cfg = BusConfig(mode="router", listen=listen,
-                                multicast_scouting=self.scenario.bus.multicast_scouting)
+            bus_cfg = BusConfig(
+                mode="router",
+                listen=listen,
+                multicast_scouting=self.scenario.bus.multicast_scouting,
+            )
             with Bus(bus_cfg, self.keys) as bus:
                 inbox = Inbox()
                 bus.subscribe(self.keys.everything, inbox)
                 bus.watch_alive(inbox)
-                tick_pub = bus.publisher(CLOCK, "tick")
+                tick_pub = bus.publisher(CLOCK, "tick", express=True)
                 bus.declare_alive(CLOCK)
                 try:
                     for name in self.mission.names:
                         self.children[name] = spawn(
-                            name, ["-m", self.service_module, name,
-                                   "--scenario-json", str(raw_path), "--connect", endpoint],
-                            self.log_dir)
+                            name,
+                            [
+                                "-m",
+                                self.service_module,
+                                name,
+                                "--scenario-json",
+                                str(raw_path),
+                                "--connect",
+                                endpoint,
+                            ],
+                            self.log_dir,
+                        )
                     t_spawn = time.monotonic()
                     self._await_alive(inbox)
-                    log.info("all %d services alive after %.2f s", len(self.children),
-                             time.monotonic() - t_spawn)
+                    log.info(
+                        "all %d services alive after %.2f s",
+                        len(self.children),
+                        time.monotonic() - t_spawn,
+                    )
                     result = self.drive(inbox, tick_pub)
                 except BaseException:
                     stop_all(list(self.children.values()))
@@ -143,12 +158,23 @@ class Coordinator:
         service, stream = self.keys.split(ev.key)
         self.record.add(service, stream, ev.msg)
 
-    def _tick(self, inbox: Inbox, pub: Any, k: int, t_us: int, marks: dict[str, int],
-              due: list[str], stop: bool = False) -> dict[str, int]:
+    def _tick(
+        self,
+        inbox: Inbox,
+        pub: Any,
+        k: int,
+        t_us: int,
+        marks: dict[str, int],
+        due: list[str],
+        stop: bool = False,
+    ) -> dict[str, int]:
         self.acks = {}
         self.stopping = stop
-        pub.put(Tick(stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, due=tuple(due),
-                     stop=stop))
+        pub.put(
+            Tick(
+                stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, due=tuple(due), stop=stop
+            )
+        )
         deadline = time.monotonic() + self.timeout_s
         while any(self.acks.get(n) is None or self.acks[n].tick != k for n in due):
             self._pump(inbox, deadline, f"acknowledging tick {k}")
@@ -161,7 +187,8 @@ class Coordinator:
 
     def drive(self, inbox: Inbox, pub: Any) -> RunResult:
         max_us = round(self.mission.max_time_s * 1e6)
-        k, t_us, marks, reason = 0, 0, {}, "max_time"
+        k, t_us, reason = 0, 0, "max_time"
+        marks: dict[str, int] = {}
         # when each service next needs a tick: its own next event (from its last ack) or a
         # wake delivery someone sent it since (reported by the sender, before it arrives)
         need = {n: 0 for n in self.mission.names}
@@ -183,8 +210,13 @@ class Coordinator:
                 break
             t_us, k = nxt, k + 1
         self._tick(inbox, pub, k + 1, t_us, marks, sorted(need), stop=True)
-        log.info("lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
-                 t_us / 1e6, k + 1, time.monotonic() - wall0, reason)
+        log.info(
+            "lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
+            t_us / 1e6,
+            k + 1,
+            time.monotonic() - wall0,
+            reason,
+        )
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))
 
 

@@ -34,12 +34,17 @@ class LockstepService:
             raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(cores)}")
         flow = Dataflow.of([c.spec for c in cores.values()])
         self.name = name
-        self.host = Host(cores[name], flow, NetworkModel(self.scenario.network,
-                                                          seed=self.scenario.run.seed),
-                         stats_period_s=self.scenario.runtime.stats_period_s)
+        self.host = Host(
+            cores[name],
+            flow,
+            NetworkModel(self.scenario.network, seed=self.scenario.run.seed),
+            stats_period_s=self.scenario.runtime.stats_period_s,
+        )
         self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
         self.bus_cfg = BusConfig(mode="client", connect=(connect,))
-        self.received: dict[str, int] = {f"{i.source}/{i.stream}": 0 for i in self.host.core.spec.inputs}
+        self.received: dict[str, int] = {
+            f"{i.source}/{i.stream}": 0 for i in self.host.core.spec.inputs
+        }
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 
     def run(self) -> int:
@@ -49,9 +54,13 @@ class LockstepService:
                 bus.subscribe_stream(i.source, i.stream, inbox)
             bus.subscribe_stream(CLOCK, "tick", inbox)
             bus.watch_alive(inbox, self.keys.alive(CLOCK))
-            pubs = {o.stream: bus.publisher(self.name, o.stream) for o in self.host.core.spec.outputs}
-            pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM)
-            ack_pub = bus.publisher(CLOCK, "ack")
+            # express: a tick waits on every message, so none may sit in a batch
+            pubs = {
+                o.stream: bus.publisher(self.name, o.stream, express=True)
+                for o in self.host.core.spec.outputs
+            }
+            pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM, express=True)
+            ack_pub = bus.publisher(CLOCK, "ack", express=True)
             bus.declare_alive(self.name)
             while True:
                 tick = self._next_tick(inbox)
@@ -59,17 +68,28 @@ class LockstepService:
                     continue  # nothing due here: messages keep arriving into the host
                 self._wait_for(inbox, tick.watermarks)
                 if tick.stop:
-                    out = [self.host._publish(STATS_STREAM, self.host.link_stats(tick.time_us / 1e6),
-                                              tick.tick, tick.time_us)]
+                    out = [
+                        self.host._publish(
+                            STATS_STREAM,
+                            self.host.link_stats(tick.time_us / 1e6),
+                            tick.tick,
+                            tick.time_us,
+                        )
+                    ]
                 else:
                     out = self.host.run_tick(tick.tick, tick.time_us)
                 for o in out:
                     pubs[o.stream].put_bytes(o.data, encode_routing(tick.tick, o.schedule))
-                ack_pub.put(TickAck(stamp=tick.time_us / 1e6, tick=tick.tick, service=self.name,
-                                    published={f"{self.name}/{k}": v
-                                               for k, v in self.host.published().items()},
-                                    next_us=self.host.next_event_us(),
-                                    wakes=self.host.wake_deliveries_us(out)))
+                ack_pub.put(
+                    TickAck(
+                        stamp=tick.time_us / 1e6,
+                        tick=tick.tick,
+                        service=self.name,
+                        published={f"{self.name}/{k}": v for k, v in self.host.published().items()},
+                        next_us=self.host.next_event_us(),
+                        wakes=self.host.wake_deliveries_us(out),
+                    )
+                )
                 if tick.stop:
                     self._await_release(inbox)
                     return 0
@@ -81,7 +101,9 @@ class LockstepService:
             ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
             if isinstance(ev, Liveliness) and not ev.alive:
                 return
-        log.warning("%s: coordinator did not release us in %s s; exiting", self.name, self.timeout_s)
+        log.warning(
+            "%s: coordinator did not release us in %s s; exiting", self.name, self.timeout_s
+        )
 
     def _handle(self, ev: Received | Liveliness | None) -> Tick | None:
         if ev is None:
@@ -131,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenario-json", required=True, type=Path)
     p.add_argument("--connect", required=True)
     a = p.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s")
+    logging.basicConfig(
+        level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s"
+    )
     install_shutdown_handlers()
     raw = json.loads(a.scenario_json.read_text())
     try:

@@ -36,19 +36,23 @@ def _clean(v: Any) -> Any:
     return v
 
 
-def write_outputs(result: RunResult, scenario: Scenario, out: Path, *, wall_s: float) -> dict[str, Any]:
+def write_outputs(
+    result: RunResult, scenario: Scenario, out: Path, *, wall_s: float
+) -> dict[str, Any]:
     """Write out/metrics.json (atomically) and return the metrics with the run's facts added."""
     out.mkdir(parents=True, exist_ok=True)
     metrics = dict(result.metrics)
-    metrics.update({
-        "end_reason": result.reason,
-        "t_end_s": result.t_end,
-        "ticks": result.ticks,
-        "runtime": scenario.runtime.kind,
-        "seed": scenario.run.seed,
-        "wall_s": round(wall_s, 3),
-        "link_stats": link_stats(result),
-    })
+    metrics.update(
+        {
+            "end_reason": result.reason,
+            "t_end_s": result.t_end,
+            "ticks": result.ticks,
+            "runtime": scenario.runtime.kind,
+            "seed": scenario.run.seed,
+            "wall_s": round(wall_s, 3),
+            "link_stats": link_stats(result),
+        }
+    )
     metrics = _clean(metrics)
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
@@ -68,9 +72,13 @@ def link_stats(result: RunResult) -> dict[str, dict[str, Any]]:
         if msgs:
             for c in msgs[-1].links:
                 out[c.link] = {
-                    "sent": c.sent, "delivered": c.delivered, "dropped_loss": c.dropped_loss,
-                    "dropped_outage": c.dropped_outage, "dropped_queue": c.dropped_queue,
-                    "duplicated": c.duplicated, "delay_p50_s": c.delay_p50,
+                    "sent": c.sent,
+                    "delivered": c.delivered,
+                    "dropped_loss": c.dropped_loss,
+                    "dropped_outage": c.dropped_outage,
+                    "dropped_queue": c.dropped_queue,
+                    "duplicated": c.duplicated,
+                    "delay_p50_s": c.delay_p50,
                     "delay_p99_s": c.delay_p99,
                 }
     return out

@@ -26,10 +26,13 @@ class Plant:
     def __init__(self, event_driven: bool = False) -> None:
         self.spec = CoreSpec(
             name="plant",
-            inputs=(InputSpec(source="ctrl", stream="cmd", msg_type=VelocityCommand,
-                              wake=event_driven),),
-            outputs=(OutputSpec(stream="truth", msg_type=TruthState),
-                     OutputSpec(stream="status", msg_type=VehicleStatus)),
+            inputs=(
+                InputSpec(source="ctrl", stream="cmd", msg_type=VelocityCommand, wake=event_driven),
+            ),
+            outputs=(
+                OutputSpec(stream="truth", msg_type=TruthState),
+                OutputSpec(stream="status", msg_type=VehicleStatus),
+            ),
             period_s=0.05,
         )
         self.event_driven = event_driven
@@ -49,15 +52,29 @@ class Plant:
         if not self.event_driven:
             return []
         # the command's age when applied = sensor sample to actuation (stamps are propagated)
-        return [Emit(stream="status", msg=VehicleStatus(
-            stamp=d.t, mode="RUN", v_applied=self.u, w_applied=0.0,
-            command_age=max(0.0, d.t - d.msg.stamp), commands_applied=self.applied,
-            commands_rejected=0, commands_clamped=0))]
+        return [
+            Emit(
+                stream="status",
+                msg=VehicleStatus(
+                    stamp=d.t,
+                    mode="RUN",
+                    v_applied=self.u,
+                    w_applied=0.0,
+                    command_age=max(0.0, d.t - d.msg.stamp),
+                    commands_applied=self.applied,
+                    commands_rejected=0,
+                    commands_clamped=0,
+                ),
+            )
+        ]
 
     def step(self, t: float) -> list[Emit]:
         self._advance(t)
-        return [Emit(stream="truth", msg=TruthState(stamp=t, x=self.x, y=0.0, theta=0.0,
-                                                    v=self.u, w=0.0))]
+        return [
+            Emit(
+                stream="truth", msg=TruthState(stamp=t, x=self.x, y=0.0, theta=0.0, v=self.u, w=0.0)
+            )
+        ]
 
 
 class Sensor:
@@ -67,8 +84,11 @@ class Sensor:
         self.stamp_at_step = stamp_at_step
         self.spec = CoreSpec(
             name="sensor",
-            inputs=(InputSpec(source="plant", stream="truth", msg_type=TruthState,
-                              policy=QueuePolicy.NEWEST),),
+            inputs=(
+                InputSpec(
+                    source="plant", stream="truth", msg_type=TruthState, policy=QueuePolicy.NEWEST
+                ),
+            ),
             outputs=(OutputSpec(stream="nav", msg_type=NavFix),),
             period_s=0.1,
         )
@@ -85,9 +105,21 @@ class Sensor:
             return []
         z = self.last.x + float(self.rng.normal(0.0, 0.2))
         stamp = t if self.stamp_at_step else self.last.stamp
-        return [Emit(stream="nav", msg=NavFix(stamp=stamp, x=z, y=0.0, heading=0.0,
-                                              speed=0.0, std_xy=0.2, std_heading=0.0,
-                                              std_speed=0.0))]
+        return [
+            Emit(
+                stream="nav",
+                msg=NavFix(
+                    stamp=stamp,
+                    x=z,
+                    y=0.0,
+                    heading=0.0,
+                    speed=0.0,
+                    std_xy=0.2,
+                    std_heading=0.0,
+                    std_speed=0.0,
+                ),
+            )
+        ]
 
 
 class Filter:
@@ -114,8 +146,14 @@ class Filter:
     def _emit(self, stamp: float) -> list[Emit]:
         if self.x is None:
             return []
-        return [Emit(stream="state", msg=StateEstimate(stamp=stamp, x=self.x, y=0.0, theta=0.0,
-                                                       v=0.0, w=0.0, covariance=_COV))]
+        return [
+            Emit(
+                stream="state",
+                msg=StateEstimate(
+                    stamp=stamp, x=self.x, y=0.0, theta=0.0, v=0.0, w=0.0, covariance=_COV
+                ),
+            )
+        ]
 
     def step(self, t: float) -> list[Emit]:
         return [] if self.event_driven else self._emit(t)
@@ -130,8 +168,15 @@ class Controller:
         self.stamp = 0.0
         self.spec = CoreSpec(
             name="ctrl",
-            inputs=(InputSpec(source="filter", stream="state", msg_type=StateEstimate,
-                              policy=QueuePolicy.NEWEST, wake=event_driven),),
+            inputs=(
+                InputSpec(
+                    source="filter",
+                    stream="state",
+                    msg_type=StateEstimate,
+                    policy=QueuePolicy.NEWEST,
+                    wake=event_driven,
+                ),
+            ),
             outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
             period_s=0.1,
             offset_s=0.05,
@@ -161,12 +206,12 @@ class _Crashing:
         self.core, self.at_s, self.spec = core, at_s, core.spec
 
     def deliver(self, d: Delivery) -> list[Emit]:
-        return self.core.deliver(d)  # type: ignore[no-any-return]
+        return self.core.deliver(d)
 
     def step(self, t: float) -> list[Emit]:
         if t >= self.at_s:
             os._exit(3)  # a hard death, as a segfault or the OOM killer would cause
-        return self.core.step(t)  # type: ignore[no-any-return]
+        return self.core.step(t)
 
 
 def _rng(seed: int, name: str) -> np.random.Generator:
@@ -187,9 +232,12 @@ class TestLoop:
 
     def make_core(self, name: str) -> Any:
         ev = self.cfg.event_driven
-        makers = {"plant": lambda: Plant(ev), "filter": lambda: Filter(ev),
-                  "ctrl": lambda: Controller(self.cfg.setpoint, ev),
-                  "sensor": lambda: Sensor(_rng(self.seed, "sensor"), stamp_at_step=ev)}
+        makers = {
+            "plant": lambda: Plant(ev),
+            "filter": lambda: Filter(ev),
+            "ctrl": lambda: Controller(self.cfg.setpoint, ev),
+            "sensor": lambda: Sensor(_rng(self.seed, "sensor"), stamp_at_step=ev),
+        }
         core = makers[name]()
         if name == self.cfg.crash_service:
             core = _Crashing(core, self.cfg.crash_at_s)

@@ -15,8 +15,14 @@ log = logging.getLogger("tidelink")
 
 def scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", type=Path, help="scenario TOML file, e.g. configs/default.toml")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)",
+    )
     p.add_argument("--seed", type=int, default=None, help="override run.seed")
 
 
@@ -40,7 +46,9 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
     scenario, raw = load_scenario(a.scenario, overrides, a.seed)
-    out = a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
+    out = (
+        a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
+    )
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
     metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
@@ -91,14 +99,23 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
     r = sub.add_parser("run", help="run one mission and write DIR/metrics.json")
     scenario_args(r)
-    r.add_argument("--runtime", choices=("inproc", "lockstep", "realtime"), default=None,
-                   help="override runtime.kind (default: the scenario's, else inproc)")
+    r.add_argument(
+        "--runtime",
+        choices=("inproc", "lockstep", "realtime"),
+        default=None,
+        help="override runtime.kind (default: the scenario's, else inproc)",
+    )
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     r.set_defaults(func=cmd_run)
 
     z = sub.add_parser("router", help="run a Zenoh router (no zenohd is installable here)")
-    z.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
-                   help="e.g. tcp/127.0.0.1:7447 (repeatable)")
+    z.add_argument(
+        "--listen",
+        action="append",
+        required=True,
+        metavar="ENDPOINT",
+        help="e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
     z.set_defaults(func=cmd_router)

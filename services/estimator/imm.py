@@ -21,11 +21,13 @@ H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection se
 
 def transition(dt: float, constant_acceleration: bool) -> FloatArray:
     """F over dt: constant acceleration, or constant velocity with the acceleration zeroed."""
-    if constant_acceleration:
-        f = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    else:
-        f = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]])
-    return np.kron(np.eye(2), f)
+    F = np.zeros((6, 6))
+    for b in (0, 3):  # one block per axis
+        F[b, b] = F[b + 1, b + 1] = 1.0
+        F[b, b + 1] = dt
+        if constant_acceleration:
+            F[b, b + 2], F[b + 1, b + 2], F[b + 2, b + 2] = 0.5 * dt * dt, dt, 1.0
+    return F
 
 
 def process_noise(dt: float, constant_acceleration: bool, psd: float) -> FloatArray:
@@ -54,13 +56,12 @@ def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatA
 def combine(
     xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Moment-matched mixture: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx')."""
-    x = sum((m * xj for m, xj in zip(mu, xs, strict=True)), np.zeros(6))
-    P = np.zeros((6, 6))
-    for m, xj, Pj in zip(mu, xs, Ps, strict=True):
-        d = xj - x
-        P += m * (Pj + np.outer(d, d))
-    return x, P
+    """Moment-matched mixture of the two modes: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx'),
+    whose spread term is mu_0 mu_1 (x_0 - x_1)(x_0 - x_1)' for two components.
+    """
+    m0, m1 = float(mu[0]), float(mu[1])
+    d = xs[0] - xs[1]
+    return m0 * xs[0] + m1 * xs[1], m0 * Ps[0] + m1 * Ps[1] + (m0 * m1) * np.outer(d, d)
 
 
 def mix(
@@ -87,6 +88,21 @@ class ImmFilter:
         self._sojourn = (sojourn_cv_s, sojourn_ca_s)
         self._kf = KalmanFilter(dim_x=6, dim_z=2)
         self._kf.H = H_POS
+        # (F, Q) per mode by dt: steps repeat (scan and publish periods), and building Q
+        # dominates the cost otherwise; cached arrays are never written to
+        self._models: dict[float, tuple[tuple[FloatArray, FloatArray], ...]] = {}
+
+    def _model(self, dt: float) -> tuple[tuple[FloatArray, FloatArray], ...]:
+        model = self._models.get(dt)
+        if model is None:
+            if len(self._models) >= 256:
+                self._models.clear()
+            model = tuple(
+                (transition(dt, ca), process_noise(dt, ca, self._psd[j]))
+                for j, ca in enumerate((False, True))
+            )
+            self._models[dt] = model
+        return model
 
     def predict(
         self, xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, dt: float
@@ -97,9 +113,9 @@ class ImmFilter:
         x0s, P0s, cbar = mix(xs, Ps, mu, switch_matrix(dt, *self._sojourn))
         kf = self._kf
         out_x, out_P = [], []
-        for j, ca in enumerate((False, True)):
+        for j, (F, Q) in enumerate(self._model(dt)):
             kf.x, kf.P = x0s[j].copy(), P0s[j].copy()
-            kf.predict(F=transition(dt, ca), Q=process_noise(dt, ca, self._psd[j]))
+            kf.predict(F=F, Q=Q)
             out_x.append(kf.x.copy())
             out_P.append(0.5 * (kf.P + kf.P.T))
         return tuple(out_x), tuple(out_P), cbar

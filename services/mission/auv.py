@@ -43,16 +43,21 @@ class AuvMission:
         start = (s.world.start.x_m, s.world.start.y_m, s.world.start.theta_rad)
         if name == "vehicle":
             r = s.vehicle.radius_m
-            return VehicleCore(s.vehicle, start, core_rng(seed, name),
-                               clearance=lambda x, y, t: self.world.clearance(x, y, r, t))
+            return VehicleCore(
+                s.vehicle,
+                start,
+                core_rng(seed, name),
+                clearance=lambda x, y, t: self.world.clearance(x, y, r, t),
+            )
         if name == "sensor":
             return SensorCore(s.sensor, self.world, core_rng(seed, name))
         if name == "estimator":
             return EstimatorCore(s.estimator, start, core_rng(seed, name))
         if name == "planner":
             down = profile_for(s.network, link_name("planner", "cmd", "vehicle"))
-            return PlannerCore(s.planner, s.controller, s.vehicle, s.world,
-                               expected_downlink_s=down.delay_s)
+            return PlannerCore(
+                s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=down.delay_s
+            )
         raise ValueError(f"unknown service {name!r}; this mission has {', '.join(self.names)}")
 
     def observe(self, record: Record) -> str | None:

@@ -36,7 +36,10 @@ def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
 def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]:
     """Every scalar metric of the run (the runtime adds end reason, link stats, timing)."""
     truth: list[TruthState] = _typed(record, "vehicle", "truth", TruthState)
-    m: dict[str, Any] = {"trajectory_sha256": trajectory_sha256(truth), "controller": s.controller.kind}
+    m: dict[str, Any] = {
+        "trajectory_sha256": trajectory_sha256(truth),
+        "controller": s.controller.kind,
+    }
     if not truth:
         return m | {"reached_goal": False}
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
@@ -49,38 +52,45 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     length = float(seg.sum())
     straight = math.hypot(g.x_m - st.x_m, g.y_m - st.y_m)
     travel = float(t[end] - t[0])
-    m.update({
-        "reached_goal": bool(len(at_goal)),
-        "travel_time_s": travel,  # eq. (21): Rtime = Rdist / Rspace (= length / mean speed)
-        "mean_speed_mps": length / travel if travel > 0 else 0.0,
-        "path_length_m": length,
-        "f_l_executed": length / straight if straight > 0 else math.nan,
-        "final_distance_to_goal_m": float(dist_goal[-1]),
-    })
+    m.update(
+        {
+            "reached_goal": bool(len(at_goal)),
+            "travel_time_s": travel,  # eq. (21): Rtime = Rdist / Rspace (= length / mean speed)
+            "mean_speed_mps": length / travel if travel > 0 else 0.0,
+            "path_length_m": length,
+            "f_l_executed": length / straight if straight > 0 else math.nan,
+            "final_distance_to_goal_m": float(dist_goal[-1]),
+        }
+    )
     clear = world.clearance_many(x, y, s.vehicle.radius_m, t)
     collided = clear < 0.0
     m["min_clearance_m"] = float(clear.min())
     m["collisions"] = int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0]))
     moving = v > MIN_SPEED_FOR_CURVATURE
-    m["max_executed_curvature"] = float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
+    m["max_executed_curvature"] = (
+        float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
+    )
     m.update(_path_metrics(record, t, x, y, end))
     m.update(_estimation_metrics(record, t, x, y))
     statuses: list[VehicleStatus] = _typed(record, "vehicle", "status", VehicleStatus)
     if statuses:
         last = statuses[-1]
         dt = s.vehicle.period_s
-        m.update({
-            "commands_applied": last.commands_applied,
-            "commands_rejected_stale": last.commands_rejected,
-            "commands_clamped": last.commands_clamped,
-            "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),
-            "failsafe_time_s": dt * sum(1 for q in statuses if q.mode == "FAILSAFE"),
-        })
+        m.update(
+            {
+                "commands_applied": last.commands_applied,
+                "commands_rejected_stale": last.commands_rejected,
+                "commands_clamped": last.commands_clamped,
+                "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),
+                "failsafe_time_s": dt * sum(1 for q in statuses if q.mode == "FAILSAFE"),
+            }
+        )
     return m
 
 
-def _path_metrics(record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray,
-                  end: int) -> dict[str, Any]:
+def _path_metrics(
+    record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray, end: int
+) -> dict[str, Any]:
     paths: list[PathMsg] = _typed(record, "planner", "path", PathMsg)
     cmds: list[VelocityCommand] = _typed(record, "planner", "cmd", VelocityCommand)
     ok = [p for p in paths if p.status == "OK"]
@@ -94,13 +104,15 @@ def _path_metrics(record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray,
     first = ok[0]  # the "optimal path": planned at the start with the whole chart
     tree = cKDTree(path_points(first))
     xte, _ = tree.query(np.column_stack([x[: end + 1], y[: end + 1]]))
-    out.update({
-        "planned_length_m": first.length,
-        "planned_f_l": first.f_l,
-        "planned_max_curvature": first.max_curvature,
-        "xte_optimal_rms_m": float(np.sqrt(np.mean(xte**2))),
-        "xte_optimal_max_m": float(np.max(xte)),
-    })
+    out.update(
+        {
+            "planned_length_m": first.length,
+            "planned_f_l": first.f_l,
+            "planned_max_curvature": first.max_curvature,
+            "xte_optimal_rms_m": float(np.sqrt(np.mean(xte**2))),
+            "xte_optimal_max_m": float(np.max(xte)),
+        }
+    )
     # cross-track error against the path in force at each moment
     stamps = np.array([p.stamp for p in ok])
     which = np.searchsorted(stamps, t[: end + 1], side="right") - 1
@@ -122,13 +134,19 @@ def _path_metrics(record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray,
     return out
 
 
-def _estimation_metrics(record: Record, t: np.ndarray, x: np.ndarray,
-                        y: np.ndarray) -> dict[str, Any]:
+def _estimation_metrics(
+    record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> dict[str, Any]:
     est: list[StateEstimate] = _typed(record, "estimator", "state", StateEstimate)
     est = [e for e in est if t[0] <= e.stamp <= t[-1]]
     if not est:
         return {}
     et = np.array([e.stamp for e in est])
-    err = np.hypot(np.array([e.x for e in est]) - np.interp(et, t, x),
-                   np.array([e.y for e in est]) - np.interp(et, t, y))
-    return {"estimation_rms_m": float(np.sqrt(np.mean(err**2))), "estimation_max_m": float(err.max())}
+    err = np.hypot(
+        np.array([e.x for e in est]) - np.interp(et, t, x),
+        np.array([e.y for e in est]) - np.interp(et, t, y),
+    )
+    return {
+        "estimation_rms_m": float(np.sqrt(np.mean(err**2))),
+        "estimation_max_m": float(err.max()),
+    }

@@ -33,19 +33,36 @@ def _flat(a: np.ndarray) -> tuple[float, ...]:
 class PlannerCore:
     """Consumes estimator/state and estimator/tracks; publishes path (on replans) and cmd."""
 
-    def __init__(self, planner: PlannerConfig, controller: ControllerConfig,
-                 vehicle: VehicleConfig, world: WorldConfig, *, period_s: float = 0.1,
-                 expected_downlink_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        planner: PlannerConfig,
+        controller: ControllerConfig,
+        vehicle: VehicleConfig,
+        world: WorldConfig,
+        *,
+        period_s: float = 0.1,
+        expected_downlink_s: float = 0.0,
+    ) -> None:
         self.spec = CoreSpec(
             name="planner",
             inputs=(
-                InputSpec(source="estimator", stream="state", msg_type=StateEstimate,
-                          policy=QueuePolicy.NEWEST),
-                InputSpec(source="estimator", stream="tracks", msg_type=ObstacleTracks,
-                          policy=QueuePolicy.NEWEST),
+                InputSpec(
+                    source="estimator",
+                    stream="state",
+                    msg_type=StateEstimate,
+                    policy=QueuePolicy.NEWEST,
+                ),
+                InputSpec(
+                    source="estimator",
+                    stream="tracks",
+                    msg_type=ObstacleTracks,
+                    policy=QueuePolicy.NEWEST,
+                ),
             ),
-            outputs=(OutputSpec(stream="path", msg_type=PathMsg),
-                     OutputSpec(stream="cmd", msg_type=VelocityCommand)),
+            outputs=(
+                OutputSpec(stream="path", msg_type=PathMsg),
+                OutputSpec(stream="cmd", msg_type=VelocityCommand),
+            ),
             period_s=period_s,
             offset_s=period_s / 2,  # half a period after the estimator publishes
         )
@@ -60,11 +77,14 @@ class PlannerCore:
         self.circles = tuple(Circle(x=c.x_m, y=c.y_m, radius=c.radius_m) for c in world.circles)
         self.polygons = tuple(
             Polygon(vertices=tuple(zip(p.vertices_m[0::2], p.vertices_m[1::2], strict=True)))
-            for p in world.polygons)
+            for p in world.polygons
+        )
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
-            p.id for p in world.polygons)
-        self.policy = ReplanPolicy(planner, vehicle_radius_m=vehicle.radius_m,
-                                   v_ref_mps=vehicle.cruise_speed_mps)
+            p.id for p in world.polygons
+        )
+        self.policy = ReplanPolicy(
+            planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
+        )
         self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
@@ -87,10 +107,18 @@ class PlannerCore:
             for k in self.tracks.tracks:
                 if k.id in self.static_ids:
                     continue  # charted static obstacles are planned from the chart
-                moving.append(MovingCircle(
-                    id=k.id, x=k.x + k.vx * dt + 0.5 * k.ax * dt * dt,
-                    y=k.y + k.vy * dt + 0.5 * k.ay * dt * dt,
-                    vx=k.vx + k.ax * dt, vy=k.vy + k.ay * dt, ax=k.ax, ay=k.ay, radius=k.radius))
+                moving.append(
+                    MovingCircle(
+                        id=k.id,
+                        x=k.x + k.vx * dt + 0.5 * k.ax * dt * dt,
+                        y=k.y + k.vy * dt + 0.5 * k.ay * dt * dt,
+                        vx=k.vx + k.ax * dt,
+                        vy=k.vy + k.ay * dt,
+                        ax=k.ax,
+                        ay=k.ay,
+                        radius=k.radius,
+                    )
+                )
         return Obstacles(circles=self.circles, polygons=self.polygons, moving=tuple(moving))
 
     def step(self, t: float) -> list[Emit]:
@@ -102,9 +130,14 @@ class PlannerCore:
         if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
             self.arrived = True
         if self.arrived:
-            return [Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=0.0, w=0.0,
-                                                           path_id=self.path_id,
-                                                           controller=self.kind))]
+            return [
+                Emit(
+                    stream="cmd",
+                    msg=VelocityCommand(
+                        stamp=t, v=0.0, w=0.0, path_id=self.path_id, controller=self.kind
+                    ),
+                )
+            ]
         here = Pose2D(x=s.x, y=s.y, theta=s.theta)
         obstacles = self._obstacles(t)
         decision = self.policy.check(t, here, self.goal, obstacles)
@@ -116,15 +149,24 @@ class PlannerCore:
             # delay compensation: the estimate's uplink age plus the expected downlink delay
             latency = max(0.0, t - s.stamp) + self.expected_downlink_s
             v, w = self.controller.command(t, pose, self.ref, latency)
-        out.append(Emit(stream="cmd", msg=VelocityCommand(stamp=t, v=v, w=w, path_id=self.path_id,
-                                                          controller=self.kind)))
+        out.append(
+            Emit(
+                stream="cmd",
+                msg=VelocityCommand(stamp=t, v=v, w=w, path_id=self.path_id, controller=self.kind),
+            )
+        )
         return out
 
     def _replan(self, t: float, here: Pose2D, obstacles: Obstacles, why: str) -> PathMsg:
-        req = PlanRequest(start=here, goal=self.goal, area=self.area, obstacles=obstacles,
-                          vehicle_radius_m=self.vehicle.radius_m,
-                          r_min_m=self.vehicle.turn_radius_min_m,
-                          v_ref_mps=self.vehicle.cruise_speed_mps)
+        req = PlanRequest(
+            start=here,
+            goal=self.goal,
+            area=self.area,
+            obstacles=obstacles,
+            vehicle_radius_m=self.vehicle.radius_m,
+            r_min_m=self.vehicle.turn_radius_min_m,
+            v_ref_mps=self.vehicle.cruise_speed_mps,
+        )
         result = plan_path(req, self.cfg)
         self.policy.on_planned(t, result, self.goal, obstacles)
         self.last_result = result
@@ -132,13 +174,34 @@ class PlannerCore:
         if result.ok:
             self.ref = NurbsReference(NurbsPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
-            return PathMsg(stamp=t, path_id=self.path_id, status="OK", reason=why,
-                           degree=result.degree, control_points=_flat(result.control_points),
-                           weights=_flat(result.weights), knots=_flat(result.knots),
-                           waypoints=_flat(result.grid_path), length=result.length_m,
-                           f_l=result.f_l, max_curvature=result.max_curvature,
-                           v_ref=self.vehicle.cruise_speed_mps)
+            return PathMsg(
+                stamp=t,
+                path_id=self.path_id,
+                status="OK",
+                reason=why,
+                degree=result.degree,
+                control_points=_flat(result.control_points),
+                weights=_flat(result.weights),
+                knots=_flat(result.knots),
+                waypoints=_flat(result.grid_path),
+                length=result.length_m,
+                f_l=result.f_l,
+                max_curvature=result.max_curvature,
+                v_ref=self.vehicle.cruise_speed_mps,
+            )
         self.ref = None
-        return PathMsg(stamp=t, path_id=self.path_id, status="NO_PATH",
-                       reason=f"{why}: {result.reason}", degree=0, control_points=(), weights=(),
-                       knots=(), waypoints=(), length=0.0, f_l=0.0, max_curvature=0.0, v_ref=0.0)
+        return PathMsg(
+            stamp=t,
+            path_id=self.path_id,
+            status="NO_PATH",
+            reason=f"{why}: {result.reason}",
+            degree=0,
+            control_points=(),
+            weights=(),
+            knots=(),
+            waypoints=(),
+            length=0.0,
+            f_l=0.0,
+            max_curvature=0.0,
+            v_ref=0.0,
+        )

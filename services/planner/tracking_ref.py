@@ -34,8 +34,9 @@ class NurbsReference:
         if s_hint is None:
             u, _ = self.path.project(np.array([x, y]))
         else:
-            u, _ = self.path.project(np.array([x, y]), self._u(s_hint - self.BEHIND_M),
-                                     self._u(s_hint + self.AHEAD_M))
+            u, _ = self.path.project(
+                np.array([x, y]), self._u(s_hint - self.BEHIND_M), self._u(s_hint + self.AHEAD_M)
+            )
         return float(self.path.s_of_u(np.array([u]))[0])
 
     def point(self, s: float) -> tuple[float, float]:

@@ -172,6 +172,7 @@ def one_of_each() -> list[Message]:
             tick=250,
             time_us=12_500_000,
             watermarks={"sensor/nav": 125, "planner/cmd": 124},
+            due=("estimator", "planner"),
             stop=False,
         ),
         TickAck(
@@ -183,6 +184,7 @@ def one_of_each() -> list[Message]:
             service="estimator",
             published={"estimator/state": 125},
             next_us=12_600_000,
+            wakes={"planner": 12_550_000},
             done=False,
         ),
     ]
