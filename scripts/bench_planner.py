@@ -36,28 +36,22 @@ def main(n_replans: int, seed: int, cfg: PlannerConfig) -> list[PlanResult]:
         for _ in range(n_replans)
     ]
     plan_path(requests[0], cfg)  # warm-up: imports, caches of the graph structure
-    # CPU time of this thread next to wall time: on a shared machine the wall-clock numbers
-    # include time spent descheduled behind other processes
-    cpu = [plan_path(req, cfg, clock=time.thread_time).timing.total_s for req in requests]
+    # wall time, and CPU time of this thread for the same replans: on a shared machine the
+    # wall-clock numbers include time spent descheduled behind other processes
     results = [plan_path(req, cfg, clock=time.perf_counter) for req in requests]
-    total = np.array([r.timing.total_s for r in results]) * 1e3
-    cpu_ms = np.array(cpu) * 1e3
+    cpu_runs = [plan_path(req, cfg, clock=time.thread_time) for req in requests]
     print(
         f"replans: {n_replans}  config: search={cfg.search} connectivity={cfg.connectivity} "
         f"resolution={cfg.resolution_m} m  refine={cfg.refine_method} x{cfg.refine_max_iter}"
     )
-    print(
-        f"total  p50 {np.percentile(total, 50):7.2f} ms   p95 {np.percentile(total, 95):7.2f} ms"
-        f"   max {total.max():7.2f} ms"
-    )
-    print(
-        f"cpu    p50 {np.percentile(cpu_ms, 50):7.2f} ms   p95 {np.percentile(cpu_ms, 95):7.2f} ms"
-        "   (thread CPU time, same replans)"
-    )
-    for stage in ("costmap_s", "search_s", "fit_s", "check_s"):
-        v = np.array([getattr(r.timing, stage) for r in results]) * 1e3
-        p50, p95 = np.percentile(v, 50), np.percentile(v, 95)
-        print(f"  {stage[:-2]:8s} p50 {p50:7.2f} ms   p95 {p95:7.2f} ms")
+    print(f"{'ms':10s} {'wall p50':>9s} {'wall p95':>9s} {'cpu p50':>9s} {'cpu p95':>9s}")
+    for stage in ("total_s", "costmap_s", "search_s", "fit_s", "check_s"):
+        wall = np.array([getattr(r.timing, stage) for r in results]) * 1e3
+        cpu = np.array([getattr(r.timing, stage) for r in cpu_runs]) * 1e3
+        print(
+            f"{stage[:-2]:10s} {np.percentile(wall, 50):9.2f} {np.percentile(wall, 95):9.2f} "
+            f"{np.percentile(cpu, 50):9.2f} {np.percentile(cpu, 95):9.2f}"
+        )
     ok = [r for r in results if r.ok]
     print(f"status OK: {len(ok)}/{n_replans}")
     if ok:
@@ -80,7 +74,9 @@ if __name__ == "__main__":
     ap.add_argument("--replans", type=int, default=50)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--search", choices=("dijkstra", "astar"), default="dijkstra")
-    ap.add_argument("--connectivity", type=int, choices=(8, 16), default=16)
+    ap.add_argument(
+        "--connectivity", type=int, choices=(8, 16), default=PlannerConfig().connectivity
+    )
     ap.add_argument("--refine-iter", type=int, default=PlannerConfig().refine_max_iter)
     args = ap.parse_args()
     main(

@@ -78,7 +78,9 @@ def test_dense_basis_equals_local_basis_and_is_partition_of_unity() -> None:
     extra=st.integers(min_value=0, max_value=8),
     seed=st.integers(min_value=0, max_value=2**31 - 1),
 )
-def test_bspline_basis_sums_to_one_and_derivatives_to_zero(degree: int, extra: int, seed: int) -> None:
+def test_bspline_basis_sums_to_one_and_derivatives_to_zero(
+    degree: int, extra: int, seed: int
+) -> None:
     rng = np.random.default_rng(seed)
     n = degree + 1 + extra
     knots = averaged_knots(np.cumsum(rng.uniform(0.1, 3.0, (n, 2)), axis=0), degree)

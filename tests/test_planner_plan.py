@@ -22,7 +22,8 @@ from services.planner.geometry import (
     StaticField,
 )
 from services.planner.nurbs import curvature
-from services.planner.plan import PlanRequest, PlanResult, plan_path, predicted_discs
+from services.planner.plan import PlanRequest, PlanResult, plan_path
+from services.planner.prediction import predicted_discs
 from services.planner.search import shortest_path
 
 CFG = PlannerConfig()
@@ -45,8 +46,9 @@ def _verify(req: PlanRequest, res: PlanResult) -> dict[str, float]:
     r, rho0 = req.vehicle_radius_m, CFG.rho0_m
     need = rho0 + r  # centre to obstacle surface: rho0 + r (+ r_k for circles, below)
     worst = math.inf
-    for c in req.obstacles.circles:  # eq. (12): |x - c| >= rho0 + r + r_k
-        worst = min(worst, float(np.min(np.hypot(pts[:, 0] - c.x, pts[:, 1] - c.y))) - c.radius)
+    for circ in req.obstacles.circles:  # eq. (12): |x - c| >= rho0 + r + r_k
+        gap = np.hypot(pts[:, 0] - circ.x, pts[:, 1] - circ.y) - circ.radius
+        worst = min(worst, float(gap.min()))
     for poly in req.obstacles.polygons:
         v = np.array(poly.vertices)
         assert not MplPath(v).contains_points(pts).any(), "curve enters a polygon"
@@ -69,7 +71,8 @@ def _verify(req: PlanRequest, res: PlanResult) -> dict[str, float]:
     assert np.allclose(pts[-1], [req.goal.x, req.goal.y], atol=1e-9)
     h0, hf = math.atan2(d1[0, 1], d1[0, 0]), math.atan2(d1[-1, 1], d1[-1, 0])
     assert abs(math.remainder(h0 - req.start.theta, math.tau)) < 1e-9
-    assert abs(math.remainder(hf - req.goal.theta, math.tau)) < 1e-9
+    if req.fix_goal_heading:
+        assert abs(math.remainder(hf - req.goal.theta, math.tau)) < 1e-9
     return {"static": worst - r, "moving": worst_m - r, "k_max": float(k.max()), "length": s[-1]}
 
 
@@ -79,7 +82,8 @@ def _optimal_grid_length(req: PlanRequest) -> float:
     the sum of its Euclidean segment lengths (eq. (18)), from the exact start to the exact goal.
     """
     static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
-    cmap = build_costmap(req.area, static, predicted_discs(req, CFG), req.vehicle_radius_m, CFG)
+    discs = predicted_discs(req.obstacles.moving, req.start, req.v_ref_mps, 1e3, CFG)
+    cmap = build_costmap(req.area, static, discs, req.vehicle_radius_m, CFG)
     cmap = dataclasses.replace(cmap, cost=np.zeros_like(cmap.cost))
     sx, sy = cmap.cell_of(req.start.x, req.start.y)
     gx, gy = cmap.cell_of(req.goal.x, req.goal.y)
@@ -147,16 +151,28 @@ def test_random_fields_never_yield_a_colliding_path() -> None:
     n_ok = 0
     for _ in range(12):
         circles = tuple(
-            Circle(x=float(rng.uniform(15, 85)), y=float(rng.uniform(3, 37)), radius=float(rng.uniform(1, 4)))
+            Circle(
+                x=float(rng.uniform(15, 85)),
+                y=float(rng.uniform(3, 37)),
+                radius=float(rng.uniform(1, 4)),
+            )
             for _ in range(int(rng.integers(4, 12)))
         )
         cx, cy = rng.uniform(20, 80), rng.uniform(8, 32)
         square = Polygon(vertices=((cx, cy), (cx + 4, cy), (cx + 4, cy + 4), (cx, cy + 4)))
         moving = (
-            MovingCircle(id=1, x=float(rng.uniform(30, 70)), y=float(rng.uniform(0, 40)),
-                         vx=float(rng.normal(0, 0.3)), vy=float(rng.normal(0, 0.3)), radius=1.0),
+            MovingCircle(
+                id=1,
+                x=float(rng.uniform(30, 70)),
+                y=float(rng.uniform(0, 40)),
+                vx=float(rng.normal(0, 0.3)),
+                vy=float(rng.normal(0, 0.3)),
+                radius=1.0,
+            ),
         )
-        req = _paper_request(obstacles=Obstacles(circles=circles, polygons=(square,), moving=moving))
+        req = _paper_request(
+            obstacles=Obstacles(circles=circles, polygons=(square,), moving=moving)
+        )
         res = plan_path(req, CFG)
         if res.ok:
             n_ok += 1
@@ -229,8 +245,29 @@ def test_astar_and_lbfgsb_variants_also_plan_safely() -> None:
 
 def test_outside_area_and_degenerate_requests() -> None:
     area = Area()
-    assert plan_path(_paper_request(start=Pose2D(x=-1.0, y=5.0, theta=0.0)), CFG).status == "NO_PATH"
+    assert (
+        plan_path(_paper_request(start=Pose2D(x=-1.0, y=5.0, theta=0.0)), CFG).status == "NO_PATH"
+    )
     assert plan_path(_paper_request(goal=Pose2D(x=5.0, y=20.0, theta=0.0)), CFG).status == "NO_PATH"
     assert area.contains(50.0, 20.0)
     with pytest.raises(ValueError, match="r_min_m"):
         _paper_request(r_min_m=0.0)
+
+
+def test_moving_obstacle_met_at_an_unpredicted_time_is_avoided() -> None:
+    # the straight-line intercept time of this crossing obstacle misses the time the curve
+    # really passes (found by a seeded search; with the default config this case needs the
+    # second search attempt, which re-blocks the obstacle around the curve's passing time)
+    crossing = MovingCircle(
+        id=1,
+        x=40.19401499086155,
+        y=38.0,
+        vx=0.18916816871832365,
+        vy=-0.5899710797090698,
+        radius=1.5,
+    )
+    obs = Obstacles(circles=paper_obstacles().circles[:3], moving=(crossing,))
+    req = _paper_request(obstacles=obs)
+    res = plan_path(req, CFG)
+    v = _verify(req, res)
+    assert v["moving"] >= CFG.rho0_m

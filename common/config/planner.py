@@ -50,8 +50,10 @@ class PlannerConfig:
     nurbs_degree: int = 3
     ctrl_spacing_m: float = 6.0  # max spacing of initial control points along the grid path
     samples_per_span: int = 6  # refinement samples per knot span (Gauss-Legendre nodes)
-    refine_method: RefineMethod = "levenberg_marquardt"  # or scipy "lbfgsb"
-    refine_max_iter: int = 15  # solver iterations per refinement round
+    # levenberg_marquardt: damped Gauss-Newton (numpy); lbfgsb: scipy L-BFGS-B, which needs
+    # OPENBLAS_NUM_THREADS=1 in the process environment to be fast on a small shared machine
+    refine_method: RefineMethod = "levenberg_marquardt"
+    refine_max_iter: int = 12  # solver iterations per refinement round
     refine_rounds: int = 3  # rounds (tighter penalties, more control points) before NO_PATH
     penalty_clearance: float = 1.0e3  # eq. (9) c_n for obstacle constraints (12)-(13)
     penalty_curvature: float = 3.0e2  # eq. (9) c_n for the turning constraint (11)/(19)
@@ -59,7 +61,7 @@ class PlannerConfig:
     curvature_margin: float = 0.85  # refinement aims at k <= curvature_margin / R_min
     n_samples_check: int = 2000  # dense samples of the final checks, eq. (12)-(13), (20)
     # --- replan events
-    corridor_halfwidth_m: float = 3.0  # a tracked obstacle this close to the path ahead: replan
+    corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
 

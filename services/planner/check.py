@@ -11,7 +11,7 @@ import numpy as np
 from services.planner.fit import FitProblem
 from services.planner.geometry import FloatArray, moving_distance
 from services.planner.nurbs import Nurbs, curvature
-
+from services.planner.refine import gauss_legendre
 
 FailKind = Literal["", "curvature", "static", "moving", "area"]
 
@@ -33,7 +33,7 @@ class CurveCheck:
 
 
 def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
-    xg, wg = np.polynomial.legendre.leggauss(per_span)
+    xg, wg = gauss_legendre(per_span)
     brk = np.unique(knots)
     half = 0.5 * np.diff(brk)
     u = (0.5 * (brk[:-1] + brk[1:]))[:, None] + half[:, None] * xg[None, :]

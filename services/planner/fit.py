@@ -3,8 +3,11 @@
 The control polygon starts as the pruned any-angle waypoints, densified; the first two and
 last two control points carry the boundary constraint eq. (10): P0 = start, P1 = start +
 a h0 (so the curve leaves along the start heading), P_{n-1} = goal - b hf, P_n = goal.
+Where the start (or goal) heading points away from the path, a turning arc of 1.25 R_min
+is put in front of the polyline (`turn_arc`), so the polygon does not fold back on itself.
 `Layout` maps the free parameters x = (a, b, P2 .. P_{n-3}) to control points as an affine
-map P = p_fixed + M x, which the refinement (refine.py) differentiates through.
+map P = p_fixed + M x, which the refinement (refine.py) differentiates through. Weights
+stay 1 (a NURBS with unit weights); the evaluation code handles any positive weights.
 """
 
 from __future__ import annotations
@@ -113,17 +116,23 @@ class Layout:
         return np.array(lo), np.array(hi)
 
 
-def turn_arc(p: FloatArray, theta: float, toward: FloatArray, radius: float) -> FloatArray:
-    """Points (k, 2) of a turn of `radius` from pose (p, theta) until it heads for `toward`.
+def turn_arc(pts: FloatArray, theta: float, radius: float) -> tuple[FloatArray, int]:
+    """A turn of `radius` from pose (pts[0], theta) until it heads for the path ahead.
 
     The grid path ignores headings; when the vehicle points away from its first leg (more
-    than 45 degrees) the fitted polygon would fold back on itself, so a turning arc is put
-    in front of it (at most half a circle). Empty when no turn is needed.
+    than 45 degrees) the fitted polygon would fold back on itself, so a turning arc (at
+    most half a circle) replaces the start of the polyline. The target is the first point
+    at least 2 radius away (points before it lie where the turn goes). Returns the arc
+    points (k, 2), empty when no turn is needed, and the index of the first point to keep.
     """
+    p = pts[0]
+    far = np.flatnonzero(np.hypot(*(pts[1:] - p).T) >= 2.0 * radius)
+    i_keep = int(far[0]) + 1 if len(far) else len(pts) - 1
+    toward = pts[i_keep]
     to = toward - p
     delta = math.remainder(math.atan2(to[1], to[0]) - theta, math.tau)
     if abs(delta) <= math.pi / 4:
-        return np.zeros((0, 2))
+        return np.zeros((0, 2)), 1
     sgn = 1.0 if delta > 0.0 else -1.0
     normal = sgn * np.array([-math.sin(theta), math.cos(theta)])
     centre = p + radius * normal
@@ -135,17 +144,19 @@ def turn_arc(p: FloatArray, theta: float, toward: FloatArray, radius: float) -> 
         d = toward - a
         if abs(math.remainder(math.atan2(d[1], d[0]) - phi, math.tau)) <= math.pi / 8.0:
             break
-    return np.array(out)
+    return np.array(out), i_keep
 
 
 def initial_curve(prob: FitProblem, waypoints: FloatArray, spacing: float, degree: int) -> Nurbs:
     """Control polygon from the densified waypoints plus the boundary tangents of eq. (10)."""
     radius = 1.25 * prob.r_min_m
-    lead = turn_arc(waypoints[0], prob.start.theta, waypoints[1], radius)
-    tail = np.zeros((0, 2))
+    lead, i0 = turn_arc(waypoints, prob.start.theta, radius)
+    tail, j0 = np.zeros((0, 2)), 1
     if prob.fix_goal_heading:  # the same turn, planned backwards from the goal
-        tail = turn_arc(waypoints[-1], prob.goal.theta + math.pi, waypoints[-2], radius)[::-1]
-    waypoints = np.concatenate([waypoints[:1], lead, waypoints[1:-1], tail, waypoints[-1:]])
+        tail, j0 = turn_arc(waypoints[::-1], prob.goal.theta + math.pi, radius)
+        tail = tail[::-1]
+    mid = waypoints[i0 : len(waypoints) - j0]  # empty when the two turns overlap
+    waypoints = np.concatenate([waypoints[:1], lead, mid, tail, waypoints[-1:]])
     total = float(np.sum(np.hypot(*np.diff(waypoints, axis=0).T)))
     spacing = min(spacing, max(total / (degree + 2), 1e-3))
     dense = densify(waypoints, spacing)

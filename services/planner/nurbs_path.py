@@ -37,27 +37,27 @@ class NurbsPath:
     def length(self) -> float:
         return float(self.s_table[-1])
 
-    def s_of_u(self, u: FloatArray) -> FloatArray:
-        return np.interp(u, self.u_table, self.s_table)
+    def s_of_u(self, u: FloatArray | float) -> FloatArray:
+        return np.asarray(np.interp(u, self.u_table, self.s_table), dtype=np.float64)
 
-    def u_of_s(self, s: FloatArray) -> FloatArray:
-        return np.interp(s, self.s_table, self.u_table)
+    def u_of_s(self, s: FloatArray | float) -> FloatArray:
+        return np.asarray(np.interp(s, self.s_table, self.u_table), dtype=np.float64)
 
-    def point(self, u: FloatArray) -> FloatArray:
-        return self.curve.evaluate(np.atleast_1d(u), n_ders=0)[0]
+    def point(self, u: FloatArray | float) -> FloatArray:
+        return self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=0)[0]
 
-    def heading(self, u: FloatArray) -> FloatArray:
-        d1 = self.curve.evaluate(np.atleast_1d(u), n_ders=1)[1]
+    def heading(self, u: FloatArray | float) -> FloatArray:
+        d1 = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=1)[1]
         return np.arctan2(d1[:, 1], d1[:, 0])
 
-    def curvature(self, u: FloatArray) -> FloatArray:
+    def curvature(self, u: FloatArray | float) -> FloatArray:
         """Unsigned curvature at u (eq. (20))."""
-        d = self.curve.evaluate(np.atleast_1d(u), n_ders=2)
+        d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
         return curvature(d[1], d[2])
 
-    def signed_curvature(self, u: FloatArray) -> FloatArray:
+    def signed_curvature(self, u: FloatArray | float) -> FloatArray:
         """Curvature with sign (> 0 turning left), as a path-following controller feeds forward."""
-        d = self.curve.evaluate(np.atleast_1d(u), n_ders=2)
+        d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
         cross = d[1][:, 0] * d[2][:, 1] - d[1][:, 1] * d[2][:, 0]
         speed3 = np.maximum(np.hypot(d[1][:, 0], d[1][:, 1]) ** 3, 1e-300)
         return np.asarray(cross / speed3)

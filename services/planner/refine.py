@@ -20,6 +20,7 @@ it lowers the true F. scipy's L-BFGS-B on the same F and gradient is the alterna
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.optimize import minimize
@@ -43,6 +44,15 @@ class RefineWeights:
     k_target: float  # aim at curvature <= this (1/m), below 1/R_min
 
 
+@lru_cache(maxsize=16)
+def gauss_legendre(n: int) -> tuple[FloatArray, FloatArray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] (cached: numpy solves an eigenproblem)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
 def quadrature(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
     """Sample parameters and length weights: Gauss-Legendre nodes on every knot span, plus
     the knots themselves with weight 0.
@@ -50,7 +60,7 @@ def quadrature(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray
     For a cubic C'' is piecewise linear with its extremes at the knots, so curvature peaks
     sit near them; sampling only the interior nodes would let the solver hide a peak there.
     """
-    xg, wg = np.polynomial.legendre.leggauss(per_span)
+    xg, wg = gauss_legendre(per_span)
     brk = np.unique(knots)
     lo, hi = brk[:-1], brk[1:]
     u = (0.5 * (lo + hi))[:, None] + (0.5 * (hi - lo))[:, None] * xg[None, :]
@@ -107,7 +117,7 @@ class Objective:
         dists, dirs = [dist], [grad]
         if len(self.centres):
             diff = c[None, :, :] - self.centres
-            rr = np.maximum(np.sqrt(np.einsum("kmd,kmd->km", diff, diff)), 1e-9)
+            rr = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), 1e-9)
             dm = rr - self.radii
             kmin = np.argmin(dm, axis=0)  # nearest moving obstacle per sample
             cols = np.arange(len(c))
@@ -124,7 +134,9 @@ class Objective:
             return f, gx, np.zeros((0, 0))
         # length majoriser: sum_j (w_j / |C'_j|) C'_j^T C'_j, the same for x and y
         kmat = self.r1.T @ ((self.wq / sp)[:, None] * self.r1)
-        hp = np.kron(kmat, np.eye(2))
+        hp = np.zeros((2 * n, 2 * n))
+        hp[0::2, 0::2] = kmat
+        hp[1::2, 1::2] = kmat
         # Gauss-Newton rows sqrt(2c) dv/dP of the hinges, (m_act, n, 2). Hinges within a
         # small band of becoming active are included too: the model then "sees" a wall the
         # step is about to hit instead of overshooting into it and being rejected.
@@ -156,7 +168,7 @@ def levenberg_marquardt(
     eye = np.eye(len(x))
     for _ in range(max_iter):
         step = np.linalg.solve(h + lam * (np.diag(np.diag(h)) + 1e-6 * eye), -g)
-        xn = np.clip(x + step, lo, hi)
+        xn = np.minimum(np.maximum(x + step, lo), hi)
         fn, gn, hn = obj(xn, hessian=True)
         if fn < f:
             done = f - fn < 1e-6 * abs(f)

@@ -1,0 +1,43 @@
+"""PlannerConfig: defaults are valid, bad values are rejected with the field's name."""
+
+from __future__ import annotations
+
+import pytest
+
+from common.config.planner import PlannerConfig
+
+
+def test_defaults_are_valid_and_documented_values() -> None:
+    cfg = PlannerConfig()
+    assert cfg.resolution_m == 0.5 and cfg.rho0_m == 1.0 and cfg.rho_m == 4.0
+    assert cfg.nurbs_degree == 3 and cfg.n_samples_check == 2000
+    assert cfg.search == "dijkstra" and cfg.connectivity in (8, 16)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("resolution_m", 0.0),
+        ("resolution_m", 10.0),
+        ("rho0_m", -0.1),
+        ("rho_m", 0.5),  # must exceed rho0_m = 1.0
+        ("k_r", 0.0),
+        ("smoothing_len", -1),
+        ("search", "bfs"),
+        ("connectivity", 4),
+        ("nurbs_degree", 1),
+        ("nurbs_degree", 7),
+        ("refine_method", "newton"),
+        ("refine_rounds", 0),
+        ("n_samples_check", 10),
+        ("curvature_margin", 1.5),
+        ("curvature_margin", 0.0),
+        ("corridor_halfwidth_m", -1.0),
+        ("deviation_threshold_m", float("nan")),
+        ("min_replan_interval_s", float("inf")),
+        ("penalty_clearance", -1.0),
+    ],
+)
+def test_bad_values_are_rejected_naming_the_field(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=f"^{field}:"):
+        PlannerConfig(**{field: value})  # type: ignore[arg-type]
