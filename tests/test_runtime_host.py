@@ -8,7 +8,7 @@ import pytest
 
 from common.config.network import NetworkConfig
 from common.config.scenario import load_scenario
-from common.messages import TruthState, VelocityCommand
+from common.messages import TruthState, VelocityCommand, decode
 from common.netmodel import NetworkModel
 from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
 from common.runtime.dataflow import Dataflow, DataflowError
@@ -70,7 +70,7 @@ def _run(th: Host, lh: Host, until_us: int) -> None:
             for o in host.run_tick(tick, t):
                 for receiver, times in o.schedule.items():
                     if receiver == "listener":
-                        lh.accept(o.msg, "talker", o.stream, times, tick)
+                        lh.accept(decode(o.data), "talker", o.stream, times, tick)
         t = min(th.next_event_us(), lh.next_event_us())
         tick += 1
 

@@ -258,8 +258,16 @@ class _Packer(threading.local):
 _PACKER = _Packer()
 
 
-def encode(msg: Message) -> bytes:
-    """Serialise a message: [version, type, source, seq, stamp, sent, {field: value}]."""
+def encode(
+    msg: Message, *, source: str | None = None, seq: int | None = None, sent: float | None = None
+) -> bytes:
+    """Serialise a message: [version, type, source, seq, stamp, sent, {field: value}].
+
+    `source`, `seq` and `sent` override the envelope fields, so a runtime can stamp a message
+    without copying it first (a frozen-dataclass replace costs more than the encoding).
+    """
+    if seq is not None and not 0 <= seq < 2**63:
+        raise WireError(f"seq: {seq!r} is out of range")
     try:
         name, schema = _BY_CLASS[type(msg)]
     except KeyError:
@@ -270,10 +278,10 @@ def encode(msg: Message) -> bytes:
         [
             WIRE_VERSION,
             name,
-            msg.source,
-            msg.seq,
+            msg.source if source is None else source,
+            msg.seq if seq is None else seq,
             float(msg.stamp),
-            float(msg.sent),
+            float(msg.sent if sent is None else sent),
             schema.encode(msg),
         ]
     )

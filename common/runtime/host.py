@@ -13,7 +13,7 @@ This is the part every runtime shares, so inproc and lockstep behave identically
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from common.messages import LinkCounters, LinkStats, Message, encode
 from common.netmodel import NetworkModel
@@ -30,10 +30,13 @@ def to_us(t: float) -> int:
 
 @dataclass(frozen=True, slots=True)
 class Outgoing:
-    """One published message: its bytes and modelled delivery times (us) per receiver."""
+    """One published message: its bytes and modelled delivery times (us) per receiver.
+
+    Only the bytes travel: receivers (and the inproc runtime) decode them, exactly as a
+    Zenoh subscriber would.
+    """
 
     stream: str
-    msg: Message
     data: bytes
     schedule: dict[str, tuple[int, ...]]
 
@@ -137,13 +140,12 @@ class Host:
         self._seq[stream] += 1
         seq = self._seq[stream]
         t = t_us / 1e6
-        msg = replace(msg, source=self.name, seq=seq, sent=t)
-        data = encode(msg)
+        data = encode(msg, source=self.name, seq=seq, sent=t)
         schedule: dict[str, tuple[int, ...]] = {}
         for receiver, _spec in self.flow.receivers.get((self.name, stream), ()):
             dec = self.net.decide(self.name, stream, receiver, seq, t, len(data))
             schedule[receiver] = tuple(to_us(x) for x in dec.delivered_at)
-        return Outgoing(stream, msg, data, schedule)
+        return Outgoing(stream, data, schedule)
 
     def wake_deliveries_us(self, out: list[Outgoing]) -> dict[str, int]:
         """Earliest delivery to a wake input per receiver, among messages just sent: what the

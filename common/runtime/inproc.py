@@ -48,11 +48,9 @@ def route(
 ) -> None:
     """Record what a host published and queue each message at its receivers."""
     for o in out:
-        record.add(source, o.stream, o.msg)
-        if not o.schedule:
-            continue
-        # receivers get the decoded bytes, exactly what a Zenoh subscriber would see
+        # decoded from the bytes, exactly what a Zenoh subscriber would see
         msg = decode(o.data)
+        record.add(source, o.stream, msg)
         for receiver, times in o.schedule.items():
             if times:
                 hosts[receiver].accept(msg, source, o.stream, times, tick)
