@@ -18,6 +18,9 @@ class NurbsReference:
     def __init__(self, path: NurbsPath, v_ref: float) -> None:
         self.path = path
         self._v_ref = v_ref
+        # controllers preview curvature at many points per step: tabulate it once per path
+        # on the path's dense parameter table (a few cm apart) and interpolate
+        self._k_table = path.signed_curvature(path.u_table)
 
     @property
     def length(self) -> float:
@@ -47,4 +50,4 @@ class NurbsReference:
         return float(self.path.heading(np.array([self._u(s)]))[0])
 
     def curvature(self, s: float) -> float:
-        return float(self.path.signed_curvature(np.array([self._u(s)]))[0])
+        return float(np.interp(s, self.path.s_table, self._k_table))
