@@ -1,0 +1,130 @@
+"""The experiment sub-commands: sweep (a grid of runs) and reproduce (the paper's section 4)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import sys
+from pathlib import Path
+
+
+def _jobs(text: str) -> int:
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError("--jobs must be >= 1")
+    return n
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--jobs",
+        type=_jobs,
+        default=os.cpu_count() or 1,
+        help="runs in parallel on this machine (default: the number of cores)",
+    )
+    p.add_argument(
+        "--runtime",
+        choices=("lockstep", "inproc"),
+        default="lockstep",
+        help="lockstep: every service its own process over Zenoh (default); "
+        "inproc: one process, bit-identical and faster",
+    )
+    p.add_argument(
+        "--scheduler",
+        default="",
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786",
+    )
+
+
+def cmd_sweep(a: argparse.Namespace) -> int:
+    from services.experiments.schema import load_experiment
+    from services.experiments.sweep import SweepOptions, run_sweep
+
+    exp = load_experiment(a.experiment)
+    out = a.out or Path("runs") / f"sweep-{exp.name}"
+    opts = SweepOptions(
+        out=out,
+        runtime=a.runtime,
+        jobs=a.jobs,
+        scheduler=a.scheduler,
+        keep_trajectories=a.keep_trajectories,
+        retry_errors=a.retry_errors,
+        plots=not a.no_plots,
+    )
+    rep = run_sweep(exp, str(a.experiment), opts)
+    print(
+        f"sweep {exp.name}: {rep.total} runs, {rep.skipped} already done, {rep.ran} run now, "
+        f"{rep.errors} failed; {out / 'results.csv'}, {out / 'summary.md'}"
+    )
+    return 1 if rep.errors else 0
+
+
+def cmd_reproduce(a: argparse.Namespace) -> int:
+    from services.experiments.reproduce import ReproduceOptions, reproduce
+
+    opts = ReproduceOptions(
+        out=a.out,
+        scenario=a.scenario,
+        seeds=a.seeds,
+        runtime=a.runtime,
+        jobs=a.jobs,
+        scheduler=a.scheduler,
+        tune=a.tune,
+        tune_seeds=a.tune_seeds,
+        replan=a.replan,
+        command="tidelink " + shlex.join(sys.argv[1:]),
+    )
+    res = reproduce(opts)
+    print(f"reproduce: {res.sweep.total} runs ({res.sweep.errors} failed); report {res.report}")
+    return 1 if res.sweep.errors else 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add sweep and reproduce to the tidelink parser."""
+    s = sub.add_parser("sweep", help="run an experiment grid (profiles x controllers x seeds)")
+    s.add_argument(
+        "experiment", type=Path, help="experiment TOML, e.g. configs/experiments/delay.toml"
+    )
+    s.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default runs/sweep-<name>); rerun to resume",
+    )
+    _common(s)
+    s.add_argument(
+        "--retry-errors",
+        action="store_true",
+        help="rerun runs recorded as failed in DIR/results.csv",
+    )
+    s.add_argument(
+        "--keep-trajectories", action="store_true", help="also save DIR/runs/<id>/trajectory.npz"
+    )
+    s.add_argument("--no-plots", action="store_true", help="skip DIR/plots/")
+    s.set_defaults(func=cmd_sweep)
+
+    r = sub.add_parser("reproduce", help="the paper's section-4 comparison and DIR/REPORT.md")
+    r.add_argument(
+        "--scenario",
+        type=Path,
+        default=Path("configs/default.toml"),
+        help="the scenario (default: configs/default.toml, the paper-like field)",
+    )
+    r.add_argument("--out", type=Path, default=Path("runs/reproduce"), help="output folder")
+    r.add_argument("--seeds", type=int, default=3, help="seeds per cell (default 3)")
+    _common(r)
+    r.add_argument(
+        "--tune",
+        action="store_true",
+        help="first choose every controller's gains by the same grid search",
+    )
+    r.add_argument("--tune-seeds", type=int, default=2, help="seeds per tuning candidate")
+    r.add_argument(
+        "--replan",
+        action="store_true",
+        help="let the planner replan as in a mission (default: every controller follows the "
+        "first plan, as in the paper)",
+    )
+    r.set_defaults(func=cmd_reproduce)

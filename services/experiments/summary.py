@@ -1,0 +1,152 @@
+"""Per-cell statistics of a sweep and DIR/summary.md + DIR/summary.csv."""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from services.experiments.results import LEAD, TAIL_FACTS, as_number
+from services.experiments.stats import Estimate, mean_ci, wilson
+
+# the columns summary.md shows for every cell (all metrics are in summary.csv)
+KEY_METRICS = (
+    "travel_time_s",
+    "path_length_m",
+    "xte_optimal_rms_m",
+    "min_clearance_m",
+    "collisions",
+    "control_actions",
+    "control_actions_on_path",
+    "on_path_fraction",
+    "commands_rejected_stale",
+    "net_delivery_ratio",
+)
+# eq. (21) travel time only means something for runs that arrived
+ON_GOAL_ONLY = frozenset({"travel_time_s", "mean_speed_mps"})
+NOT_METRICS = frozenset(
+    {*LEAD, *TAIL_FACTS, "trajectory_sha256", "controller", "end_reason", "success"}
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CellStats:
+    """One grid cell over its seeds: counts, success rate and every metric's estimate."""
+
+    labels: dict[str, str]
+    n_runs: int
+    n_errors: int
+    success: Estimate
+    metrics: dict[str, Estimate]
+
+
+def metric_names(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[str]:
+    """Numeric columns of successful rows, sorted; grid and bookkeeping columns excluded."""
+    names: set[str] = set()
+    for r in rows:
+        if r.get("status") != "ok":
+            continue
+        for k, v in r.items():
+            if k not in NOT_METRICS and k not in grid and math.isfinite(as_number(v)):
+                names.add(k)
+    return sorted(names)
+
+
+def aggregate(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[CellStats]:
+    """Group rows by their grid labels (first-seen order) and estimate every metric."""
+    groups: dict[tuple[str, ...], list[dict[str, str]]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r.get(g, "") for g in grid), []).append(r)
+    names = metric_names(rows, grid)
+    out = []
+    for key, rs in groups.items():
+        ok = [r for r in rs if r.get("status") == "ok"]
+        goal = [r for r in ok if as_number(r.get("reached_goal")) == 1.0]
+        wins = sum(1 for r in ok if as_number(r.get("success")) == 1.0)
+        metrics = {
+            m: mean_ci([as_number(r.get(m)) for r in (goal if m in ON_GOAL_ONLY else ok)])
+            for m in names
+        }
+        out.append(
+            CellStats(
+                labels=dict(zip(grid, key, strict=True)),
+                n_runs=len(rs),
+                n_errors=len(rs) - len(ok),
+                success=wilson(wins, len(ok)),
+                metrics=metrics,
+            )
+        )
+    return out
+
+
+def success_text(e: Estimate) -> str:
+    if e.n == 0:
+        return "–"
+    return f"{100 * e.mean:.0f} % [{100 * e.low:.0f}, {100 * e.high:.0f}]"
+
+
+def write_summary(
+    out: Path,
+    title: str,
+    intro: str,
+    cells: list[CellStats],
+    grid: tuple[str, ...],
+    errors: list[dict[str, str]],
+) -> None:
+    """summary.md (key metrics per cell, errors, every metric per cell) and summary.csv."""
+    keys = [m for m in KEY_METRICS if any(m in c.metrics for c in cells)]
+    lines = [
+        f"# {title}",
+        "",
+        intro,
+        "",
+        "Success = reached the goal without a collision (Wilson 95 % interval). Other "
+        "columns: mean ± half-width of the 95 % t-interval over the seeds; "
+        "travel_time_s only over runs that reached the goal.",
+        "",
+        "## Key metrics",
+        "",
+    ]
+    head = [*grid, "runs", "errors", "success", *keys]
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for c in cells:
+        vals = [c.labels[g] for g in grid] + [
+            str(c.n_runs),
+            str(c.n_errors),
+            success_text(c.success),
+        ]
+        vals += [c.metrics[m].text() if m in c.metrics else "–" for m in keys]
+        lines.append("| " + " | ".join(vals) + " |")
+    if errors:
+        lines += ["", "## Failed runs", "", "| run_id | cell | seed | error |", "|---|---|---|---|"]
+        for r in errors:
+            cell = ", ".join(f"{g}={r.get(g, '')}" for g in grid)
+            lines.append(
+                f"| {r['run_id']} | {cell} | {r.get('seed', '')} | "
+                f"{r.get('error', '').replace('|', '/')[:200]} |"
+            )
+    lines += ["", "## Every metric", ""]
+    for c in cells:
+        name = ", ".join(f"{g}={c.labels[g]}" for g in grid) or "all runs"
+        lines += [
+            f"<details><summary>{name}</summary>",
+            "",
+            "| metric | mean | 95 % CI | n |",
+            "|---|---|---|---|",
+        ]
+        for m, e in c.metrics.items():
+            ci = f"[{e.low:.4g}, {e.high:.4g}]" if e.n >= 2 else "–"
+            lines.append(f"| {m} | {e.mean:.4g} | {ci} | {e.n} |")
+        lines += ["", "</details>", ""]
+    (out / "summary.md").write_text("\n".join(lines) + "\n")
+    with (out / "summary.csv").open("w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow([*grid, "metric", "mean", "ci_low", "ci_high", "n"])
+        for c in cells:
+            lab = [c.labels[g] for g in grid]
+            w.writerow(
+                [*lab, "success_rate", c.success.mean, c.success.low, c.success.high, c.success.n]
+            )
+            for m, e in c.metrics.items():
+                w.writerow([*lab, m, e.mean, e.low, e.high, e.n])

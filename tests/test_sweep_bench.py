@@ -1,0 +1,24 @@
+"""Smoke test of scripts/bench_sweep.py on the small scenario (inproc only, no plots)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_bench_sweep_reports_runs_per_minute(capsys: pytest.CaptureFixture[str]) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "bench_sweep", ROOT / "scripts" / "bench_sweep.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    small = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
+    rpm = bench.main(small, seeds=1, jobs=2, runtimes=["inproc"])
+    assert set(rpm) == {"inproc"} and 1.0 < rpm["inproc"] < 10_000.0
+    out = capsys.readouterr().out
+    assert "runs/min" in out and ", 0 failed" in out

@@ -1,0 +1,161 @@
+"""results.csv durability (torn rows, growing header) and the confidence intervals."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from services.experiments.claims import compare
+from services.experiments.results import ResultsFile, as_number
+from services.experiments.stats import Estimate, mean_ci, wilson
+from services.experiments.summary import aggregate
+
+
+def _row(i: int, **extra: object) -> dict[str, object]:
+    return {"run_id": f"r{i}", "status": "ok", "seed": i, "net": "a", **extra}
+
+
+def test_rows_survive_a_reload_and_a_torn_last_line_is_cut(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    f = ResultsFile(path, grid_columns=("net",))
+    for i in range(3):
+        f.append(_row(i, x=0.1 * i, reached_goal=True))
+    whole = path.read_bytes()
+    path.write_bytes(whole + b"r3,ok,3,a,0.3")  # a kill in the middle of writing row 4
+    again = ResultsFile(path, grid_columns=("net",))
+    assert again.ids() == {"r0", "r1", "r2"}
+    assert path.read_bytes() == whole  # the torn row is gone, the others untouched
+    again.append(_row(3, x=0.3, reached_goal=False))
+    rows = list(csv.DictReader(path.open()))
+    assert [r["run_id"] for r in rows] == ["r0", "r1", "r2", "r3"]
+    assert as_number(rows[3]["reached_goal"]) == 0.0 and float(rows[2]["x"]) == 0.2
+
+
+def test_a_new_metric_widens_the_header_without_losing_rows(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    f = ResultsFile(path, grid_columns=("net",))
+    f.append(_row(0, error=""))
+    f.append(_row(1, y=2.5, error="boom\nline two"))
+    rows = list(csv.DictReader(path.open()))
+    assert rows[0]["run_id"] == "r0" and rows[0]["y"] == ""
+    assert rows[1]["y"] == "2.5" and rows[1]["error"] == "boom | line two"  # one line per row
+    assert path.read_text().count("\n") == 3
+    assert next(iter(csv.reader(path.open())))[:4] == ["run_id", "status", "seed", "net"]
+
+
+def test_dropping_failed_rows_rewrites_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    f = ResultsFile(path)
+    f.append(_row(0))
+    f.append({"run_id": "r1", "status": "error", "error": "x"})
+    f.drop(f.ids("error"))
+    assert ResultsFile(path).ids() == {"r0"}
+
+
+def test_t_interval_matches_the_textbook_value() -> None:
+    e = mean_ci([1.0, 2.0, 3.0])
+    # mean 2, s = 1, t_{0.975, 2} = 4.3027: half-width 4.3027 / sqrt(3) = 2.4841
+    assert e.mean == 2.0 and e.n == 3
+    assert e.half_width == pytest.approx(4.302652729749 / math.sqrt(3), rel=1e-9)
+    assert math.isnan(mean_ci([5.0]).low) and mean_ci([]).n == 0
+    assert mean_ci([1.0, float("nan"), 3.0]).n == 2  # missing values are not zeros
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1e6, 1e6), min_size=2, max_size=40))
+def test_t_interval_agrees_with_scipy(xs: list[float]) -> None:
+    e = mean_ci(xs)
+    if np.std(xs) == 0:
+        assert e.low == e.high == pytest.approx(e.mean)
+    else:
+        lo, hi = stats.t.interval(0.95, len(xs) - 1, loc=np.mean(xs), scale=stats.sem(xs))
+        assert e.low == pytest.approx(lo, rel=1e-9, abs=1e-6)
+        assert e.high == pytest.approx(hi, rel=1e-9, abs=1e-6)
+
+
+@given(st.integers(1, 200).flatmap(lambda n: st.tuples(st.integers(0, n), st.just(n))))
+def test_wilson_interval_contains_the_rate_and_stays_in_0_1(kn: tuple[int, int]) -> None:
+    k, n = kn
+    e = wilson(k, n)
+    assert 0.0 <= e.low <= e.mean <= e.high <= 1.0
+    assert e.high - e.low > 0.0  # never a zero-width claim from finite data
+
+
+def test_wilson_known_value() -> None:
+    e = wilson(3, 3)  # 3 of 3: [0.438, 1.0] at 95 %
+    assert e.mean == 1.0 and e.low == pytest.approx(0.4385, abs=1e-4) and e.high == 1.0
+
+
+def test_aggregate_groups_cells_and_conditions_travel_time_on_the_goal() -> None:
+    rows = [
+        {
+            "run_id": "1",
+            "status": "ok",
+            "g": "a",
+            "success": "True",
+            "reached_goal": "True",
+            "travel_time_s": "10.0",
+            "xte": "1.0",
+        },
+        {
+            "run_id": "2",
+            "status": "ok",
+            "g": "a",
+            "success": "False",
+            "reached_goal": "False",
+            "travel_time_s": "200.0",
+            "xte": "3.0",
+        },
+        {"run_id": "3", "status": "error", "g": "a", "error": "boom"},
+        {
+            "run_id": "4",
+            "status": "ok",
+            "g": "b",
+            "success": "True",
+            "reached_goal": "True",
+            "travel_time_s": "12.0",
+            "xte": "2.0",
+        },
+    ]
+    a, b = aggregate(rows, ("g",))
+    assert (a.labels, a.n_runs, a.n_errors) == ({"g": "a"}, 3, 1)
+    assert a.success.mean == 0.5 and a.success.n == 2
+    assert a.metrics["travel_time_s"].mean == 10.0  # the failed run's 200 s is not a travel time
+    assert a.metrics["xte"].mean == 2.0 and b.metrics["xte"].n == 1
+
+
+def test_compare_says_which_side_and_whether_intervals_separate() -> None:
+    def est(m: float, h: float) -> Estimate:
+        return Estimate(mean=m, low=m - h, high=m + h, n=3)
+
+    assert compare(est(1.0, 0.1), est(2.0, 0.1), nurbs_lower=True) == "yes"
+    assert compare(est(1.0, 0.8), est(2.0, 0.8), nurbs_lower=True) == "yes, CIs overlap"
+    assert compare(est(3.0, 0.1), est(2.0, 0.1), nurbs_lower=True) == "no"
+    assert compare(est(3.0, 0.1), est(2.0, 0.1), nurbs_lower=False) == "yes"
+    assert compare(None, est(2.0, 0.1), nurbs_lower=True) == "n/a"
+
+
+def test_progress_prints_plain_lines_or_a_rich_bar() -> None:
+    import io
+
+    from services.experiments.progress import SweepProgress
+
+    plain = io.StringIO()
+    with SweepProgress(2, stream=plain, rich=False) as p:
+        p.done("cell a", ok=True)
+        p.done("cell b", ok=False)
+    lines = plain.getvalue().splitlines()
+    assert lines[0].startswith("[1/2] ok cell a") and "eta 0:00:" in lines[0]
+    assert lines[1].startswith("[2/2] ERROR cell b") and lines[1].endswith("eta 0:00:00)")
+    bar = io.StringIO()
+    with SweepProgress(3, stream=bar, rich=True, title="sweep t") as p:
+        for _ in range(3):
+            p.done("x", ok=True)
+    assert "sweep t" in bar.getvalue() and "3/3" in bar.getvalue()
