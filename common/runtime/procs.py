@@ -29,6 +29,21 @@ class Child:
     proc: subprocess.Popen[bytes]
     log_path: Path
     _log: object = field(default=None, repr=False)
+    group: bool = False  # leads its own process group: signals go to the whole group
+
+    def signal(self, sig: int) -> None:
+        """Send sig to the process, or to its whole process group if it leads one."""
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            if self.group:
+                os.killpg(self.proc.pid, sig)
+            else:
+                self.proc.send_signal(sig)
+
+    def close_log(self) -> None:
+        """Close our handle on its log file (the process keeps its own)."""
+        if self._log is not None:
+            with contextlib.suppress(Exception):
+                self._log.close()  # type: ignore[attr-defined]
 
     def tail(self, n: int = 12) -> str:
         """The last lines of its log, for error reports."""
@@ -46,33 +61,42 @@ class Child:
         return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
 
 
-def spawn(name: str, args: list[str], log_dir: Path, env: dict[str, str] | None = None) -> Child:
-    """Start `python -m ...args` with stdout and stderr into log_dir/<name>.log."""
+def spawn(name: str, args: list[str], log_dir: Path, env: dict[str, str] | None = None, *,
+          group: bool = False, append: bool = False) -> Child:
+    """Start `python -m ...args` with stdout and stderr into log_dir/<name>.log.
+
+    group=True starts it in a new session (its own process group), so a terminal's Ctrl-C
+    reaches only the parent, which then stops the child's whole group in order (stop_all).
+    append=True keeps an earlier log of the same name (a restarted service).
+    """
     log_dir.mkdir(parents=True, exist_ok=True)
     log_path = log_dir / f"{name}.log"
-    fh = log_path.open("wb")
+    fh = log_path.open("ab" if append else "wb")
     full_env = dict(os.environ)
     full_env.update(env or {})
     full_env.setdefault("PYTHONUNBUFFERED", "1")
     proc = subprocess.Popen([sys.executable, *args], stdout=fh, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL, env=full_env)
-    return Child(name, proc, log_path, fh)
+                            stdin=subprocess.DEVNULL, env=full_env, start_new_session=group)
+    return Child(name, proc, log_path, fh, group)
 
 
 def stop_all(children: list[Child], *, grace_s: float = 3.0) -> None:
-    """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; always reaps."""
+    """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; always reaps.
+
+    Children that lead a process group are signalled as a group; after the leader is gone a
+    last SIGKILL to its group takes any process it left behind.
+    """
     for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, grace_s), (signal.SIGKILL, 5.0)):
         alive = [c for c in children if c.proc.poll() is None]
         if not alive:
             break
         for c in alive:
-            with contextlib.suppress(ProcessLookupError):
-                c.proc.send_signal(sig)
+            c.signal(sig)
         deadline = time.monotonic() + wait_s
         for c in alive:
             with contextlib.suppress(subprocess.TimeoutExpired):
                 c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
     for c in children:
-        if c._log is not None:
-            with contextlib.suppress(Exception):
-                c._log.close()  # type: ignore[attr-defined]
+        if c.group:
+            c.signal(signal.SIGKILL)  # the leader is reaped; anything left in its group goes
+        c.close_log()

@@ -25,7 +25,15 @@ log = logging.getLogger("tidelink.realtime")
 
 class RealtimeService:
     """Steps its core when the scaled wall clock reaches each period; applies the link model's
-    delivery times as timers (a message is handed over at max(modelled time, arrival))."""
+    delivery times as timers (a message is handed over at max(modelled time, arrival)).
+
+    The clock starts with the first Tick seen: a service that joins late (restarted by the
+    launcher, or started on another host) starts its schedule at the Tick's mission time
+    instead of replaying every period since 0. A step that falls behind by whole periods (a
+    long replan, a descheduled process) skips the missed periods, as a real-time loop must:
+    commands stamped in the past would only be rejected as stale. The service stops on a stop
+    Tick, or when the clock's liveliness token vanishes (its launcher is gone).
+    """
 
     def __init__(self, name: str, raw: dict[str, object], bus_cfg: BusConfig) -> None:
         self.scenario = scenario_from_raw(raw)
@@ -43,6 +51,7 @@ class RealtimeService:
         self.scale = self.scenario.runtime.time_scale
         self.t0: float | None = None
         self.ticks = 0
+        self.skipped = 0  # periods skipped because the loop fell behind
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -54,7 +63,9 @@ class RealtimeService:
             for i in self.host.core.spec.inputs:
                 bus.subscribe_stream(i.source, i.stream, inbox)
             bus.subscribe_stream(CLOCK, "tick", inbox)
-            pubs = {o.stream: bus.publisher(self.name, o.stream) for o in self.host.core.spec.outputs}
+            bus.watch_alive(inbox, self.keys.alive(CLOCK))
+            pubs = {o.stream: bus.publisher(self.name, o.stream)
+                    for o in self.host.core.spec.outputs}
             pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM)
             bus.declare_alive(self.name)
             while True:
@@ -64,25 +75,53 @@ class RealtimeService:
                     timeout = max(0.0, (nxt - self.now_us()) / 1e6 / self.scale)
                 ev = inbox.get(timeout=timeout)
                 if ev is not None and self._handle(ev):
-                    final = self.host.link_stats(self.now_us() / 1e6)
-                    pubs[STATS_STREAM].put(final)
+                    if self.t0 is not None:
+                        final = self.host.link_stats(self.now_us() / 1e6)
+                        pubs[STATS_STREAM].put(final)
+                    if self.skipped:
+                        log.info("%s: skipped %d periods in all (fell behind)", self.name,
+                                 self.skipped)
                     return 0
                 # run every event that is due (a step, or a delivery to a wake input)
-                while self.t0 is not None and self.now_us() >= (t_us := self.host.next_event_us()):
+                while self.t0 is not None:
+                    now = self.now_us()
+                    self._skip_missed(now)
+                    t_us = self.host.next_event_us()
+                    if now < t_us:
+                        break
                     self.ticks += 1
                     # the core sees the scheduled event time; late wake-ups do not skew periods
                     for o in self.host.run_tick(self.ticks, t_us):
                         pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
 
+    def _join(self, t_us: int) -> None:
+        """Start the clock at mission time t_us (0 at the start; later for a late joiner)."""
+        self.t0 = time.monotonic() - t_us / 1e6 / self.scale
+        h = self.host
+        if t_us > h.next_step_us:
+            # first step on this core's own period grid at or after the join time
+            h.next_step_us += -(-(t_us - h.next_step_us) // h.period_us) * h.period_us
+            log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
+
+    def _skip_missed(self, now_us: int) -> None:
+        """Step at the last period boundary <= now: whole periods already past are skipped."""
+        h = self.host
+        behind = (now_us - h.next_step_us) // h.period_us
+        if behind > 0:
+            h.next_step_us += behind * h.period_us
+            self.skipped += behind
+
     def _handle(self, ev: Received | Liveliness) -> bool:
         """Take one event; True when the run is over."""
         if isinstance(ev, Liveliness):
-            return False
+            if not ev.alive:
+                log.info("%s: the mission clock went away; stopping", self.name)
+            return not ev.alive
         if isinstance(ev.msg, Tick):
             if ev.msg.stop:
                 return True
             if self.t0 is None:
-                self.t0 = time.monotonic() - ev.msg.time_us / 1e6 / self.scale
+                self._join(ev.msg.time_us)
             return False
         if self.t0 is None or ev.attachment is None:
             return False
@@ -106,7 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenario-json", required=True, type=Path)
     p.add_argument("--connect", required=True)
     a = p.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s")
+    logging.basicConfig(level=logging.INFO,
+                        format=f"%(asctime)s {a.name} %(levelname)s %(message)s")
     install_shutdown_handlers()
     raw = json.loads(a.scenario_json.read_text())
     try:

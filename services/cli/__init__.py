@@ -7,14 +7,16 @@ import logging
 import sys
 
 from common.config.loader import ConfigError
-from services.cli import core_commands
+from services.cli import core_commands, launch_commands, sweep_commands
 
 # Each module exposes register(subparsers); add a tool's module here to give it a sub-command.
-COMMAND_MODULES = (core_commands,)
+COMMAND_MODULES = (core_commands, launch_commands, sweep_commands)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="tidelink", description="Networked AUV path control over Zenoh.")
+    p = argparse.ArgumentParser(
+        prog="tidelink", description="Networked AUV path control over Zenoh."
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = p.add_subparsers(dest="cmd", required=True)
     for module in COMMAND_MODULES:
@@ -26,8 +28,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the `tidelink` console script."""
     p = build_parser()
     a = p.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if a.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.basicConfig(
+        level=logging.DEBUG if a.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
     try:
         return int(a.func(a))
     except ConfigError as exc:

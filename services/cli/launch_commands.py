@@ -1,0 +1,164 @@
+"""The deployment sub-commands: `launch` (router + supervised services) and `service` (one
+service joining a run from any host)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+from services.cli.core_commands import print_metrics, scenario_args
+
+RESTART_HELP = (
+    "restart policy [NAME=]MODE[:MAX], MODE one of never, on-failure, always (default never); "
+    "without NAME= for every service; repeatable, e.g. --restart filter=on-failure:5"
+)
+
+
+def _runtime_overrides(a: argparse.Namespace) -> list[str]:
+    overrides = list(a.overrides)
+    overrides.append(f'runtime.kind="{a.runtime}"')
+    if a.time_scale is not None:
+        overrides.append(f"runtime.time_scale={a.time_scale}")
+    return overrides
+
+
+def cmd_launch(a: argparse.Namespace) -> int:
+    from common.config.scenario import load_scenario
+    from common.runtime.mission import load_mission
+    from services.launcher import LaunchOptions, RestartPolicy, launch, policies_for
+    from services.launcher.interrupt import Interrupted
+    from services.launcher.progress import make_display
+
+    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    names = load_mission(scenario).names
+    if a.restart and scenario.runtime.kind == "lockstep":
+        raise ValueError(
+            "--restart: lockstep runs cannot restart a service (it would lose its "
+            "state and the run its determinism); use --runtime realtime"
+        )
+    default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
+    only = None if a.only is None else tuple(n for n in a.only.split(",") if n.strip())
+    opts = LaunchOptions(
+        only=only,
+        listen=tuple(a.listen),
+        plot=not a.no_plot,
+        policies=policies_for(names, a.restart, default),
+    )
+    out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
+    try:
+        outcome = launch(scenario, raw, out, opts, make_display(sys.stderr))
+    except Interrupted:
+        print("tidelink: interrupted before the mission started", file=sys.stderr)
+        return 130
+    if a.json:
+        print(json.dumps(outcome.metrics, sort_keys=True, allow_nan=False))
+    else:
+        print_metrics(outcome.metrics, out)
+        if outcome.plot is not None:
+            print(f"plot: {outcome.plot}")
+        print(f"logs: {out / 'logs'}")
+    return 130 if outcome.result.reason == "interrupted" else 0
+
+
+def cmd_service(a: argparse.Namespace) -> int:
+    from common.config.bus import BusConfig
+    from common.config.scenario import load_scenario
+    from common.runtime.lockstep_service import LockstepService
+    from common.runtime.realtime_service import RealtimeService
+    from common.runtime.signals import Shutdown, install_shutdown_handlers
+    from services.launcher.router import wait_for_endpoint
+
+    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    root = logging.getLogger()
+    for h in root.handlers:
+        h.setFormatter(logging.Formatter(f"%(asctime)s {a.name} %(levelname)s %(message)s"))
+    if not a.verbose:
+        root.setLevel(logging.INFO)
+    install_shutdown_handlers()
+    log = logging.getLogger("tidelink")
+    timeout_s = scenario.runtime.start_timeout_s
+    try:
+        if not wait_for_endpoint(a.connect, 0.0):
+            log.info("waiting up to %g s for the router at %s", timeout_s, a.connect)
+            if not wait_for_endpoint(a.connect, timeout_s):
+                raise TimeoutError(f"no router at {a.connect} after {timeout_s:g} s")
+        if a.runtime == "lockstep":
+            return LockstepService(a.name, raw, a.connect).run()
+        return RealtimeService(a.name, raw, BusConfig(mode="client", connect=(a.connect,))).run()
+    except Shutdown as exc:
+        log.info("stopping on %s", exc)
+        return 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add launch and service to the tidelink parser."""
+    la = sub.add_parser("launch", help="start a router and every service as supervised processes")
+    scenario_args(la)
+    la.add_argument(
+        "--runtime",
+        choices=("realtime", "lockstep"),
+        default="realtime",
+        help="realtime (default; wall clock, scaled) or lockstep (virtual time)",
+    )
+    la.add_argument(
+        "--time-scale",
+        type=float,
+        default=None,
+        help="realtime speed-up, e.g. 5 (default: the scenario's runtime.time_scale)",
+    )
+    la.add_argument(
+        "--out", type=Path, default=None, help="run folder (default runs/<name>-launch-s<seed>)"
+    )
+    la.add_argument(
+        "--only",
+        default=None,
+        metavar="NAME,...",
+        help="start only these services here; the others join with `tidelink "
+        "service` (--only '' starts none: router and clock only)",
+    )
+    la.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; "
+        "default a free port on 127.0.0.1)",
+    )
+    la.add_argument(
+        "--restart", action="append", default=[], metavar="[NAME=]MODE[:MAX]", help=RESTART_HELP
+    )
+    la.add_argument(
+        "--backoff",
+        type=float,
+        default=0.5,
+        help="seconds before the first restart, doubled for each further one",
+    )
+    la.add_argument("--no-plot", action="store_true", help="do not write run.png")
+    la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    la.set_defaults(func=cmd_launch)
+
+    sv = sub.add_parser("service", help="run one service of a launched mission (any host)")
+    sv.add_argument("name", help="the service, e.g. planner")
+    scenario_args(sv)
+    sv.add_argument(
+        "--connect",
+        required=True,
+        metavar="ENDPOINT",
+        help="the launch's router, e.g. tcp/10.0.0.1:7447",
+    )
+    sv.add_argument(
+        "--runtime",
+        choices=("realtime", "lockstep"),
+        default="realtime",
+        help="as the launch was started (default realtime)",
+    )
+    sv.add_argument(
+        "--time-scale",
+        type=float,
+        default=None,
+        help="as the launch was started (default: the scenario's)",
+    )
+    sv.set_defaults(func=cmd_service)

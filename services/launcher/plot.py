@@ -1,0 +1,126 @@
+"""A PNG plot of a run: true trajectory, estimate, planned NURBS paths, obstacles and their
+tracks, start and goal (matplotlib, Agg canvas: no display needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from common.config.scenario import Scenario
+from common.messages import Message, ObstacleTracks, PathMsg, StateEstimate, TruthState
+from common.runtime.record import Record
+from common.world import World
+from services.mission.metrics import path_points
+
+PATH_SAMPLES = 400  # points per planned path: smooth at this figure size
+
+
+def _of_type(record: Record, cls: type[Message]) -> list[Any]:
+    """Every recorded message of one type, whichever service published it, in stamp order."""
+    out = [m for key in record.keys() for m in record.stream(*key) if isinstance(m, cls)]
+    return sorted(out, key=lambda m: m.stamp)
+
+
+def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "") -> Path:
+    """Draw the run into `path` (PNG) and return it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
+    w = scenario.world
+    fig = Figure(figsize=(11, 5.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    a = w.area
+    ax.add_patch(
+        Rectangle(
+            (a.x_min_m, a.y_min_m),
+            a.x_max_m - a.x_min_m,
+            a.y_max_m - a.y_min_m,
+            fill=False,
+            ec="0.6",
+            lw=0.8,
+        )
+    )
+    # static obstacles from the chart (exact shapes), moving ones along their true motion
+    for c in w.circles:
+        ax.add_patch(Circle((c.x_m, c.y_m), c.radius_m, fc="0.75", ec="0.35"))
+    for p in w.polygons:
+        ax.add_patch(
+            Polygon(np.asarray(p.vertices_m).reshape(-1, 2), closed=True, fc="0.75", ec="0.35")
+        )
+    truth: list[TruthState] = _of_type(record, TruthState)
+    t_end = truth[-1].stamp if truth else scenario.run.max_time_s
+    world = World(w)
+    times = np.linspace(0.0, t_end, 200)
+    moving: dict[int, list[tuple[float, float]]] = {}
+    for t in times:
+        for o in world.obstacles_at(float(t)):
+            if o.moving:
+                moving.setdefault(o.id, []).append((o.x, o.y))
+    radius = {m.id: m.radius_m for m in w.moving}
+    for i, (oid, pts) in enumerate(sorted(moving.items())):
+        xy = np.asarray(pts)
+        ax.plot(
+            xy[:, 0],
+            xy[:, 1],
+            ":",
+            color="tab:purple",
+            lw=1,
+            label="moving obstacles (truth)" if i == 0 else None,
+        )
+        ax.add_patch(Circle(tuple(xy[-1]), radius[oid], fc="none", ec="tab:purple", ls="--"))
+    tracks: list[ObstacleTracks] = _of_type(record, ObstacleTracks)
+    tx = [k.x for m in tracks for k in m.tracks]
+    ty = [k.y for m in tracks for k in m.tracks]
+    if tx:
+        ax.scatter(tx, ty, s=2, color="tab:pink", alpha=0.5, label="obstacle tracks (estimator)")
+    paths = [p for p in _of_type(record, PathMsg) if p.status == "OK"]
+    for i, p in enumerate(paths):
+        xy = path_points(p, PATH_SAMPLES)
+        first = i == 0
+        ax.plot(
+            xy[:, 0],
+            xy[:, 1],
+            "-",
+            color="tab:green",
+            lw=2.0 if first else 0.8,
+            alpha=0.9 if first else 0.5,
+            label="planned NURBS path" if first else ("replans" if i == 1 else None),
+        )
+    est: list[StateEstimate] = _of_type(record, StateEstimate)
+    if est:
+        ax.plot(
+            [e.x for e in est], [e.y for e in est], "--", color="tab:orange", lw=1, label="estimate"
+        )
+    if truth:
+        ax.plot(
+            [q.x for q in truth],
+            [q.y for q in truth],
+            "-",
+            color="tab:blue",
+            lw=1.6,
+            label="true trajectory",
+        )
+    ax.plot(w.start.x_m, w.start.y_m, "o", color="black", ms=7, label="start")
+    ax.plot(w.goal.x_m, w.goal.y_m, "*", color="tab:red", ms=13, label="goal")
+    ax.add_patch(
+        Circle((w.goal.x_m, w.goal.y_m), w.goal_tolerance_m, fc="none", ec="tab:red", lw=0.8)
+    )
+    ax.set_aspect("equal")
+    ax.set_xlim(a.x_min_m - 2, a.x_max_m + 2)
+    ax.set_ylim(a.y_min_m - 2, a.y_max_m + 2)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(
+        title
+        or f"run {scenario.run.name}, seed {scenario.run.seed}, "
+        f"controller {scenario.controller.kind}"
+    )
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path

@@ -1,0 +1,195 @@
+"""The realtime mission loop of a launch: wait for every service, run the clock, record the
+run, apply restart policies, and end on the mission's end, max_time or a stop request."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Any
+
+from common.bus import Event, Inbox, Keys, Liveliness
+from common.config.scenario import Scenario
+from common.messages import Tick, TickAck
+from common.runtime.inproc import RunResult
+from common.runtime.lockstep import ServiceFailed
+from common.runtime.mission import Mission
+from common.runtime.record import Record
+from services.launcher.clock import MissionClock
+from services.launcher.interrupt import StopRequest
+from services.launcher.progress import Display, MissionView
+from services.launcher.supervise import Exited, GaveUp, Restarted, Restarting, Supervisor
+
+RETELL_S = 1.0  # wall seconds between re-publications of the mission time (late joiners)
+FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
+
+
+class RealtimeDriver:
+    """Drives one realtime launch; `sup` runs the local services, others join over Zenoh."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        mission: Mission,
+        keys: Keys,
+        sup: Supervisor,
+        view: MissionView,
+        display: Display,
+        stop: StopRequest,
+    ) -> None:
+        self.scenario = scenario
+        self.mission = mission
+        self.names = set(mission.names)
+        self.keys = keys
+        self.sup = sup
+        self.view = view
+        self.display = display
+        self.stop = stop
+        self.timeout_s = scenario.runtime.start_timeout_s
+        self.record = Record()
+        self.alive: set[str] = set()
+        self.ever_alive: set[str] = set()
+        self.gone_since: dict[str, float] = {}
+        # a restarted service numbers its messages from 1 again: keep them apart in the record
+        self.seq_offset: dict[tuple[str, str], int] = {}
+        self.clock: MissionClock | None = None
+        self.ending = False
+
+    # -- events ------------------------------------------------------------------------------
+    def supervise(self) -> None:
+        """Report exits and restarts; a service its policy does not restart fails the run."""
+        for ev in self.sup.poll():
+            if isinstance(ev, Exited):
+                self.display.event(ev.text)
+            elif isinstance(ev, Restarting):
+                self.display.event(
+                    f"restarting {ev.name!r} in {ev.delay_s:.2f} s "
+                    f"(restart {ev.attempt} of {ev.max_restarts})"
+                )
+            elif isinstance(ev, Restarted):
+                self.display.event(f"restarted {ev.name!r} (pid {ev.pid}, restart {ev.attempt})")
+            elif isinstance(ev, GaveUp):
+                raise ServiceFailed(ev.text)
+
+    def take(self, ev: Event | None) -> None:
+        """Record a message, or track a liveliness change."""
+        if ev is None:
+            return
+        if isinstance(ev, Liveliness):
+            self._liveliness(ev.key.rsplit("/", 1)[-1], ev.alive)
+            return
+        msg = ev.msg
+        if isinstance(msg, Tick | TickAck):
+            return
+        try:
+            service, stream = self.keys.split(ev.key)
+        except ValueError:
+            return
+        offset = self.seq_offset.get((service, stream), 0)
+        if offset:
+            msg = replace(msg, seq=msg.seq + offset)
+        self.record.add(service, stream, msg)
+        line = self.view.see(service, stream, msg)
+        if line:
+            self.display.event(line)
+
+    def _liveliness(self, service: str, alive: bool) -> None:
+        if service not in self.names:
+            return
+        if not alive:
+            self.alive.discard(service)
+            self.gone_since[service] = time.monotonic()
+            if self.clock is not None and not self.ending:
+                self.display.event(
+                    f"service {service!r} left (liveliness token gone) at "
+                    f"t={self.clock.now_us() / 1e6:.2f} s"
+                )
+            return
+        self.alive.add(service)
+        self.gone_since.pop(service, None)
+        if service in self.ever_alive and self.clock is not None:
+            for s, stream in self.record.keys():
+                if s == service:
+                    self.seq_offset[(s, stream)] = self.record.last_seq(s, stream)
+            t_us = self.clock.tell()  # its clock starts from this Tick
+            self.display.event(f"service {service!r} rejoined at t={t_us / 1e6:.2f} s")
+        self.ever_alive.add(service)
+
+    def _check_gone(self) -> None:
+        now = time.monotonic()
+        for service, since in self.gone_since.items():
+            if now - since > self.timeout_s and not self.sup.pending_restart(service):
+                raise ServiceFailed(
+                    f"service {service!r} has been gone (no liveliness token) "
+                    f"for {self.timeout_s:g} s"
+                )
+
+    # -- phases ------------------------------------------------------------------------------
+    def await_alive(self, inbox: Inbox) -> None:
+        """Wait until every mission service, local or remote, has declared its token."""
+        t0 = time.monotonic()
+        deadline = t0 + self.timeout_s
+        while not self.alive >= self.names:
+            self.stop.check()
+            self.supervise()
+            if time.monotonic() > deadline:
+                missing = ", ".join(sorted(self.names - self.alive))
+                raise ServiceFailed(
+                    f"timed out after {self.timeout_s:g} s waiting for {missing} "
+                    "to start (no liveliness token)"
+                )
+            self.take(inbox.get(timeout=0.1))
+        self.display.event(
+            f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
+        )
+
+    def drive(self, inbox: Inbox, pub: Any) -> RunResult:
+        scale = self.scenario.runtime.time_scale
+        max_us = round(self.mission.max_time_s * 1e6)
+        self.clock = clock = MissionClock(pub, scale)
+        clock.start()
+        self.display.event(f"mission clock started (time scale x{scale:g})")
+        reason = "max_time"
+        next_tell = time.monotonic() + RETELL_S
+        while True:
+            if self.stop.requested:
+                reason = "interrupted"
+                break
+            t_us = clock.now_us()
+            if t_us >= max_us:
+                break
+            end = self.mission.observe(self.record)
+            if end is not None:
+                reason = end
+                break
+            self.supervise()
+            self._check_gone()
+            ev = inbox.get(timeout=0.02)
+            for _ in range(500):  # drain what is there, but keep an eye on the clock
+                if ev is None:
+                    break
+                self.take(ev)
+                ev = inbox.get(timeout=0.0)
+            self.take(ev)
+            if time.monotonic() >= next_tell:
+                clock.tell()
+                next_tell = time.monotonic() + RETELL_S
+            self.display.update(self.view, t_us / 1e6)
+        self.ending = True
+        self.sup.stopping = True  # exits are expected from now on
+        t_end_us = clock.tell(stop=True)
+        self.display.update(self.view, t_end_us / 1e6)
+        self.display.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
+        self._collect_final(inbox)
+        return RunResult(reason, t_end_us / 1e6, 0, self.record, self.mission.metrics(self.record))
+
+    def _collect_final(self, inbox: Inbox) -> None:
+        """Take the final statistics each service sends as it stops, until all have left."""
+        deadline = time.monotonic() + FINAL_STATS_S
+        local = self.sup.children
+        while time.monotonic() < deadline and not self.stop.hurry:
+            staying = [n for n in self.alive if n not in local or local[n].proc.poll() is None]
+            if not staying:
+                break
+            self.take(inbox.get(timeout=0.05))
+        while (ev := inbox.get(timeout=0.0)) is not None:
+            self.take(ev)

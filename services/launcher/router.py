@@ -1,0 +1,71 @@
+"""Start the run's Zenoh router (`tidelink router`) as a supervised process and wait for it."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Callable
+
+from common.runtime.procs import free_port
+from services.launcher.interrupt import Interrupted
+from services.launcher.supervise import Supervisor, how_it_ended
+
+ROUTER = "router"
+READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens
+
+
+def connectable(endpoint: str) -> str:
+    """The endpoint a process on this machine dials for a listen endpoint (wildcards: loopback)."""
+    return endpoint.replace("0.0.0.0", "127.0.0.1").replace("[::]", "127.0.0.1")
+
+
+def start_router(
+    sup: Supervisor,
+    listen: tuple[str, ...],
+    *,
+    timeout_s: float = 30.0,
+    cancelled: Callable[[], bool] = lambda: False,
+) -> str:
+    """Start the router listening on `listen` (default: a free loopback port) and wait until it
+    says it listens; returns the endpoint local processes connect to."""
+    if not listen:
+        listen = (f"tcp/127.0.0.1:{free_port()}",)
+    args = ["-m", "services.cli", "router"]
+    for ep in listen:
+        args += ["--listen", ep]
+    child = sup.start(ROUTER, args)
+    deadline = time.monotonic() + timeout_s
+    while READY_LINE not in child.tail(50):
+        code = child.proc.poll()
+        if code is not None:
+            raise RuntimeError(
+                f"the Zenoh router {how_it_ended(code)} before listening on "
+                f"{', '.join(listen)}:\n{child.tail().rstrip()}"
+            )
+        if cancelled():
+            raise Interrupted("interrupted while the router was starting")
+        if time.monotonic() > deadline:
+            raise TimeoutError(
+                f"the Zenoh router did not listen on {', '.join(listen)} within {timeout_s} s"
+            )
+        time.sleep(0.02)  # polling a file; the router is a separate process
+    return connectable(listen[0])
+
+
+def wait_for_endpoint(endpoint: str, timeout_s: float) -> bool:
+    """Wait until a tcp/HOST:PORT endpoint accepts connections (a service started before its
+    router); True when it does, False on timeout. Other protocols are not probed: True."""
+    proto, _, addr = endpoint.partition("/")
+    host, _, port = addr.rpartition(":")
+    if proto != "tcp" or not port.isdigit():
+        return True
+    host = host.strip("[]")
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with socket.create_connection((host, int(port)), timeout=1.0):
+                return True
+        except OSError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.2)

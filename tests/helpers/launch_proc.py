@@ -1,0 +1,148 @@
+"""A `tidelink` CLI subprocess for the launcher tests: its own session, lines read by threads.
+
+`wait_for` blocks on a condition variable until a line matches (or the process ends, or the
+timeout passes), so the tests synchronise on what the launcher prints, never on sleeps.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from types import TracebackType
+from typing import IO
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+class Tidelink:
+    """`python -m services.cli ARGS` (optionally inside a network namespace)."""
+
+    def __init__(self, *args: str, netns: str | None = None) -> None:
+        cmd = [sys.executable, "-m", "services.cli", *args]
+        if netns is not None:
+            cmd = ["ip", "netns", "exec", netns, *cmd]
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen(
+            cmd,
+            cwd=REPO,
+            env=env,
+            text=True,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+        )
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self._cond = threading.Condition()
+        self._open = 2
+        pipes = ((self.proc.stdout, self.out), (self.proc.stderr, self.err))
+        self._threads = [
+            threading.Thread(target=self._read, args=(s, lines), daemon=True) for s, lines in pipes
+        ]
+        for t in self._threads:
+            t.start()
+
+    def _read(self, stream: IO[str] | None, lines: list[str]) -> None:
+        assert stream is not None
+        for line in stream:
+            with self._cond:
+                lines.append(line.rstrip("\n"))
+                self._cond.notify_all()
+        with self._cond:
+            self._open -= 1
+            self._cond.notify_all()
+
+    def wait_for(self, pattern: str, timeout_s: float, *, start: int = 0) -> re.Match[str]:
+        """The first stderr line from index `start` on that matches `pattern` (re.search)."""
+        rx = re.compile(pattern)
+
+        def found() -> re.Match[str] | None:
+            for line in self.err[start:]:
+                if m := rx.search(line):
+                    return m
+            return None
+
+        with self._cond:
+            self._cond.wait_for(lambda: found() is not None or self._open == 0, timeout_s)
+            m = found()
+        if m is None:
+            raise AssertionError(
+                f"no line matching {pattern!r} within {timeout_s} s "
+                f"(exit code {self.proc.poll()}); stderr:\n{self.stderr}"
+            )
+        return m
+
+    def wait(self, timeout_s: float) -> int:
+        code = self.proc.wait(timeout=timeout_s)
+        for t in self._threads:
+            t.join(timeout=timeout_s)
+        return code
+
+    @property
+    def stderr(self) -> str:
+        with self._cond:
+            return "\n".join(self.err)
+
+    @property
+    def stdout(self) -> str:
+        with self._cond:
+            return "\n".join(self.out)
+
+    def signal(self, sig: int) -> None:
+        self.proc.send_signal(sig)
+
+    def __enter__(self) -> Tidelink:
+        return self
+
+    def __exit__(
+        self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        self.wait(15.0)
+
+
+def alive(pid: int) -> bool:
+    """True if pid runs (a zombie has ended: its parent just has not reaped it)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def processes_mentioning(text: str) -> list[int]:
+    """Live pids whose command line contains `text` (e.g. a run's output folder)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            cmdline = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if text in cmdline and alive(int(d.name)):
+            out.append(int(d.name))
+    return out
+
+
+def kill_recorded(pid_file: Path) -> None:
+    """Teardown: SIGKILL every process a launch recorded in pids.json that still runs."""
+    import json
+
+    if not pid_file.exists():
+        return
+    data = json.loads(pid_file.read_text())
+    for pids in data.get("processes", {}).values():
+        for pid in pids:
+            if alive(pid):
+                try:
+                    os.killpg(pid, signal.SIGKILL)
+                except (ProcessLookupError, PermissionError):
+                    pass

@@ -1,0 +1,210 @@
+"""`tidelink launch` end to end: router and services as supervised processes over Zenoh.
+
+Each test drives the real CLI in its own session and synchronises on the lines the launcher
+prints (helpers/launch_proc.py), on pids.json and on process exits, always with timeouts.
+The runtime self-test loop (common.runtime.testloop) keeps most of these fast.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers.launch_proc import REPO, Tidelink, alive, kill_recorded, processes_mentioning
+
+from common.config.scenario import load_scenario
+from common.runtime.inproc import run_inproc
+from common.runtime.procs import free_port
+from common.runtime.run import write_outputs
+
+pytestmark = pytest.mark.slow
+
+WAIT_S = 45.0  # upper bound on any one wait; the happy paths take a few seconds
+TESTLOOP = """
+[run]
+mission = "common.runtime.testloop:TestLoop"
+max_time_s = {max_time}
+[runtime]
+time_scale = {scale}
+[testloop]
+crash_service = "{crash}"
+crash_at_s = 1.0
+"""
+
+
+def _scenario(
+    tmp_path: Path, *, max_time: float = 8.0, scale: float = 2.0, crash: str = ""
+) -> Path:
+    p = tmp_path / "scenario.toml"
+    p.write_text(TESTLOOP.format(max_time=max_time, scale=scale, crash=crash))
+    return p
+
+
+def _metrics(out: Path) -> dict[str, Any]:
+    return dict(json.loads((out / "metrics.json").read_text()))
+
+
+def _pids(out: Path) -> dict[str, list[int]]:
+    return dict(json.loads((out / "pids.json").read_text())["processes"])
+
+
+def _inproc_keys(scenario: Path, tmp_path: Path, *overrides: str) -> set[str]:
+    s, _ = load_scenario(scenario, list(overrides))
+    return set(write_outputs(run_inproc(s), s, tmp_path / "inproc", wall_s=0.0))
+
+
+@pytest.fixture
+def out(tmp_path: Path) -> Any:
+    d = tmp_path / "run"
+    yield d
+    kill_recorded(d / "pids.json")  # whatever a failing test left behind
+
+
+def test_a_killed_service_is_restarted_and_rejoins_the_clock(tmp_path: Path, out: Path) -> None:
+    scenario = _scenario(tmp_path, max_time=16.0)
+    with Tidelink(
+        "launch",
+        str(scenario),
+        "--out",
+        str(out),
+        "--restart",
+        "filter=on-failure",
+        "--backoff",
+        "0.2",
+    ) as t:
+        t.wait_for(r"mission clock started", WAIT_S)
+        t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)  # the loop runs; the plant is moving
+        (first,) = _pids(out)["filter"]
+        os.kill(first, signal.SIGKILL)
+        t.wait_for(r"service 'filter' was killed by signal 9", WAIT_S)
+        t.wait_for(r"restarting 'filter' in 0\.20 s \(restart 1 of 3\)", WAIT_S)
+        joined = t.wait_for(r"service 'filter' rejoined at t=(\d+\.\d+) s", WAIT_S)
+        assert t.wait(WAIT_S) == 0, t.stderr
+    assert float(joined.group(1)) > 2.0
+    assert len(_pids(out)["filter"]) == 2
+    log = (out / "logs" / "filter.log").read_text()
+    assert "joined the mission clock at t=" in log  # the new one started from the Tick's time
+    m = _metrics(out)
+    assert m["end_reason"] == "max_time" and m["runtime"] == "realtime"
+    # without the filter's state the controller would push the plant on with a stale error;
+    # with it back, the loop settles on the set-point (10) again
+    assert m["final_error"] < 1.0
+    assert set(m) == _inproc_keys(scenario, tmp_path)  # the same metrics as `tidelink run`
+    assert (out / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
+    tmp_path: Path, out: Path
+) -> None:
+    scenario = _scenario(tmp_path, max_time=30.0, crash="filter")
+    t0 = time.monotonic()
+    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+        assert t.wait(WAIT_S) == 1
+    assert time.monotonic() - t0 < 25.0  # failed fast, long before max_time (15 s wall)
+    assert "service 'filter' exited with code 3 (restart policy 'never')" in t.stderr
+    assert not (out / "metrics.json").exists()
+    assert not [p for pids in _pids(out).values() for p in pids if alive(p)]
+
+
+def test_on_failure_backs_off_doubling_then_gives_up(tmp_path: Path, out: Path) -> None:
+    # the restarted filter joins after crash_at_s, so it crashes again at its first step
+    scenario = _scenario(tmp_path, max_time=30.0, crash="filter")
+    with Tidelink(
+        "launch",
+        str(scenario),
+        "--out",
+        str(out),
+        "--restart",
+        "filter=on-failure:2",
+        "--backoff",
+        "0.2",
+    ) as t:
+        assert t.wait(WAIT_S) == 1
+    err = t.stderr
+    assert "restarting 'filter' in 0.20 s (restart 1 of 2)" in err
+    assert "restarting 'filter' in 0.40 s (restart 2 of 2)" in err
+    assert err.count("launch: service 'filter' exited with code 3") == 3
+    assert "(gave up after 2 restarts)" in err
+    assert len(_pids(out)["filter"]) == 3
+    assert not [p for pids in _pids(out).values() for p in pids if alive(p)]
+
+
+@pytest.mark.parametrize("when", ["starting", "running"])
+def test_no_process_outlives_an_interrupted_launch(tmp_path: Path, out: Path, when: str) -> None:
+    scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
+    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+        t.wait_for(r"router listening" if when == "starting" else r"mission clock started", WAIT_S)
+        t.signal(signal.SIGINT)
+        assert t.wait(WAIT_S) == 130, t.stderr
+    pids = _pids(out)
+    assert pids["router"] and (when == "starting" or len(pids) == 5)
+    left = [p for ps in pids.values() for p in ps if alive(p)]
+    assert left == [], f"still running after the launcher exited: {left}"
+    assert processes_mentioning(str(out)) == []
+    if when == "running":
+        assert _metrics(out)["end_reason"] == "interrupted"
+
+
+def test_lockstep_launch_reproduces_inproc(testloop_toml: Path, tmp_path: Path, out: Path) -> None:
+    ref = run_inproc(load_scenario(testloop_toml)[0])
+    with Tidelink(
+        "launch", str(testloop_toml), "--runtime", "lockstep", "--out", str(out), "--no-plot"
+    ) as t:
+        assert t.wait(WAIT_S) == 0, t.stderr
+    m = _metrics(out)
+    assert m["runtime"] == "lockstep"
+    assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert (m["t_end_s"], m["ticks"]) == (ref.t_end, ref.ticks)
+
+
+def test_services_started_elsewhere_join_before_the_clock_starts(tmp_path: Path, out: Path) -> None:
+    scenario = _scenario(tmp_path, max_time=8.0)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with Tidelink(
+        "launch", str(scenario), "--out", str(out), "--only", "ctrl,filter", "--listen", endpoint
+    ) as t:
+        t.wait_for(r"waiting for plant, sensor to join", WAIT_S)
+        assert "mission clock started" not in t.stderr
+        with (
+            Tidelink("service", "plant", str(scenario), "--connect", endpoint) as plant,
+            Tidelink("service", "sensor", str(scenario), "--connect", endpoint) as sensor,
+        ):
+            t.wait_for(r"all 4 services alive", WAIT_S)
+            t.wait_for(r"mission clock started", WAIT_S)
+            assert t.wait(WAIT_S) == 0, t.stderr
+            # remote services leave by themselves on the stop Tick
+            assert plant.wait(WAIT_S) == 0 and sensor.wait(WAIT_S) == 0
+    assert set(_pids(out)) == {"router", "ctrl", "filter"}
+    assert _metrics(out)["final_error"] < 1.0
+
+
+def test_launch_runs_the_auv_mission_and_plots_it(tmp_path: Path, out: Path) -> None:
+    # the default scenario (lossy network) with a nearer goal, to keep the test short
+    short = ("world.goal.x_m=42.0", "world.goal.y_m=12.0", "run.max_time_s=60.0")
+    sets = [a for s in short for a in ("--set", s)]
+    scenario = REPO / "configs" / "default.toml"
+    with Tidelink("launch", str(scenario), "--time-scale", "4", "--out", str(out), *sets) as t:
+        assert t.wait(WAIT_S) == 0, t.stderr
+    m = _metrics(out)
+    summary = {k: v for k, v in m.items() if k != "link_stats"}
+    assert m["end_reason"] == "goal" and m["reached_goal"] is True, f"{t.stderr}\n{summary}"
+    assert m["collisions"] == 0
+    assert m["link_stats"]["planner/cmd->vehicle"]["dropped_loss"] >= 0
+    assert set(m) == _inproc_keys(scenario, tmp_path, *short)
+    png = (out / "run.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+    logs = {p.name for p in (out / "logs").iterdir()}
+    assert logs >= {
+        "estimator.log",
+        "planner.log",
+        "sensor.log",
+        "vehicle.log",
+        "router.log",
+        "launch.log",
+    }
+    assert "metrics:" in t.stdout and "plot:" in t.stdout
