@@ -64,6 +64,10 @@ class PlannerConfig:
     corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
+    # --- networked loop
+    # an estimate older than this (uplink outage) makes the planner stop commanding, so the
+    # vehicle's watchdog holds it instead of it steering on a pose extrapolated too far
+    max_estimate_age_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):
@@ -74,6 +78,7 @@ class PlannerConfig:
             _nonneg(name, getattr(self, name))
         for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
             _nonneg(name, getattr(self, name))
+        _positive("max_estimate_age_s", self.max_estimate_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
             raise ValueError(
                 f"rho_m: {self.rho_m!r} is invalid, expected a finite value > rho0_m "

@@ -92,6 +92,7 @@ class PlannerCore:
         self.path_id = 0
         self.last_result: PlanResult | None = None
         self.arrived = False
+        self.stale_skips = 0  # steps without a command because the estimate was too old
 
     def deliver(self, d: Delivery) -> list[Emit]:
         if isinstance(d.msg, StateEstimate):
@@ -129,6 +130,11 @@ class PlannerCore:
         out: list[Emit] = []
         if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
             self.arrived = True
+        if t - s.stamp > self.cfg.max_estimate_age_s:
+            # the uplink is out: commanding from a pose extrapolated this far would steer
+            # blind, so send nothing and let the vehicle's watchdog hold (and count it)
+            self.stale_skips += 1
+            return []
         if self.arrived:
             return [
                 Emit(

@@ -1,0 +1,62 @@
+"""The planner service core: commands, the stale-estimate guard and the NO_PATH stop."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from common.config.scenario import load_scenario
+from common.messages import PathMsg, StateEstimate, VelocityCommand
+from common.runtime.core import Delivery
+from services.planner.core import PlannerCore
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+
+
+def _core(overrides: list[str] | None = None) -> PlannerCore:
+    s, _ = load_scenario(DEFAULT, overrides)
+    return PlannerCore(s.planner, s.controller, s.vehicle, s.world)
+
+
+def _estimate(stamp: float, x: float = 5.0, y: float = 20.0) -> Delivery:
+    est = StateEstimate(stamp=stamp, x=x, y=y, theta=0.0, v=1.0, w=0.0, covariance=COV)
+    return Delivery(source="estimator", stream="state", msg=est, t=stamp + 0.05)
+
+
+def test_plans_then_commands_within_the_bounds() -> None:
+    core = _core()
+    core.deliver(_estimate(0.0))
+    out = core.step(0.05)
+    path = [e.msg for e in out if e.stream == "path"]
+    cmds = [e.msg for e in out if e.stream == "cmd"]
+    assert len(path) == 1 and isinstance(path[0], PathMsg) and path[0].status == "OK"
+    assert len(cmds) == 1 and isinstance(cmds[0], VelocityCommand)
+    assert 0.0 < cmds[0].v <= core.vehicle.v_max_mps  # eq. (11)
+    assert core.vehicle.w_min_rps <= cmds[0].w <= core.vehicle.w_max_rps
+
+
+def test_no_command_from_a_stale_estimate() -> None:
+    core = _core()
+    core.deliver(_estimate(0.0))
+    assert [e for e in core.step(0.05) if e.stream == "cmd"]
+    # the uplink goes quiet: past max_estimate_age_s the planner stops commanding
+    assert [e for e in core.step(0.9) if e.stream == "cmd"]
+    assert core.step(1.2) == []
+    assert core.stale_skips == 1
+    core.deliver(_estimate(1.25, x=6.8))  # the link is back
+    assert [e for e in core.step(1.3) if e.stream == "cmd"]
+
+
+def test_walled_off_goal_stops_the_vehicle_and_says_why() -> None:
+    wall = [
+        "world.polygons=[{id = 20, vertices_m = [60.0, 0.0, 62.0, 0.0, 62.0, 40.0, 60.0, 40.0]}]"
+    ]
+    core = _core(wall)
+    core.deliver(_estimate(0.0))
+    out = core.step(0.05)
+    (path,) = [e.msg for e in out if e.stream == "path"]
+    assert isinstance(path, PathMsg)
+    assert path.status == "NO_PATH" and path.reason
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(cmd, VelocityCommand)
+    assert (cmd.v, cmd.w) == (0.0, 0.0)
