@@ -23,7 +23,7 @@ def _updater():  # type: ignore[no-untyped-def]
 def test_config_reference_in_readme_is_current() -> None:
     readme = (ROOT / "README.md").read_text()
     assert _updater().render(readme) == readme, (
-        "README's config reference is stale: run .venv/bin/python scripts/update_readme_reference.py"
+        "README's config reference is stale: run python scripts/update_readme_reference.py"
     )
 
 
