@@ -24,10 +24,10 @@ from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
 from common.runtime.host import NEVER
 from common.runtime.inproc import RunResult
-from common.runtime.lockstep_service import CLOCK
 from common.runtime.mission import load_mission
 from common.runtime.procs import Child, free_port, spawn, stop_all
 from common.runtime.record import Record
+from common.runtime.service_process import CLOCK
 
 log = logging.getLogger("tidelink.lockstep")
 

@@ -2,25 +2,18 @@
 
 from __future__ import annotations
 
-import argparse
-import json
 import logging
 import sys
 import time
-from pathlib import Path
 
 from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
 from common.messages import Tick, TickAck, WireError, decode_routing, encode_routing
-from common.netmodel import NetworkModel
-from common.runtime.dataflow import Dataflow
-from common.runtime.host import STATS_STREAM, Host
-from common.runtime.mission import load_mission
-from common.runtime.signals import Shutdown, install_shutdown_handlers
+from common.runtime.host import STATS_STREAM
+from common.runtime.service_process import CLOCK, host_for, service_main, wire
 
 log = logging.getLogger("tidelink.lockstep")
-CLOCK = "runtime"  # the coordinator's service name in keys: .../runtime/tick, .../runtime/ack
 
 
 class LockstepService:
@@ -28,18 +21,8 @@ class LockstepService:
 
     def __init__(self, name: str, raw: dict[str, object], connect: str) -> None:
         self.scenario = scenario_from_raw(raw)
-        mission = load_mission(self.scenario)
-        cores = {n: mission.make_core(n) for n in mission.names}
-        if name not in cores:
-            raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(cores)}")
-        flow = Dataflow.of([c.spec for c in cores.values()])
         self.name = name
-        self.host = Host(
-            cores[name],
-            flow,
-            NetworkModel(self.scenario.network, seed=self.scenario.run.seed),
-            stats_period_s=self.scenario.runtime.stats_period_s,
-        )
+        self.host = host_for(self.scenario, name)
         self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
         self.bus_cfg = BusConfig(mode="client", connect=(connect,))
         self.received: dict[str, int] = {
@@ -50,16 +33,8 @@ class LockstepService:
     def run(self) -> int:
         with Bus(self.bus_cfg, self.keys) as bus:
             inbox = Inbox()
-            for i in self.host.core.spec.inputs:
-                bus.subscribe_stream(i.source, i.stream, inbox)
-            bus.subscribe_stream(CLOCK, "tick", inbox)
-            bus.watch_alive(inbox, self.keys.alive(CLOCK))
             # express: a tick waits on every message, so none may sit in a batch
-            pubs = {
-                o.stream: bus.publisher(self.name, o.stream, express=True)
-                for o in self.host.core.spec.outputs
-            }
-            pubs[STATS_STREAM] = bus.publisher(self.name, STATS_STREAM, express=True)
+            pubs = wire(bus, self.host, self.keys, inbox, express=True)
             ack_pub = bus.publisher(CLOCK, "ack", express=True)
             bus.declare_alive(self.name)
             while True:
@@ -148,21 +123,7 @@ class LockstepService:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("name")
-    p.add_argument("--scenario-json", required=True, type=Path)
-    p.add_argument("--connect", required=True)
-    a = p.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s"
-    )
-    install_shutdown_handlers()
-    raw = json.loads(a.scenario_json.read_text())
-    try:
-        return LockstepService(a.name, raw, a.connect).run()
-    except Shutdown as exc:
-        log.info("stopping on %s", exc)
-        return 0
+    return service_main(LockstepService, __doc__ or "", argv)
 
 
 if __name__ == "__main__":

@@ -55,14 +55,24 @@ class Child:
 
     def describe_exit(self) -> str:
         code = self.proc.poll()
-        how = "is still running" if code is None else (
-            f"was killed by signal {-code}" if code < 0 else f"exited with code {code}")
+        how = (
+            "is still running"
+            if code is None
+            else (f"was killed by signal {-code}" if code < 0 else f"exited with code {code}")
+        )
         tail = self.tail()
         return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
 
 
-def spawn(name: str, args: list[str], log_dir: Path, env: dict[str, str] | None = None, *,
-          group: bool = False, append: bool = False) -> Child:
+def spawn(
+    name: str,
+    args: list[str],
+    log_dir: Path,
+    env: dict[str, str] | None = None,
+    *,
+    group: bool = False,
+    append: bool = False,
+) -> Child:
     """Start `python -m ...args` with stdout and stderr into log_dir/<name>.log.
 
     group=True starts it in a new session (its own process group), so a terminal's Ctrl-C
@@ -75,8 +85,14 @@ def spawn(name: str, args: list[str], log_dir: Path, env: dict[str, str] | None 
     full_env = dict(os.environ)
     full_env.update(env or {})
     full_env.setdefault("PYTHONUNBUFFERED", "1")
-    proc = subprocess.Popen([sys.executable, *args], stdout=fh, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL, env=full_env, start_new_session=group)
+    proc = subprocess.Popen(
+        [sys.executable, *args],
+        stdout=fh,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        env=full_env,
+        start_new_session=group,
+    )
     return Child(name, proc, log_path, fh, group)
 
 

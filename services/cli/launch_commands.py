@@ -64,7 +64,6 @@ def cmd_launch(a: argparse.Namespace) -> int:
 
 
 def cmd_service(a: argparse.Namespace) -> int:
-    from common.config.bus import BusConfig
     from common.config.scenario import load_scenario
     from common.runtime.lockstep_service import LockstepService
     from common.runtime.realtime_service import RealtimeService
@@ -87,7 +86,7 @@ def cmd_service(a: argparse.Namespace) -> int:
                 raise TimeoutError(f"no router at {a.connect} after {timeout_s:g} s")
         if a.runtime == "lockstep":
             return LockstepService(a.name, raw, a.connect).run()
-        return RealtimeService(a.name, raw, BusConfig(mode="client", connect=(a.connect,))).run()
+        return RealtimeService(a.name, raw, a.connect).run()
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0

@@ -20,9 +20,9 @@ from common.bus import Bus, Inbox, Keys
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
 from common.runtime.inproc import RunResult
-from common.runtime.lockstep_service import CLOCK
 from common.runtime.mission import load_mission
 from common.runtime.run import write_outputs
+from common.runtime.service_process import CLOCK
 from services.launcher.interrupt import Interrupted, StopRequest, stop_on_signals
 from services.launcher.lockstep_drive import LockstepDriver
 from services.launcher.plot import plot_run

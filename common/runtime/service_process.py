@@ -1,0 +1,66 @@
+"""What every multi-process runtime's service process shares: its host, its bus wiring, main()."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Protocol
+
+from common.bus import Bus, Inbox, Keys, Publisher
+from common.config.scenario import Scenario
+from common.runtime.host import STATS_STREAM, Host
+from common.runtime.inproc import build_hosts
+from common.runtime.mission import load_mission
+from common.runtime.signals import Shutdown, install_shutdown_handlers
+
+CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick, .../runtime/ack
+
+log = logging.getLogger("tidelink.service")
+
+
+def host_for(scenario: Scenario, name: str) -> Host:
+    """The Host of one service of the scenario's mission (the whole dataflow is validated)."""
+    hosts = build_hosts(scenario, load_mission(scenario))
+    if name not in hosts:
+        raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(sorted(hosts))}")
+    return hosts[name]
+
+
+def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> dict[str, Publisher]:
+    """Subscribe the host's inputs and the clock; one publisher per output stream and stats."""
+    for i in host.core.spec.inputs:
+        bus.subscribe_stream(i.source, i.stream, inbox)
+    bus.subscribe_stream(CLOCK, "tick", inbox)
+    bus.watch_alive(inbox, keys.alive(CLOCK))
+    streams = [o.stream for o in host.core.spec.outputs] + [STATS_STREAM]
+    return {s: bus.publisher(host.name, s, express=express) for s in streams}
+
+
+class Runnable(Protocol):
+    """A service process body: run() until the run ends, returning the exit code."""
+
+    def run(self) -> int: ...
+
+
+def service_main(
+    make: Callable[[str, dict[str, object], str], Runnable], doc: str, argv: list[str] | None
+) -> int:
+    """Parse `NAME --scenario-json FILE --connect ENDPOINT`, then run until done or signalled."""
+    p = argparse.ArgumentParser(description=doc)
+    p.add_argument("name")
+    p.add_argument("--scenario-json", required=True, type=Path)
+    p.add_argument("--connect", required=True)
+    a = p.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO, format=f"%(asctime)s {a.name} %(levelname)s %(message)s"
+    )
+    install_shutdown_handlers()
+    raw = json.loads(a.scenario_json.read_text())
+    try:
+        return make(a.name, raw, a.connect).run()
+    except Shutdown as exc:
+        log.info("stopping on %s", exc)
+        return 0
