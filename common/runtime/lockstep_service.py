@@ -9,9 +9,9 @@ import time
 from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
-from common.messages import Tick, TickAck, WireError, decode_routing, encode_routing
+from common.messages import Tick, TickAck, encode_routing
 from common.runtime.host import STATS_STREAM
-from common.runtime.service_process import CLOCK, host_for, service_main, wire
+from common.runtime.service_process import CLOCK, host_for, routing_for, service_main, wire
 
 log = logging.getLogger("tidelink.lockstep")
 
@@ -92,17 +92,9 @@ class LockstepService:
         service, stream = self.keys.split(ev.key)
         key = f"{service}/{stream}"
         self.received[key] = self.received.get(key, 0) + 1
-        if ev.attachment is None:
-            log.warning("%s: message on %s without routing; ignored", self.name, ev.key)
-            return None
-        try:
-            sent_tick, schedule = decode_routing(ev.attachment)
-        except WireError as exc:
-            log.warning("%s: bad routing on %s: %s", self.name, ev.key, exc)
-            return None
-        times = schedule.get(self.name, ())
-        if times:
-            self.host.accept(ev.msg, service, stream, times, sent_tick)
+        routed = routing_for(ev, self.name)
+        if routed is not None and routed[1]:
+            self.host.accept(ev.msg, service, stream, routed[1], routed[0])
         return None
 
     def _next_tick(self, inbox: Inbox) -> Tick:

@@ -9,9 +9,9 @@ import time
 from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
-from common.messages import Tick, WireError, decode_routing, encode_routing
+from common.messages import Tick, encode_routing
 from common.runtime.host import STATS_STREAM, to_us
-from common.runtime.service_process import host_for, service_main, wire
+from common.runtime.service_process import host_for, routing_for, service_main, wire
 
 log = logging.getLogger("tidelink.realtime")
 
@@ -104,14 +104,10 @@ class RealtimeService:
             if self.t0 is None:
                 self._join(ev.msg.time_us)
             return False
-        if self.t0 is None or ev.attachment is None:
+        if self.t0 is None:
             return False
-        try:
-            _, schedule = decode_routing(ev.attachment)
-        except WireError as exc:
-            log.warning("%s: bad routing on %s: %s", self.name, ev.key, exc)
-            return False
-        times = schedule.get(self.name, ())
+        routed = routing_for(ev, self.name)
+        times = routed[1] if routed is not None else ()
         if times:
             arrived = self.now_us()
             service, stream = self.keys.split(ev.key)

@@ -9,8 +9,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Protocol
 
-from common.bus import Bus, Inbox, Keys, Publisher
+from common.bus import Bus, Inbox, Keys, Publisher, Received
 from common.config.scenario import Scenario
+from common.messages import WireError, decode_routing
 from common.runtime.host import STATS_STREAM, Host
 from common.runtime.inproc import build_hosts
 from common.runtime.mission import load_mission
@@ -37,6 +38,20 @@ def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> di
     bus.watch_alive(inbox, keys.alive(CLOCK))
     streams = [o.stream for o in host.core.spec.outputs] + [STATS_STREAM]
     return {s: bus.publisher(host.name, s, express=express) for s in streams}
+
+
+def routing_for(ev: Received, receiver: str) -> tuple[int, tuple[int, ...]] | None:
+    """(sent tick, modelled delivery times for `receiver`) of a data message, or None when
+    its routing attachment is missing or malformed (logged: the message is not delivered)."""
+    if ev.attachment is None:
+        log.warning("%s: message on %s without routing; ignored", receiver, ev.key)
+        return None
+    try:
+        sent_tick, schedule = decode_routing(ev.attachment)
+    except WireError as exc:
+        log.warning("%s: bad routing on %s: %s", receiver, ev.key, exc)
+        return None
+    return sent_tick, schedule.get(receiver, ())
 
 
 class Runnable(Protocol):
