@@ -8,7 +8,7 @@ from typing import Literal
 
 @dataclass(frozen=True, kw_only=True)
 class BusConfig:
-    """How a process joins the Zenoh network (see ../shared/ZENOH.md for why the defaults)."""
+    """Zenoh session settings (in a scenario: where a lockstep run's router listens)."""
 
     mode: Literal["peer", "client", "router"] = "peer"
     listen: tuple[str, ...] = ()
