@@ -120,9 +120,13 @@ class Publisher:
 class Bus:
     """A Zenoh session plus every declaration made through it, closed together on exit."""
 
-    def __init__(self, cfg: BusConfig, keys: Keys) -> None:
+    def __init__(self, cfg: BusConfig, keys: Keys, *, low_latency: bool = False) -> None:
         self.cfg = cfg
         self.keys = keys
+        # low_latency: subscription callbacks run on Zenoh's network thread instead of being
+        # handed to a Python thread first; one thread switch less per message (lockstep
+        # ticks ~25 % faster) but throughput suffers when messages come back to back
+        self.low_latency = low_latency
         self._session: zenoh.Session | None = None
         self._declared: list[Any] = []
         self._lock = threading.Lock()
@@ -172,7 +176,8 @@ class Bus:
 
     def subscribe(self, key_expr: str, inbox: Inbox) -> None:
         """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it)."""
-        self._keep(self.session.declare_subscriber(key_expr, inbox._on_sample))
+        handler = zenoh.handlers.Callback(inbox._on_sample, indirect=not self.low_latency)
+        self._keep(self.session.declare_subscriber(key_expr, handler))
 
     def subscribe_stream(self, service: str, stream: str, inbox: Inbox) -> None:
         self.subscribe(self.keys.stream(service, stream), inbox)

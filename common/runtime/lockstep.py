@@ -67,7 +67,7 @@ class Coordinator:
                 listen=listen,
                 multicast_scouting=self.scenario.bus.multicast_scouting,
             )
-            with Bus(bus_cfg, self.keys) as bus:
+            with Bus(bus_cfg, self.keys, low_latency=True) as bus:
                 inbox = Inbox()
                 bus.subscribe(self.keys.everything, inbox)
                 bus.watch_alive(inbox)

@@ -31,7 +31,7 @@ class LockstepService:
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 
     def run(self) -> int:
-        with Bus(self.bus_cfg, self.keys) as bus:
+        with Bus(self.bus_cfg, self.keys, low_latency=True) as bus:
             inbox = Inbox()
             # express: a tick waits on every message, so none may sit in a batch
             pubs = wire(bus, self.host, self.keys, inbox, express=True)
