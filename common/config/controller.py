@@ -6,26 +6,12 @@ The eq. (11) bounds, R_min and the cruise speed are not here: they are the vehic
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from common.config.checks import fraction, nonneg, positive
+
 ControllerKind = Literal["nurbs", "backstepping", "fuzzy_pid"]
-
-
-def _positive(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value > 0")
-
-
-def _nonneg(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value >= 0.0):
-        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value >= 0")
-
-
-def _fraction(name: str, value: float) -> None:
-    if not (math.isfinite(value) and 0.0 < value <= 1.0):
-        raise ValueError(f"{name}: {value!r} is invalid, expected a value in (0, 1]")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -41,10 +27,10 @@ class NurbsGains:
 
     def __post_init__(self) -> None:
         for name in ("lookahead_m", "k_heading_ps"):
-            _positive(name, getattr(self, name))
+            positive(name, getattr(self, name))
         for name in ("lookahead_time_s", "preview_s"):
-            _nonneg(name, getattr(self, name))
-        _fraction("curvature_budget", self.curvature_budget)
+            nonneg(name, getattr(self, name))
+        fraction("curvature_budget", self.curvature_budget)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -58,7 +44,7 @@ class BacksteppingGains:
 
     def __post_init__(self) -> None:
         for name in ("k_x_ps", "k_y_pm2", "k_theta_pm", "max_lead_m"):
-            _positive(name, getattr(self, name))
+            positive(name, getattr(self, name))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,13 +69,13 @@ class FuzzyPidGains:
 
     def __post_init__(self) -> None:
         for name in ("kp_ps", "e_scale_rad", "de_scale_rps", "lookahead_m", "immune_k1"):
-            _positive(name, getattr(self, name))
+            positive(name, getattr(self, name))
         for name in ("ki_ps2", "kd", "dkp_ps", "dki_ps2", "dkd", "de_filter_s", "slow_k"):
-            _nonneg(name, getattr(self, name))
-        _positive("immune_a", self.immune_a)
+            nonneg(name, getattr(self, name))
+        positive("immune_a", self.immune_a)
         if not (0.0 <= self.immune_eta < 1.0):
             raise ValueError(f"immune_eta: {self.immune_eta!r} is invalid, expected [0, 1)")
-        _fraction("v_floor_ratio", self.v_floor_ratio)
+        fraction("v_floor_ratio", self.v_floor_ratio)
 
 
 @dataclass(frozen=True, kw_only=True)

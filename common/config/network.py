@@ -13,6 +13,8 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from common.config.checks import nonneg, probability
+
 JitterKind = Literal["none", "normal", "uniform", "exponential", "pareto"]
 LossKind = Literal["none", "bernoulli", "gilbert_elliott"]
 
@@ -65,16 +67,6 @@ def link_matches(pattern: str, link: str) -> bool:
     return False
 
 
-def _check_prob(field: str, p: float) -> None:
-    if not (0.0 <= p <= 1.0):
-        raise ValueError(f"{field}: {p!r} is not a probability, expected a value in [0, 1]")
-
-
-def _check_nonneg(field: str, x: float) -> None:
-    if not (math.isfinite(x) and x >= 0.0):
-        raise ValueError(f"{field}: {x!r} is invalid, expected a finite value >= 0")
-
-
 @dataclass(frozen=True, kw_only=True)
 class LinkProfile:
     """How one link behaves: delay + jitter (or a trace), loss, duplication, order, bandwidth.
@@ -113,8 +105,8 @@ class LinkProfile:
     queue_len: int = 64
 
     def __post_init__(self) -> None:
-        _check_nonneg("delay_s", self.delay_s)
-        _check_nonneg("jitter_s", self.jitter_s)
+        nonneg("delay_s", self.delay_s)
+        nonneg("jitter_s", self.jitter_s)
         if self.jitter not in ("none", "normal", "uniform", "exponential", "pareto"):
             raise ValueError(
                 f"jitter: {self.jitter!r} is unknown, expected one of "
@@ -140,16 +132,16 @@ class LinkProfile:
             raise ValueError(
                 f"loss: {self.loss!r} is unknown, expected 'none', 'bernoulli' or 'gilbert_elliott'"
             )
-        _check_prob("loss_p", self.loss_p)
+        probability("loss_p", self.loss_p)
         if self.loss != "bernoulli" and self.loss_p != 0.0:
             raise ValueError(f"loss_p: {self.loss_p!r} given but loss is {self.loss!r}, expected 0")
         for name in ("ge_p_gb", "ge_p_bg", "ge_loss_good", "ge_loss_bad", "duplicate_p"):
-            _check_prob(name, getattr(self, name))
+            probability(name, getattr(self, name))
         if self.loss == "gilbert_elliott" and self.ge_p_gb + self.ge_p_bg <= 0.0:
             raise ValueError(
                 "ge_p_bg: ge_p_gb + ge_p_bg is 0, expected > 0 (the chain needs a stationary state)"
             )
-        _check_nonneg("bandwidth_bps", self.bandwidth_bps)
+        nonneg("bandwidth_bps", self.bandwidth_bps)
         if self.queue_len < 1:
             raise ValueError(f"queue_len: {self.queue_len!r} is invalid, expected an integer >= 1")
 
@@ -167,7 +159,7 @@ class Outage:
     service: str = ""
 
     def __post_init__(self) -> None:
-        _check_nonneg("start_s", self.start_s)
+        nonneg("start_s", self.start_s)
         if math.isnan(self.end_s) or self.end_s <= self.start_s:
             raise ValueError(
                 f"end_s: {self.end_s!r} is invalid, expected end_s > start_s ({self.start_s!r})"

@@ -10,23 +10,10 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from common.config.checks import int_range, nonneg, positive
+
 SearchKind = Literal["dijkstra", "astar"]
 RefineMethod = Literal["levenberg_marquardt", "lbfgsb"]
-
-
-def _positive(name: str, x: float) -> None:
-    if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f"{name}: {x!r} is invalid, expected a finite value > 0")
-
-
-def _nonneg(name: str, x: float) -> None:
-    if not (math.isfinite(x) and x >= 0.0):
-        raise ValueError(f"{name}: {x!r} is invalid, expected a finite value >= 0")
-
-
-def _int_range(name: str, x: int, lo: int, hi: int) -> None:
-    if not (lo <= x <= hi):
-        raise ValueError(f"{name}: {x!r} is out of range, expected an integer in [{lo}, {hi}]")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -71,14 +58,14 @@ class PlannerConfig:
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):
-            _positive(name, getattr(self, name))
+            positive(name, getattr(self, name))
         for name in ("rho0_m", "moving_window_s", "accel_horizon_s", "escape_len_m"):
-            _nonneg(name, getattr(self, name))
+            nonneg(name, getattr(self, name))
         for name in ("penalty_clearance", "penalty_curvature", "clearance_margin_m"):
-            _nonneg(name, getattr(self, name))
+            nonneg(name, getattr(self, name))
         for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
-            _nonneg(name, getattr(self, name))
-        _positive("max_estimate_age_s", self.max_estimate_age_s)
+            nonneg(name, getattr(self, name))
+        positive("max_estimate_age_s", self.max_estimate_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
             raise ValueError(
                 f"rho_m: {self.rho_m!r} is invalid, expected a finite value > rho0_m "
@@ -86,7 +73,7 @@ class PlannerConfig:
             )
         if self.resolution_m > 5.0:
             raise ValueError(f"resolution_m: {self.resolution_m!r} is too coarse, expected <= 5")
-        _int_range("smoothing_len", self.smoothing_len, 0, 20)
+        int_range("smoothing_len", self.smoothing_len, 0, 20)
         if self.search not in ("dijkstra", "astar"):
             raise ValueError(f"search: {self.search!r} is unknown, expected 'dijkstra' or 'astar'")
         if self.refine_method not in ("levenberg_marquardt", "lbfgsb"):
@@ -96,11 +83,11 @@ class PlannerConfig:
             )
         if self.connectivity not in (8, 16):
             raise ValueError(f"connectivity: {self.connectivity!r} is invalid, expected 8 or 16")
-        _int_range("nurbs_degree", self.nurbs_degree, 2, 5)
-        _int_range("samples_per_span", self.samples_per_span, 2, 20)
-        _int_range("refine_max_iter", self.refine_max_iter, 0, 10_000)
-        _int_range("refine_rounds", self.refine_rounds, 1, 10)
-        _int_range("n_samples_check", self.n_samples_check, 100, 1_000_000)
+        int_range("nurbs_degree", self.nurbs_degree, 2, 5)
+        int_range("samples_per_span", self.samples_per_span, 2, 20)
+        int_range("refine_max_iter", self.refine_max_iter, 0, 10_000)
+        int_range("refine_rounds", self.refine_rounds, 1, 10)
+        int_range("n_samples_check", self.n_samples_check, 100, 1_000_000)
         if not (0.0 < self.curvature_margin <= 1.0):
             raise ValueError(
                 f"curvature_margin: {self.curvature_margin!r} is invalid, expected in (0, 1]"

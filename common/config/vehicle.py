@@ -15,15 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-
-def _positive(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value > 0")
-
-
-def _nonneg(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value >= 0.0):
-        raise ValueError(f"{name}: {value!r} is invalid, expected a finite value >= 0")
+from common.config.checks import nonneg, positive
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,9 +37,9 @@ class CurrentConfig:
         for name in ("x_mps", "y_mps"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name}: {getattr(self, name)!r} is not a finite number")
-        _nonneg("sigma_mps", self.sigma_mps)
-        _positive("tau_s", self.tau_s)
-        _positive("update_s", self.update_s)
+        nonneg("sigma_mps", self.sigma_mps)
+        positive("tau_s", self.tau_s)
+        positive("update_s", self.update_s)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -60,10 +52,10 @@ class WatchdogConfig:
     hold_decel_mps2: float = 0.2  # speed ramp-down rate of the commanded speed in HOLD
 
     def __post_init__(self) -> None:
-        _positive("max_command_age_s", self.max_command_age_s)
-        _positive("hold_after_s", self.hold_after_s)
-        _positive("failsafe_after_s", self.failsafe_after_s)
-        _positive("hold_decel_mps2", self.hold_decel_mps2)
+        positive("max_command_age_s", self.max_command_age_s)
+        positive("hold_after_s", self.hold_after_s)
+        positive("failsafe_after_s", self.failsafe_after_s)
+        positive("hold_decel_mps2", self.hold_decel_mps2)
         if self.hold_after_s < self.max_command_age_s:
             raise ValueError(
                 f"hold_after_s: {self.hold_after_s!r} is below max_command_age_s "
@@ -133,11 +125,11 @@ class VehicleConfig:
             "length_m", "diameter_m", "mass_kg", "wetted_fraction", "rho_kgpm3", "nu_m2ps",
             "thrust_max_n", "yaw_tau_s", "speed_kp_npmps", "speed_int_band_mps",
         ):  # fmt: skip
-            _positive(name, getattr(self, name))
+            positive(name, getattr(self, name))
         for name in (
             "v_min_mps", "added_mass_ratio", "delta_cf", "c_pv", "speed_ki_npm",
         ):  # fmt: skip
-            _nonneg(name, getattr(self, name))
+            nonneg(name, getattr(self, name))
         if self.v_min_mps >= self.v_max_mps:
             raise ValueError(
                 f"v_min_mps: {self.v_min_mps!r} must be below v_max_mps ({self.v_max_mps!r})"

@@ -25,7 +25,7 @@ from common.messages import Tick, TickAck
 from common.runtime.host import NEVER
 from common.runtime.inproc import RunResult
 from common.runtime.mission import load_mission
-from common.runtime.procs import Child, free_port, spawn, stop_all
+from common.runtime.procs import Child, connectable, free_port, spawn, stop_all
 from common.runtime.record import Record
 from common.runtime.service_process import CLOCK
 
@@ -58,7 +58,7 @@ class Coordinator:
     def run(self) -> RunResult:
         # [bus] listen: a fixed endpoint lets monitors on other machines join the run
         listen = self.scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
-        endpoint = _connectable(listen[0])
+        endpoint = connectable(listen[0])
         with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
             raw_path = Path(tmp) / "scenario.json"
             raw_path.write_text(json.dumps(self.raw))
@@ -218,11 +218,6 @@ class Coordinator:
             reason,
         )
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))
-
-
-def _connectable(endpoint: str) -> str:
-    """The endpoint children on this machine connect to (a wildcard listen maps to loopback)."""
-    return endpoint.replace("0.0.0.0", "127.0.0.1").replace("[::]", "127.0.0.1")
 
 
 def run_lockstep(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:

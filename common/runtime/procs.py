@@ -14,6 +14,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
+def connectable(endpoint: str) -> str:
+    """The endpoint a process on this machine dials for a listen endpoint (wildcards: loopback)."""
+    return endpoint.replace("0.0.0.0", "127.0.0.1").replace("[::]", "127.0.0.1")
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that was free a moment ago (the OS picks it)."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:

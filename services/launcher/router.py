@@ -6,17 +6,12 @@ import socket
 import time
 from collections.abc import Callable
 
-from common.runtime.procs import free_port
+from common.runtime.procs import connectable, free_port
 from services.launcher.interrupt import Interrupted
 from services.launcher.supervise import Supervisor, how_it_ended
 
 ROUTER = "router"
 READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens
-
-
-def connectable(endpoint: str) -> str:
-    """The endpoint a process on this machine dials for a listen endpoint (wildcards: loopback)."""
-    return endpoint.replace("0.0.0.0", "127.0.0.1").replace("[::]", "127.0.0.1")
 
 
 def start_router(
