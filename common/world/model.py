@@ -98,6 +98,10 @@ class World:
             d = math.hypot(x - self._cxy[i, 0], y - self._cxy[i, 1]) - (r_vehicle + self._cr[i])
             best = min(best, float(d))
         for p in self._polygons:
+            # the polygon lies in the disc (centroid, circumradius): if even that disc is no
+            # nearer than the best so far, the exact distance cannot change the minimum
+            if math.hypot(x - p.cx, y - p.cy) - p.circumradius - r_vehicle >= best:
+                continue
             d = polygon_signed_distance(p.vertices, np.array(x), np.array(y))
             best = min(best, float(d) - r_vehicle)
         for _, rk, traj in self._moving:
