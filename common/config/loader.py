@@ -19,7 +19,7 @@ class ConfigError(ValueError):
     def __init__(self, file: str, key: str, problem: str) -> None:
         self.file, self.key, self.problem = file, key, problem
         where = f"{file}: " if file else ""
-        super().__init__(f"{where}{key or '<top>'}: {problem}")
+        super().__init__(f"{where}{key + ': ' if key else ''}{problem}")
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
