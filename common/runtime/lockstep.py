@@ -52,6 +52,7 @@ class Coordinator:
         self.acks: dict[str, TickAck] = {}
         self.alive: set[str] = set()
         self.finished: set[str] = set()  # services that acknowledged the stop tick
+        self._next_poll = 0.0  # when to next poll the child processes
         self.stopping = False
         self.timeout_s = scenario.runtime.tick_timeout_s
 
@@ -117,10 +118,15 @@ class Coordinator:
 
     def _pump(self, inbox: Inbox, deadline: float, what: str) -> None:
         """Take one event; fail fast on a dead child or a timeout, naming the service."""
-        for name, child in self.children.items():
-            if name not in self.finished and child.proc.poll() is not None:
-                raise ServiceFailed(child.describe_exit())
-        left = deadline - time.monotonic()
+        now = time.monotonic()
+        # a dead service's liveliness token vanishes at once (TCP closes); polling the
+        # processes as well catches one that never declared it, but need not run per event
+        if now >= self._next_poll:
+            self._next_poll = now + 0.2
+            for name, child in self.children.items():
+                if name not in self.finished and child.proc.poll() is not None:
+                    raise ServiceFailed(child.describe_exit())
+        left = deadline - now
         if left <= 0:
             if what.startswith("ack"):
                 missing = sorted(set(self.mission.names) - set(self.acks))
@@ -130,7 +136,7 @@ class Coordinator:
                 missing = []
             who = f"{', '.join(missing)} " if missing else ""
             raise ServiceFailed(f"timed out after {self.timeout_s} s waiting for {who}{what}")
-        ev = inbox.get(timeout=min(left, 0.5))
+        ev = inbox.get(timeout=min(left, 0.2))
         if ev is None:
             return
         if isinstance(ev, Liveliness):
