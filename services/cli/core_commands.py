@@ -6,6 +6,7 @@ import argparse
 import json
 import logging
 import math
+import signal
 import time
 from pathlib import Path
 from typing import Any
@@ -86,7 +87,7 @@ def cmd_router(a: argparse.Namespace) -> int:
         with Bus(cfg, Keys("router", "router")):
             print(f"zenoh router listening on {', '.join(a.listen)}; Ctrl-C to stop", flush=True)
             while True:
-                time.sleep(3600)  # the router works on Zenoh's threads; we only wait for a signal
+                signal.pause()  # the router works on Zenoh's threads; we only wait for a signal
     except Shutdown:
         return 0
 
