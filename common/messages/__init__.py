@@ -1,7 +1,7 @@
 """The tidelink wire: typed frozen messages and the only codec entry points, encode/decode."""
 
-from common.messages.base import WIRE_VERSION, Message, WireError
-from common.messages.codec import decode, decode_routing, encode, encode_routing
+from common.messages.base import WIRE_VERSION, Message, WireError, WireRecord
+from common.messages.codec import decode, decode_routing, encode, encode_routing, replace
 from common.messages.types import (
     MESSAGE_TYPES,
     Detection,
@@ -43,8 +43,10 @@ __all__ = [
     "VehicleStatus",
     "VelocityCommand",
     "WireError",
+    "WireRecord",
     "decode",
     "decode_routing",
     "encode",
     "encode_routing",
+    "replace",
 ]

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Literal
 
-from common.messages.base import Message, WireError, check_finite, check_range
+import msgspec
+
+from common.messages.base import Message, WireError, WireRecord, check_range
 
 VehicleMode = Literal["IDLE", "RUN", "HOLD", "FAILSAFE", "DONE"]
 PathStatus = Literal["OK", "NO_PATH"]
@@ -19,8 +20,7 @@ def _check_cov(name: str, cov: tuple[float, ...], n: int) -> None:
             raise WireError(f"{name}: diagonal entry {i} is negative ({cov[i * n + i]!r})")
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class NavFix(Message):
+class NavFix(Message, frozen=True, kw_only=True):
     """A navigation fix: position (USBL/GPS-like), heading (compass), speed (DVL), with noise."""
 
     x: float
@@ -36,8 +36,7 @@ class NavFix(Message):
             check_range(name, getattr(self, name), 0.0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Detection:
+class Detection(WireRecord, frozen=True, kw_only=True):
     """One detected obstacle: its id, noisy position and radius, and their noise."""
 
     id: int
@@ -47,22 +46,20 @@ class Detection:
     std_xy: float
     std_radius: float
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         check_range("detection.id", self.id, 0)
         check_range("detection.radius", self.radius, 0.0)
         check_range("detection.std_xy", self.std_xy, 0.0)
         check_range("detection.std_radius", self.std_radius, 0.0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ObstacleDetections(Message):
+class ObstacleDetections(Message, frozen=True, kw_only=True):
     """Obstacle detections (sonar/camera) of one scan, stamped at its sampling time."""
 
     detections: tuple[Detection, ...]
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class StateEstimate(Message):
+class StateEstimate(Message, frozen=True, kw_only=True):
     """The estimated vehicle state (x, y, theta, v, w) and its 5x5 covariance, row-major."""
 
     x: float
@@ -76,8 +73,7 @@ class StateEstimate(Message):
         _check_cov("covariance", self.covariance, 5)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Track:
+class Track(WireRecord, frozen=True, kw_only=True):
     """One tracked obstacle: position, velocity, acceleration, radius and 6x6 covariance."""
 
     id: int
@@ -90,21 +86,19 @@ class Track:
     radius: float
     covariance: tuple[float, ...]
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         check_range("track.id", self.id, 0)
         check_range("track.radius", self.radius, 0.0)
         _check_cov("track.covariance", self.covariance, 6)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ObstacleTracks(Message):
+class ObstacleTracks(Message, frozen=True, kw_only=True):
     """All obstacle tracks the estimator holds at `stamp`."""
 
     tracks: tuple[Track, ...]
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class PathMsg(Message):
+class PathMsg(Message, frozen=True, kw_only=True):
     """A planned path as a NURBS curve, or a NO_PATH status with its reason."""
 
     path_id: int
@@ -151,8 +145,7 @@ class PathMsg(Message):
         check_range("v_ref", self.v_ref, 0.0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class VelocityCommand(Message):
+class VelocityCommand(Message, frozen=True, kw_only=True):
     """A velocity command to the vehicle: surge speed v (m/s) and yaw rate w (rad/s)."""
 
     v: float
@@ -164,8 +157,7 @@ class VelocityCommand(Message):
         check_range("path_id", self.path_id, 0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class VehicleStatus(Message):
+class VehicleStatus(Message, frozen=True, kw_only=True):
     """The vehicle's mode (incl. FAILSAFE), the command it applies and its age."""
 
     mode: VehicleMode
@@ -182,8 +174,7 @@ class VehicleStatus(Message):
             check_range(name, getattr(self, name), 0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class TruthState(Message):
+class TruthState(Message, frozen=True, kw_only=True):
     """The vehicle's true state (simulation only): pose, speeds and any collision."""
 
     x: float
@@ -194,8 +185,7 @@ class TruthState(Message):
     collided: bool = False
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class LinkCounters:
+class LinkCounters(WireRecord, frozen=True, kw_only=True):
     """Counters of one modelled link (one stream as seen by one receiving service)."""
 
     link: str
@@ -208,25 +198,21 @@ class LinkCounters:
     delay_p50: float
     delay_p99: float
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         for name in ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue"):
             check_range(f"link.{name}", getattr(self, name), 0)
         check_range("link.duplicated", self.duplicated, 0)
         for name in ("delay_p50", "delay_p99"):
-            v = getattr(self, name)
-            check_finite(f"link.{name}", v)
-            check_range(f"link.{name}", v, 0.0)
+            check_range(f"link.{name}", getattr(self, name), 0.0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class LinkStats(Message):
+class LinkStats(Message, frozen=True, kw_only=True):
     """Per-link statistics a service publishes on `.../<service>/stats`."""
 
     links: tuple[LinkCounters, ...]
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Tick(Message):
+class Tick(Message, frozen=True, kw_only=True):
     """Lockstep clock: advance to virtual time `time_us`; watermarks of every stream so far."""
 
     tick: int
@@ -240,15 +226,15 @@ class Tick(Message):
         check_range("time_us", self.time_us, 0)
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class TickAck(Message):
+class TickAck(Message, frozen=True, kw_only=True):
     """Lockstep clock: a service finished `tick`; what it published; its next event time."""
 
     tick: int
     service: str
     published: dict[str, int]  # stream key -> last seq published so far
     next_us: int  # next time this service needs a tick (its next step or wake delivery)
-    wakes: dict[str, int] = field(default_factory=dict)  # receiver -> earliest wake delivery
+    # receiver -> earliest wake delivery
+    wakes: dict[str, int] = msgspec.field(default_factory=dict)
     done: bool = False  # the service asks the run to end (e.g. the vehicle reached the goal)
 
     def validate(self) -> None:

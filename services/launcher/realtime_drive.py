@@ -4,12 +4,11 @@ run, apply restart policies, and end on the mission's end, max_time or a stop re
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import Any
 
 from common.bus import Event, Inbox, Keys, Liveliness
 from common.config.scenario import Scenario
-from common.messages import Tick, TickAck
+from common.messages import Tick, TickAck, replace
 from common.runtime.inproc import RunResult
 from common.runtime.lockstep import ServiceFailed
 from common.runtime.mission import Mission

@@ -33,7 +33,7 @@ VEHICLE = "auv1"
 GARBAGE_STREAM = "nav"
 # What the garbage role sends on GARBAGE_STREAM before each valid message.
 NOT_MSGPACK = b"\xc1\xc1 this is not msgpack"
-WRONG_VERSION = bytes(msgpack.packb([99, "NavFix", "x", 0, 0.0, 0.0, {}]))
+WRONG_VERSION = bytes(msgpack.packb([99, {"type": "NavFix"}]))
 
 
 def stream_of(cls: type[Message]) -> str:
