@@ -129,6 +129,33 @@ def test_garbage_is_counted_and_the_next_valid_message_still_arrives() -> None:
     assert code == 0, err
 
 
+@pytest.mark.slow
+def test_a_typed_callback_counts_garbage_and_survives_its_own_exceptions() -> None:
+    endpoint, keys = _setup("c")
+    key = keys.stream(PEER, GARBAGE_STREAM)
+    got: queue.SimpleQueue[Received] = queue.SimpleQueue()
+
+    def on_message(r: Received) -> None:
+        got.put(r)
+        if r.msg.seq == garbage_navs()[0].seq:
+            raise RuntimeError("a consumer bug")  # logged; the subscription must carry on
+
+    with Bus(BusConfig(listen=(endpoint,)), keys) as bus:
+        handler = bus.subscribe_typed(key, on_message)
+        bus.declare_alive(PARENT)
+        with child("garbage", endpoint, keys.run) as proc:
+            msgs = [got.get(timeout=WAIT_S).msg for _ in garbage_navs()]
+            assert msgs == garbage_navs()
+            # both bad payloads came before the second valid one on one session, and the
+            # callback runs in arrival order: they are counted by now
+            assert handler.decode_errors == {key: 2}
+            assert "wrong wire version 99" in handler.last_error[key]
+            assert "not a tidelink" not in handler.last_error[key]
+            bus.close()
+            code, err = _finish(proc)
+    assert code == 0, err
+
+
 def _read_line(proc: subprocess.Popen[str], timeout_s: float) -> str:
     assert proc.stdout is not None
     ready, _, _ = select.select([proc.stdout], [], [], timeout_s)

@@ -1,6 +1,6 @@
 """The typed Zenoh bus: the only module besides common.messages that imports zenoh."""
 
-from common.bus.bus import Bus, Event, Inbox, Liveliness, Publisher, Received
+from common.bus.bus import Bus, Event, Inbox, Liveliness, Publisher, Received, TypedCallback
 from common.bus.keys import Keys
 
-__all__ = ["Bus", "Event", "Inbox", "Keys", "Liveliness", "Publisher", "Received"]
+__all__ = ["Bus", "Event", "Inbox", "Keys", "Liveliness", "Publisher", "Received", "TypedCallback"]

@@ -7,10 +7,10 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
+import msgspec
 import zenoh
 
 from common.bus.keys import Keys
@@ -21,8 +21,11 @@ from common.messages import Message, WireError, decode, encode
 log = logging.getLogger("tidelink.bus")
 
 
-@dataclass(frozen=True, slots=True)
-class Received:
+# Events are frozen msgspec structs rather than frozen dataclasses: one is built per message
+# received, and a struct builds in 0.04 us where a frozen dataclass takes 0.5 us.
+
+
+class Received(msgspec.Struct, frozen=True, gc=False):
     """A decoded message and where it came from."""
 
     key: str
@@ -30,8 +33,7 @@ class Received:
     attachment: bytes | None
 
 
-@dataclass(frozen=True, slots=True)
-class Liveliness:
+class Liveliness(msgspec.Struct, frozen=True, gc=False):
     """A liveliness token appeared (alive=True) or vanished (alive=False)."""
 
     key: str
@@ -41,7 +43,24 @@ class Liveliness:
 Event = Received | Liveliness
 
 
-class Inbox:
+class _Rejects:
+    """Counts undecodable payloads per key and logs the first of each key; never raises."""
+
+    def __init__(self) -> None:
+        self.decode_errors: dict[str, int] = {}
+        self.last_error: dict[str, str] = {}
+
+    def _reject(self, key: str, why: str) -> None:
+        n = self.decode_errors.get(key, 0) + 1
+        self.decode_errors[key] = n
+        self.last_error[key] = why
+        if n == 1:
+            log.warning(
+                "dropping undecodable payload on %s: %s (further ones only counted)", key, why
+            )
+
+
+class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
     Zenoh callbacks only enqueue raw bytes (they run on Zenoh's threads holding the GIL);
@@ -50,10 +69,9 @@ class Inbox:
     """
 
     def __init__(self) -> None:
+        super().__init__()
         self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness]
         self._q = queue.SimpleQueue()
-        self.decode_errors: dict[str, int] = {}
-        self.last_error: dict[str, str] = {}
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         att = sample.attachment
@@ -73,14 +91,11 @@ class Inbox:
         # One deadline for the whole call: a trickle of undecodable payloads must not keep
         # restarting the wait (the caller's step would never come).
         deadline = None if timeout is None else time.monotonic() + timeout
+        try:
+            item = self._q.get(timeout=timeout)
+        except queue.Empty:
+            return None
         while True:
-            try:
-                if deadline is None:
-                    item = self._q.get()
-                else:
-                    item = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                return None
             if isinstance(item, Liveliness):
                 return item
             key, payload, att = item
@@ -88,15 +103,39 @@ class Inbox:
                 return Received(key, decode(payload), att)
             except WireError as exc:
                 self._reject(key, str(exc))
+            try:
+                if deadline is None:
+                    item = self._q.get()
+                else:
+                    item = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                return None
 
-    def _reject(self, key: str, why: str) -> None:
-        n = self.decode_errors.get(key, 0) + 1
-        self.decode_errors[key] = n
-        self.last_error[key] = why
-        if n == 1:
-            log.warning(
-                "dropping undecodable payload on %s: %s (further ones only counted)", key, why
-            )
+
+class TypedCallback(_Rejects):
+    """Decodes each sample on Zenoh's callback thread and hands the message to a function.
+
+    For consumers that record or display rather than step a loop (monitors, recorders):
+    one thread switch less than an Inbox. Undecodable payloads are counted like an Inbox's;
+    an exception from the function is logged and the subscription carries on.
+    """
+
+    def __init__(self, on_message: Callable[[Received], None]) -> None:
+        super().__init__()
+        self._on_message = on_message
+
+    def __call__(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        try:
+            msg = decode(sample.payload.to_bytes())
+        except WireError as exc:
+            self._reject(key, str(exc))
+            return
+        att = sample.attachment
+        try:
+            self._on_message(Received(key, msg, att.to_bytes() if att is not None else None))
+        except Exception:  # noqa: BLE001 - one bad message must not end the subscription
+            log.exception("subscriber callback failed on %s", key)
 
 
 class Publisher:
@@ -109,12 +148,15 @@ class Publisher:
     def put(self, msg: Message, attachment: bytes | None = None) -> int:
         """Encode and send; returns the payload size in bytes."""
         data = encode(msg)
-        self._pub.put(data, attachment=attachment)
+        self.put_bytes(data, attachment)
         return len(data)
 
     def put_bytes(self, data: bytes, attachment: bytes | None = None) -> None:
         """Send an already encoded payload (used by runtimes that needed the size first)."""
-        self._pub.put(data, attachment=attachment)
+        if attachment is None:
+            self._pub.put(data)  # zenoh-python takes ~0.3 us to handle an explicit None
+        else:
+            self._pub.put(data, attachment=attachment)
 
 
 class Bus:
@@ -181,6 +223,14 @@ class Bus:
 
     def subscribe_stream(self, service: str, stream: str, inbox: Inbox) -> None:
         self.subscribe(self.keys.stream(service, stream), inbox)
+
+    def subscribe_typed(
+        self, key_expr: str, on_message: Callable[[Received], None]
+    ) -> TypedCallback:
+        """Decoded messages on `key_expr` to a function, called on Zenoh's callback thread."""
+        handler = TypedCallback(on_message)
+        self._keep(self.session.declare_subscriber(key_expr, handler))
+        return handler
 
     def subscribe_callback(self, key_expr: str, callback: Callable[[str, bytes], None]) -> None:
         """Raw bytes to a callback (recorders: store what arrived, decode later)."""

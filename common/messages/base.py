@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import typing
-from operator import attrgetter
+from collections.abc import Callable
 from typing import Any
 
 import msgspec
@@ -30,40 +30,39 @@ def check_range(name: str, value: float, lo: float | None = None, hi: float | No
         raise WireError(f"{name}: {value!r} is out of range (must be <= {hi})")
 
 
-class _FloatFields:
-    """The float and float-tuple fields of one record class, read in one C call each."""
+def _compile_finite_test(cls: type) -> Callable[[Any], bool]:
+    """A function telling whether every float (and float-tuple) field of a `cls` is finite.
 
-    def __init__(self, cls: type) -> None:
-        hints = typing.get_type_hints(cls)
-        names = [f.name for f in msgspec.structs.fields(cls)]
-        self.scalars = tuple(n for n in names if hints[n] is float)
-        self.tuples = tuple(n for n in names if hints[n] == tuple[float, ...])
-        self.get_scalars = attrgetter(*self.scalars) if len(self.scalars) > 1 else None
-        self.get_tuples = attrgetter(*self.tuples) if len(self.tuples) > 1 else None
-
-    def check(self, rec: Any) -> None:
-        """Raise WireError naming the first NaN or infinite float of `rec`."""
-        # x - x is 0.0 for every finite sum and NaN otherwise: one test for all the fields.
-        # A sum can overflow to inf with every item finite; the field-by-field pass then
-        # finds nothing and lets the record through.
-        if self.get_scalars is not None:
-            total = sum(self.get_scalars(rec))
-        else:
-            total = sum(getattr(rec, n) for n in self.scalars)
-        if self.get_tuples is not None:
-            total += sum(map(sum, self.get_tuples(rec)))
-        else:
-            total += sum(sum(getattr(rec, n)) for n in self.tuples)
-        if total - total == 0.0:
-            return
-        for n in self.scalars:
-            check_finite(n, getattr(rec, n))
-        for n in self.tuples:
-            for i, v in enumerate(getattr(rec, n)):
-                check_finite(f"{n}[{i}]", v)
+    Generated once per class, the way dataclasses generate __init__: one sum over the fields
+    by plain attribute access costs ~0.1 us, where a loop of getattr calls costs ~1 us, and
+    every message pays it twice (when built and when decoded). x - x is 0.0 for a finite sum
+    and NaN otherwise. A sum can also overflow to inf with every item finite: the caller's
+    field-by-field pass then finds nothing wrong and lets the record through.
+    """
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in msgspec.structs.fields(cls)]
+    terms = [f"r.{n}" for n in names if hints[n] is float]
+    terms += [f"sum(r.{n})" for n in names if hints[n] == tuple[float, ...]]
+    src = f"def finite(r):\n    t = {' + '.join(terms) or '0.0'}\n    return t - t == 0.0\n"
+    scope: dict[str, Any] = {}
+    exec(compile(src, f"<finite test of {cls.__name__}>", "exec"), scope)  # noqa: S102
+    finite: Callable[[Any], bool] = scope["finite"]
+    return finite
 
 
-_FLOATS: dict[type, _FloatFields] = {}
+def _name_the_nonfinite(rec: Any) -> None:
+    """Raise WireError naming the first NaN or infinite float field of `rec`, if any."""
+    hints = typing.get_type_hints(type(rec))
+    for f in msgspec.structs.fields(type(rec)):
+        v = getattr(rec, f.name)
+        if hints[f.name] is float:
+            check_finite(f.name, v)
+        elif hints[f.name] == tuple[float, ...]:
+            for i, x in enumerate(v):
+                check_finite(f"{f.name}[{i}]", x)
+
+
+_FINITE: dict[type, Callable[[Any], bool]] = {}
 
 
 class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -78,11 +77,11 @@ class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_field
     """
 
     def __post_init__(self) -> None:
-        cls = type(self)
-        floats = _FLOATS.get(cls)
-        if floats is None:
-            floats = _FLOATS[cls] = _FloatFields(cls)
-        floats.check(self)
+        finite = _FINITE.get(type(self))
+        if finite is None:
+            finite = _FINITE[type(self)] = _compile_finite_test(type(self))
+        if not finite(self):
+            _name_the_nonfinite(self)
         self.validate()
 
     def validate(self) -> None:
@@ -105,4 +104,4 @@ class Message(WireRecord, frozen=True, kw_only=True, tag=True):
     def __post_init__(self) -> None:
         if not 0 <= self.seq < 2**63:
             raise WireError(f"seq: {self.seq!r} is out of range (must be >= 0 and < 2**63)")
-        WireRecord.__post_init__(self)
+        super().__post_init__()

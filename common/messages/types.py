@@ -32,6 +32,8 @@ class NavFix(Message, frozen=True, kw_only=True):
     std_speed: float
 
     def validate(self) -> None:
+        if self.std_xy >= 0.0 and self.std_heading >= 0.0 and self.std_speed >= 0.0:
+            return  # the common case, without a call per field
         for name in ("std_xy", "std_heading", "std_speed"):
             check_range(name, getattr(self, name), 0.0)
 
