@@ -1,6 +1,16 @@
 """The typed Zenoh bus: the only module besides common.messages that imports zenoh."""
 
 from common.bus.bus import Bus, Event, Inbox, Liveliness, Publisher, Received, TypedCallback
-from common.bus.keys import Keys
+from common.bus.keys import CLOCK, Keys
 
-__all__ = ["Bus", "Event", "Inbox", "Keys", "Liveliness", "Publisher", "Received", "TypedCallback"]
+__all__ = [
+    "CLOCK",
+    "Bus",
+    "Event",
+    "Inbox",
+    "Keys",
+    "Liveliness",
+    "Publisher",
+    "Received",
+    "TypedCallback",
+]

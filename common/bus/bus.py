@@ -207,7 +207,11 @@ class Bus:
         return obj
 
     def publisher(self, service: str, stream: str, *, express: bool = False) -> Publisher:
-        key = self.keys.stream(service, stream)
+        """A publisher of one service's output stream."""
+        return self.publisher_on(self.keys.stream(service, stream), express=express)
+
+    def publisher_on(self, key: str, *, express: bool = False) -> Publisher:
+        """A publisher on any key of this run (e.g. Keys.tick)."""
         pub = self.session.declare_publisher(
             key,
             reliability=zenoh.Reliability.RELIABLE,  # zenoh-python's default is best-effort

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,22 @@ class Keys:
     def stream(self, service: str, stream: str) -> str:
         """The key of one service's output stream, e.g. tidelink/demo/auv1/sensor/nav."""
         return f"{self.root}/{service}/{stream}"
+
+    def tick(self, recipients: Iterable[str]) -> str:
+        """The key of a clock tick for these services: .../runtime/tick/<a>/<b>/... (sorted).
+
+        Naming the recipients in the key lets Zenoh deliver a tick only to the services it
+        is for: on a lockstep run most ticks wake two or three services, not all of them.
+        """
+        names = sorted(recipients)
+        bad = [n for n in names if not _ID.match(n)]
+        if not names or bad:
+            raise ValueError(f"a tick needs recipients named by letters, digits, '_' or '-': {bad}")
+        return f"{self.root}/{CLOCK}/tick/{'/'.join(names)}"
+
+    def ticks_for(self, service: str) -> str:
+        """The key expression of every tick whose recipients include `service`."""
+        return f"{self.root}/{CLOCK}/tick/**/{service}/**"
 
     def alive(self, service: str) -> str:
         """The liveliness token key of a service."""

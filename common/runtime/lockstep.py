@@ -28,6 +28,7 @@ from common.runtime.mission import load_mission
 from common.runtime.procs import Child, connectable, free_port, spawn, stop_all
 from common.runtime.record import Record
 from common.runtime.service_process import CLOCK
+from common.runtime.ticks import TickSender
 
 log = logging.getLogger("tidelink.lockstep")
 
@@ -68,11 +69,11 @@ class Coordinator:
                 listen=listen,
                 multicast_scouting=self.scenario.bus.multicast_scouting,
             )
-            with Bus(bus_cfg, self.keys, low_latency=True) as bus:
+            with Bus(bus_cfg, self.keys) as bus:
                 inbox = Inbox()
                 bus.subscribe(self.keys.everything, inbox)
                 bus.watch_alive(inbox)
-                tick_pub = bus.publisher(CLOCK, "tick", express=True)
+                tick_pub = TickSender(bus, self.mission.names)
                 bus.declare_alive(CLOCK)
                 try:
                     for name in self.mission.names:
@@ -167,7 +168,7 @@ class Coordinator:
     def _tick(
         self,
         inbox: Inbox,
-        pub: Any,
+        pub: TickSender,
         k: int,
         t_us: int,
         marks: dict[str, int],
@@ -191,7 +192,7 @@ class Coordinator:
             self._pump(inbox, deadline, f"data of tick {k} on {', '.join(missing)}")
         return new_marks
 
-    def drive(self, inbox: Inbox, pub: Any) -> RunResult:
+    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
         max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, reason = 0, 0, "max_time"
         marks: dict[str, int] = {}

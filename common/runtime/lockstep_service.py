@@ -31,11 +31,14 @@ class LockstepService:
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 
     def run(self) -> int:
-        with Bus(self.bus_cfg, self.keys, low_latency=True) as bus:
+        # Measured on the default mission (2 cores, 1312 ticks): batching publishers and
+        # callbacks handed to a Python thread (the Bus defaults) gave a tick loop ~10 % faster
+        # than express publishers and callbacks on Zenoh's network thread. Zenoh sends a batch
+        # as soon as its link is free, so nothing waits for a batch to fill.
+        with Bus(self.bus_cfg, self.keys) as bus:
             inbox = Inbox()
-            # express: a tick waits on every message, so none may sit in a batch
-            pubs = wire(bus, self.host, self.keys, inbox, express=True)
-            ack_pub = bus.publisher(CLOCK, "ack", express=True)
+            pubs = wire(bus, self.host, self.keys, inbox, express=False)
+            ack_pub = bus.publisher(CLOCK, "ack")
             bus.declare_alive(self.name)
             while True:
                 tick = self._next_tick(inbox)

@@ -13,6 +13,7 @@ from common.config.scenario import Scenario
 from common.messages import Tick
 from common.runtime.inproc import RunResult
 from common.runtime.lockstep import Coordinator
+from common.runtime.ticks import TickSender
 
 log = logging.getLogger("tidelink.realtime")
 
@@ -22,7 +23,7 @@ class RealtimeSupervisor(Coordinator):
 
     service_module = "common.runtime.realtime_service"
 
-    def drive(self, inbox: Inbox, pub: Any) -> RunResult:
+    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
         scale = self.scenario.runtime.time_scale
         pub.put(Tick(stamp=0.0, tick=0, time_us=0, watermarks={}))
         t0 = time.monotonic()

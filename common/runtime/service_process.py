@@ -9,15 +9,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Protocol
 
-from common.bus import Bus, Inbox, Keys, Publisher, Received
+from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
 from common.config.scenario import Scenario
 from common.messages import WireError, decode_routing
 from common.runtime.host import STATS_STREAM, Host
 from common.runtime.inproc import build_hosts
 from common.runtime.mission import load_mission
 from common.runtime.signals import Shutdown, install_shutdown_handlers
-
-CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick, .../runtime/ack
 
 log = logging.getLogger("tidelink.service")
 
@@ -34,7 +32,7 @@ def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> di
     """Subscribe the host's inputs and the clock; one publisher per output stream and stats."""
     for i in host.core.spec.inputs:
         bus.subscribe_stream(i.source, i.stream, inbox)
-    bus.subscribe_stream(CLOCK, "tick", inbox)
+    bus.subscribe(keys.ticks_for(host.name), inbox)
     bus.watch_alive(inbox, keys.alive(CLOCK))
     streams = [o.stream for o in host.core.spec.outputs] + [STATS_STREAM]
     return {s: bus.publisher(host.name, s, express=express) for s in streams}

@@ -8,15 +8,15 @@ periodically, so a restarted or late remote service joins at the right time.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 from common.messages import Tick
+from common.runtime.ticks import TickSender
 
 
 class MissionClock:
     """Publishes Ticks carrying the mission time; time starts at `start()`."""
 
-    def __init__(self, pub: Any, scale: float) -> None:
+    def __init__(self, pub: TickSender, scale: float) -> None:
         self.pub = pub
         self.scale = scale
         self.t0: float | None = None

@@ -23,6 +23,7 @@ from common.runtime.inproc import RunResult
 from common.runtime.mission import load_mission
 from common.runtime.run import write_outputs
 from common.runtime.service_process import CLOCK
+from common.runtime.ticks import TickSender
 from services.launcher.interrupt import Interrupted, StopRequest, stop_on_signals
 from services.launcher.lockstep_drive import LockstepDriver
 from services.launcher.plot import plot_run
@@ -140,7 +141,7 @@ def _run(
         inbox = Inbox()
         bus.subscribe(keys.everything, inbox)
         bus.watch_alive(inbox)
-        tick_pub = bus.publisher(CLOCK, "tick")
+        tick_pub = TickSender(bus, load_mission(scenario).names)
         bus.declare_alive(CLOCK)
         for name in local:
             args = ["-m", SERVICE_MODULES[kind], name, "--scenario-json", str(scenario_json)]
@@ -166,7 +167,11 @@ def _run(
 
 
 def _lockstep(
-    driver: LockstepDriver, inbox: Inbox, tick_pub: Any, view: MissionView, display: Display
+    driver: LockstepDriver,
+    inbox: Inbox,
+    tick_pub: TickSender,
+    view: MissionView,
+    display: Display,
 ) -> RunResult:
     try:
         driver.await_alive(inbox)

@@ -4,7 +4,6 @@ run, apply restart policies, and end on the mission's end, max_time or a stop re
 from __future__ import annotations
 
 import time
-from typing import Any
 
 from common.bus import Event, Inbox, Keys, Liveliness
 from common.config.scenario import Scenario
@@ -13,6 +12,7 @@ from common.runtime.inproc import RunResult
 from common.runtime.lockstep import ServiceFailed
 from common.runtime.mission import Mission
 from common.runtime.record import Record
+from common.runtime.ticks import TickSender
 from services.launcher.clock import MissionClock
 from services.launcher.interrupt import StopRequest
 from services.launcher.progress import Display, MissionView
@@ -141,7 +141,7 @@ class RealtimeDriver:
             f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
         )
 
-    def drive(self, inbox: Inbox, pub: Any) -> RunResult:
+    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
         scale = self.scenario.runtime.time_scale
         max_us = round(self.mission.max_time_s * 1e6)
         self.clock = clock = MissionClock(pub, scale)

@@ -64,6 +64,11 @@ class ReplanPolicy:
         self.last_replan_t: float | None = None
         self.s_now = 0.0  # progress along the path (m), monotone
         self.last_check_t: float | None = None
+        # Static obstacles do not move: their distance to each path sample is worked out once
+        # per (path, static obstacle set) and sliced at every check, not recomputed (it was
+        # over half of the planner's step).
+        self._static_for: tuple[object, object] | None = None
+        self._static_d: FloatArray = np.zeros(0)
 
     # --- state updates -------------------------------------------------------------------
     def on_planned(self, t: float, result: PlanResult, goal: Pose2D, obstacles: Obstacles) -> None:
@@ -79,6 +84,7 @@ class ReplanPolicy:
         u = np.linspace(curve.u_min, curve.u_max, self.n_samples)
         self.pts = curve.evaluate(u, n_ders=0)[0]
         self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.pts, axis=0).T))])
+        self._static_for = None
         gap, ids = self._moving_gaps(obstacles, 0, 0.0)
         self.known_ids = frozenset(ids[gap < self.cfg.corridor_halfwidth_m].tolist())
 
@@ -103,9 +109,8 @@ class ReplanPolicy:
             )
         d_req = self.r + self.cfg.rho0_m
         ahead = self.pts[i_now:]
-        static = StaticField.build(obstacles.circles, obstacles.polygons)
-        if not static.empty and len(ahead):
-            d, _ = static.distance(ahead)
+        d = self._static_distance(obstacles)[i_now:]
+        if len(d):
             j = int(np.argmin(d))
             if d[j] < d_req - 1e-6:
                 return ReplanDecision(
@@ -135,6 +140,17 @@ class ReplanPolicy:
         return ReplanDecision(replan=False)
 
     # --- helpers -------------------------------------------------------------------------
+    def _static_distance(self, obstacles: Obstacles) -> FloatArray:
+        """Distance from every sample of the path to the nearest static obstacle (empty array
+        when there are none), cached while the path and the static obstacles stay the same."""
+        assert self.pts is not None
+        key = (obstacles.circles, obstacles.polygons)
+        if self._static_for is None or self._static_for != key:
+            static = StaticField.build(obstacles.circles, obstacles.polygons)
+            self._static_d = np.zeros(0) if static.empty else static.distance(self.pts)[0]
+            self._static_for = key
+        return self._static_d
+
     def _progress(self, t: float, pose: Pose2D) -> tuple[int, float]:
         """Nearest sample in a window ahead of the last progress, and the distance to it."""
         assert self.pts is not None
