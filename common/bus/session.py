@@ -16,6 +16,10 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
     conf.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
+    if not cfg.multicast_scouting:
+        # nothing to scout for: without this, opening a router session waits out the default
+        # 500 ms scouting delay (measured: 0.50 s against 0.002 s)
+        conf.insert_json5("scouting/delay", json.dumps(0))
     if cfg.mode != "client":
         # peers/routers: retry connecting so start order between processes does not matter
         conf.insert_json5("connect/timeout_ms", json.dumps(-1))

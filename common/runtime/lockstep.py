@@ -22,10 +22,11 @@ from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
+from common.runtime.forked import warm_up
 from common.runtime.host import NEVER
 from common.runtime.inproc import RunResult
 from common.runtime.mission import load_mission
-from common.runtime.procs import Child, connectable, free_port, spawn, stop_all
+from common.runtime.procs import Child, connectable, fork, free_port, stop_all
 from common.runtime.record import Record
 from common.runtime.service_process import CLOCK
 from common.runtime.ticks import TickSender
@@ -58,6 +59,7 @@ class Coordinator:
         self.timeout_s = scenario.runtime.tick_timeout_s
 
     def run(self) -> RunResult:
+        warm_up()  # the fork server imports the services while we open the router
         # [bus] listen: a fixed endpoint lets monitors on other machines join the run
         listen = self.scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
         endpoint = connectable(listen[0])
@@ -77,17 +79,10 @@ class Coordinator:
                 bus.declare_alive(CLOCK)
                 try:
                     for name in self.mission.names:
-                        self.children[name] = spawn(
+                        self.children[name] = fork(
                             name,
-                            [
-                                "-m",
-                                self.service_module,
-                                name,
-                                "--scenario-json",
-                                str(raw_path),
-                                "--connect",
-                                endpoint,
-                            ],
+                            self.service_module,
+                            [name, "--scenario-json", str(raw_path), "--connect", endpoint],
                             self.log_dir,
                         )
                     t_spawn = time.monotonic()

@@ -12,6 +12,9 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
+
+from common.runtime.forked import fork_module
 
 
 def connectable(endpoint: str) -> str:
@@ -26,12 +29,28 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+class ProcessHandle(Protocol):
+    """What we use of a child process: subprocess.Popen, or a forked one (ForkedProcess)."""
+
+    @property
+    def pid(self) -> int: ...
+
+    @property
+    def returncode(self) -> int | None: ...
+
+    def poll(self) -> int | None: ...
+
+    def wait(self, timeout: float | None = None) -> int: ...
+
+    def send_signal(self, sig: int) -> None: ...
+
+
 @dataclass
 class Child:
     """One service process and its log file."""
 
     name: str
-    proc: subprocess.Popen[bytes]
+    proc: ProcessHandle
     log_path: Path
     _log: object = field(default=None, repr=False)
     group: bool = False  # leads its own process group: signals go to the whole group
@@ -99,6 +118,15 @@ def spawn(
         start_new_session=group,
     )
     return Child(name, proc, log_path, fh, group)
+
+
+def fork(name: str, module: str, argv: list[str], log_dir: Path) -> Child:
+    """Start `module.main(argv)` forked from the pre-imported fork server (common.runtime.forked),
+    logging to log_dir/<name>.log: like spawn(name, ["-m", module, *argv]), without the
+    interpreter start-up and imports. For local service processes of a run."""
+    log_dir.mkdir(parents=True, exist_ok=True)
+    log_path = log_dir / f"{name}.log"
+    return Child(name, fork_module(module, argv, log_path), log_path)
 
 
 def stop_all(children: list[Child], *, grace_s: float = 3.0) -> None:

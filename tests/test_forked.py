@@ -1,0 +1,70 @@
+"""Service processes forked from the pre-imported fork server (common.runtime.forked)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common.runtime.forked import fork_module
+from common.runtime.procs import fork, stop_all
+
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
+
+
+def test_a_forked_module_runs_main_with_its_argv_logs_and_exits_with_its_code(
+    tmp_path: Path,
+) -> None:
+    log = tmp_path / "x.log"
+    proc = fork_module("helpers.fork_target", ["exit", "3"], log)
+    assert proc.pid != os.getpid()
+    assert proc.wait(timeout=30) == 3
+    assert proc.poll() == 3
+    text = log.read_text()
+    assert "child argv ['exit', '3']" in text
+    assert "to stderr" in text
+
+
+def test_a_forked_process_reports_the_signal_that_ended_it(tmp_path: Path) -> None:
+    child = fork("blocker", "helpers.fork_target", ["block"], tmp_path)
+    with pytest.raises(subprocess.TimeoutExpired):
+        child.proc.wait(timeout=0.2)  # it blocks until signalled
+    assert child.proc.poll() is None
+    child.signal(signal.SIGKILL)
+    assert child.proc.wait(timeout=30) == -signal.SIGKILL
+    assert "was killed by signal 9" in child.describe_exit()
+    assert "child argv ['block']" in child.describe_exit()  # the log tail comes with it
+
+
+def test_stop_all_ends_forked_services_politely(tmp_path: Path) -> None:
+    children = [fork(f"b{i}", "helpers.fork_target", ["block"], tmp_path) for i in range(2)]
+    stop_all(children, grace_s=5.0)
+    # SIGINT ends signal.pause() with KeyboardInterrupt: a non-zero exit, not a kill
+    assert all(c.proc.poll() not in (None, -signal.SIGKILL) for c in children)
+
+
+def test_an_unguarded_main_script_is_not_run_again_in_the_children(tmp_path: Path) -> None:
+    # multiprocessing would re-run the parent's script in each child; ours must not (a
+    # script calling a lockstep run without `if __name__ == "__main__":` would break)
+    script = tmp_path / "unguarded.py"
+    log = tmp_path / "child.log"
+    script.write_text(
+        "from pathlib import Path\n"
+        "from common.runtime.forked import fork_module\n"
+        "print('script top level', flush=True)\n"
+        f"p = fork_module('helpers.fork_target', ['exit', '0'], Path({str(log)!r}))\n"
+        "raise SystemExit(p.wait(timeout=30))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(TESTS)]))
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=60, env=env
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.count("script top level") == 1
+    assert "script top level" not in log.read_text()
+    assert "child argv ['exit', '0']" in log.read_text()
