@@ -14,7 +14,14 @@ from common.messages import Detection, ObstacleDetections, ObstacleTracks, Track
 from common.runtime.core import Delivery
 from common.world import World
 from services.estimator import EstimatorCore
-from services.estimator.imm import combine, mix, switch_matrix
+from services.estimator.imm import (
+    combine,
+    kf_predict,
+    mix,
+    process_noise,
+    switch_matrix,
+    transition,
+)
 from services.estimator.tracks import ObstacleTracker, TrackerState
 from services.sensor import SensorCore
 
@@ -151,3 +158,21 @@ def test_imm_pieces() -> None:
     np.testing.assert_allclose(P, 1.75 * np.eye(6) + 0.1875, atol=1e-15)
     _, _, cbar = mix(xs, Ps, np.array([0.25, 0.75]), np.eye(2))
     np.testing.assert_allclose(cbar, [0.25, 0.75], atol=1e-15)
+
+
+@pytest.mark.parametrize("ca", [False, True])
+def test_kf_predict_is_filterpys_predict_bit_for_bit(ca: bool) -> None:
+    from filterpy.kalman import KalmanFilter
+
+    rng = np.random.default_rng(7)
+    for dt in (0.05, 0.1, 0.37):
+        F, Q = transition(dt, ca), process_noise(dt, ca, 0.3)
+        x = rng.normal(size=6)
+        A = rng.normal(size=(6, 6))
+        P = A @ A.T
+        kf = KalmanFilter(dim_x=6, dim_z=2)
+        kf.x, kf.P = x.copy(), P.copy()
+        kf.predict(F=F, Q=Q)
+        got_x, got_P = kf_predict(x, P, F, Q)
+        assert np.array_equal(got_x, kf.x)
+        assert np.array_equal(got_P, kf.P)

@@ -2,7 +2,9 @@
 
 Both modes share the state [x, vx, ax, y, vy, ay] (filterpy's order_by_dim); the CV mode
 holds the acceleration at zero. Mixing and combination follow Bar-Shalom's IMM; the
-per-mode predict/update run through filterpy's KalmanFilter.
+per-mode update runs through filterpy's KalmanFilter, the per-mode predict through
+`kf_predict`, the same equations as filterpy's KalmanFilter.predict without its object
+overhead (the estimator predicts every track to every publish time: the hot path).
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ def process_noise(dt: float, constant_acceleration: bool, psd: float) -> FloatAr
     for base in (0, 3):
         Q[base : base + 2, base : base + 2] = q2
     return Q
+
+
+def kf_predict(
+    x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit)."""
+    return np.dot(F, x), np.dot(np.dot(F, P), F.T) + Q
 
 
 def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatArray:
@@ -88,19 +97,22 @@ class ImmFilter:
         self._sojourn = (sojourn_cv_s, sojourn_ca_s)
         self._kf = KalmanFilter(dim_x=6, dim_z=2)
         self._kf.H = H_POS
-        # (F, Q) per mode by dt: steps repeat (scan and publish periods), and building Q
-        # dominates the cost otherwise; cached arrays are never written to
-        self._models: dict[float, tuple[tuple[FloatArray, FloatArray], ...]] = {}
+        # the switch matrix and (F, Q) per mode, by dt: steps repeat (scan and publish
+        # periods), and building them dominates the cost otherwise; cached arrays are never
+        # written to
+        self._models: dict[float, tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]]
+        self._models = {}
 
-    def _model(self, dt: float) -> tuple[tuple[FloatArray, FloatArray], ...]:
+    def _model(self, dt: float) -> tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]:
         model = self._models.get(dt)
         if model is None:
             if len(self._models) >= 256:
                 self._models.clear()
-            model = tuple(
+            per_mode = tuple(
                 (transition(dt, ca), process_noise(dt, ca, self._psd[j]))
                 for j, ca in enumerate((False, True))
             )
+            model = (switch_matrix(dt, *self._sojourn), per_mode)
             self._models[dt] = model
         return model
 
@@ -110,14 +122,13 @@ class ImmFilter:
         """Mix, then predict each mode dt ahead; returns the modes and their probabilities."""
         if dt <= 0.0:
             return xs, Ps, mu
-        x0s, P0s, cbar = mix(xs, Ps, mu, switch_matrix(dt, *self._sojourn))
-        kf = self._kf
+        M, models = self._model(dt)
+        x0s, P0s, cbar = mix(xs, Ps, mu, M)
         out_x, out_P = [], []
-        for j, (F, Q) in enumerate(self._model(dt)):
-            kf.x, kf.P = x0s[j].copy(), P0s[j].copy()
-            kf.predict(F=F, Q=Q)
-            out_x.append(kf.x.copy())
-            out_P.append(0.5 * (kf.P + kf.P.T))
+        for j, (F, Q) in enumerate(models):
+            x, P = kf_predict(x0s[j], P0s[j], F, Q)
+            out_x.append(x)
+            out_P.append(0.5 * (P + P.T))
         return tuple(out_x), tuple(out_P), cbar
 
     def update(
