@@ -1,6 +1,11 @@
-"""Raw zenoh-python one-way hop latency between two processes (baseline for the benchmarks).
+"""Raw zenoh-python latency between two processes (baselines for the runtime benchmark).
 
-Prints "p50_us p99_us". The child publishes CLOCK_MONOTONIC stamps (system-wide on Linux).
+    _raw_hop.py N        one-way hop, peer to peer: prints "p50_us p99_us"
+    _raw_hop.py rtt N    round trip through a router, the shape of a lockstep tick: this
+                         process is a router (as the lockstep coordinator is), the child a
+                         client that answers each ping; prints "p50_us p99_us"
+
+The child publishes CLOCK_MONOTONIC stamps (system-wide on Linux).
 """
 
 from __future__ import annotations
@@ -17,12 +22,20 @@ import numpy as np
 import zenoh
 
 
-def _conf(listen: str | None, connect: str | None) -> zenoh.Config:
+def _conf(listen: str | None, connect: str | None, mode: str = "peer") -> zenoh.Config:
     c = zenoh.Config()
+    c.insert_json5("mode", json.dumps(mode))
     c.insert_json5("scouting/multicast/enabled", "false")
+    c.insert_json5("scouting/delay", "0")
     c.insert_json5("listen/endpoints", json.dumps([listen] if listen else []))
     c.insert_json5("connect/endpoints", json.dumps([connect] if connect else []))
     return c
+
+
+def _endpoint() -> str:
+    with socket.socket() as so:
+        so.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{so.getsockname()[1]}"
 
 
 def child(endpoint: str, n: int) -> None:
@@ -36,10 +49,7 @@ def child(endpoint: str, n: int) -> None:
 
 
 def parent(n: int) -> None:
-    with socket.socket() as so:
-        so.bind(("127.0.0.1", 0))
-        port = so.getsockname()[1]
-    endpoint = f"tcp/127.0.0.1:{port}"
+    endpoint = _endpoint()
     lat: list[int] = []
     done = threading.Event()
 
@@ -61,8 +71,53 @@ def parent(n: int) -> None:
     print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
 
 
+def rtt_child(endpoint: str) -> None:
+    """Answer every ping with a pong, in a Python callback handed to a loop (as a service)."""
+    with zenoh.open(_conf(None, endpoint, "client")) as s:
+        pong = s.declare_publisher("bench/pong", reliability=zenoh.Reliability.RELIABLE)
+        pings = s.declare_subscriber("bench/ping", zenoh.handlers.FifoChannel(16))
+        token = s.liveliness().declare_token("bench/ready")
+        for sample in pings:
+            b = sample.payload.to_bytes()
+            pong.put(b)
+            if not b:
+                break
+        token.undeclare()
+        pings.undeclare()
+
+
+def rtt_parent(n: int) -> None:
+    endpoint = _endpoint()
+    with zenoh.open(_conf(endpoint, None, "router")) as s:
+        ready = threading.Event()
+        live = s.liveliness().declare_subscriber(
+            "bench/ready", lambda smp: ready.set(), history=True
+        )
+        pongs = s.declare_subscriber("bench/pong", zenoh.handlers.FifoChannel(16))
+        ping = s.declare_publisher("bench/ping", reliability=zenoh.Reliability.RELIABLE)
+        proc = subprocess.Popen([sys.executable, __file__, "rtt-child", endpoint])
+        if not ready.wait(30):
+            raise TimeoutError("the pong process did not come up")
+        rtts = []
+        for _ in range(n):
+            t0 = time.monotonic_ns()
+            ping.put(b"p")
+            pongs.recv()
+            rtts.append(time.monotonic_ns() - t0)
+        ping.put(b"")
+        proc.wait(timeout=10)
+        live.undeclare()
+        pongs.undeclare()
+    a = np.array(rtts[100:]) / 1e3
+    print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "child":
         child(sys.argv[2], int(sys.argv[3]))
+    elif sys.argv[1] == "rtt-child":
+        rtt_child(sys.argv[2])
+    elif sys.argv[1] == "rtt":
+        rtt_parent(int(sys.argv[2]))
     else:
         parent(int(sys.argv[1]))

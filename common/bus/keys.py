@@ -55,6 +55,12 @@ class Keys:
         return f"{self.root}/alive/*"
 
     @property
+    def all_streams(self) -> str:
+        """Every <service>/<stream> key of the run: data, stats and acks, but no clock ticks
+        (their keys have more chunks), so a clock that records a run does not hear its own."""
+        return f"{self.root}/*/*"
+
+    @property
     def everything(self) -> str:
         return f"{self.root}/**"
 

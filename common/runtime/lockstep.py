@@ -73,7 +73,7 @@ class Coordinator:
             )
             with Bus(bus_cfg, self.keys) as bus:
                 inbox = Inbox()
-                bus.subscribe(self.keys.everything, inbox)
+                bus.subscribe(self.keys.all_streams, inbox)
                 bus.watch_alive(inbox)
                 tick_pub = TickSender(bus, self.mission.names)
                 bus.declare_alive(CLOCK)

@@ -16,6 +16,10 @@ def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunR
     kind = scenario.runtime.kind
     if kind == "inproc":
         return run_inproc(scenario)
+    from common.runtime.forked import warm_up
+
+    # the fork server imports the services while this process imports them too (2 cores)
+    warm_up()
     if kind == "lockstep":
         from common.runtime.lockstep import run_lockstep
 

@@ -139,7 +139,7 @@ def _run(
     view = MissionView(scenario)
     with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
         inbox = Inbox()
-        bus.subscribe(keys.everything, inbox)
+        bus.subscribe(keys.all_streams, inbox)
         bus.watch_alive(inbox)
         tick_pub = TickSender(bus, load_mission(scenario).names)
         bus.declare_alive(CLOCK)
