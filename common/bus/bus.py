@@ -63,25 +63,17 @@ class _Rejects:
 class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
-    Zenoh callbacks only enqueue raw bytes (they run on Zenoh's threads holding the GIL);
-    decoding happens in `get`, on the caller's thread. Payloads that fail to decode are
-    counted per key and logged once per key; the inbox carries on with the next sample.
+    A Zenoh callback only enqueues the sample itself (SimpleQueue.put, a C call: no Python
+    frame on Zenoh's thread, so it holds the GIL as briefly as possible); reading the key,
+    the payload and the attachment, and decoding, happen in `get`, on the caller's thread.
+    Payloads that fail to decode are counted per key and logged once per key; the inbox
+    carries on with the next sample.
     """
 
     def __init__(self) -> None:
         super().__init__()
-        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness]
-        self._q = queue.SimpleQueue()
-
-    def _on_sample(self, sample: zenoh.Sample) -> None:
-        att = sample.attachment
-        self._q.put(
-            (
-                str(sample.key_expr),
-                sample.payload.to_bytes(),
-                att.to_bytes() if att is not None else None,
-            )
-        )
+        self._q: queue.SimpleQueue[zenoh.Sample | Liveliness] = queue.SimpleQueue()
+        self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
@@ -98,11 +90,14 @@ class Inbox(_Rejects):
         while True:
             if isinstance(item, Liveliness):
                 return item
-            key, payload, att = item
+            key = str(item.key_expr)
             try:
-                return Received(key, decode(payload), att)
+                msg = decode(item.payload.to_bytes())
             except WireError as exc:
                 self._reject(key, str(exc))
+            else:
+                att = item.attachment
+                return Received(key, msg, att.to_bytes() if att is not None else None)
             try:
                 if deadline is None:
                     item = self._q.get()
