@@ -30,31 +30,37 @@ def check_range(name: str, value: float, lo: float | None = None, hi: float | No
         raise WireError(f"{name}: {value!r} is out of range (must be <= {hi})")
 
 
-def _compile_finite_test(cls: type) -> Callable[[Any], bool]:
-    """A function telling whether every float (and float-tuple) field of a `cls` is finite.
+def _compile_common_test(cls: type) -> Callable[[Any], bool]:
+    """A function telling whether a `cls` passes the checks every record shares: each float
+    (and float-tuple) field finite, and a message's seq in [0, 2**63).
 
     Generated once per class, the way dataclasses generate __init__: one sum over the fields
     by plain attribute access costs ~0.1 us, where a loop of getattr calls costs ~1 us, and
     every message pays it twice (when built and when decoded). x - x is 0.0 for a finite sum
     and NaN otherwise. A sum can also overflow to inf with every item finite: the caller's
-    field-by-field pass then finds nothing wrong and lets the record through.
+    field-by-field pass (_name_the_problem) then finds nothing wrong and lets it through.
     """
     hints = typing.get_type_hints(cls)
     names = [f.name for f in msgspec.structs.fields(cls)]
     terms = [f"r.{n}" for n in names if hints[n] is float]
     terms += [f"sum(r.{n})" for n in names if hints[n] == tuple[float, ...]]
-    src = f"def finite(r):\n    t = {' + '.join(terms) or '0.0'}\n    return t - t == 0.0\n"
+    test = "t - t == 0.0"
+    if "seq" in names:
+        test += f" and 0 <= r.seq < {2**63}"
+    src = f"def ok(r):\n    t = {' + '.join(terms) or '0.0'}\n    return {test}\n"
     scope: dict[str, Any] = {}
-    exec(compile(src, f"<finite test of {cls.__name__}>", "exec"), scope)  # noqa: S102
-    finite: Callable[[Any], bool] = scope["finite"]
-    return finite
+    exec(compile(src, f"<common checks of {cls.__name__}>", "exec"), scope)  # noqa: S102
+    ok: Callable[[Any], bool] = scope["ok"]
+    return ok
 
 
-def _name_the_nonfinite(rec: Any) -> None:
-    """Raise WireError naming the first NaN or infinite float field of `rec`, if any."""
+def _name_the_problem(rec: Any) -> None:
+    """Raise WireError naming the first out-of-range seq, NaN or infinite float of `rec`."""
     hints = typing.get_type_hints(type(rec))
     for f in msgspec.structs.fields(type(rec)):
         v = getattr(rec, f.name)
+        if f.name == "seq" and not 0 <= v < 2**63:
+            raise WireError(f"seq: {v!r} is out of range (must be >= 0 and < 2**63)")
         if hints[f.name] is float:
             check_finite(f.name, v)
         elif hints[f.name] == tuple[float, ...]:
@@ -62,7 +68,7 @@ def _name_the_nonfinite(rec: Any) -> None:
                 check_finite(f"{f.name}[{i}]", x)
 
 
-_FINITE: dict[type, Callable[[Any], bool]] = {}
+_COMMON: dict[type, Callable[[Any], bool]] = {}
 
 
 class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -77,11 +83,11 @@ class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_field
     """
 
     def __post_init__(self) -> None:
-        finite = _FINITE.get(type(self))
-        if finite is None:
-            finite = _FINITE[type(self)] = _compile_finite_test(type(self))
-        if not finite(self):
-            _name_the_nonfinite(self)
+        ok = _COMMON.get(type(self))
+        if ok is None:
+            ok = _COMMON[type(self)] = _compile_common_test(type(self))
+        if not ok(self):
+            _name_the_problem(self)
         self.validate()
 
     def validate(self) -> None:
@@ -98,10 +104,5 @@ class Message(WireRecord, frozen=True, kw_only=True, tag=True):
 
     stamp: float
     source: str = ""
-    seq: int = 0
+    seq: int = 0  # in [0, 2**63): checked with the floats (WireRecord.__post_init__)
     sent: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.seq < 2**63:
-            raise WireError(f"seq: {self.seq!r} is out of range (must be >= 0 and < 2**63)")
-        super().__post_init__()

@@ -79,12 +79,15 @@ def replace(msg: Message, **changes: Any) -> Message:
 
 def decode(data: bytes) -> Message:
     """Parse and validate bytes into a message; any problem raises WireError, nothing else."""
-    if not isinstance(data, (bytes, bytearray, memoryview)):  # a tuple: faster than a union
+    if type(data) is not bytes and not isinstance(data, (bytearray, memoryview)):
         raise WireError(f"expected bytes, got {type(data).__name__}")
-    if len(data) == 0:
-        raise WireError("empty payload")
-    if len(data) > _MAX_BYTES:
-        raise WireError(f"payload of {len(data)} bytes exceeds the {_MAX_BYTES}-byte limit")
+    n = len(data)
+    if n == 0 or n > _MAX_BYTES:
+        raise WireError(
+            "empty payload"
+            if n == 0
+            else f"payload of {n} bytes exceeds the {_MAX_BYTES}-byte limit"
+        )
     try:
         frame = _CODEC.decode(data)
     except msgspec.ValidationError as exc:  # a subclass of DecodeError: test it first
