@@ -106,7 +106,7 @@ class EstimatorCore:
             theta=float(x[2]),
             v=float(x[3]),
             w=float(x[4]),
-            covariance=tuple(float(v) for v in P.ravel()),  # row-major
+            covariance=tuple(P.ravel().tolist()),  # Python floats, row-major
         )
         tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]

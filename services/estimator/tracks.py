@@ -18,6 +18,7 @@ FloatArray = NDArray[np.float64]
 # filter state [x, vx, ax, y, vy, ay]; published as Track fields and covariance in the
 # order [x, y, vx, vy, ax, ay]
 _TO_MSG = np.array([0, 3, 1, 4, 2, 5])
+_TO_MSG_2D = np.ix_(_TO_MSG, _TO_MSG)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -127,7 +128,7 @@ class ObstacleTracker:
         live = self.live(state, t)
         for oid in sorted(live):
             x, P = self.predict(live[oid], t)
-            xm, Pm = x[_TO_MSG], P[np.ix_(_TO_MSG, _TO_MSG)]
+            xm, Pm = x[_TO_MSG], P[_TO_MSG_2D]
             out.append(
                 Track(
                     id=oid,
@@ -138,7 +139,7 @@ class ObstacleTracker:
                     ax=float(xm[4]),
                     ay=float(xm[5]),
                     radius=max(0.0, live[oid].radius),
-                    covariance=tuple(float(v) for v in Pm.ravel()),
+                    covariance=tuple(Pm.ravel().tolist()),  # Python floats, row-major
                 )
             )
         return tuple(out)
