@@ -68,3 +68,28 @@ def test_an_unguarded_main_script_is_not_run_again_in_the_children(tmp_path: Pat
     assert out.stdout.count("script top level") == 1
     assert "script top level" not in log.read_text()
     assert "child argv ['exit', '0']" in log.read_text()
+
+
+def test_a_daemonic_process_starts_its_services_by_spawning(tmp_path: Path) -> None:
+    # Dask workers are daemonic, and multiprocessing forbids them children of their own: a
+    # lockstep run there must still start its services (as fresh interpreters)
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    result: multiprocessing.Queue[int] = ctx.Queue()
+    proc = ctx.Process(target=_daemon_body, args=(str(tmp_path), result), daemon=True)
+    proc.start()
+    try:
+        assert result.get(timeout=60) == 4
+    finally:
+        proc.join(timeout=30)
+    assert "child argv ['exit', '4']" in (tmp_path / "from-daemon.log").read_text()
+
+
+def _daemon_body(log_dir: str, result: object) -> None:
+    from helpers.fork_target import fork_from_a_daemon
+
+    # the spawned interpreter finds the helper module as an installed one would be found
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(TESTS)])
+
+    result.put(fork_from_a_daemon(log_dir))  # type: ignore[attr-defined]

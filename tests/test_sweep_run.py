@@ -127,9 +127,11 @@ def test_rerunning_a_finished_sweep_runs_nothing(smoke: tuple[Experiment, SweepR
     assert (rep.out / "results.csv").read_bytes() == before
 
 
+@pytest.mark.parametrize("runtime", ["inproc", "lockstep"])
 def test_a_dask_cluster_runs_the_same_runs(
-    smoke: tuple[Experiment, SweepReport], tmp_path: Path
+    smoke: tuple[Experiment, SweepReport], tmp_path: Path, runtime: str
 ) -> None:
+    # Dask workers are daemonic: a lockstep run there spawns its services (no fork server)
     from distributed import LocalCluster
 
     exp, rep = smoke
@@ -142,7 +144,7 @@ def test_a_dask_cluster_runs_the_same_runs(
             sub,
             "sub",
             SweepOptions(
-                out=tmp_path, runtime="inproc", rich=False, scheduler=cluster.scheduler_address
+                out=tmp_path, runtime=runtime, rich=False, scheduler=cluster.scheduler_address
             ),
         )
     assert (got.total, got.ran, got.errors) == (2, 2, 0)

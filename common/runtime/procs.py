@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
 import signal
 import socket
@@ -123,7 +124,13 @@ def spawn(
 def fork(name: str, module: str, argv: list[str], log_dir: Path) -> Child:
     """Start `module.main(argv)` forked from the pre-imported fork server (common.runtime.forked),
     logging to log_dir/<name>.log: like spawn(name, ["-m", module, *argv]), without the
-    interpreter start-up and imports. For local service processes of a run."""
+    interpreter start-up and imports. For local service processes of a run.
+
+    In a daemonic process (a Dask worker running a sweep's run, say), which multiprocessing
+    forbids to have children of its own, it is exactly that spawn instead.
+    """
+    if multiprocessing.current_process().daemon:
+        return spawn(name, ["-m", module, *argv], log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
     log_path = log_dir / f"{name}.log"
     return Child(name, fork_module(module, argv, log_path), log_path)

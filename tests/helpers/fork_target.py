@@ -14,3 +14,17 @@ def main(argv: list[str]) -> int:
         return int(argv[1])
     signal.pause()
     return 0
+
+
+def fork_from_a_daemon(log_dir: str) -> int:
+    """In a daemonic process: start this module the way a run starts a service; its code."""
+    from pathlib import Path
+
+    from common.runtime.procs import fork
+
+    child = fork("from-daemon", "helpers.fork_target", ["exit", "4"], Path(log_dir))
+    return child.proc.wait(timeout=60)
+
+
+if __name__ == "__main__":  # as a service module is run when spawned: python -m module args
+    sys.exit(main(sys.argv[1:]))
