@@ -195,23 +195,6 @@ def test_a_process_with_open_subscribers_exits_promptly_on_a_signal(sig: signal.
     assert gone == Liveliness(keys.alive(PEER), False), f"{gone!r} after {gone_s:.3f} s"
 
 
-class _Payload:
-    def __init__(self, data: bytes) -> None:
-        self.data = data
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-class _FakeSample:
-    """What the Inbox reads of a zenoh.Sample: key_expr, payload, attachment."""
-
-    def __init__(self, key: str, data: bytes) -> None:
-        self.key_expr = key
-        self.payload = _Payload(data)
-        self.attachment = None
-
-
 class _GarbageTrickle:
     """Stands in for the Inbox queue: garbage arrives after half of any wait; none is queued."""
 
@@ -220,7 +203,7 @@ class _GarbageTrickle:
         self.calls = 0
         self.delivered = 0
 
-    def get(self, timeout: float | None = None) -> _FakeSample:
+    def get(self, timeout: float | None = None) -> tuple[str, bytes, None]:
         self.calls += 1
         assert self.calls < 1000, "Inbox.get keeps waiting while garbage trickles in"
         assert timeout is not None, "Inbox.get lost its timeout"
@@ -228,7 +211,7 @@ class _GarbageTrickle:
             raise queue.Empty  # nothing is waiting right now
         self.clock[0] += timeout / 2 + 1e-3
         self.delivered += 1
-        return _FakeSample("tidelink/r/v/peer/nav", b"\xc1")
+        return ("tidelink/r/v/peer/nav", b"\xc1", None)
 
 
 def test_inbox_get_honours_its_timeout_while_garbage_trickles_in(

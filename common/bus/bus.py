@@ -63,17 +63,27 @@ class _Rejects:
 class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
-    A Zenoh callback only enqueues the sample itself (SimpleQueue.put, a C call: no Python
-    frame on Zenoh's thread, so it holds the GIL as briefly as possible); reading the key,
-    the payload and the attachment, and decoding, happen in `get`, on the caller's thread.
-    Payloads that fail to decode are counted per key and logged once per key; the inbox
-    carries on with the next sample.
+    Zenoh callbacks only enqueue plain data (key, payload bytes, attachment bytes): they run
+    on Zenoh's threads holding the GIL, so they do little, and no Zenoh object outlives its
+    callback. Decoding happens in `get`, on the caller's thread. Payloads that fail to
+    decode are counted per key and logged once per key; the inbox carries on with the next
+    sample.
     """
 
     def __init__(self) -> None:
         super().__init__()
-        self._q: queue.SimpleQueue[zenoh.Sample | Liveliness] = queue.SimpleQueue()
-        self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
+        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness]
+        self._q = queue.SimpleQueue()
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        att = sample.attachment
+        self._q.put(
+            (
+                str(sample.key_expr),
+                sample.payload.to_bytes(),
+                None if att is None else att.to_bytes(),
+            )
+        )
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
@@ -90,14 +100,11 @@ class Inbox(_Rejects):
         while True:
             if isinstance(item, Liveliness):
                 return item
-            key = str(item.key_expr)
+            key, payload, att = item
             try:
-                msg = decode(item.payload.to_bytes())
+                return Received(key, decode(payload), att)
             except WireError as exc:
                 self._reject(key, str(exc))
-            else:
-                att = item.attachment
-                return Received(key, msg, att.to_bytes() if att is not None else None)
             try:
                 if deadline is None:
                     item = self._q.get()
