@@ -8,7 +8,7 @@ import threading
 import time
 from collections.abc import Callable
 from types import TracebackType
-from typing import Any
+from typing import Any, NamedTuple
 
 import msgspec
 import zenoh
@@ -60,33 +60,53 @@ class _Rejects:
             )
 
 
+class _Plain(NamedTuple):
+    """A received sample as plain data (what a closed bus leaves in an inbox)."""
+
+    key: str
+    payload: bytes
+    attachment: bytes | None
+
+
 class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
-    Zenoh callbacks only enqueue plain data (key, payload bytes, attachment bytes): they run
-    on Zenoh's threads holding the GIL, so they do little, and no Zenoh object outlives its
-    callback. Decoding happens in `get`, on the caller's thread. Payloads that fail to
-    decode are counted per key and logged once per key; the inbox carries on with the next
-    sample.
+    A Zenoh callback only enqueues the sample itself (SimpleQueue.put, a C call: no Python
+    frame on Zenoh's thread, so it holds the GIL as briefly as possible); reading the key,
+    payload and attachment, and decoding, happen in `get`, on the caller's thread. When the
+    bus closes, samples still queued are turned into plain data (`_detach`), so no Zenoh
+    object outlives the session. Payloads that fail to decode are counted per key and
+    logged once per key; the inbox carries on with the next sample.
     """
 
     def __init__(self) -> None:
         super().__init__()
-        self._q: queue.SimpleQueue[tuple[str, bytes, bytes | None] | Liveliness]
-        self._q = queue.SimpleQueue()
-
-    def _on_sample(self, sample: zenoh.Sample) -> None:
-        att = sample.attachment
-        self._q.put(
-            (
-                str(sample.key_expr),
-                sample.payload.to_bytes(),
-                None if att is None else att.to_bytes(),
-            )
-        )
+        self._q: queue.SimpleQueue[zenoh.Sample | _Plain | Liveliness] = queue.SimpleQueue()
+        self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+    def _detach(self) -> None:
+        """Replace the queued Zenoh samples by plain data, keeping their order."""
+        items = []
+        while True:
+            try:
+                items.append(self._q.get_nowait())
+            except queue.Empty:
+                break
+        for item in items:
+            if isinstance(item, Liveliness | _Plain):
+                self._q.put(item)
+            else:
+                att = item.attachment
+                self._q.put(
+                    _Plain(
+                        str(item.key_expr),
+                        item.payload.to_bytes(),
+                        None if att is None else att.to_bytes(),
+                    )
+                )
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
@@ -100,7 +120,13 @@ class Inbox(_Rejects):
         while True:
             if isinstance(item, Liveliness):
                 return item
-            key, payload, att = item
+            if isinstance(item, tuple):  # _Plain: queued when the bus closed
+                key, payload, att = item
+            else:
+                key = str(item.key_expr)
+                payload = item.payload.to_bytes()
+                zatt = item.attachment
+                att = None if zatt is None else zatt.to_bytes()
             try:
                 return Received(key, decode(payload), att)
             except WireError as exc:
@@ -173,6 +199,7 @@ class Bus:
         self.low_latency = low_latency
         self._session: zenoh.Session | None = None
         self._declared: list[Any] = []
+        self._inboxes: list[Inbox] = []  # fed by this bus: detached from Zenoh when it closes
         self._lock = threading.Lock()
 
     def __enter__(self) -> Bus:
@@ -194,14 +221,19 @@ class Bus:
         """Undeclare everything, then close the session (a left-open callback hangs exit)."""
         with self._lock:
             declared, self._declared = self._declared, []
+            inboxes, self._inboxes = self._inboxes, []
             session, self._session = self._session, None
         for obj in reversed(declared):
             try:
                 obj.undeclare()
             except Exception as exc:  # noqa: BLE001 - closing must go on whatever one object says
                 log.debug("undeclare failed: %s", exc)
+        for inbox in inboxes:
+            inbox._detach()
         if session is not None:
             session.close()
+        for inbox in inboxes:  # anything a callback thread was still handing over
+            inbox._detach()
 
     def _keep(self, obj: Any) -> Any:
         with self._lock:
@@ -226,6 +258,9 @@ class Bus:
         """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it)."""
         handler = zenoh.handlers.Callback(inbox._on_sample, indirect=not self.low_latency)
         self._keep(self.session.declare_subscriber(key_expr, handler))
+        with self._lock:
+            if inbox not in self._inboxes:
+                self._inboxes.append(inbox)
 
     def subscribe_stream(self, service: str, stream: str, inbox: Inbox) -> None:
         self.subscribe(self.keys.stream(service, stream), inbox)
