@@ -68,6 +68,14 @@ class _Plain(NamedTuple):
     attachment: bytes | None
 
 
+def _plain(sample: zenoh.Sample) -> _Plain:
+    """The key, payload and attachment of a Zenoh sample, as plain Python data."""
+    att = sample.attachment
+    return _Plain(
+        str(sample.key_expr), sample.payload.to_bytes(), None if att is None else att.to_bytes()
+    )
+
+
 class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
@@ -96,17 +104,7 @@ class Inbox(_Rejects):
             except queue.Empty:
                 break
         for item in items:
-            if isinstance(item, Liveliness | _Plain):
-                self._q.put(item)
-            else:
-                att = item.attachment
-                self._q.put(
-                    _Plain(
-                        str(item.key_expr),
-                        item.payload.to_bytes(),
-                        None if att is None else att.to_bytes(),
-                    )
-                )
+            self._q.put(item if isinstance(item, Liveliness | _Plain) else _plain(item))
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
@@ -120,13 +118,8 @@ class Inbox(_Rejects):
         while True:
             if isinstance(item, Liveliness):
                 return item
-            if isinstance(item, tuple):  # _Plain: queued when the bus closed
-                key, payload, att = item
-            else:
-                key = str(item.key_expr)
-                payload = item.payload.to_bytes()
-                zatt = item.attachment
-                att = None if zatt is None else zatt.to_bytes()
+            # a tuple (_Plain) was queued when the bus closed; the rest are Zenoh samples
+            key, payload, att = item if isinstance(item, tuple) else _plain(item)
             try:
                 return Received(key, decode(payload), att)
             except WireError as exc:
@@ -153,15 +146,14 @@ class TypedCallback(_Rejects):
         self._on_message = on_message
 
     def __call__(self, sample: zenoh.Sample) -> None:
-        key = str(sample.key_expr)
+        key, payload, att = _plain(sample)
         try:
-            msg = decode(sample.payload.to_bytes())
+            msg = decode(payload)
         except WireError as exc:
             self._reject(key, str(exc))
             return
-        att = sample.attachment
         try:
-            self._on_message(Received(key, msg, att.to_bytes() if att is not None else None))
+            self._on_message(Received(key, msg, att))
         except Exception:  # noqa: BLE001 - one bad message must not end the subscription
             log.exception("subscriber callback failed on %s", key)
 
