@@ -52,7 +52,7 @@ import zenoh
 from common.bus import Bus, Inbox, Keys, Received
 from common.config.bus import BusConfig
 from common.messages import NavFix, encode
-from common.runtime.procs import free_port
+from common.runtime.processes.children import free_port
 
 TWINS = {"typed-inbox": "raw-queue", "typed-callback": "raw-callback"}
 RAWS = ("raw-queue", "raw-callback", "raw-fifo")

@@ -12,7 +12,8 @@
    router, event-driven cores), against the raw Zenoh one-way hop latency measured here.
 
 The first lockstep call of a process also starts the fork server its services are forked
-from (common.runtime.forked: ~1 s of imports); later calls find it running. Both are shown.
+from (common.runtime.processes.forkserver: ~1 s of imports); later calls find it running.
+Both are shown.
 """
 
 from __future__ import annotations
@@ -32,24 +33,24 @@ import numpy as np
 
 from common.config.scenario import load_scenario
 from common.messages import VehicleStatus
-from common.runtime.inproc import run_inproc
-from common.runtime.lockstep import run_lockstep
-from common.runtime.realtime import run_realtime
+from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.distributed.realtime_driver import run_realtime
+from common.runtime.model.inproc import run_inproc
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNTIMES = ("inproc", "lockstep")
 LOOP_TOML = """
 [run]
-mission = "common.runtime.testloop:TestLoop"
+mission = "tests.helpers.testloop:TestLoop"
 max_time_s = {seconds}
-[testloop]
+[run.mission_params]
 event_driven = true
 """
 
 
 FLOOR_TOML = """
 [run]
-mission = "common.runtime.testloop:TestLoop"
+mission = "tests.helpers.testloop:TestLoop"
 max_time_s = 30.0
 """
 

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from common.config.scenario import load_scenario
-from common.runtime.inproc import run_inproc
+from common.runtime.model.inproc import run_inproc
 from services.experiments.schema import Experiment
 from services.experiments.sweep import SweepOptions, run_sweep
 

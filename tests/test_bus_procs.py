@@ -30,7 +30,7 @@ from helpers.samples import one_of_each
 
 from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
-from common.runtime.procs import free_port
+from common.runtime.processes.children import free_port
 
 TESTS = Path(__file__).resolve().parent
 WAIT_S = 15.0  # generous upper bound for any one wait; the happy path takes well under 1 s

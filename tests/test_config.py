@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 GOOD = """\
 [run]
 name = "cfgtest"
-mission = "common.runtime.testloop:TestLoop"
+mission = "tests.helpers.testloop:TestLoop"
 max_time_s = 2.0
 seed = 7
 
@@ -203,7 +203,7 @@ def test_overrides_set_nested_keys_and_are_validated(tmp_path: Path) -> None:
 
 
 def test_an_override_creates_a_missing_section(tmp_path: Path) -> None:
-    path = _write(tmp_path, '[run]\nmission = "common.runtime.testloop:TestLoop"\n')
+    path = _write(tmp_path, '[run]\nmission = "tests.helpers.testloop:TestLoop"\n')
     scenario, _ = load_scenario(path, ["runtime.stats_period_s=0.5"])
     assert scenario.runtime.stats_period_s == 0.5
 

@@ -10,7 +10,7 @@ import pytest
 from common.config.controller import ControllerConfig, ControllerKind
 from common.config.vehicle import VehicleConfig
 from common.messages import TruthState, VelocityCommand
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from services.planner.controllers import Circle, Limits, StraightLine, make_controller
 from services.planner.controllers.base import path_errors
 from services.planner.controllers.reference import Reference

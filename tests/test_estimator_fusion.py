@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
 from common.messages import Detection, Message, NavFix, ObstacleDetections, TruthState
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from services.estimator import EstimatorCore
 from services.sensor.models import nav_fix
 
@@ -88,8 +88,8 @@ def test_delayed_300ms_equals_on_time(cfg: EstimatorConfig, later_fixes: bool) -
     fixes, scans = _fixes(60), _scans(30)
     n_fix = 60 if later_fixes else 21  # without later fixes the stream stops at 2.0 s
     n_scan = 30 if later_fixes else 11
-    on_time = EstimatorCore(cfg, START, np.random.default_rng(0))
-    late = EstimatorCore(cfg, START, np.random.default_rng(0))
+    on_time = EstimatorCore(cfg, START)
+    late = EstimatorCore(cfg, START)
     late_fix, late_scan = fixes[20], scans[10]  # both stamped 2.0
     differed = False
     for k in range(60):
@@ -123,10 +123,10 @@ def test_arrival_order_within_buffer_does_not_matter(
 ) -> None:
     # 16 fixes and 8 scans spanning 1.5 s, inside history_s = 2 s
     msgs: list[Message] = [*_fixes(16, seed=5), *_scans(8, seed=6)]
-    in_order = EstimatorCore(cfg, START, np.random.default_rng(0))
+    in_order = EstimatorCore(cfg, START)
     for m in sorted(msgs, key=lambda m: m.stamp):
         _deliver(in_order, m, 1.6)
-    shuffled = EstimatorCore(cfg, START, np.random.default_rng(0))
+    shuffled = EstimatorCore(cfg, START)
     for i in order:
         _deliver(shuffled, msgs[i], 1.6)
     for t in (1.6, 2.5):
@@ -136,7 +136,7 @@ def test_arrival_order_within_buffer_does_not_matter(
 
 def test_measurements_older_than_history_are_rejected_and_counted() -> None:
     cfg = EstimatorConfig(history_s=2.0)
-    core = EstimatorCore(cfg, START, np.random.default_rng(0))
+    core = EstimatorCore(cfg, START)
     fixes = _fixes(101)
     for f in fixes[21:]:  # stamps 2.1 .. 10.0
         _deliver(core, f, f.stamp)
@@ -155,8 +155,8 @@ def test_measurements_older_than_history_are_rejected_and_counted() -> None:
 
 
 def test_duplicates_are_dropped() -> None:
-    once = EstimatorCore(EstimatorConfig(), START, np.random.default_rng(0))
-    twice = EstimatorCore(EstimatorConfig(), START, np.random.default_rng(0))
+    once = EstimatorCore(EstimatorConfig(), START)
+    twice = EstimatorCore(EstimatorConfig(), START)
     fixes, scans = _fixes(10), _scans(5)
     for m in [*fixes, *scans]:
         _deliver(once, m, 1.0)
@@ -168,7 +168,7 @@ def test_duplicates_are_dropped() -> None:
 
 
 def test_estimate_is_predicted_to_step_time() -> None:
-    core = EstimatorCore(EstimatorConfig(), START, np.random.default_rng(0))
+    core = EstimatorCore(EstimatorConfig(), START)
     for f in _fixes(51):  # up to 5.0 s
         _deliver(core, f, f.stamp)
     x5 = _outputs(core, 5.0)

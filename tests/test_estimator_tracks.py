@@ -11,7 +11,7 @@ from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
 from common.config.world import MovingObstacleConfig, WorldConfig
 from common.messages import Detection, ObstacleDetections, ObstacleTracks, Track, TruthState
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from common.world import World
 from services.estimator import EstimatorCore
 from services.estimator.imm import (
@@ -44,7 +44,7 @@ WEAVER = MovingObstacleConfig(
 def _simulate(world: World, seed: int, T: float, every: float = 0.1) -> list[ObstacleTracks]:
     """Sensor (defaults) on a vehicle at rest at (5, 20) facing +x, feeding the estimator."""
     sensor = SensorCore(SensorConfig(), world, np.random.default_rng(seed))
-    est = EstimatorCore(EstimatorConfig(), (5.0, 20.0, 0.0), np.random.default_rng(0))
+    est = EstimatorCore(EstimatorConfig(), (5.0, 20.0, 0.0))
     out = []
     for k in range(round(T / 0.1) + 1):
         t = round(0.1 * k, 9)

@@ -1,4 +1,4 @@
-"""Service processes forked from the pre-imported fork server (common.runtime.forked)."""
+"""Service processes forked from the pre-imported fork server (runtime.processes.forkserver)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from common.runtime.forked import fork_module
-from common.runtime.procs import fork, stop_all
+from common.runtime.processes.children import fork, stop_all
+from common.runtime.processes.forkserver import fork_module
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -55,7 +55,7 @@ def test_an_unguarded_main_script_is_not_run_again_in_the_children(tmp_path: Pat
     log = tmp_path / "child.log"
     script.write_text(
         "from pathlib import Path\n"
-        "from common.runtime.forked import fork_module\n"
+        "from common.runtime.processes.forkserver import fork_module\n"
         "print('script top level', flush=True)\n"
         f"p = fork_module('helpers.fork_target', ['exit', '0'], Path({str(log)!r}))\n"
         "raise SystemExit(p.wait(timeout=30))\n"

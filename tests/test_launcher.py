@@ -2,7 +2,7 @@
 
 Each test drives the real CLI in its own session and synchronises on the lines the launcher
 prints (helpers/launch_proc.py), on pids.json and on process exits, always with timeouts.
-The runtime self-test loop (common.runtime.testloop) keeps most of these fast.
+The runtime self-test loop (tests.helpers.testloop) keeps most of these fast.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import pytest
 from helpers.launch_proc import REPO, Tidelink, alive, kill_recorded, processes_mentioning
 
 from common.config.scenario import load_scenario
-from common.runtime.inproc import run_inproc
-from common.runtime.procs import free_port
+from common.runtime.model.inproc import run_inproc
+from common.runtime.processes.children import free_port
 from common.runtime.run import write_outputs
 
 pytestmark = pytest.mark.slow
@@ -27,11 +27,11 @@ pytestmark = pytest.mark.slow
 WAIT_S = 45.0  # upper bound on any one wait; the happy paths take a few seconds
 TESTLOOP = """
 [run]
-mission = "common.runtime.testloop:TestLoop"
+mission = "tests.helpers.testloop:TestLoop"
 max_time_s = {max_time}
 [runtime]
 time_scale = {scale}
-[testloop]
+[run.mission_params]
 crash_service = "{crash}"
 crash_at_s = 1.0
 """

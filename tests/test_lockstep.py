@@ -10,9 +10,10 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from common.runtime.inproc import run_inproc
-from common.runtime.lockstep import ServiceFailed, run_lockstep
-from common.runtime.realtime import run_realtime
+from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.distributed.realtime_driver import run_realtime
+from common.runtime.model.inproc import run_inproc
+from common.runtime.processes.supervisor import ServiceFailed
 
 pytestmark = pytest.mark.slow
 
@@ -57,7 +58,11 @@ def test_a_dead_service_fails_lockstep_fast_and_names_it(
     testloop_toml: Path, tmp_path: Path
 ) -> None:
     s, raw = load_scenario(
-        testloop_toml, overrides=['testloop.crash_service="filter"', "testloop.crash_at_s=2.0"]
+        testloop_toml,
+        overrides=[
+            'run.mission_params.crash_service="filter"',
+            "run.mission_params.crash_at_s=2.0",
+        ],
     )
     t0 = time.monotonic()
     with pytest.raises(ServiceFailed, match=r"service 'filter' exited with code 3"):
@@ -78,7 +83,7 @@ def test_lockstep_equals_inproc_with_event_driven_cores(
     testloop_toml: Path, tmp_path: Path
 ) -> None:
     """Wake inputs: time advances to each modelled delivery, not only to periodic steps."""
-    s, raw = load_scenario(testloop_toml, overrides=["testloop.event_driven=true"])
+    s, raw = load_scenario(testloop_toml, overrides=["run.mission_params.event_driven=true"])
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
     assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from common.runtime.inproc import run_inproc
-from common.runtime.lockstep import run_lockstep
+from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.model.inproc import run_inproc
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from common.config.scenario import load_scenario
 from common.messages import PathMsg, StateEstimate, VelocityCommand
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from services.planner.core import PlannerCore
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"

@@ -10,20 +10,20 @@ from common.config.network import NetworkConfig
 from common.config.scenario import load_scenario
 from common.messages import TruthState, VelocityCommand, decode
 from common.netmodel import NetworkModel
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
-from common.runtime.dataflow import Dataflow, DataflowError
-from common.runtime.host import Host
-from common.runtime.inproc import run_inproc
+from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
+from common.runtime.model.dataflow import (
+    CoreContext,
+    Dataflow,
+    DataflowError,
+    Input,
+    Output,
+    Service,
+)
+from common.runtime.model.host import NEVER, Host
+from common.runtime.model.inproc import run_inproc
 
 
 class Talker:
-    def __init__(self) -> None:
-        self.spec = CoreSpec(
-            name="talker",
-            outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
-            period_s=0.1,
-        )
-
     def deliver(self, d: Delivery) -> list[Emit]:
         return []
 
@@ -32,14 +32,7 @@ class Talker:
 
 
 class Listener:
-    def __init__(self, policy: QueuePolicy, period: float = 0.1) -> None:
-        self.spec = CoreSpec(
-            name="listener",
-            period_s=period,
-            inputs=(
-                InputSpec(source="talker", stream="cmd", msg_type=VelocityCommand, policy=policy),
-            ),
-        )
+    def __init__(self) -> None:
         self.got: list[tuple[float, float]] = []  # (delivery time, stamp)
         self.steps: list[float] = []
 
@@ -52,13 +45,32 @@ class Listener:
         return []
 
 
-def _pair(policy: QueuePolicy, listener_period: float = 0.1) -> tuple[Host, Host, Listener]:
-    talker, listener = Talker(), Listener(policy, listener_period)
-    flow = Dataflow.of([talker.spec, listener.spec])
+def _unused(ctx: CoreContext) -> ServiceCore:
+    raise AssertionError("these tests build their cores themselves")
+
+
+TALKER = Service(
+    name="talker",
+    factory=_unused,
+    outputs=(Output(stream="cmd", msg_type=VelocityCommand),),
+    period_s=0.1,
+)
+
+
+def _listener(
+    policy: QueuePolicy = QueuePolicy.ALL, period: float | None = 0.1, wake: bool = False
+) -> Service:
+    cmd = Input(source="talker", stream="cmd", msg_type=VelocityCommand, policy=policy, wake=wake)
+    return Service(name="listener", factory=_unused, period_s=period, inputs=(cmd,))
+
+
+def _pair(service: Service) -> tuple[Host, Host, Listener]:
+    flow = Dataflow.declare(TALKER, service)
+    listener = Listener()
     net = NetworkConfig()
     return (
-        Host(talker, flow, NetworkModel(net, seed=1)),
-        Host(listener, flow, NetworkModel(net, seed=1)),
+        Host(flow, "talker", Talker(), NetworkModel(net, seed=1)),
+        Host(flow, "listener", listener, NetworkModel(net, seed=1)),
         listener,
     )
 
@@ -76,7 +88,7 @@ def _run(th: Host, lh: Host, until_us: int) -> None:
 
 
 def test_zero_delay_message_is_not_delivered_in_the_tick_it_was_sent() -> None:
-    th, lh, listener = _pair(QueuePolicy.ALL)
+    th, lh, listener = _pair(_listener())
     _run(th, lh, 300_000)
     # sent at 0.0 with zero delay: handed over at the listener's next step (0.1), not at 0.0
     assert listener.got[0] == (0.0, 0.0)
@@ -85,7 +97,7 @@ def test_zero_delay_message_is_not_delivered_in_the_tick_it_was_sent() -> None:
 
 
 def test_newest_policy_keeps_only_the_last_delivery_between_steps() -> None:
-    th, lh, listener = _pair(QueuePolicy.NEWEST, listener_period=0.3)
+    th, lh, listener = _pair(_listener(QueuePolicy.NEWEST, period=0.3))
     _run(th, lh, 900_000)
     stamps = [s for _, s in listener.got]
     # steps at 0.0, 0.3, 0.6, 0.9; of the commands stamped 0.0..0.8 only the newest
@@ -94,19 +106,59 @@ def test_newest_policy_keeps_only_the_last_delivery_between_steps() -> None:
     assert lh.superseded == 6
 
 
+def test_an_event_driven_service_steps_only_on_wake_deliveries() -> None:
+    th, lh, listener = _pair(_listener(period=None, wake=True))
+    assert lh.next_event_us() == NEVER  # nothing queued: it never needs a tick
+    _run(th, lh, 300_000)
+    assert listener.steps == []
+    # every command is handed over at its own delivery time (zero delay: its stamp), in the
+    # tick after the one it was sent in, without waiting for a periodic step
+    assert listener.got == [(0.0, 0.0), (0.1, 0.1), (0.2, 0.2), (0.3, 0.3)]
+
+
 def test_dataflow_rejects_an_input_nobody_publishes() -> None:
-    listener = Listener(QueuePolicy.ALL)
     with pytest.raises(DataflowError, match="talker/cmd is not an output"):
-        Dataflow.of([listener.spec])
+        Dataflow.declare(_listener())
 
 
 def test_dataflow_rejects_a_type_mismatch() -> None:
-    talker = Talker()
-    wrong = CoreSpec(
-        name="listener", inputs=(InputSpec(source="talker", stream="cmd", msg_type=TruthState),)
+    wrong = Service(
+        name="listener",
+        factory=_unused,
+        inputs=(Input(source="talker", stream="cmd", msg_type=TruthState),),
     )
     with pytest.raises(DataflowError, match="expects TruthState"):
-        Dataflow.of([talker.spec, wrong])
+        Dataflow.declare(TALKER, wrong)
+
+
+@pytest.mark.parametrize(
+    ("services", "problem"),
+    [
+        ((TALKER, TALKER), "two services are named 'talker'"),
+        ((Service(name="x", factory=_unused, period_s=0.0),), "period_s must be > 0"),
+        ((Service(name="x", factory=_unused, period_s=None),), "needs a wake input"),
+    ],
+)
+def test_dataflow_rejects_a_bad_declaration(services: tuple[Service, ...], problem: str) -> None:
+    with pytest.raises(DataflowError, match=problem):
+        Dataflow.declare(*services)
+
+
+def test_dataflow_describes_services_links_and_types_as_plain_data() -> None:
+    d = Dataflow.declare(TALKER, _listener(QueuePolicy.NEWEST)).describe()
+    assert d["links"] == ["talker/cmd->listener"]
+    listener = next(s for s in d["services"] if s["name"] == "listener")
+    assert listener["inputs"] == [
+        {
+            "source": "talker",
+            "stream": "cmd",
+            "type": "VelocityCommand",
+            "policy": "newest",
+            "wake": False,
+        }
+    ]
+    talker = next(s for s in d["services"] if s["name"] == "talker")
+    assert talker["outputs"] == [{"stream": "cmd", "type": "VelocityCommand"}]
 
 
 def test_inproc_testloop_converges_and_is_repeatable(testloop_toml: Path) -> None:

@@ -10,7 +10,7 @@ import pytest
 from common.config.sensor import SensorConfig
 from common.config.world import CircleObstacleConfig, MovingObstacleConfig, WorldConfig
 from common.messages import NavFix, ObstacleDetections, TruthState
-from common.runtime.core import Delivery, Emit, QueuePolicy
+from common.runtime.model.core import Delivery, Emit
 from common.world import World, paper_field
 from services.sensor import SensorCore
 from services.sensor.models import in_view, wrap_angle
@@ -29,7 +29,7 @@ def _run(
     navs: list[NavFix] = []
     scans: list[ObstacleDetections] = []
     truths: list[TruthState] = []
-    dt = core.spec.period_s
+    dt = core.cfg.period_s
     for k in range(n_steps):
         t = k * dt
         tr = _truth(t - lag_s, x=50.0 + 0.01 * k, th=th)
@@ -39,20 +39,6 @@ def _run(
         navs += [e.msg for e in out if isinstance(e.msg, NavFix)]
         scans += [e.msg for e in out if isinstance(e.msg, ObstacleDetections)]
     return navs, scans, truths
-
-
-def test_spec() -> None:
-    core = SensorCore(SensorConfig(), World(paper_field()), np.random.default_rng(0))
-    assert core.spec.name == "sensor"
-    (inp,) = core.spec.inputs
-    assert (inp.source, inp.stream, inp.msg_type, inp.policy) == (
-        "vehicle",
-        "truth",
-        TruthState,
-        QueuePolicy.NEWEST,
-    )
-    assert {o.stream for o in core.spec.outputs} == {"nav", "obstacles"}
-    assert core.spec.period_s == pytest.approx(0.1)
 
 
 def test_fix_noise_statistics_and_stamps() -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from common.runtime.inproc import run_inproc
+from common.runtime.model.inproc import run_inproc
 from services.cli import main
 from services.experiments.schema import Experiment, load_experiment
 from services.experiments.stats import mean_ci

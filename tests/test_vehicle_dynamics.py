@@ -11,7 +11,7 @@ from scipy.optimize import brentq
 
 from common.config.vehicle import CurrentConfig, VehicleConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from services.vehicle.core import VehicleCore
 from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, drag_n, friction_coefficient

@@ -9,7 +9,7 @@ import pytest
 
 from common.config.vehicle import VehicleConfig, WatchdogConfig
 from common.messages import VehicleStatus, VelocityCommand
-from common.runtime.core import Delivery
+from common.runtime.model.core import Delivery
 from services.vehicle.core import VehicleCore
 from services.vehicle.watchdog import Watchdog
 

@@ -287,3 +287,25 @@ class Bus:
     def put_raw(self, key: str, data: bytes) -> None:
         """Publish raw bytes on a key (tools and tests that must send arbitrary payloads)."""
         self.session.put(key, data)
+
+    def serve(self, key: str, answer: Callable[[], bytes], *, encoding: str) -> None:
+        """Answer every query on `key` with `answer()` (a queryable, so a tool that joins at
+        any time can ask what a run is, e.g. its declared dataflow)."""
+
+        def on_query(query: zenoh.Query) -> None:
+            try:
+                query.reply(key, answer(), encoding=zenoh.Encoding(encoding))
+            except Exception as exc:  # noqa: BLE001 - a callback must not die silently
+                log.warning("queryable %s could not answer: %s", key, exc)
+
+        self._keep(self.session.declare_queryable(key, on_query))
+
+    def query(self, selector: str, *, timeout_s: float) -> list[tuple[str, bytes]]:
+        """(key, payload) of every reply to a query on `selector` within timeout_s."""
+        out = []
+        for reply in self.session.get(selector, timeout=timeout_s):
+            if reply.ok is not None:
+                out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
+            else:
+                log.warning("query %s: error reply %s", selector, reply.err)
+        return out

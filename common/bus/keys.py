@@ -61,6 +61,19 @@ class Keys:
         return f"{self.root}/*/*"
 
     @property
+    def dataflow(self) -> str:
+        """The key a running mission answers queries on with its declared dataflow."""
+        return f"{self.root}/dataflow"
+
+    @staticmethod
+    def dataflow_selector(run: str | None = None, vehicle: str | None = None) -> str:
+        """The dataflow queryables of one run and vehicle, or of any (None: a wildcard)."""
+        for what, v in (("run", run), ("vehicle", vehicle)):
+            if v is not None and not _ID.match(v):
+                raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
+        return f"tidelink/{run or '*'}/{vehicle or '*'}/dataflow"
+
+    @property
     def everything(self) -> str:
         return f"{self.root}/**"
 

@@ -19,6 +19,8 @@ def _type_name(hint: Any) -> str:
         if dataclasses.is_dataclass(inner) and isinstance(inner, type):
             return f"array of tables ({inner.__name__})"
         return f"array of {_type_name(inner)}"
+    if origin is dict:
+        return f"table of {' or '.join(_type_name(a) for a in typing.get_args(args[1]))}"
     if isinstance(hint, type):
         return {float: "number", int: "integer", str: "string", bool: "bool"}.get(
             hint, hint.__name__

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
@@ -19,6 +19,8 @@ class RunConfig:
     max_time_s: float = 300.0  # virtual seconds; the mission ends here if not before
     # "module:Class" of the mission (the cores of the dataflow, its end and its metrics)
     mission: str = "services.mission:AuvMission"
+    # the mission's own parameters ([run.mission_params]), checked by the mission itself
+    mission_params: dict[str, bool | int | float | str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ("name", "vehicle"):
@@ -48,21 +50,3 @@ class RuntimeConfig:
         for name in ("stats_period_s", "start_timeout_s", "tick_timeout_s"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name}: must be > 0")
-
-
-@dataclass(frozen=True, kw_only=True)
-class TestLoopConfig:
-    """The runtime self-test dataflow (common.runtime.testloop): set-point and fault injection."""
-
-    __test__ = False  # not a pytest class
-
-    setpoint: float = 10.0
-    # event-driven: filter and controller react to each delivery at once (wake inputs) and
-    # the plant reports each command's age on arrival, for latency benchmarks
-    event_driven: bool = False
-    crash_service: str = ""  # this service's process exits with code 3 at crash_at_s ...
-    crash_at_s: float = 0.0  # ... so tests can check that a dead service fails the run fast
-
-    def __post_init__(self) -> None:
-        if self.crash_service and self.crash_service not in ("ctrl", "filter", "plant", "sensor"):
-            raise ValueError("crash_service: must be one of ctrl, filter, plant, sensor")

@@ -12,7 +12,7 @@ from common.config.estimator import EstimatorConfig
 from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
 from common.config.network import NetworkConfig
 from common.config.planner import PlannerConfig
-from common.config.run import RunConfig, RuntimeConfig, TestLoopConfig
+from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
@@ -32,7 +32,6 @@ class Scenario:
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
-    testloop: TestLoopConfig = field(default_factory=TestLoopConfig)
 
 
 def load_scenario(

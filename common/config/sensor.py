@@ -58,3 +58,8 @@ class SensorConfig:
     def base_rate_hz(self) -> float:
         """The core's step rate: the faster of the two streams."""
         return max(self.nav_rate_hz, self.obstacle_rate_hz)
+
+    @property
+    def period_s(self) -> float:
+        """The core's step period: 1 / base_rate_hz."""
+        return 1.0 / self.base_rate_hz

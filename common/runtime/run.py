@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from common.config.scenario import Scenario
-from common.runtime.inproc import RunResult, run_inproc
+from common.runtime.model.inproc import run_inproc
+from common.runtime.model.result import RunResult
 
 
 def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunResult:
@@ -16,15 +17,15 @@ def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunR
     kind = scenario.runtime.kind
     if kind == "inproc":
         return run_inproc(scenario)
-    from common.runtime.forked import warm_up
+    from common.runtime.processes.forkserver import warm_up
 
     # the fork server imports the services while this process imports them too (2 cores)
     warm_up()
     if kind == "lockstep":
-        from common.runtime.lockstep import run_lockstep
+        from common.runtime.distributed.lockstep import run_lockstep
 
         return run_lockstep(scenario, raw, log_dir)
-    from common.runtime.realtime import run_realtime
+    from common.runtime.distributed.realtime_driver import run_realtime
 
     return run_realtime(scenario, raw, log_dir)
 

@@ -14,8 +14,14 @@ from typing import Any
 log = logging.getLogger("tidelink")
 
 
-def scenario_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", type=Path, help="scenario TOML file, e.g. configs/default.toml")
+def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
+    p.add_argument(
+        "scenario",
+        type=Path,
+        nargs=None if required else "?",
+        default=None,
+        help="scenario TOML file, e.g. configs/default.toml",
+    )
     p.add_argument(
         "--set",
         dest="overrides",
@@ -29,11 +35,11 @@ def scenario_args(p: argparse.ArgumentParser) -> None:
 
 def cmd_check(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
-    from common.runtime.mission import load_mission
+    from common.runtime.model.mission import load_mission
 
     scenario, _ = load_scenario(a.scenario, a.overrides, a.seed)
-    mission = load_mission(scenario)
-    print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {', '.join(mission.names)})")
+    names = ", ".join(load_mission(scenario).dataflow.names)
+    print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {names})")
     return 0
 
 
@@ -79,7 +85,7 @@ def print_metrics(metrics: dict[str, Any], out: Path) -> None:
 def cmd_router(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import BusConfig
-    from common.runtime.signals import Shutdown, install_shutdown_handlers
+    from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
     install_shutdown_handlers()
     cfg = BusConfig(mode="router", listen=tuple(a.listen))

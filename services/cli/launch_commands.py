@@ -27,13 +27,14 @@ def _runtime_overrides(a: argparse.Namespace) -> list[str]:
 
 def cmd_launch(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
-    from common.runtime.mission import load_mission
-    from services.launcher import LaunchOptions, RestartPolicy, launch, policies_for
-    from services.launcher.interrupt import Interrupted
+    from common.runtime.model.mission import load_mission
+    from common.runtime.processes.policy import RestartPolicy, policies_for
+    from common.runtime.processes.signals import Interrupted
+    from services.launcher import LaunchOptions, launch
     from services.launcher.progress import make_display
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
-    names = load_mission(scenario).names
+    names = load_mission(scenario).dataflow.names
     if a.restart and scenario.runtime.kind == "lockstep":
         raise ValueError(
             "--restart: lockstep runs cannot restart a service (it would lose its "
@@ -65,9 +66,9 @@ def cmd_launch(a: argparse.Namespace) -> int:
 
 def cmd_service(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
-    from common.runtime.lockstep_service import LockstepService
-    from common.runtime.realtime_service import RealtimeService
-    from common.runtime.signals import Shutdown, install_shutdown_handlers
+    from common.runtime.distributed.lockstep_service import LockstepService
+    from common.runtime.distributed.realtime_service import RealtimeService
+    from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
     from services.launcher.router import wait_for_endpoint
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)

@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
 from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from common.runtime.model.core import Delivery, Emit
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
 from services.estimator.tracks import ObstacleTracker, TrackerState
@@ -34,30 +34,10 @@ class EstimatorCore:
     sampling stamps with roll-back for late arrivals; outputs are predicted to the step time.
     """
 
-    def __init__(
-        self, cfg: EstimatorConfig, start: tuple[float, float, float], rng: np.random.Generator
-    ) -> None:
+    def __init__(self, cfg: EstimatorConfig, start: tuple[float, float, float]) -> None:
         self.cfg = cfg
-        self._rng = rng  # the estimator is deterministic; kept for the uniform core signature
         self._filter = make_vehicle_filter(cfg)
         self._tracker = ObstacleTracker(cfg)
-        self.spec = CoreSpec(
-            name="estimator",
-            inputs=(
-                InputSpec(source="sensor", stream="nav", msg_type=NavFix, policy=QueuePolicy.ALL),
-                InputSpec(
-                    source="sensor",
-                    stream="obstacles",
-                    msg_type=ObstacleDetections,
-                    policy=QueuePolicy.ALL,
-                ),
-            ),
-            outputs=(
-                OutputSpec(stream="state", msg_type=StateEstimate),
-                OutputSpec(stream="tracks", msg_type=ObstacleTracks),
-            ),
-            period_s=cfg.period_s,
-        )
         x0 = np.array([start[0], start[1], wrap_angle(start[2]), 0.0, 0.0])
         std0 = (cfg.init_std_xy_m, cfg.init_std_xy_m, cfg.init_std_theta_rad)
         P0 = np.diag(np.square(std0 + (cfg.init_std_v_mps, cfg.init_std_w_rps)))

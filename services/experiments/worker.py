@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from common.config.scenario import scenario_from_raw
-from common.runtime.inproc import RunResult
+from common.runtime.model.inproc import RunResult
 from common.runtime.run import run_scenario, write_outputs
 from services.experiments.grid import RunSpec
 

@@ -16,28 +16,26 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from common.bus import Bus, Inbox, Keys
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
-from common.runtime.inproc import RunResult
-from common.runtime.mission import load_mission
+from common.runtime.distributed import lockstep, realtime_driver
+from common.runtime.distributed.bringup import RELEASE_S, ClockSide, clock_bus, run_keys
+from common.runtime.distributed.lockstep import Coordinator
+from common.runtime.distributed.realtime_driver import RealtimeDriver
+from common.runtime.model.mission import Mission, load_mission
+from common.runtime.model.result import RunResult
+from common.runtime.processes.policy import RestartPolicy
+from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
+from common.runtime.processes.supervisor import Supervisor
 from common.runtime.run import write_outputs
-from common.runtime.service_process import CLOCK
-from common.runtime.ticks import TickSender
-from services.launcher.interrupt import Interrupted, StopRequest, stop_on_signals
-from services.launcher.lockstep_drive import LockstepDriver
 from services.launcher.plot import plot_run
-from services.launcher.policy import RestartPolicy
-from services.launcher.progress import Display, LoggedDisplay, MissionView
-from services.launcher.realtime_drive import RealtimeDriver
+from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
 from services.launcher.router import ROUTER, start_router
-from services.launcher.supervise import Supervisor
 
 SERVICE_MODULES = {
-    "realtime": "common.runtime.realtime_service",
-    "lockstep": "common.runtime.lockstep_service",
+    "realtime": realtime_driver.SERVICE_MODULE,
+    "lockstep": lockstep.SERVICE_MODULE,
 }
-RELEASE_S = 10.0  # for services to leave by themselves at the end, before any signal
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,7 +68,8 @@ def launch(
     kind = scenario.runtime.kind
     if kind not in SERVICE_MODULES:
         raise ValueError(f"runtime.kind: launch runs 'realtime' or 'lockstep', not {kind!r}")
-    names = load_mission(scenario).names
+    mission = load_mission(scenario)
+    names = mission.dataflow.names
     local = names if opts.only is None else opts.only
     unknown = sorted(set(local) - set(names))
     if unknown:
@@ -103,7 +102,9 @@ def launch(
                     f"service NAME SCENARIO --connect {where}{lockstep}` with the same --set, "
                     "--seed and --time-scale"
                 )
-            result = _run(scenario, raw, local, endpoint, scenario_json, opts, sup, display, stop)
+            result = _run(
+                scenario, mission, local, endpoint, scenario_json, opts, sup, display, stop
+            )
         finally:
             grace = 0.5 if stop.hurry else opts.grace_s
             sup.stop_in_order([n for n in sup.names() if n != ROUTER], [ROUTER], grace_s=grace)
@@ -124,7 +125,7 @@ def launch(
 
 def _run(
     scenario: Scenario,
-    raw: dict[str, Any],
+    mission: Mission,
     local: tuple[str, ...],
     endpoint: str,
     scenario_json: Path,
@@ -135,51 +136,38 @@ def _run(
 ) -> RunResult:
     """Join the router, start the local services, run the mission in its runtime."""
     kind = scenario.runtime.kind
-    keys = Keys(scenario.run.name, scenario.run.vehicle)
+    keys = run_keys(scenario)
     view = MissionView(scenario)
-    with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
-        inbox = Inbox()
-        bus.subscribe(keys.all_streams, inbox)
-        bus.watch_alive(inbox)
-        tick_pub = TickSender(bus, load_mission(scenario).names)
-        bus.declare_alive(CLOCK)
+    observer = ProgressObserver(view, display)
+    cfg = BusConfig(mode="client", connect=(endpoint,))
+    with clock_bus(cfg, keys, mission.dataflow) as side:
         for name in local:
-            args = ["-m", SERVICE_MODULES[kind], name, "--scenario-json", str(scenario_json)]
+            argv = [name, "--scenario-json", str(scenario_json), "--connect", endpoint]
+            # a restarted lockstep service would lose its state and the run its determinism
             policy = opts.policies.get(name) if kind == "realtime" else None
-            sup.start(name, [*args, "--connect", endpoint], policy)
+            sup.start(name, ["-m", SERVICE_MODULES[kind], *argv], policy)
         if kind == "lockstep":
-            driver = LockstepDriver(scenario, raw, sup.log_dir, view, display, stop)
-            driver.children = sup.children  # a dead service or router fails the run at once
+            coord = Coordinator(scenario, mission, keys, sup, observer=observer, stop=stop)
             try:
-                return _lockstep(driver, inbox, tick_pub, view, display)
+                return _until_interrupted(coord, side, view)
             finally:
-                bus.close()  # our clock token goes: lockstep services are released and leave
+                side.bus.close()  # our clock token goes: lockstep services are released
                 sup.wait_exited(list(local), RELEASE_S)
-        rt = RealtimeDriver(scenario, load_mission(scenario), keys, sup, view, display, stop)
-        try:
-            rt.await_alive(inbox)
-        except Interrupted:
-            return RunResult("interrupted", 0.0, 0, rt.record, rt.mission.metrics(rt.record))
-        result = rt.drive(inbox, tick_pub)
+        driver = RealtimeDriver(scenario, mission, keys, sup, observer=observer, stop=stop)
+        result = _until_interrupted(driver, side, view)
     # the services leave on the stop Tick: let them close their sessions before any signal
     sup.wait_exited(list(local), RELEASE_S)
     return result
 
 
-def _lockstep(
-    driver: LockstepDriver,
-    inbox: Inbox,
-    tick_pub: TickSender,
-    view: MissionView,
-    display: Display,
+def _until_interrupted(
+    driver: Coordinator | RealtimeDriver, side: ClockSide, view: MissionView
 ) -> RunResult:
+    """Wait for the services and drive the run; a stop request ends it as 'interrupted'."""
     try:
-        driver.await_alive(inbox)
-        display.event("mission clock started (lockstep: virtual time)")
-        result = driver.drive(inbox, tick_pub)
+        driver.await_alive(side.inbox)
+        return driver.drive(side.inbox, side.ticks)
     except Interrupted:
-        display.event(f"mission ended at t={view.t_sim:.2f} s: interrupted")
+        driver.observer.event(f"mission ended at t={view.t_sim:.2f} s: interrupted")
         metrics = driver.mission.metrics(driver.record)
         return RunResult("interrupted", view.t_sim, 0, driver.record, metrics)
-    display.event(f"mission ended at t={result.t_end:.2f} s: {result.reason}")
-    return result

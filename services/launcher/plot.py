@@ -10,7 +10,7 @@ import numpy as np
 
 from common.config.scenario import Scenario
 from common.messages import Message, ObstacleTracks, PathMsg, StateEstimate, TruthState
-from common.runtime.record import Record
+from common.runtime.model.record import Record
 from common.world import World
 from services.mission.metrics import path_points
 

@@ -162,3 +162,23 @@ class LoggedDisplay:
     def close(self) -> None:
         self._fh.close()
         self.inner.close()
+
+
+class ProgressObserver:
+    """The launcher's RunObserver: messages feed the MissionView, which with events and the
+    mission time drives the display."""
+
+    def __init__(self, view: MissionView, display: Display) -> None:
+        self.view = view
+        self.display = display
+
+    def event(self, text: str) -> None:
+        self.display.event(text)
+
+    def message(self, service: str, stream: str, msg: Message) -> None:
+        line = self.view.see(service, stream, msg)
+        if line:
+            self.display.event(line)
+
+    def progress(self, t_s: float) -> None:
+        self.display.update(self.view, t_s)

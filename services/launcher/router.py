@@ -6,9 +6,9 @@ import socket
 import time
 from collections.abc import Callable
 
-from common.runtime.procs import connectable, free_port
-from services.launcher.interrupt import Interrupted
-from services.launcher.supervise import Supervisor, how_it_ended
+from common.runtime.processes.children import connectable, free_port
+from common.runtime.processes.signals import Interrupted
+from common.runtime.processes.supervisor import Supervisor, how_it_ended
 
 ROUTER = "router"
 READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
 from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
-from common.runtime.record import Record, trajectory_sha256
+from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
 from services.planner.nurbs import Nurbs
 

@@ -16,7 +16,7 @@ from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from common.runtime.model.core import Delivery, Emit
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.geometry import Area, Circle, MovingCircle, Obstacles, Polygon, Pose2D
@@ -43,29 +43,6 @@ class PlannerCore:
         period_s: float = 0.1,
         expected_downlink_s: float = 0.0,
     ) -> None:
-        self.spec = CoreSpec(
-            name="planner",
-            inputs=(
-                InputSpec(
-                    source="estimator",
-                    stream="state",
-                    msg_type=StateEstimate,
-                    policy=QueuePolicy.NEWEST,
-                ),
-                InputSpec(
-                    source="estimator",
-                    stream="tracks",
-                    msg_type=ObstacleTracks,
-                    policy=QueuePolicy.NEWEST,
-                ),
-            ),
-            outputs=(
-                OutputSpec(stream="path", msg_type=PathMsg),
-                OutputSpec(stream="cmd", msg_type=VelocityCommand),
-            ),
-            period_s=period_s,
-            offset_s=period_s / 2,  # half a period after the estimator publishes
-        )
         self.cfg = planner
         self.vehicle = vehicle
         self.world = world

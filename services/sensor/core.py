@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from common.config.sensor import SensorConfig
-from common.messages import NavFix, ObstacleDetections, TruthState
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from common.messages import TruthState
+from common.runtime.model.core import Delivery, Emit
 from common.world import World
 from services.sensor.models import NAV_DRAWS, SCAN_DRAWS, nav_fix, scan
 
@@ -24,24 +24,9 @@ class SensorCore:
         self.world = world
         self._rng = rng
         base = cfg.base_rate_hz
+        self._period_s = cfg.period_s
         self._nav_every = round(base / cfg.nav_rate_hz)
         self._obs_every = round(base / cfg.obstacle_rate_hz)
-        self.spec = CoreSpec(
-            name="sensor",
-            inputs=(
-                InputSpec(
-                    source="vehicle",
-                    stream="truth",
-                    msg_type=TruthState,
-                    policy=QueuePolicy.NEWEST,
-                ),
-            ),
-            outputs=(
-                OutputSpec(stream="nav", msg_type=NavFix),
-                OutputSpec(stream="obstacles", msg_type=ObstacleDetections),
-            ),
-            period_s=1.0 / base,
-        )
         self._truth: TruthState | None = None
         self._last_nav = -np.inf
         self._last_scan = -np.inf
@@ -55,7 +40,7 @@ class SensorCore:
 
     def step(self, t: float) -> list[Emit]:
         # integer tick index from the runtime clock: no float accumulation over a long run
-        k = round((t - self.spec.offset_s) / self.spec.period_s)
+        k = round(t / self._period_s)
         truth = self._truth
         out: list[Emit] = []
         if truth is None:

@@ -18,7 +18,7 @@ import numpy as np
 
 from common.config.vehicle import VehicleConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
+from common.runtime.model.core import Delivery, Emit
 from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
 from services.vehicle.watchdog import Applied, Schedule, Verdict, Watchdog
@@ -43,19 +43,6 @@ class VehicleCore:
         *,
         t0: float = 0.0,
     ) -> None:
-        self.spec = CoreSpec(
-            name="vehicle",
-            inputs=(
-                InputSpec(
-                    source="planner", stream="cmd", msg_type=VelocityCommand, policy=QueuePolicy.ALL
-                ),
-            ),
-            outputs=(
-                OutputSpec(stream="truth", msg_type=TruthState),
-                OutputSpec(stream="status", msg_type=VehicleStatus),
-            ),
-            period_s=cfg.period_s,
-        )
         self._cfg = cfg
         self._p = PlantParams.from_config(cfg)
         self._dt = cfg.dt_internal_s

@@ -24,7 +24,7 @@ import msgpack
 from common.bus import Bus, Inbox, Keys, Liveliness
 from common.config.bus import BusConfig
 from common.messages import Message, NavFix
-from common.runtime.signals import Shutdown, install_shutdown_handlers
+from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 from helpers.samples import one_of_each
 
 PARENT = "parent"

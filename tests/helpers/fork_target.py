@@ -20,7 +20,7 @@ def fork_from_a_daemon(log_dir: str) -> int:
     """In a daemonic process: start this module the way a run starts a service; its code."""
     from pathlib import Path
 
-    from common.runtime.procs import fork
+    from common.runtime.processes.children import fork
 
     child = fork("from-daemon", "helpers.fork_target", ["exit", "4"], Path(log_dir))
     return child.proc.wait(timeout=60)

@@ -12,30 +12,30 @@ from typing import Protocol
 from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
 from common.config.scenario import Scenario
 from common.messages import WireError, decode_routing
-from common.runtime.host import STATS_STREAM, Host
-from common.runtime.inproc import build_hosts
-from common.runtime.mission import load_mission
-from common.runtime.signals import Shutdown, install_shutdown_handlers
+from common.runtime.model.host import Host
+from common.runtime.model.inproc import build_host
+from common.runtime.model.mission import load_mission
+from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
 log = logging.getLogger("tidelink.service")
 
 
 def host_for(scenario: Scenario, name: str) -> Host:
-    """The Host of one service of the scenario's mission (the whole dataflow is validated)."""
-    hosts = build_hosts(scenario, load_mission(scenario))
-    if name not in hosts:
-        raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(sorted(hosts))}")
-    return hosts[name]
+    """The Host of one service of the scenario's mission (the whole dataflow is validated;
+    only this service's core is built)."""
+    flow = load_mission(scenario).dataflow
+    if name not in flow.services:
+        raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(flow.names)}")
+    return build_host(scenario, flow, name)
 
 
 def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> dict[str, Publisher]:
     """Subscribe the host's inputs and the clock; one publisher per output stream and stats."""
-    for i in host.core.spec.inputs:
+    for i in host.inputs:
         bus.subscribe_stream(i.source, i.stream, inbox)
     bus.subscribe(keys.ticks_for(host.name), inbox)
     bus.watch_alive(inbox, keys.alive(CLOCK))
-    streams = [o.stream for o in host.core.spec.outputs] + [STATS_STREAM]
-    return {s: bus.publisher(host.name, s, express=express) for s in streams}
+    return {s: bus.publisher(host.name, s, express=express) for s in host.streams}
 
 
 def routing_for(ev: Received, receiver: str) -> tuple[int, tuple[int, ...]] | None:

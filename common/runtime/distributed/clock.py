@@ -1,8 +1,8 @@
-"""The realtime mission clock of a launch: scaled wall time since the start Tick.
+"""The realtime mission clock: scaled wall time since the start Tick.
 
-Services set their clock from the first Tick they see (common.runtime.realtime_service), so
-the launcher re-publishes the current mission time: at once when a service (re)appears, and
-periodically, so a restarted or late remote service joins at the right time.
+Services set their clock from the first Tick they see (distributed.realtime_service), so the
+realtime driver re-publishes the current mission time: at once when a service (re)appears,
+and periodically, so a restarted or late remote service joins at the right time.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 from common.messages import Tick
-from common.runtime.ticks import TickSender
+from common.runtime.distributed.ticks import TickSender
 
 
 class MissionClock:

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 from common.messages import LinkCounters, LinkStats, Message, encode
 from common.netmodel import NetworkModel
-from common.runtime.core import Delivery, Emit, InputSpec, QueuePolicy, ServiceCore
-from common.runtime.dataflow import Dataflow
+from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
+from common.runtime.model.dataflow import Dataflow, Input
 
 STATS_STREAM = "stats"
 NEVER = 2**62
@@ -45,27 +45,44 @@ class Host:
     """Runs one core inside any runtime (see the module docstring for the rules)."""
 
     def __init__(
-        self, core: ServiceCore, flow: Dataflow, net: NetworkModel, *, stats_period_s: float = 1.0
+        self,
+        flow: Dataflow,
+        name: str,
+        core: ServiceCore,
+        net: NetworkModel,
+        *,
+        stats_period_s: float = 1.0,
     ) -> None:
+        service = flow.service(name)
         self.core = core
-        self.name = core.spec.name
+        self.name = name
         self.flow = flow
         self.net = net
-        spec = core.spec
-        self.period_us = to_us(spec.period_s)
-        self.next_step_us = to_us(spec.offset_s)
+        # an event-driven service (no period) never steps on its own
+        self.period_us = NEVER if service.period_s is None else to_us(service.period_s)
+        self.next_step_us = NEVER if service.period_s is None else to_us(service.offset_s)
         self.stats_period_us = to_us(stats_period_s)
         self.next_stats_us = self.stats_period_us
-        self._inputs: dict[tuple[str, str], InputSpec] = {
-            (i.source, i.stream): i for i in spec.inputs
+        self._inputs: dict[tuple[str, str], Input] = {
+            (i.source, i.stream): i for i in service.inputs
         }
-        self._seq: dict[str, int] = {o.stream: 0 for o in spec.outputs}
+        self._seq: dict[str, int] = {o.stream: 0 for o in service.outputs}
         self._seq[STATS_STREAM] = 0
         # (deliver_us, source, stream, seq, copy, sent_tick, msg)
         self._pending: list[tuple[int, str, str, int, int, int, Message]] = []
         self._ready: list[Delivery] = []
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
+
+    @property
+    def inputs(self) -> tuple[Input, ...]:
+        """The service's declared inputs."""
+        return tuple(self._inputs.values())
+
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """Every stream this host publishes on: its declared outputs, then stats."""
+        return tuple(self._seq)
 
     # -- receiving ---------------------------------------------------------------------------
     def accept(
@@ -113,7 +130,7 @@ class Host:
             self.next_step_us += self.period_us
         out = [self._publish(e.stream, e.msg, tick, t_us) for e in emits]
         if t_us >= self.next_stats_us:
-            out.append(self._publish(STATS_STREAM, self.link_stats(t_us / 1e6), tick, t_us))
+            out.append(self.publish_stats(tick, t_us))
             while self.next_stats_us <= t_us:
                 self.next_stats_us += self.stats_period_us
         return out
@@ -133,6 +150,28 @@ class Host:
         ]
         self.superseded += len(ready) - len(kept)
         return kept
+
+    # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
+    def join_clock(self, t_us: int) -> bool:
+        """Start stepping at the first period boundary at or after t_us (a late joiner does
+        not replay every period since 0); True if the schedule moved."""
+        if t_us <= self.next_step_us or self.next_step_us >= NEVER:
+            return False
+        self.next_step_us += -(-(t_us - self.next_step_us) // self.period_us) * self.period_us
+        return True
+
+    def skip_missed(self, now_us: int) -> int:
+        """Skip whole periods already past (a step that fell behind); returns how many."""
+        if self.next_step_us >= NEVER:
+            return 0
+        behind = max(0, (now_us - self.next_step_us) // self.period_us)
+        self.next_step_us += behind * self.period_us
+        return behind
+
+    # -- publishing ---------------------------------------------------------------------------
+    def publish_stats(self, tick: int, t_us: int) -> Outgoing:
+        """The link statistics of this host at t_us, as an outgoing message on 'stats'."""
+        return self._publish(STATS_STREAM, self.link_stats(t_us / 1e6), tick, t_us)
 
     def _publish(self, stream: str, msg: Message, tick: int, t_us: int) -> Outgoing:
         if stream not in self._seq:

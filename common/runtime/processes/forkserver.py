@@ -27,8 +27,8 @@ from pathlib import Path
 # What the fork server imports once (its children find them already loaded). A mission
 # module not listed here is imported by each child, which is slower but just as correct.
 PRELOAD = (
-    "common.runtime.lockstep_service",
-    "common.runtime.realtime_service",
+    "common.runtime.distributed.lockstep_service",
+    "common.runtime.distributed.realtime_service",
     "services.mission.auv",
 )
 
@@ -47,9 +47,10 @@ def warm_up() -> None:
     forkserver.ensure_running()
 
 
-def _child(module: str, argv: list[str], log_path: str, env: dict[str, str]) -> None:
+def _child(module: str, argv: list[str], log_path: str, env: dict[str, str], append: bool) -> None:
     """Runs in the forked process: log to the file, then `module.main(argv)`, exit with it."""
-    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    keep = os.O_APPEND if append else os.O_TRUNC
+    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | keep, 0o644)
     os.dup2(fd, 1)
     os.dup2(fd, 2)
     os.close(fd)
@@ -95,12 +96,17 @@ class ForkedProcess:
 
 
 def fork_module(
-    module: str, argv: list[str], log_path: Path, env: dict[str, str] | None = None
+    module: str,
+    argv: list[str],
+    log_path: Path,
+    env: dict[str, str] | None = None,
+    *,
+    append: bool = False,
 ) -> ForkedProcess:
     """Start `module.main(argv)` in a process forked from the fork server, logging to a file."""
     proc = _context().Process(
         target=_child,
-        args=(module, argv, str(log_path), dict(env or {})),
+        args=(module, argv, str(log_path), dict(env or {}), append),
         name=f"tidelink:{module}",
         daemon=True,  # multiprocessing terminates any left at our exit: none is orphaned
     )

@@ -2,20 +2,24 @@
 
 It exercises the runtimes end to end without the AUV services: a noisy sensor samples the
 plant, a filter smooths it, a proportional controller drives the plant to a set-point, the
-plant integrates the command. Select it with `[run] mission = "common.runtime.testloop:TestLoop"`.
+plant integrates the command. Select it with `[run] mission = "tests.helpers.testloop:TestLoop"`
+and set its parameters (TestLoopParams) in the scenario's `[run.mission_params]` table.
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from common.config.loader import build
+from common.config.scenario import Scenario
 from common.messages import NavFix, StateEstimate, TruthState, VehicleStatus, VelocityCommand
-from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec, QueuePolicy
-from common.runtime.record import Record, trajectory_sha256
+from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
+from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, Service
+from common.runtime.model.record import Record, trajectory_sha256
 
 _COV = tuple(0.0 for _ in range(25))
 
@@ -24,17 +28,6 @@ class Plant:
     """Integrator plant: x' = u, with u the last delivered command (applied at delivery)."""
 
     def __init__(self, event_driven: bool = False) -> None:
-        self.spec = CoreSpec(
-            name="plant",
-            inputs=(
-                InputSpec(source="ctrl", stream="cmd", msg_type=VelocityCommand, wake=event_driven),
-            ),
-            outputs=(
-                OutputSpec(stream="truth", msg_type=TruthState),
-                OutputSpec(stream="status", msg_type=VehicleStatus),
-            ),
-            period_s=0.05,
-        )
         self.event_driven = event_driven
         self.applied = 0
         self.x, self.u, self.t = 0.0, 0.0, 0.0
@@ -82,16 +75,6 @@ class Sensor:
 
     def __init__(self, rng: np.random.Generator, stamp_at_step: bool = False) -> None:
         self.stamp_at_step = stamp_at_step
-        self.spec = CoreSpec(
-            name="sensor",
-            inputs=(
-                InputSpec(
-                    source="plant", stream="truth", msg_type=TruthState, policy=QueuePolicy.NEWEST
-                ),
-            ),
-            outputs=(OutputSpec(stream="nav", msg_type=NavFix),),
-            period_s=0.1,
-        )
         self.rng = rng
         self.last: TruthState | None = None
 
@@ -128,12 +111,6 @@ class Filter:
     def __init__(self, event_driven: bool = False) -> None:
         self.event_driven = event_driven
         self.stamp = 0.0
-        self.spec = CoreSpec(
-            name="filter",
-            inputs=(InputSpec(source="sensor", stream="nav", msg_type=NavFix, wake=event_driven),),
-            outputs=(OutputSpec(stream="state", msg_type=StateEstimate),),
-            period_s=0.1,
-        )
         self.x: float | None = None
 
     def deliver(self, d: Delivery) -> list[Emit]:
@@ -166,21 +143,6 @@ class Controller:
         self.setpoint = setpoint
         self.event_driven = event_driven
         self.stamp = 0.0
-        self.spec = CoreSpec(
-            name="ctrl",
-            inputs=(
-                InputSpec(
-                    source="filter",
-                    stream="state",
-                    msg_type=StateEstimate,
-                    policy=QueuePolicy.NEWEST,
-                    wake=event_driven,
-                ),
-            ),
-            outputs=(OutputSpec(stream="cmd", msg_type=VelocityCommand),),
-            period_s=0.1,
-            offset_s=0.05,
-        )
         self.x: float | None = None
 
     def deliver(self, d: Delivery) -> list[Emit]:
@@ -202,8 +164,8 @@ class Controller:
 class _Crashing:
     """Wraps a core so its process dies at a given time (fault injection for tests)."""
 
-    def __init__(self, core: Any, at_s: float) -> None:
-        self.core, self.at_s, self.spec = core, at_s, core.spec
+    def __init__(self, core: ServiceCore, at_s: float) -> None:
+        self.core, self.at_s = core, at_s
 
     def deliver(self, d: Delivery) -> list[Emit]:
         return self.core.deliver(d)
@@ -214,42 +176,121 @@ class _Crashing:
         return self.core.step(t)
 
 
-def _rng(seed: int, name: str) -> np.random.Generator:
-    h = int.from_bytes(hashlib.blake2b(name.encode(), digest_size=8).digest(), "little")
-    return np.random.default_rng([seed, h])
+@dataclass(frozen=True, kw_only=True)
+class TestLoopParams:
+    """The toy loop's `[run.mission_params]`: set-point and fault injection."""
+
+    __test__ = False  # not a pytest class
+
+    setpoint: float = 10.0
+    # event-driven: filter and controller react to each delivery at once (wake inputs) and
+    # the plant reports each command's age on arrival, for latency benchmarks
+    event_driven: bool = False
+    crash_service: str = ""  # this service's process exits with code 3 at crash_at_s ...
+    crash_at_s: float = 0.0  # ... so tests can check that a dead service fails the run fast
+
+    def __post_init__(self) -> None:
+        if self.crash_service and self.crash_service not in ("ctrl", "filter", "plant", "sensor"):
+            raise ValueError("crash_service: must be one of ctrl, filter, plant, sensor")
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> TestLoopParams:
+        return build(cls, dict(scenario.run.mission_params), key="run.mission_params")
+
+
+def _crashing(name: str, core: ServiceCore, p: TestLoopParams) -> ServiceCore:
+    return _Crashing(core, p.crash_at_s) if name == p.crash_service else core
+
+
+def _plant(ctx: CoreContext) -> ServiceCore:
+    p = TestLoopParams.of(ctx.scenario)
+    return _crashing(ctx.service, Plant(p.event_driven), p)
+
+
+def _sensor(ctx: CoreContext) -> ServiceCore:
+    p = TestLoopParams.of(ctx.scenario)
+    return _crashing(ctx.service, Sensor(ctx.rng, stamp_at_step=p.event_driven), p)
+
+
+def _filter(ctx: CoreContext) -> ServiceCore:
+    p = TestLoopParams.of(ctx.scenario)
+    return _crashing(ctx.service, Filter(p.event_driven), p)
+
+
+def _ctrl(ctx: CoreContext) -> ServiceCore:
+    p = TestLoopParams.of(ctx.scenario)
+    return _crashing(ctx.service, Controller(p.setpoint, p.event_driven), p)
+
+
+def testloop_dataflow(p: TestLoopParams) -> Dataflow:
+    """sensor -> filter -> ctrl -> plant -> (truth) -> sensor; wake inputs when event-driven."""
+    ev = p.event_driven
+    return Dataflow.declare(
+        Service(
+            name="plant",
+            factory=_plant,
+            period_s=0.05,
+            inputs=(Input(source="ctrl", stream="cmd", msg_type=VelocityCommand, wake=ev),),
+            outputs=(
+                Output(stream="truth", msg_type=TruthState),
+                Output(stream="status", msg_type=VehicleStatus),
+            ),
+        ),
+        Service(
+            name="sensor",
+            factory=_sensor,
+            period_s=0.1,
+            inputs=(
+                Input(
+                    source="plant", stream="truth", msg_type=TruthState, policy=QueuePolicy.NEWEST
+                ),
+            ),
+            outputs=(Output(stream="nav", msg_type=NavFix),),
+        ),
+        Service(
+            name="filter",
+            factory=_filter,
+            period_s=0.1,
+            inputs=(Input(source="sensor", stream="nav", msg_type=NavFix, wake=ev),),
+            outputs=(Output(stream="state", msg_type=StateEstimate),),
+        ),
+        Service(
+            name="ctrl",
+            factory=_ctrl,
+            period_s=0.1,
+            offset_s=0.05,
+            inputs=(
+                Input(
+                    source="filter",
+                    stream="state",
+                    msg_type=StateEstimate,
+                    policy=QueuePolicy.NEWEST,
+                    wake=ev,
+                ),
+            ),
+            outputs=(Output(stream="cmd", msg_type=VelocityCommand),),
+        ),
+    )
 
 
 class TestLoop:
     """The toy mission: runs to max_time_s; metrics are the final error and the hash."""
 
-    names = ("ctrl", "filter", "plant", "sensor")
     __test__ = False  # not a pytest class
 
-    def __init__(self, scenario: Any) -> None:
-        self.seed: int = scenario.run.seed
+    def __init__(self, scenario: Scenario) -> None:
         self.max_time_s: float = scenario.run.max_time_s
-        self.cfg = scenario.testloop
-
-    def make_core(self, name: str) -> Any:
-        ev = self.cfg.event_driven
-        makers = {
-            "plant": lambda: Plant(ev),
-            "filter": lambda: Filter(ev),
-            "ctrl": lambda: Controller(self.cfg.setpoint, ev),
-            "sensor": lambda: Sensor(_rng(self.seed, "sensor"), stamp_at_step=ev),
-        }
-        core = makers[name]()
-        if name == self.cfg.crash_service:
-            core = _Crashing(core, self.cfg.crash_at_s)
-        return core
+        self.params = TestLoopParams.of(scenario)
+        self.dataflow = testloop_dataflow(self.params)
 
     def observe(self, record: Record) -> str | None:
         return None  # runs to max_time_s
 
     def metrics(self, record: Record) -> dict[str, Any]:
         truth = [m for m in record.stream("plant", "truth") if isinstance(m, TruthState)]
+        sp = self.params.setpoint
         return {
             "final_x": truth[-1].x if truth else None,
-            "final_error": abs(self.cfg.setpoint - truth[-1].x) if truth else None,
+            "final_error": abs(sp - truth[-1].x) if truth else None,
             "trajectory_sha256": trajectory_sha256(truth),
         }

@@ -16,8 +16,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from services.launcher.policy import RestartPolicy, parse_restart, policies_for
-from services.launcher.supervise import Exited, GaveUp, Restarted, Restarting, Supervisor
+from common.runtime.processes.policy import RestartPolicy, parse_restart, policies_for
+from common.runtime.processes.supervisor import Exited, GaveUp, Restarted, Restarting, Supervisor
 
 WAIT_S = 15.0
 

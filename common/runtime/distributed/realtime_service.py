@@ -10,8 +10,8 @@ from common.bus import Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
 from common.messages import Tick, encode_routing
-from common.runtime.host import STATS_STREAM, to_us
-from common.runtime.service_process import host_for, routing_for, service_main, wire
+from common.runtime.distributed.service_process import host_for, routing_for, service_main, wire
+from common.runtime.model.host import STATS_STREAM, to_us
 
 log = logging.getLogger("tidelink.realtime")
 
@@ -66,7 +66,8 @@ class RealtimeService:
                 # run every event that is due (a step, or a delivery to a wake input)
                 while self.t0 is not None:
                     now = self.now_us()
-                    self._skip_missed(now)
+                    # a step that fell behind by whole periods skips them (see the docstring)
+                    self.skipped += self.host.skip_missed(now)
                     t_us = self.host.next_event_us()
                     if now < t_us:
                         break
@@ -78,19 +79,8 @@ class RealtimeService:
     def _join(self, t_us: int) -> None:
         """Start the clock at mission time t_us (0 at the start; later for a late joiner)."""
         self.t0 = time.monotonic() - t_us / 1e6 / self.scale
-        h = self.host
-        if t_us > h.next_step_us:
-            # first step on this core's own period grid at or after the join time
-            h.next_step_us += -(-(t_us - h.next_step_us) // h.period_us) * h.period_us
+        if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
-
-    def _skip_missed(self, now_us: int) -> None:
-        """Step at the last period boundary <= now: whole periods already past are skipped."""
-        h = self.host
-        behind = (now_us - h.next_step_us) // h.period_us
-        if behind > 0:
-            h.next_step_us += behind * h.period_us
-            self.skipped += behind
 
     def _handle(self, ev: Received | Liveliness) -> bool:
         """Take one event; True when the run is over."""

@@ -6,12 +6,11 @@ import logging
 import sys
 import time
 
-from common.bus import Bus, Inbox, Keys, Liveliness, Received
+from common.bus import CLOCK, Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
 from common.messages import Tick, TickAck, encode_routing
-from common.runtime.host import STATS_STREAM
-from common.runtime.service_process import CLOCK, host_for, routing_for, service_main, wire
+from common.runtime.distributed.service_process import host_for, routing_for, service_main, wire
 
 log = logging.getLogger("tidelink.lockstep")
 
@@ -25,9 +24,7 @@ class LockstepService:
         self.host = host_for(self.scenario, name)
         self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
         self.bus_cfg = BusConfig(mode="client", connect=(connect,))
-        self.received: dict[str, int] = {
-            f"{i.source}/{i.stream}": 0 for i in self.host.core.spec.inputs
-        }
+        self.received: dict[str, int] = {f"{i.source}/{i.stream}": 0 for i in self.host.inputs}
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 
     def run(self) -> int:
@@ -46,14 +43,7 @@ class LockstepService:
                     continue  # nothing due here: messages keep arriving into the host
                 self._wait_for(inbox, tick.watermarks)
                 if tick.stop:
-                    out = [
-                        self.host._publish(
-                            STATS_STREAM,
-                            self.host.link_stats(tick.time_us / 1e6),
-                            tick.tick,
-                            tick.time_us,
-                        )
-                    ]
+                    out = [self.host.publish_stats(tick.tick, tick.time_us)]
                 else:
                     out = self.host.run_tick(tick.tick, tick.time_us)
                 for o in out:

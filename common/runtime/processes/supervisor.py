@@ -1,9 +1,10 @@
 """Supervise named OS processes: restart them by policy with back-off, report exits, stop all.
 
-Each process leads its own process group (see common.runtime.procs.spawn), so a terminal's
-Ctrl-C reaches only the launcher, which then stops every group in order: SIGINT, SIGTERM,
-SIGKILL, each after a grace period. Nothing here blocks: `poll()` is called from the
-launcher's loop and returns what happened since the last call.
+Processes are either spawned, each leading its own process group (children.spawn), so a
+terminal's Ctrl-C reaches only the launcher, which then stops every group in order: SIGINT,
+SIGTERM, SIGKILL, each after a grace period; or forked from the pre-imported fork server
+(children.fork: a run's local services, ready in milliseconds). Nothing here blocks: `poll()`
+is called from the driver's loop and returns what happened since the last call.
 """
 
 from __future__ import annotations
@@ -15,8 +16,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from common.runtime.procs import Child, spawn, stop_all
-from services.launcher.policy import RestartPolicy
+from common.runtime.processes.children import Child, fork, spawn, stop_all
+from common.runtime.processes.policy import RestartPolicy
+
+
+class ServiceFailed(RuntimeError):
+    """A service process of the run died or stopped answering; the message names it."""
 
 
 def how_it_ended(code: int | None) -> str:
@@ -87,8 +92,10 @@ class Supervisor:
         *,
         pid_file: Path | None = None,
         clock: Callable[[], float] = time.monotonic,
+        forked: bool = False,
     ) -> None:
         self.log_dir = log_dir
+        self.forked = forked  # fork from the fork server instead of spawning an interpreter
         self.pid_file = pid_file
         self.clock = clock
         self.stopping = False  # set when the run ends: exits are expected, nothing restarts
@@ -115,10 +122,13 @@ class Supervisor:
         return list(self._entries[name].pids)
 
     def start(self, name: str, args: list[str], policy: RestartPolicy | None = None) -> Child:
-        """Start `python <args>` as `name`, logging to log_dir/<name>.log."""
+        """Start `python <args>` as `name`, logging to log_dir/<name>.log (forked: the args
+        must be `-m MODULE ...`, whose `main(argv)` runs in the forked process)."""
         if name in self._entries:
             raise ValueError(f"{name!r} is already supervised")
-        child = spawn(name, args, self.log_dir, group=True)
+        if self.forked and args[:1] != ["-m"]:
+            raise ValueError(f"{name}: a forked process runs a module: expected -m MODULE ...")
+        child = self._launch(name, args, append=False)
         self._entries[name] = _Entry(
             name, args, policy or RestartPolicy(), child, pids=[child.proc.pid]
         )
@@ -173,11 +183,16 @@ class Supervisor:
         e.child.close_log()
         with e.child.log_path.open("a") as fh:  # where each incarnation starts
             fh.write(f"--- {time.strftime('%H:%M:%S')} restart {e.restarts} of {e.name!r} ---\n")
-        e.child = spawn(e.name, e.args, self.log_dir, group=True, append=True)
+        e.child = self._launch(e.name, e.args, append=True)
         e.reported = False
         e.pids.append(e.child.proc.pid)
         self._write_pids()
         return Restarted(name=e.name, attempt=e.restarts, pid=e.child.proc.pid)
+
+    def _launch(self, name: str, args: list[str], *, append: bool) -> Child:
+        if self.forked:
+            return fork(name, args[1], args[2:], self.log_dir, append=append)
+        return spawn(name, args, self.log_dir, group=True, append=append)
 
     def wait_exited(self, names: list[str], timeout_s: float) -> bool:
         """Wait until these processes have exited by themselves; False on timeout."""

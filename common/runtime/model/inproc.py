@@ -3,44 +3,29 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
-from typing import Any
 
 from common.config.scenario import Scenario
 from common.messages import decode
 from common.netmodel import NetworkModel
-from common.runtime.dataflow import Dataflow
-from common.runtime.host import NEVER, Host, Outgoing
-from common.runtime.mission import Mission, load_mission
-from common.runtime.record import Record
+from common.runtime.model.dataflow import Dataflow
+from common.runtime.model.host import NEVER, Host, Outgoing
+from common.runtime.model.mission import load_mission
+from common.runtime.model.record import Record
+from common.runtime.model.result import RunResult
 
 log = logging.getLogger("tidelink.inproc")
 
 
-@dataclass
-class RunResult:
-    """The outcome of one run: why it ended, at what virtual time, its record and metrics."""
-
-    reason: str
-    t_end: float
-    ticks: int
-    record: Record
-    metrics: dict[str, Any]
-
-
-def build_hosts(scenario: Scenario, mission: Mission) -> dict[str, Host]:
-    """One Host per core, each with its own network model (its outgoing links)."""
-    cores = [mission.make_core(n) for n in mission.names]
-    flow = Dataflow.of([c.spec for c in cores])
-    return {
-        c.spec.name: Host(
-            c,
-            flow,
-            NetworkModel(scenario.network, seed=scenario.run.seed),
-            stats_period_s=scenario.runtime.stats_period_s,
-        )
-        for c in cores
-    }
+def build_host(scenario: Scenario, flow: Dataflow, name: str) -> Host:
+    """The Host of one declared service: its core from its factory, its own network model
+    (its outgoing links)."""
+    return Host(
+        flow,
+        name,
+        flow.service(name).make_core(scenario),
+        NetworkModel(scenario.network, seed=scenario.run.seed),
+        stats_period_s=scenario.runtime.stats_period_s,
+    )
 
 
 def route(
@@ -59,7 +44,8 @@ def route(
 def run_inproc(scenario: Scenario) -> RunResult:
     """Run a mission to its end in this process."""
     mission = load_mission(scenario)
-    hosts = build_hosts(scenario, mission)
+    flow = mission.dataflow
+    hosts = {name: build_host(scenario, flow, name) for name in flow.names}
     record = Record()
     max_us = round(mission.max_time_s * 1e6)
     tick, t_us, reason = 0, 0, "max_time"
@@ -78,14 +64,7 @@ def run_inproc(scenario: Scenario) -> RunResult:
         t_us, tick = nxt, tick + 1
     final_tick = tick + 1
     for name in sorted(hosts):  # final statistics, as the lockstep stop tick publishes them
-        h = hosts[name]
-        route(
-            [h._publish("stats", h.link_stats(t_us / 1e6), final_tick, t_us)],
-            name,
-            final_tick,
-            hosts,
-            record,
-        )
+        route([hosts[name].publish_stats(final_tick, t_us)], name, final_tick, hosts, record)
     log.info("inproc run ended at t=%.3f s after %d ticks: %s", t_us / 1e6, tick + 1, reason)
     metrics = mission.metrics(record)
     return RunResult(reason, t_us / 1e6, tick + 1, record, metrics)

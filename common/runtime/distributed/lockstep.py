@@ -1,133 +1,101 @@
 """The lockstep runtime: one OS process per service over Zenoh, virtual time from a coordinator.
 
-The coordinator (this process) is also the Zenoh router the services connect to as clients,
-and the recorder of everything they publish. Tick k at time T carries the watermarks (last seq
-of every stream published before tick k); each service first waits until it holds every input
-message up to those watermarks, then runs the tick exactly as the inproc runtime does and
-acknowledges with what it published and when it next needs a tick. Time jumps to the earliest
-such need. Because the hosts, link models and delivery order are the same, the trajectory is
-bit-identical to an inproc run of the same scenario and seed.
+The coordinator is the clock and the recorder of everything the services publish. Tick k at
+time T carries the watermarks (last seq of every stream published before tick k); each service
+first waits until it holds every input message up to those watermarks, then runs the tick
+exactly as the inproc runtime does and acknowledges with what it published and when it next
+needs a tick. Time jumps to the earliest such need. Because the hosts, link models and
+delivery order are the same, the trajectory is bit-identical to an inproc run of the same
+scenario and seed. `run_lockstep` makes this process the Zenoh router and forks the services;
+the launcher drives the same Coordinator with its own router and supervised processes.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from common.bus import Bus, Inbox, Keys, Liveliness, Received
-from common.config.bus import BusConfig
+from common.bus import Inbox, Keys, Liveliness, Received
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
-from common.runtime.forked import warm_up
-from common.runtime.host import NEVER
-from common.runtime.inproc import RunResult
-from common.runtime.mission import load_mission
-from common.runtime.procs import Child, connectable, fork, free_port, stop_all
-from common.runtime.record import Record
-from common.runtime.service_process import CLOCK
-from common.runtime.ticks import TickSender
+from common.runtime.distributed.bringup import local_run, run_keys
+from common.runtime.distributed.observer import LogObserver, RunObserver
+from common.runtime.distributed.ticks import TickSender
+from common.runtime.model.host import NEVER
+from common.runtime.model.mission import Mission, load_mission
+from common.runtime.model.record import Record
+from common.runtime.model.result import RunResult
+from common.runtime.processes.signals import StopRequest
+from common.runtime.processes.supervisor import ServiceFailed, Supervisor
 
-log = logging.getLogger("tidelink.lockstep")
-
-
-class ServiceFailed(RuntimeError):
-    """A service process died or stopped answering; the message names it."""
+SERVICE_MODULE = "common.runtime.distributed.lockstep_service"
+PROGRESS_EVERY_S = 0.25  # wall seconds between progress reports to the observer
 
 
 class Coordinator:
-    """Starts the service processes, drives the ticks, records the run."""
+    """Drives the ticks of a lockstep run and records it; `sup` holds the local processes
+    (any of them dying fails the run: a restarted service would lose the run's determinism)."""
 
-    service_module = "common.runtime.lockstep_service"
-
-    def __init__(self, scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> None:
-        self.scenario = scenario
-        self.raw = raw
-        self.mission = load_mission(scenario)
-        self.keys = Keys(scenario.run.name, scenario.run.vehicle)
-        self.log_dir = log_dir
+    def __init__(
+        self,
+        scenario: Scenario,
+        mission: Mission,
+        keys: Keys,
+        sup: Supervisor,
+        *,
+        observer: RunObserver | None = None,
+        stop: StopRequest | None = None,
+    ) -> None:
+        self.mission = mission
+        self.names = mission.dataflow.names
+        self.keys = keys
+        self.sup = sup
+        self.observer = observer or LogObserver()
+        self.stop = stop or StopRequest()
         self.record = Record()
-        self.children: dict[str, Child] = {}
         self.acks: dict[str, TickAck] = {}
         self.alive: set[str] = set()
         self.finished: set[str] = set()  # services that acknowledged the stop tick
-        self._next_poll = 0.0  # when to next poll the child processes
         self.stopping = False
+        self.t_us = 0  # mission time of the newest tick
+        self.start_timeout_s = scenario.runtime.start_timeout_s
         self.timeout_s = scenario.runtime.tick_timeout_s
+        self._next_poll = 0.0  # when to next poll the child processes
+        self._next_progress = 0.0
 
-    def run(self) -> RunResult:
-        warm_up()  # the fork server imports the services while we open the router
-        # [bus] listen: a fixed endpoint lets monitors on other machines join the run
-        listen = self.scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
-        endpoint = connectable(listen[0])
-        with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
-            raw_path = Path(tmp) / "scenario.json"
-            raw_path.write_text(json.dumps(self.raw))
-            bus_cfg = BusConfig(
-                mode="router",
-                listen=listen,
-                multicast_scouting=self.scenario.bus.multicast_scouting,
-            )
-            with Bus(bus_cfg, self.keys) as bus:
-                inbox = Inbox()
-                bus.subscribe(self.keys.all_streams, inbox)
-                bus.watch_alive(inbox)
-                tick_pub = TickSender(bus, self.mission.names)
-                bus.declare_alive(CLOCK)
-                try:
-                    for name in self.mission.names:
-                        self.children[name] = fork(
-                            name,
-                            self.service_module,
-                            [name, "--scenario-json", str(raw_path), "--connect", endpoint],
-                            self.log_dir,
-                        )
-                    t_spawn = time.monotonic()
-                    self._await_alive(inbox)
-                    log.info(
-                        "all %d services alive after %.2f s",
-                        len(self.children),
-                        time.monotonic() - t_spawn,
-                    )
-                    result = self.drive(inbox, tick_pub)
-                except BaseException:
-                    stop_all(list(self.children.values()))
-                    raise
-            # the bus is closed: our token vanished, which releases the services
-            t_close = time.monotonic()
-            for child in self.children.values():
-                try:
-                    child.proc.wait(timeout=10.0)
-                except Exception:  # noqa: BLE001 - stop_all below makes sure
-                    log.warning("%s did not exit after the run; stopping it", child.name)
-            stop_all(list(self.children.values()))
-            log.info("services exited %.2f s after the run", time.monotonic() - t_close)
-            return result
-
-    def _await_alive(self, inbox: Inbox) -> None:
-        deadline = time.monotonic() + self.scenario.runtime.start_timeout_s
-        while not self.alive.issuperset(self.mission.names):
+    def await_alive(self, inbox: Inbox) -> None:
+        """Wait until every service has declared its liveliness token."""
+        t0 = time.monotonic()
+        deadline = t0 + self.start_timeout_s
+        while not self.alive.issuperset(self.names):
             self._pump(inbox, deadline, "to start")
+        self.observer.event(
+            f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
+        )
 
     def _pump(self, inbox: Inbox, deadline: float, what: str) -> None:
         """Take one event; fail fast on a dead child or a timeout, naming the service."""
+        self.stop.check()
         now = time.monotonic()
         # a dead service's liveliness token vanishes at once (TCP closes); polling the
         # processes as well catches one that never declared it, but need not run per event
         if now >= self._next_poll:
             self._next_poll = now + 0.2
-            for name, child in self.children.items():
+            for name, child in self.sup.children.items():
                 if name not in self.finished and child.proc.poll() is not None:
                     raise ServiceFailed(child.describe_exit())
+        if now >= self._next_progress:
+            self._next_progress = now + PROGRESS_EVERY_S
+            self.observer.progress(self.t_us / 1e6)
         left = deadline - now
         if left <= 0:
             if what.startswith("ack"):
-                missing = sorted(set(self.mission.names) - set(self.acks))
+                missing = sorted(set(self.names) - set(self.acks))
             elif what.startswith("to start"):
-                missing = sorted(set(self.mission.names) - self.alive)
+                missing = sorted(set(self.names) - self.alive)
             else:
                 missing = []
             who = f"{', '.join(missing)} " if missing else ""
@@ -139,17 +107,17 @@ class Coordinator:
             service = ev.key.rsplit("/", 1)[-1]
             if ev.alive:
                 self.alive.add(service)
-            elif service in self.children and service not in self.finished:
-                child = self.children[service]
+            elif service in self.sup.children and service not in self.finished:
+                child = self.sup.children[service]
                 try:
                     child.proc.wait(timeout=2.0)
                 except Exception:  # noqa: BLE001 - still report it as gone
                     pass
                 raise ServiceFailed(f"{child.describe_exit()} (its liveliness token vanished)")
             return
-        self._on_message(ev)
+        self._take(ev)
 
-    def _on_message(self, ev: Received) -> None:
+    def _take(self, ev: Received) -> None:
         if isinstance(ev.msg, TickAck):
             self.acks[ev.msg.service] = ev.msg
             if self.stopping:
@@ -159,6 +127,7 @@ class Coordinator:
             return
         service, stream = self.keys.split(ev.key)
         self.record.add(service, stream, ev.msg)
+        self.observer.message(service, stream, ev.msg)
 
     def _tick(
         self,
@@ -172,6 +141,7 @@ class Coordinator:
     ) -> dict[str, int]:
         self.acks = {}
         self.stopping = stop
+        self.t_us = t_us
         pub.put(
             Tick(
                 stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, due=tuple(due), stop=stop
@@ -188,13 +158,15 @@ class Coordinator:
         return new_marks
 
     def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
+        """Tick until the mission ends or max_time; a stop request raises Interrupted."""
         max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, reason = 0, 0, "max_time"
         marks: dict[str, int] = {}
         # when each service next needs a tick: its own next event (from its last ack) or a
         # wake delivery someone sent it since (reported by the sender, before it arrives)
-        need = {n: 0 for n in self.mission.names}
+        need = dict.fromkeys(self.names, 0)
         wall0 = time.monotonic()
+        self.observer.event("mission clock started (lockstep: virtual time)")
         while True:
             due = [n for n in sorted(need) if need[n] <= t_us]
             marks = self._tick(inbox, pub, k, t_us, marks, due)
@@ -212,13 +184,14 @@ class Coordinator:
                 break
             t_us, k = nxt, k + 1
         self._tick(inbox, pub, k + 1, t_us, marks, sorted(need), stop=True)
-        log.info(
+        logging.getLogger("tidelink.lockstep").info(
             "lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
             t_us / 1e6,
             k + 1,
             time.monotonic() - wall0,
             reason,
         )
+        self.observer.event(f"mission ended at t={t_us / 1e6:.2f} s: {reason}")
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))
 
 
@@ -226,4 +199,8 @@ def run_lockstep(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None =
     """Run a mission with every service in its own process; see the module docstring."""
     if log_dir is None:
         log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
-    return Coordinator(scenario, raw, log_dir).run()
+    mission = load_mission(scenario)
+    with local_run(scenario, raw, mission.dataflow, SERVICE_MODULE, log_dir) as (side, sup):
+        coord = Coordinator(scenario, mission, run_keys(scenario), sup)
+        coord.await_alive(side.inbox)
+        return coord.drive(side.inbox, side.ticks)

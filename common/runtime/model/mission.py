@@ -1,4 +1,4 @@
-"""What a runtime runs: a mission names its cores, says when it is over and computes metrics."""
+"""What a runtime runs: a mission declares its dataflow, says when it is over, computes metrics."""
 
 from __future__ import annotations
 
@@ -6,17 +6,15 @@ import importlib
 from typing import Any, Protocol
 
 from common.config.scenario import Scenario
-from common.runtime.core import ServiceCore
-from common.runtime.record import Record
+from common.runtime.model.dataflow import Dataflow
+from common.runtime.model.record import Record
 
 
 class Mission(Protocol):
-    """A dataflow of cores plus its end condition and metrics (pure; runtime-independent)."""
+    """A declared dataflow plus its end condition and metrics (pure; runtime-independent)."""
 
-    names: tuple[str, ...]
+    dataflow: Dataflow
     max_time_s: float
-
-    def make_core(self, name: str) -> ServiceCore: ...
 
     def observe(self, record: Record) -> str | None:
         """Called after each tick with everything published so far: an end reason, or None."""

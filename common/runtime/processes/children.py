@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
-from common.runtime.forked import fork_module
+from common.runtime.processes.forkserver import fork_module
 
 
 def connectable(endpoint: str) -> str:
@@ -121,19 +121,20 @@ def spawn(
     return Child(name, proc, log_path, fh, group)
 
 
-def fork(name: str, module: str, argv: list[str], log_dir: Path) -> Child:
-    """Start `module.main(argv)` forked from the pre-imported fork server (common.runtime.forked),
+def fork(name: str, module: str, argv: list[str], log_dir: Path, *, append: bool = False) -> Child:
+    """Start `module.main(argv)` forked from the pre-imported fork server (forkserver.py),
     logging to log_dir/<name>.log: like spawn(name, ["-m", module, *argv]), without the
-    interpreter start-up and imports. For local service processes of a run.
+    interpreter start-up and imports. For local service processes of a run. append=True
+    keeps an earlier log of the same name (a restarted service).
 
     In a daemonic process (a Dask worker running a sweep's run, say), which multiprocessing
     forbids to have children of its own, it is exactly that spawn instead.
     """
     if multiprocessing.current_process().daemon:
-        return spawn(name, ["-m", module, *argv], log_dir)
+        return spawn(name, ["-m", module, *argv], log_dir, append=append)
     log_dir.mkdir(parents=True, exist_ok=True)
     log_path = log_dir / f"{name}.log"
-    return Child(name, fork_module(module, argv, log_path), log_path)
+    return Child(name, fork_module(module, argv, log_path, append=append), log_path)
 
 
 def stop_all(children: list[Child], *, grace_s: float = 3.0) -> None:

@@ -1,29 +1,45 @@
-"""The realtime mission loop of a launch: wait for every service, run the clock, record the
-run, apply restart policies, and end on the mission's end, max_time or a stop request."""
+"""The realtime runtime's driver: wait for every service, run the mission clock, record the
+run, apply restart policies, and end on the mission's end, max_time or a stop request.
+
+One driver for every realtime run: `run_realtime` (this process is the router, services are
+forked here) and `tidelink launch` (a router process, supervised services, remote ones).
+"""
 
 from __future__ import annotations
 
+import tempfile
 import time
+from pathlib import Path
+from typing import Any
 
 from common.bus import Event, Inbox, Keys, Liveliness
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck, replace
-from common.runtime.inproc import RunResult
-from common.runtime.lockstep import ServiceFailed
-from common.runtime.mission import Mission
-from common.runtime.record import Record
-from common.runtime.ticks import TickSender
-from services.launcher.clock import MissionClock
-from services.launcher.interrupt import StopRequest
-from services.launcher.progress import Display, MissionView
-from services.launcher.supervise import Exited, GaveUp, Restarted, Restarting, Supervisor
+from common.runtime.distributed.bringup import local_run, run_keys
+from common.runtime.distributed.clock import MissionClock
+from common.runtime.distributed.observer import LogObserver, RunObserver
+from common.runtime.distributed.ticks import TickSender
+from common.runtime.model.mission import Mission, load_mission
+from common.runtime.model.record import Record
+from common.runtime.model.result import RunResult
+from common.runtime.processes.signals import StopRequest
+from common.runtime.processes.supervisor import (
+    Exited,
+    GaveUp,
+    Restarted,
+    Restarting,
+    ServiceFailed,
+    Supervisor,
+)
+
+SERVICE_MODULE = "common.runtime.distributed.realtime_service"
 
 RETELL_S = 1.0  # wall seconds between re-publications of the mission time (late joiners)
 FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
 
 
 class RealtimeDriver:
-    """Drives one realtime launch; `sup` runs the local services, others join over Zenoh."""
+    """Drives one realtime run; `sup` runs the local services, others join over Zenoh."""
 
     def __init__(
         self,
@@ -31,18 +47,17 @@ class RealtimeDriver:
         mission: Mission,
         keys: Keys,
         sup: Supervisor,
-        view: MissionView,
-        display: Display,
-        stop: StopRequest,
+        *,
+        observer: RunObserver | None = None,
+        stop: StopRequest | None = None,
     ) -> None:
         self.scenario = scenario
         self.mission = mission
-        self.names = set(mission.names)
+        self.names = set(mission.dataflow.names)
         self.keys = keys
         self.sup = sup
-        self.view = view
-        self.display = display
-        self.stop = stop
+        self.observer = observer or LogObserver()
+        self.stop = stop or StopRequest()
         self.timeout_s = scenario.runtime.start_timeout_s
         self.record = Record()
         self.alive: set[str] = set()
@@ -58,14 +73,14 @@ class RealtimeDriver:
         """Report exits and restarts; a service its policy does not restart fails the run."""
         for ev in self.sup.poll():
             if isinstance(ev, Exited):
-                self.display.event(ev.text)
+                self.observer.event(ev.text)
             elif isinstance(ev, Restarting):
-                self.display.event(
+                self.observer.event(
                     f"restarting {ev.name!r} in {ev.delay_s:.2f} s "
                     f"(restart {ev.attempt} of {ev.max_restarts})"
                 )
             elif isinstance(ev, Restarted):
-                self.display.event(f"restarted {ev.name!r} (pid {ev.pid}, restart {ev.attempt})")
+                self.observer.event(f"restarted {ev.name!r} (pid {ev.pid}, restart {ev.attempt})")
             elif isinstance(ev, GaveUp):
                 raise ServiceFailed(ev.text)
 
@@ -87,9 +102,7 @@ class RealtimeDriver:
         if offset:
             msg = replace(msg, seq=msg.seq + offset)
         self.record.add(service, stream, msg)
-        line = self.view.see(service, stream, msg)
-        if line:
-            self.display.event(line)
+        self.observer.message(service, stream, msg)
 
     def _liveliness(self, service: str, alive: bool) -> None:
         if service not in self.names:
@@ -98,7 +111,7 @@ class RealtimeDriver:
             self.alive.discard(service)
             self.gone_since[service] = time.monotonic()
             if self.clock is not None and not self.ending:
-                self.display.event(
+                self.observer.event(
                     f"service {service!r} left (liveliness token gone) at "
                     f"t={self.clock.now_us() / 1e6:.2f} s"
                 )
@@ -110,7 +123,7 @@ class RealtimeDriver:
                 if s == service:
                     self.seq_offset[(s, stream)] = self.record.last_seq(s, stream)
             t_us = self.clock.tell()  # its clock starts from this Tick
-            self.display.event(f"service {service!r} rejoined at t={t_us / 1e6:.2f} s")
+            self.observer.event(f"service {service!r} rejoined at t={t_us / 1e6:.2f} s")
         self.ever_alive.add(service)
 
     def _check_gone(self) -> None:
@@ -137,7 +150,7 @@ class RealtimeDriver:
                     "to start (no liveliness token)"
                 )
             self.take(inbox.get(timeout=0.1))
-        self.display.event(
+        self.observer.event(
             f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
         )
 
@@ -146,7 +159,7 @@ class RealtimeDriver:
         max_us = round(self.mission.max_time_s * 1e6)
         self.clock = clock = MissionClock(pub, scale)
         clock.start()
-        self.display.event(f"mission clock started (time scale x{scale:g})")
+        self.observer.event(f"mission clock started (time scale x{scale:g})")
         reason = "max_time"
         next_tell = time.monotonic() + RETELL_S
         while True:
@@ -172,12 +185,12 @@ class RealtimeDriver:
             if time.monotonic() >= next_tell:
                 clock.tell()
                 next_tell = time.monotonic() + RETELL_S
-            self.display.update(self.view, t_us / 1e6)
+            self.observer.progress(t_us / 1e6)
         self.ending = True
         self.sup.stopping = True  # exits are expected from now on
         t_end_us = clock.tell(stop=True)
-        self.display.update(self.view, t_end_us / 1e6)
-        self.display.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
+        self.observer.progress(t_end_us / 1e6)
+        self.observer.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
         self._collect_final(inbox)
         return RunResult(reason, t_end_us / 1e6, 0, self.record, self.mission.metrics(self.record))
 
@@ -192,3 +205,14 @@ class RealtimeDriver:
             self.take(inbox.get(timeout=0.05))
         while (ev := inbox.get(timeout=0.0)) is not None:
             self.take(ev)
+
+
+def run_realtime(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:
+    """Run a mission in real time (scaled by runtime.time_scale) across service processes."""
+    if log_dir is None:
+        log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
+    mission = load_mission(scenario)
+    with local_run(scenario, raw, mission.dataflow, SERVICE_MODULE, log_dir) as (side, sup):
+        driver = RealtimeDriver(scenario, mission, run_keys(scenario), sup)
+        driver.await_alive(side.inbox)
+        return driver.drive(side.inbox, side.ticks)

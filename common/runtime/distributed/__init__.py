@@ -1,0 +1,1 @@
+"""The Zenoh runtimes: lockstep coordinator, realtime driver, and the service process."""

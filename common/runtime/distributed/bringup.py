@@ -1,0 +1,97 @@
+"""Bring-up of a distributed run: the clock side's bus, and a run whose services are local.
+
+`clock_bus` is what every driver of a run needs on the bus (the launcher's, and the one
+`run_lockstep` / `run_realtime` start): a recording subscription to every stream of the run,
+liveliness of its services, a tick sender, its own clock token, and the declared dataflow
+served as a queryable (Keys.dataflow) for any tool that joins. `local_run` adds what
+`tidelink run` needs: this process is the Zenoh router, and the services are forked here.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from common.bus import CLOCK, Bus, Inbox, Keys
+from common.config.bus import BusConfig
+from common.config.scenario import Scenario
+from common.runtime.distributed.ticks import TickSender
+from common.runtime.model.dataflow import Dataflow
+from common.runtime.processes.children import connectable, free_port
+from common.runtime.processes.forkserver import warm_up
+from common.runtime.processes.supervisor import Supervisor
+
+log = logging.getLogger("tidelink.run")
+
+DATAFLOW_ENCODING = "application/json"
+RELEASE_S = 10.0  # for services to leave by themselves at the end, before any signal
+
+
+@dataclass
+class ClockSide:
+    """The driver's end of the bus: everything the run publishes arrives in `inbox`."""
+
+    bus: Bus
+    inbox: Inbox
+    ticks: TickSender
+
+
+def run_keys(scenario: Scenario) -> Keys:
+    return Keys(scenario.run.name, scenario.run.vehicle)
+
+
+@contextmanager
+def clock_bus(cfg: BusConfig, keys: Keys, flow: Dataflow) -> Iterator[ClockSide]:
+    """Open the driver's bus (see the module docstring); everything closes on exit."""
+    described = json.dumps(flow.describe(), sort_keys=True).encode()
+    with Bus(cfg, keys) as bus:
+        inbox = Inbox()
+        bus.subscribe(keys.all_streams, inbox)
+        bus.watch_alive(inbox)
+        bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
+        ticks = TickSender(bus, flow.names)
+        bus.declare_alive(CLOCK)
+        yield ClockSide(bus, inbox, ticks)
+
+
+@contextmanager
+def local_run(
+    scenario: Scenario, raw: dict[str, Any], flow: Dataflow, service_module: str, log_dir: Path
+) -> Iterator[tuple[ClockSide, Supervisor]]:
+    """This process is the router and the clock; each service is forked from the fork server.
+
+    On exit the bus closes first (the clock's token vanishes, which releases the services),
+    then the services get RELEASE_S to leave by themselves before they are stopped.
+    """
+    warm_up()  # the fork server imports the services while we open the router
+    # [bus] listen: a fixed endpoint lets monitors on other machines join the run
+    listen = scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
+    endpoint = connectable(listen[0])
+    sup = Supervisor(log_dir, forked=True)
+    cfg = BusConfig(
+        mode="router", listen=listen, multicast_scouting=scenario.bus.multicast_scouting
+    )
+    with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
+        raw_path = Path(tmp) / "scenario.json"
+        raw_path.write_text(json.dumps(raw))
+        try:
+            with clock_bus(cfg, run_keys(scenario), flow) as side:
+                for name in flow.names:
+                    argv = [name, "--scenario-json", str(raw_path), "--connect", endpoint]
+                    sup.start(name, ["-m", service_module, *argv])
+                yield side, sup
+        except BaseException:
+            sup.stop()
+            raise
+        t_close = time.monotonic()
+        if not sup.wait_exited(sup.names(), RELEASE_S):
+            log.warning("a service did not exit after the run; stopping it")
+        sup.stop()
+        log.info("services exited %.2f s after the run", time.monotonic() - t_close)

@@ -1,0 +1,1 @@
+"""The pure scheduling model: core contract, declared dataflow, Host, record, inproc runtime."""

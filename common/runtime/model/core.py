@@ -1,0 +1,50 @@
+"""The pure service-core contract every runtime hosts (inproc, lockstep, realtime)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Protocol, runtime_checkable
+
+from common.messages import Message
+
+
+class QueuePolicy(Enum):
+    """How a runtime queues deliveries of one input between two steps of its core."""
+
+    ALL = "all"  # every delivered message is handed to the core, in delivery order
+    NEWEST = "newest"  # only the newest delivery since the last step (control-loop inputs)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Emit:
+    """A message a core asks its runtime to publish on one of its declared output streams."""
+
+    stream: str
+    msg: Message
+
+
+@dataclass
+class Delivery:
+    """A message handed to a core: the input it arrived on and its modelled delivery time."""
+
+    source: str
+    stream: str
+    msg: Message
+    t: float = field(default=0.0)  # delivery time (s, runtime clock)
+
+
+@runtime_checkable
+class ServiceCore(Protocol):
+    """A pure service: no Zenoh, no threads, no wall clock, no global RNG.
+
+    What it reads and writes, and how often it steps, is declared in the mission's dataflow
+    (common.runtime.model.dataflow), not by the core. The runtime calls `deliver` for every
+    delivered message in delivery order (time, source, stream, seq), then `step(t)` at each
+    period. Both may return messages to publish on the service's declared outputs. Time `t`
+    is seconds on the runtime's clock.
+    """
+
+    def deliver(self, d: Delivery) -> list[Emit]: ...
+
+    def step(self, t: float) -> list[Emit]: ...

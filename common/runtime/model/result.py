@@ -1,0 +1,19 @@
+"""The outcome of one run, whatever runtime produced it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from common.runtime.model.record import Record
+
+
+@dataclass
+class RunResult:
+    """Why a run ended, at what virtual time, after how many ticks, its record and metrics."""
+
+    reason: str
+    t_end: float
+    ticks: int
+    record: Record
+    metrics: dict[str, Any]

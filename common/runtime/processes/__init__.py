@@ -1,0 +1,1 @@
+"""OS process management: fork server, child processes, supervision, signals."""

@@ -1,0 +1,118 @@
+"""The AUV mission's dataflow, declared once: four services, their streams and every link.
+
+    sensor    --nav, obstacles-->  estimator  --state, tracks-->  planner
+    planner   --cmd------------->  vehicle    --truth---------->  sensor
+    (planner/path, vehicle/status and every <service>/stats are published for the record,
+     monitors and metrics; no service reads them)
+
+Each service's core is built by a factory with one signature, `(ctx: CoreContext) -> core`;
+the factory takes from the scenario only what its core needs.
+"""
+
+from __future__ import annotations
+
+from common.config.network import link_name, profile_for
+from common.config.scenario import Scenario
+from common.messages import (
+    NavFix,
+    ObstacleDetections,
+    ObstacleTracks,
+    PathMsg,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    VelocityCommand,
+)
+from common.runtime.model.core import QueuePolicy
+from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, Service
+from common.world import World
+from services.estimator.core import EstimatorCore
+from services.planner.core import PlannerCore
+from services.sensor.core import SensorCore
+from services.vehicle.core import VehicleCore
+
+NEWEST = QueuePolicy.NEWEST
+
+
+def auv_dataflow(s: Scenario) -> Dataflow:
+    """sensor -> estimator -> planner (+controller) -> vehicle -> (truth) -> sensor."""
+    return Dataflow.declare(
+        Service(
+            name="sensor",
+            factory=make_sensor,
+            period_s=s.sensor.period_s,
+            inputs=(Input(source="vehicle", stream="truth", msg_type=TruthState, policy=NEWEST),),
+            outputs=(
+                Output(stream="nav", msg_type=NavFix),
+                Output(stream="obstacles", msg_type=ObstacleDetections),
+            ),
+        ),
+        Service(
+            name="estimator",
+            factory=make_estimator,
+            period_s=s.estimator.period_s,
+            inputs=(
+                Input(source="sensor", stream="nav", msg_type=NavFix),
+                Input(source="sensor", stream="obstacles", msg_type=ObstacleDetections),
+            ),
+            outputs=(
+                Output(stream="state", msg_type=StateEstimate),
+                Output(stream="tracks", msg_type=ObstacleTracks),
+            ),
+        ),
+        Service(
+            name="planner",
+            factory=make_planner,
+            period_s=0.1,
+            offset_s=0.05,  # half a period after the estimator publishes
+            inputs=(
+                Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
+                Input(source="estimator", stream="tracks", msg_type=ObstacleTracks, policy=NEWEST),
+            ),
+            outputs=(
+                Output(stream="path", msg_type=PathMsg),
+                Output(stream="cmd", msg_type=VelocityCommand),
+            ),
+        ),
+        Service(
+            name="vehicle",
+            factory=make_vehicle,
+            period_s=s.vehicle.period_s,
+            inputs=(Input(source="planner", stream="cmd", msg_type=VelocityCommand),),
+            outputs=(
+                Output(stream="truth", msg_type=TruthState),
+                Output(stream="status", msg_type=VehicleStatus),
+            ),
+        ),
+    )
+
+
+def _start(s: Scenario) -> tuple[float, float, float]:
+    st = s.world.start
+    return (st.x_m, st.y_m, st.theta_rad)
+
+
+def make_sensor(ctx: CoreContext) -> SensorCore:
+    s = ctx.scenario
+    return SensorCore(s.sensor, World(s.world), ctx.rng)
+
+
+def make_estimator(ctx: CoreContext) -> EstimatorCore:
+    return EstimatorCore(ctx.scenario.estimator, _start(ctx.scenario))
+
+
+def make_planner(ctx: CoreContext) -> PlannerCore:
+    s = ctx.scenario
+    # delay compensation starts from the downlink's modelled delay (planner/cmd -> vehicle)
+    down = profile_for(s.network, link_name("planner", "cmd", "vehicle"))
+    return PlannerCore(
+        s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=down.delay_s
+    )
+
+
+def make_vehicle(ctx: CoreContext) -> VehicleCore:
+    s = ctx.scenario
+    world, r = World(s.world), s.vehicle.radius_m
+    return VehicleCore(
+        s.vehicle, _start(s), ctx.rng, clearance=lambda x, y, t: world.clearance(x, y, r, t)
+    )
