@@ -8,7 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
+from common.config.network import LinkProfile
 from common.config.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -235,6 +237,31 @@ def test_an_override_into_a_scalar_is_rejected(tmp_path: Path) -> None:
     assert err.file == "--set"
     assert err.key == "run.seed.low"
     assert "seed is not a table" in err.problem
+
+
+# --- key paths are data, not text --------------------------------------------------------------
+
+
+def test_a_nested_error_carries_its_key_path(tmp_path: Path) -> None:
+    err = _error(_write(tmp_path, GOOD.replace("loss_p = 0.25", "loss_p = 1.5")))
+    assert err.key_path == ("network", "links", 0, "profile", "loss_p")
+    assert err.problem == "1.5 is not a probability, expected a value in [0, 1]"
+
+
+def test_a_post_init_error_below_a_field_carries_the_whole_path(tmp_path: Path) -> None:
+    # WorldConfig.__post_init__ names the polygon and its field; the loader prefixes "world"
+    text = GOOD + "\n[[world.polygons]]\nid = 1\nvertices_m = [10, 10, 12, 10, 200, 12]\n"
+    err = _error(_write(tmp_path, text))
+    assert err.key_path == ("world", "polygons", 0, "vertices_m")
+    assert str(err).endswith(": world.polygons[0].vertices_m: a vertex lies outside the area")
+
+
+def test_a_post_init_range_error_names_its_field_as_data() -> None:
+    with pytest.raises(ConfigValueError) as info:
+        LinkProfile(delay_s=-0.5)
+    assert info.value.key_path == ("delay_s",)
+    assert info.value.problem == "-0.5 is invalid, expected a finite value >= 0"
+    assert str(info.value) == "delay_s: -0.5 is invalid, expected a finite value >= 0"
 
 
 # --- the `tidelink check` command, as a user runs it ---------------------------------------------

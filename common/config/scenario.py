@@ -58,4 +58,4 @@ def scenario_from_raw(raw: dict[str, Any], file: str = "") -> Scenario:
     except ConfigError:
         raise
     except TypeError as exc:  # a programming error in a config dataclass, still say where
-        raise ConfigError(file, "", str(exc)) from None
+        raise ConfigError(file, (), str(exc)) from None
