@@ -1,4 +1,8 @@
-"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4)."""
+"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4).
+
+Checks that need the geometry model (simple polygons, start and goal outside every obstacle)
+run after loading, in common.world.check; this package does not import common.world.
+"""
 
 from __future__ import annotations
 
@@ -83,18 +87,7 @@ class PolygonObstacleConfig:
             )
         if not all(math.isfinite(v) for v in self.vertices_m):
             raise ConfigValueError("vertices_m", "every coordinate must be finite")
-        # Lazy import: common.world imports this module, so a top-level import would be circular.
-        from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
-
-        v = vertices_array(self.vertices_m)
-        if not polygon_is_simple(v):
-            raise ConfigValueError(
-                "vertices_m", "edges cross each other, expected a simple polygon"
-            )
-        if abs(polygon_area(v)) < 1e-9:
-            raise ConfigValueError(
-                "vertices_m", "the polygon has zero area, expected a proper polygon"
-            )
+        # Simplicity and non-zero area are geometry: common.world.check checks them after loading.
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -214,18 +207,7 @@ class WorldConfig:
                 raise ConfigValueError(
                     ("moving", i), "its start or a waypoint lies outside the area"
                 )
-        self._check_free("start", self.start)
-        self._check_free("goal", self.goal)
-
-    def _check_free(self, name: str, pose: PoseConfig) -> None:
-        # Lazy import: common.world imports this module, so a top-level import would be circular.
-        from common.world.model import World
-
-        # eq. (12) with r = 0 and the obstacles at t = 0: the pose must not lie inside any.
-        if World(self).clearance(pose.x_m, pose.y_m, 0.0, 0.0) <= 0.0:
-            raise ConfigValueError(
-                name, f"({pose.x_m}, {pose.y_m}) lies inside an obstacle at t = 0"
-            )
+        # Whether start and goal lie inside an obstacle is geometry: common.world.check.
 
 
 def _check_id(i: int) -> None:

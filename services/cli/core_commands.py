@@ -30,8 +30,9 @@ def scenario_args(p: argparse.ArgumentParser) -> None:
 def cmd_check(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.mission import load_mission
+    from common.world.check import check_scenario
 
-    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed)
+    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=check_scenario)
     mission = load_mission(scenario)
     print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {', '.join(mission.names)})")
     return 0
@@ -40,13 +41,14 @@ def cmd_check(a: argparse.Namespace) -> int:
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario, write_outputs
+    from common.world.check import check_scenario
 
     overrides = list(a.overrides)
     if a.runtime:
         overrides.append(f'runtime.kind="{a.runtime}"')
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
-    scenario, raw = load_scenario(a.scenario, overrides, a.seed)
+    scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=check_scenario)
     out = (
         a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
     )

@@ -28,11 +28,12 @@ def _runtime_overrides(a: argparse.Namespace) -> list[str]:
 def cmd_launch(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.mission import load_mission
+    from common.world.check import check_scenario
     from services.launcher import LaunchOptions, RestartPolicy, launch, policies_for
     from services.launcher.interrupt import Interrupted
     from services.launcher.progress import make_display
 
-    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed, check=check_scenario)
     names = load_mission(scenario).names
     if a.restart and scenario.runtime.kind == "lockstep":
         raise ValueError(
