@@ -1,4 +1,4 @@
-"""Value checks shared by the config dataclasses' __post_init__ ("<field>: <problem>" errors)."""
+"""Value checks shared by the config dataclasses' __post_init__; they raise ConfigValueError."""
 
 from __future__ import annotations
 
