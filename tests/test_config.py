@@ -8,8 +8,12 @@ from pathlib import Path
 
 import pytest
 
+from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
+from common.config.network import LinkProfile
 from common.config.scenario import load_scenario
+from common.world import paper_field
+from common.world.check import check_scenario, check_world
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -47,7 +51,7 @@ def _write(tmp_path: Path, text: str, name: str = "scenario.toml") -> Path:
 
 def _error(path: Path, overrides: list[str] | None = None) -> ConfigError:
     with pytest.raises(ConfigError) as info:
-        load_scenario(path, overrides)
+        load_scenario(path, overrides, check=check_scenario)
     return info.value
 
 
@@ -237,6 +241,87 @@ def test_an_override_into_a_scalar_is_rejected(tmp_path: Path) -> None:
     assert "seed is not a table" in err.problem
 
 
+# --- key paths are data, not text --------------------------------------------------------------
+
+
+def test_a_nested_error_carries_its_key_path(tmp_path: Path) -> None:
+    err = _error(_write(tmp_path, GOOD.replace("loss_p = 0.25", "loss_p = 1.5")))
+    assert err.key_path == ("network", "links", 0, "profile", "loss_p")
+    assert err.problem == "1.5 is not a probability, expected a value in [0, 1]"
+
+
+def test_a_post_init_error_below_a_field_carries_the_whole_path(tmp_path: Path) -> None:
+    # WorldConfig.__post_init__ names the polygon and its field; the loader prefixes "world"
+    text = GOOD + "\n[[world.polygons]]\nid = 1\nvertices_m = [10, 10, 12, 10, 200, 12]\n"
+    err = _error(_write(tmp_path, text))
+    assert err.key_path == ("world", "polygons", 0, "vertices_m")
+    assert str(err).endswith(": world.polygons[0].vertices_m: a vertex lies outside the area")
+
+
+def test_a_post_init_range_error_names_its_field_as_data() -> None:
+    with pytest.raises(ConfigValueError) as info:
+        LinkProfile(delay_s=-0.5)
+    assert info.value.key_path == ("delay_s",)
+    assert info.value.problem == "-0.5 is invalid, expected a finite value >= 0"
+    assert str(info.value) == "delay_s: -0.5 is invalid, expected a finite value >= 0"
+
+
+@pytest.mark.parametrize(
+    ("world", "key_path", "needle"),
+    [
+        pytest.param(
+            "[[world.polygons]]\nid = 1\nvertices_m = [40, 10, 44, 14, 44, 10, 40, 14]\n",
+            ("world", "polygons", 0, "vertices_m"),
+            "edges cross each other, expected a simple polygon",
+            id="bow tie",
+        ),
+        pytest.param(
+            "[[world.polygons]]\nid = 1\nvertices_m = [40, 10, 42, 12, 44, 14]\n",
+            ("world", "polygons", 0, "vertices_m"),
+            "the polygon has zero area",
+            id="flat polygon",
+        ),
+        pytest.param(
+            "[[world.circles]]\nid = 1\nx_m = 6.0\ny_m = 20.0\nradius_m = 2.0\n",
+            ("world", "start"),
+            "(5.0, 20.0) lies inside an obstacle at t = 0",
+            id="start inside a circle",
+        ),
+    ],
+)
+def test_geometry_is_checked_after_loading(
+    tmp_path: Path, world: str, key_path: tuple[str | int, ...], needle: str
+) -> None:
+    path = _write(tmp_path, GOOD + "\n" + world)
+    load_scenario(path)  # each value is fine on its own: only the geometric check rejects it
+    err = _error(path)
+    assert (err.file, err.key_path) == (str(path), key_path)
+    assert needle in err.problem
+
+
+def test_the_shipped_worlds_pass_the_geometric_check() -> None:
+    # the paper field is built in code, so only this check sees its polygons now
+    check_world(paper_field())
+    load_scenario(REPO / "configs" / "default.toml", check=check_scenario)
+
+
+def test_config_does_not_import_the_world() -> None:
+    # common.world depends on common.config; the reverse would be a cycle. Building a world
+    # with obstacles runs every world check of common.config, so a lazy import shows too.
+    code = (
+        "import sys, common.config.reference\n"
+        "from common.config.scenario import scenario_from_raw\n"
+        "w = {'polygons': [{'id': 1, 'vertices_m': [40, 10, 44, 10, 44, 14]}],\n"
+        "     'circles': [{'id': 2, 'x_m': 50.0, 'y_m': 20.0, 'radius_m': 1.0}]}\n"
+        "assert scenario_from_raw({'world': w}).world.polygons\n"
+        "print(sorted(m for m in sys.modules if m.startswith('common.world')))"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True
+    )
+    assert res.stdout.strip() == "[]"
+
+
 # --- the `tidelink check` command, as a user runs it ---------------------------------------------
 
 
@@ -288,3 +373,11 @@ def test_check_names_a_missing_file(tmp_path: Path) -> None:
     assert res.returncode != 0
     assert "gone.toml" in res.stderr
     assert "file not found" in res.stderr
+
+
+def test_check_reports_a_geometric_error(tmp_path: Path) -> None:
+    text = GOOD + "\n[[world.circles]]\nid = 1\nx_m = 95.0\ny_m = 21.0\nradius_m = 2.0\n"
+    path = _write(tmp_path, text)
+    res = _check(str(path))
+    assert res.returncode == 2
+    assert f"{path}: world.goal: (95.0, 20.0) lies inside an obstacle at t = 0" in res.stderr

@@ -20,6 +20,7 @@ from common.config.world import (
     WorldConfig,
 )
 from common.world import World, paper_field
+from common.world.check import check_world
 from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
 
 
@@ -150,7 +151,11 @@ def test_empty_world_has_infinite_clearance() -> None:
 )
 def test_world_validation(kw: dict[str, object], message: str) -> None:
     with pytest.raises(ValueError, match=re.escape(message)):
-        WorldConfig(**kw)  # type: ignore[arg-type]
+        check_world(WorldConfig(**kw))  # type: ignore[arg-type]
+
+
+BOW_TIE = (0.0, 0.0, 2.0, 2.0, 2.0, 0.0, 0.0, 2.0)
+FLAT = (0.0, 0.0, 1.0, 1.0, 2.0, 2.0)
 
 
 def test_obstacle_validation() -> None:
@@ -159,9 +164,9 @@ def test_obstacle_validation() -> None:
     with pytest.raises(ValueError, match="id"):
         CircleObstacleConfig(id=-1, x_m=1, y_m=1, radius_m=1.0)
     with pytest.raises(ValueError, match="simple"):  # a bow tie
-        PolygonObstacleConfig(id=1, vertices_m=(0, 0, 2, 2, 2, 0, 0, 2))
+        check_world(WorldConfig(polygons=(PolygonObstacleConfig(id=1, vertices_m=BOW_TIE),)))
     with pytest.raises(ValueError, match="zero area"):
-        PolygonObstacleConfig(id=1, vertices_m=(0, 0, 1, 1, 2, 2))
+        check_world(WorldConfig(polygons=(PolygonObstacleConfig(id=1, vertices_m=FLAT),)))
     with pytest.raises(ValueError, match="speed_mps"):
         MovingObstacleConfig(id=1, kind="waypoints", x0_m=1, y0_m=1, waypoints_m=(2, 2))
     with pytest.raises(ValueError, match="vx_mps"):

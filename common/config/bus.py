@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from common.config.errors import ConfigValueError
+
 
 @dataclass(frozen=True, kw_only=True)
 class BusConfig:
@@ -17,15 +19,18 @@ class BusConfig:
     multicast_scouting: bool = False
 
     def __post_init__(self) -> None:
-        for ep in (*self.listen, *self.connect):
-            proto, sep, rest = ep.partition("/")
-            if (
-                not sep
-                or not rest
-                or proto not in ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic")
-            ):
-                raise ValueError(
-                    f"listen/connect: {ep!r} is not a Zenoh endpoint like tcp/127.0.0.1:7447"
-                )
+        for name in ("listen", "connect"):
+            for i, ep in enumerate(getattr(self, name)):
+                proto, sep, rest = ep.partition("/")
+                if (
+                    not sep
+                    or not rest
+                    or proto not in ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic")
+                ):
+                    raise ConfigValueError(
+                        (name, i), f"{ep!r} is not a Zenoh endpoint like tcp/127.0.0.1:7447"
+                    )
         if self.mode == "client" and not self.connect:
-            raise ValueError("connect: a client must connect to at least one router endpoint")
+            raise ConfigValueError(
+                "connect", "a client must connect to at least one router endpoint"
+            )

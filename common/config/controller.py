@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from common.config.checks import fraction, nonneg, positive
+from common.config.errors import ConfigValueError
 
 ControllerKind = Literal["nurbs", "backstepping", "fuzzy_pid"]
 
@@ -74,7 +75,7 @@ class FuzzyPidGains:
             nonneg(name, getattr(self, name))
         positive("immune_a", self.immune_a)
         if not (0.0 <= self.immune_eta < 1.0):
-            raise ValueError(f"immune_eta: {self.immune_eta!r} is invalid, expected [0, 1)")
+            raise ConfigValueError("immune_eta", f"{self.immune_eta!r} is invalid, expected [0, 1)")
         fraction("v_floor_ratio", self.v_floor_ratio)
 
 
@@ -95,6 +96,6 @@ class ControllerConfig:
 
     def __post_init__(self) -> None:
         if self.kind not in ("nurbs", "backstepping", "fuzzy_pid"):
-            raise ValueError(
-                f"kind: {self.kind!r} is unknown, expected 'nurbs', 'backstepping' or 'fuzzy_pid'"
+            raise ConfigValueError(
+                "kind", f"{self.kind!r} is unknown, expected 'nurbs', 'backstepping' or 'fuzzy_pid'"
             )

@@ -6,6 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from common.config.errors import ConfigValueError
+
 PrefilterKind = Literal["none", "mean", "lag", "mean+lag"]
 VehicleFilterKind = Literal["ekf", "ukf"]
 
@@ -64,7 +66,7 @@ class EstimatorConfig:
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name}: {value!r} must be a finite number > 0")
+                raise ConfigValueError(name, f"{value!r} must be a finite number > 0")
         for name in (
             "accel_psd_m2_s3",
             "yaw_accel_psd_rad2_s3",
@@ -73,20 +75,23 @@ class EstimatorConfig:
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{name}: {value!r} must be a finite number >= 0")
+                raise ConfigValueError(name, f"{value!r} must be a finite number >= 0")
         if self.prefilter not in ("none", "mean", "lag", "mean+lag"):
-            raise ValueError(
-                f"prefilter: {self.prefilter!r}, expected 'none', 'mean', 'lag' or 'mean+lag'"
+            raise ConfigValueError(
+                "prefilter", f"{self.prefilter!r}, expected 'none', 'mean', 'lag' or 'mean+lag'"
             )
         if self.vehicle_filter not in ("ekf", "ukf"):
-            raise ValueError(f"vehicle_filter: {self.vehicle_filter!r}, expected 'ekf' or 'ukf'")
-        if not (isinstance(self.mean_window, int) and self.mean_window >= 1):
-            raise ValueError(f"mean_window: {self.mean_window!r} must be an integer >= 1")
-        if not 0.0 < self.track_gate_probability < 1.0:
-            raise ValueError(
-                f"track_gate_probability: {self.track_gate_probability!r}, expected (0, 1)"
+            raise ConfigValueError(
+                "vehicle_filter", f"{self.vehicle_filter!r}, expected 'ekf' or 'ukf'"
             )
-        if not math.isfinite(self.ukf_beta) or not math.isfinite(self.ukf_kappa):
-            raise ValueError("ukf_beta: ukf_beta and ukf_kappa must be finite")
+        if not (isinstance(self.mean_window, int) and self.mean_window >= 1):
+            raise ConfigValueError("mean_window", f"{self.mean_window!r} must be an integer >= 1")
+        if not 0.0 < self.track_gate_probability < 1.0:
+            raise ConfigValueError(
+                "track_gate_probability", f"{self.track_gate_probability!r}, expected (0, 1)"
+            )
+        for name in ("ukf_beta", "ukf_kappa"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigValueError(name, f"{getattr(self, name)!r} must be finite")
         if self.ukf_kappa + 5 <= 0:
-            raise ValueError(f"ukf_kappa: {self.ukf_kappa!r} must be > -5 (n + kappa > 0)")
+            raise ConfigValueError("ukf_kappa", f"{self.ukf_kappa!r} must be > -5 (n + kappa > 0)")

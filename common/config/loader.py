@@ -10,16 +10,9 @@ import typing
 from pathlib import Path
 from typing import Any, TypeVar
 
+from common.config.errors import ConfigError, ConfigValueError, KeyPath, format_key
+
 T = TypeVar("T")
-
-
-class ConfigError(ValueError):
-    """A scenario or experiment file is wrong: names the file, the key path and the expectation."""
-
-    def __init__(self, file: str, key: str, problem: str) -> None:
-        self.file, self.key, self.problem = file, key, problem
-        where = f"{file}: " if file else ""
-        super().__init__(f"{where}{key + ': ' if key else ''}{problem}")
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -29,25 +22,29 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         with p.open("rb") as fh:
             return tomllib.load(fh)
     except FileNotFoundError:
-        raise ConfigError(str(p), "", "file not found") from None
+        raise ConfigError(str(p), (), "file not found") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(p), "", f"not valid TOML: {exc}") from None
+        raise ConfigError(str(p), (), f"not valid TOML: {exc}") from None
 
 
-def build(cls: type[T], data: Any, *, file: str = "", key: str = "") -> T:
-    """Build dataclass `cls` from a mapping; unknown keys, wrong types and bad values raise."""
+def build(cls: type[T], data: Any, *, file: str = "", path: KeyPath = ()) -> T:
+    """Build dataclass `cls` (at key `path` of `file`) from a mapping; bad input raises ConfigError.
+
+    Unknown keys, wrong types and missing keys are found here; a bad value is found by the
+    dataclass's __post_init__, whose ConfigValueError names the field below `path`.
+    """
     if not isinstance(data, dict):
-        raise ConfigError(file, key, f"expected a table, got {_kind(data)}")
+        raise ConfigError(file, path, f"expected a table, got {_kind(data)}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise ConfigError(
             file,
-            _join(key, unknown[0]),
+            (*path, unknown[0]),
             f"unknown key (known keys: {', '.join(sorted(fields))})",
         )
-    kwargs = {name: _convert(hints[name], v, file, _join(key, name)) for name, v in data.items()}
+    kwargs = {name: _convert(hints[name], v, file, (*path, name)) for name, v in data.items()}
     missing = [
         n
         for n, f in fields.items()
@@ -56,22 +53,15 @@ def build(cls: type[T], data: Any, *, file: str = "", key: str = "") -> T:
         and f.default_factory is dataclasses.MISSING
     ]
     if missing:
-        raise ConfigError(file, _join(key, missing[0]), "required key is missing")
+        raise ConfigError(file, (*path, missing[0]), "required key is missing")
     try:
         return cls(**kwargs)
+    except ConfigValueError as exc:
+        raise ConfigError(file, (*path, *exc.key_path), exc.problem) from None
     except ConfigError:
         raise
-    except (ValueError, TypeError) as exc:
-        # __post_init__ says "<field>: <problem>"; re-anchor it at the key path.
-        text = str(exc)
-        head, sep, rest = text.partition(": ")
-        if sep and head.replace("_", "").replace(".", "").isalnum() and " " not in head:
-            raise ConfigError(file, _join(key, head), rest) from None
-        raise ConfigError(file, key, text) from None
-
-
-def _join(key: str, name: str) -> str:
-    return f"{key}.{name}" if key else name
+    except (ValueError, TypeError) as exc:  # a check that names no field: blame the table
+        raise ConfigError(file, path, str(exc)) from None
 
 
 def _kind(v: Any) -> str:
@@ -85,66 +75,65 @@ def _kind(v: Any) -> str:
     }.get(type(v), type(v).__name__)
 
 
-def _convert(hint: Any, v: Any, file: str, key: str) -> Any:
+def _convert(hint: Any, v: Any, file: str, path: KeyPath) -> Any:
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
     if hint is float:
         if type(v) not in (int, float):
-            raise ConfigError(file, key, f"expected a number, got {_kind(v)}")
+            raise ConfigError(file, path, f"expected a number, got {_kind(v)}")
         if not math.isfinite(v):
-            raise ConfigError(file, key, "expected a finite number")
+            raise ConfigError(file, path, "expected a finite number")
         return float(v)
     if hint is int:
         if type(v) is not int:
-            raise ConfigError(file, key, f"expected an integer, got {_kind(v)}")
+            raise ConfigError(file, path, f"expected an integer, got {_kind(v)}")
         return v
     if hint is bool:
         if type(v) is not bool:
-            raise ConfigError(file, key, f"expected true or false, got {_kind(v)}")
+            raise ConfigError(file, path, f"expected true or false, got {_kind(v)}")
         return v
     if hint is str:
         if type(v) is not str:
-            raise ConfigError(file, key, f"expected a string, got {_kind(v)}")
+            raise ConfigError(file, path, f"expected a string, got {_kind(v)}")
         return v
     if origin is typing.Literal:
         if v not in args:
-            raise ConfigError(file, key, f"{v!r} is not one of {', '.join(map(repr, args))}")
+            raise ConfigError(file, path, f"{v!r} is not one of {', '.join(map(repr, args))}")
         return v
     if origin is tuple:
         if type(v) is not list:
-            raise ConfigError(file, key, f"expected an array, got {_kind(v)}")
+            raise ConfigError(file, path, f"expected an array, got {_kind(v)}")
         if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(args[0], x, file, f"{key}[{i}]") for i, x in enumerate(v))
+            return tuple(_convert(args[0], x, file, (*path, i)) for i, x in enumerate(v))
         if len(v) != len(args):
-            raise ConfigError(file, key, f"expected an array of {len(args)} values, got {len(v)}")
+            raise ConfigError(file, path, f"expected an array of {len(args)} values, got {len(v)}")
         return tuple(
-            _convert(a, x, file, f"{key}[{i}]")
-            for i, (a, x) in enumerate(zip(args, v, strict=True))
+            _convert(a, x, file, (*path, i)) for i, (a, x) in enumerate(zip(args, v, strict=True))
         )
     if origin is dict and args and args[0] is str:
         if type(v) is not dict:
-            raise ConfigError(file, key, f"expected a table, got {_kind(v)}")
-        return {k: _convert(args[1], x, file, _join(key, k)) for k, x in v.items()}
+            raise ConfigError(file, path, f"expected a table, got {_kind(v)}")
+        return {k: _convert(args[1], x, file, (*path, k)) for k, x in v.items()}
     if origin in (types.UnionType, typing.Union):
         errors = []
         for a in args:
             if a is type(None):
                 continue
             try:
-                return _convert(a, v, file, key)
+                return _convert(a, v, file, path)
             except ConfigError as exc:
                 errors.append(exc.problem)
-        raise ConfigError(file, key, " or ".join(errors))
+        raise ConfigError(file, path, " or ".join(errors))
     if dataclasses.is_dataclass(hint) and isinstance(hint, type):
-        return build(hint, v, file=file, key=key)
-    raise TypeError(f"config field {key}: unsupported type {hint!r}")
+        return build(hint, v, file=file, path=path)
+    raise TypeError(f"config field {format_key(path)}: unsupported type {hint!r}")
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Parse a `--set a.b.c=value` override; the value is read as TOML (bare words as strings)."""
     path, sep, raw = text.partition("=")
     if not sep or not path.strip():
-        raise ConfigError("--set", text, "expected key.path=value")
+        raise ConfigError("--set", (text,), "expected key.path=value")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
@@ -158,6 +147,6 @@ def apply_override(data: dict[str, Any], parts: list[str], value: Any) -> None:
     for p in parts[:-1]:
         nxt = node.setdefault(p, {})
         if not isinstance(nxt, dict):
-            raise ConfigError("--set", ".".join(parts), f"{p} is not a table")
+            raise ConfigError("--set", tuple(parts), f"{p} is not a table")
         node = nxt
     node[parts[-1]] = value

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from common.config.checks import nonneg, probability
+from common.config.errors import ConfigValueError
 
 JitterKind = Literal["none", "normal", "uniform", "exponential", "pareto"]
 LossKind = Literal["none", "bernoulli", "gilbert_elliott"]
@@ -29,8 +30,8 @@ def link_name(source_service: str, stream: str, receiver: str) -> str:
     """Canonical link name ``"source/stream->receiver"``; raises ValueError on a bad part."""
     name = f"{source_service}/{stream}->{receiver}"
     if _LINK_RE.match(name) is None:
-        raise ValueError(
-            f"link: {name!r} is not a valid link name, expected 'source/stream->receiver'"
+        raise ConfigValueError(
+            "link", f"{name!r} is not a valid link name, expected 'source/stream->receiver'"
         )
     return name
 
@@ -39,8 +40,8 @@ def parse_link(link: str) -> tuple[str, str, str]:
     """Split an exact link name into (source_service, stream, receiver)."""
     m = _LINK_RE.match(link)
     if m is None:
-        raise ValueError(
-            f"link: {link!r} is not a valid link name, expected 'source/stream->receiver'"
+        raise ConfigValueError(
+            "link", f"{link!r} is not a valid link name, expected 'source/stream->receiver'"
         )
     return m["src"], m["stream"], m["dst"]
 
@@ -49,9 +50,10 @@ def _check_link_pattern(field: str, pattern: str) -> None:
     if not (
         _LINK_RE.match(pattern) or _SRC_PATTERN_RE.match(pattern) or _DST_PATTERN_RE.match(pattern)
     ):
-        raise ValueError(
-            f"{field}: {pattern!r} is not a link or link pattern, expected "
-            "'source/stream->receiver', 'source/stream->*' or '*->receiver'"
+        raise ConfigValueError(
+            field,
+            f"{pattern!r} is not a link or link pattern, expected "
+            "'source/stream->receiver', 'source/stream->*' or '*->receiver'",
         )
 
 
@@ -108,42 +110,53 @@ class LinkProfile:
         nonneg("delay_s", self.delay_s)
         nonneg("jitter_s", self.jitter_s)
         if self.jitter not in ("none", "normal", "uniform", "exponential", "pareto"):
-            raise ValueError(
-                f"jitter: {self.jitter!r} is unknown, expected one of "
-                "'none', 'normal', 'uniform', 'exponential', 'pareto'"
+            raise ConfigValueError(
+                "jitter",
+                f"{self.jitter!r} is unknown, expected one of "
+                "'none', 'normal', 'uniform', 'exponential', 'pareto'",
             )
         if self.jitter == "none" and self.jitter_s != 0.0:
-            raise ValueError(f"jitter_s: {self.jitter_s!r} given but jitter is 'none', expected 0")
+            raise ConfigValueError(
+                "jitter_s", f"{self.jitter_s!r} given but jitter is 'none', expected 0"
+            )
         if self.jitter == "uniform" and self.jitter_s > self.delay_s:
-            raise ValueError(
-                f"jitter_s: uniform half-width {self.jitter_s!r} exceeds delay_s {self.delay_s!r}, "
-                "expected jitter_s <= delay_s so the delay stays >= 0"
+            raise ConfigValueError(
+                "jitter_s",
+                f"uniform half-width {self.jitter_s!r} exceeds delay_s {self.delay_s!r}, "
+                "expected jitter_s <= delay_s so the delay stays >= 0",
             )
         if not (math.isfinite(self.pareto_shape) and self.pareto_shape > 2.0):
-            raise ValueError(
-                f"pareto_shape: {self.pareto_shape!r} is invalid, expected > 2 (finite variance)"
+            raise ConfigValueError(
+                "pareto_shape", f"{self.pareto_shape!r} is invalid, expected > 2 (finite variance)"
             )
         if self.trace_file and self.jitter != "none":
-            raise ValueError(
-                f"jitter: {self.jitter!r} given with trace_file {self.trace_file!r}, "
-                "expected 'none' (a trace replaces the jitter)"
+            raise ConfigValueError(
+                "jitter",
+                f"{self.jitter!r} given with trace_file {self.trace_file!r}, "
+                "expected 'none' (a trace replaces the jitter)",
             )
         if self.loss not in ("none", "bernoulli", "gilbert_elliott"):
-            raise ValueError(
-                f"loss: {self.loss!r} is unknown, expected 'none', 'bernoulli' or 'gilbert_elliott'"
+            raise ConfigValueError(
+                "loss",
+                f"{self.loss!r} is unknown, expected 'none', 'bernoulli' or 'gilbert_elliott'",
             )
         probability("loss_p", self.loss_p)
         if self.loss != "bernoulli" and self.loss_p != 0.0:
-            raise ValueError(f"loss_p: {self.loss_p!r} given but loss is {self.loss!r}, expected 0")
+            raise ConfigValueError(
+                "loss_p", f"{self.loss_p!r} given but loss is {self.loss!r}, expected 0"
+            )
         for name in ("ge_p_gb", "ge_p_bg", "ge_loss_good", "ge_loss_bad", "duplicate_p"):
             probability(name, getattr(self, name))
         if self.loss == "gilbert_elliott" and self.ge_p_gb + self.ge_p_bg <= 0.0:
-            raise ValueError(
-                "ge_p_bg: ge_p_gb + ge_p_bg is 0, expected > 0 (the chain needs a stationary state)"
+            raise ConfigValueError(
+                "ge_p_bg",
+                "ge_p_gb + ge_p_bg is 0, expected > 0 (the chain needs a stationary state)",
             )
         nonneg("bandwidth_bps", self.bandwidth_bps)
         if self.queue_len < 1:
-            raise ValueError(f"queue_len: {self.queue_len!r} is invalid, expected an integer >= 1")
+            raise ConfigValueError(
+                "queue_len", f"{self.queue_len!r} is invalid, expected an integer >= 1"
+            )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -161,15 +174,17 @@ class Outage:
     def __post_init__(self) -> None:
         nonneg("start_s", self.start_s)
         if math.isnan(self.end_s) or self.end_s <= self.start_s:
-            raise ValueError(
-                f"end_s: {self.end_s!r} is invalid, expected end_s > start_s ({self.start_s!r})"
+            raise ConfigValueError(
+                "end_s", f"{self.end_s!r} is invalid, expected end_s > start_s ({self.start_s!r})"
             )
         if bool(self.link) == bool(self.service):
-            raise ValueError("link: exactly one of link and service must be set for an outage")
+            raise ConfigValueError(
+                "link", "exactly one of link and service must be set for an outage"
+            )
         if self.link:
             _check_link_pattern("link", self.link)
         elif _SERVICE_RE.match(self.service) is None:
-            raise ValueError(f"service: {self.service!r} is not a valid service name")
+            raise ConfigValueError("service", f"{self.service!r} is not a valid service name")
 
     def applies_to(self, link: str) -> bool:
         """Whether this outage takes ``link`` down (by name/pattern, or as sender or receiver)."""
@@ -202,7 +217,9 @@ class NetworkConfig:
         seen: set[str] = set()
         for o in self.links:
             if o.link in seen:
-                raise ValueError(f"links: {o.link!r} is overridden twice, expected each once")
+                raise ConfigValueError(
+                    "links", f"{o.link!r} is overridden twice, expected each once"
+                )
             seen.add(o.link)
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from common.config.checks import int_range, nonneg, positive
+from common.config.errors import ConfigValueError
 
 SearchKind = Literal["dijkstra", "astar"]
 RefineMethod = Literal["levenberg_marquardt", "lbfgsb"]
@@ -67,28 +68,35 @@ class PlannerConfig:
             nonneg(name, getattr(self, name))
         positive("max_estimate_age_s", self.max_estimate_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
-            raise ValueError(
-                f"rho_m: {self.rho_m!r} is invalid, expected a finite value > rho0_m "
-                f"({self.rho0_m!r}): the potential range must exceed the safe distance"
+            raise ConfigValueError(
+                "rho_m",
+                f"{self.rho_m!r} is invalid, expected a finite value > rho0_m "
+                f"({self.rho0_m!r}): the potential range must exceed the safe distance",
             )
         if self.resolution_m > 5.0:
-            raise ValueError(f"resolution_m: {self.resolution_m!r} is too coarse, expected <= 5")
+            raise ConfigValueError(
+                "resolution_m", f"{self.resolution_m!r} is too coarse, expected <= 5"
+            )
         int_range("smoothing_len", self.smoothing_len, 0, 20)
         if self.search not in ("dijkstra", "astar"):
-            raise ValueError(f"search: {self.search!r} is unknown, expected 'dijkstra' or 'astar'")
+            raise ConfigValueError(
+                "search", f"{self.search!r} is unknown, expected 'dijkstra' or 'astar'"
+            )
         if self.refine_method not in ("levenberg_marquardt", "lbfgsb"):
-            raise ValueError(
-                f"refine_method: {self.refine_method!r} is unknown, "
-                "expected 'levenberg_marquardt' or 'lbfgsb'"
+            raise ConfigValueError(
+                "refine_method",
+                f"{self.refine_method!r} is unknown, expected 'levenberg_marquardt' or 'lbfgsb'",
             )
         if self.connectivity not in (8, 16):
-            raise ValueError(f"connectivity: {self.connectivity!r} is invalid, expected 8 or 16")
+            raise ConfigValueError(
+                "connectivity", f"{self.connectivity!r} is invalid, expected 8 or 16"
+            )
         int_range("nurbs_degree", self.nurbs_degree, 2, 5)
         int_range("samples_per_span", self.samples_per_span, 2, 20)
         int_range("refine_max_iter", self.refine_max_iter, 0, 10_000)
         int_range("refine_rounds", self.refine_rounds, 1, 10)
         int_range("n_samples_check", self.n_samples_check, 100, 1_000_000)
         if not (0.0 < self.curvature_margin <= 1.0):
-            raise ValueError(
-                f"curvature_margin: {self.curvature_margin!r} is invalid, expected in (0, 1]"
+            raise ConfigValueError(
+                "curvature_margin", f"{self.curvature_margin!r} is invalid, expected in (0, 1]"
             )

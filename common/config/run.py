@@ -6,6 +6,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Literal
 
+from common.config.errors import ConfigValueError
+
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
 
@@ -25,13 +27,13 @@ class RunConfig:
     def __post_init__(self) -> None:
         for name in ("name", "vehicle"):
             if not _ID.match(getattr(self, name)):
-                raise ValueError(f"{name}: must be letters, digits, '_' or '-'")
+                raise ConfigValueError(name, "must be letters, digits, '_' or '-'")
         if not 0 <= self.seed < 2**63:
-            raise ValueError("seed: must be in [0, 2**63)")
+            raise ConfigValueError("seed", "must be in [0, 2**63)")
         if self.max_time_s <= 0:
-            raise ValueError("max_time_s: must be > 0")
+            raise ConfigValueError("max_time_s", "must be > 0")
         if ":" not in self.mission:
-            raise ValueError("mission: expected 'module:Class'")
+            raise ConfigValueError("mission", "expected 'module:Class'")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -46,7 +48,7 @@ class RuntimeConfig:
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.time_scale <= 1000:
-            raise ValueError("time_scale: must be in [0.01, 1000]")
+            raise ConfigValueError("time_scale", "must be in [0.01, 1000]")
         for name in ("stats_period_s", "start_timeout_s", "tick_timeout_s"):
             if getattr(self, name) <= 0:
-                raise ValueError(f"{name}: must be > 0")
+                raise ConfigValueError(name, "must be > 0")

@@ -1,7 +1,13 @@
-"""The scenario: every section of a TOML scenario file as one frozen dataclass."""
+"""The scenario: every section of a TOML scenario file as one frozen dataclass.
+
+Loading checks every value on its own. Checks that need more than the config (the world's
+geometry: common.world.check) are passed in as `check`, so this package imports nothing above
+it.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,6 +22,9 @@ from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
+
+# A check run after a scenario is built: (scenario, file) -> None, raising ConfigError.
+ScenarioCheck = Callable[["Scenario", str], None]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -35,11 +44,16 @@ class Scenario:
 
 
 def load_scenario(
-    path: str | Path, overrides: list[str] | None = None, seed: int | None = None
+    path: str | Path,
+    overrides: list[str] | None = None,
+    seed: int | None = None,
+    *,
+    check: ScenarioCheck | None = None,
 ) -> tuple[Scenario, dict[str, Any]]:
     """Read, override (`--set key=value`) and validate a scenario; returns it and its raw data.
 
-    The raw mapping is returned so it can be handed to child processes unchanged.
+    The raw mapping is returned so it can be handed to child processes unchanged. Whoever
+    loads a scenario to run it passes `check=common.world.check.check_scenario`.
     """
     raw = read_toml(path)
     for text in overrides or []:
@@ -47,14 +61,19 @@ def load_scenario(
         apply_override(raw, parts, value)
     if seed is not None:
         apply_override(raw, ["run", "seed"], seed)
-    return scenario_from_raw(raw, str(path)), raw
+    return scenario_from_raw(raw, str(path), check=check), raw
 
 
-def scenario_from_raw(raw: dict[str, Any], file: str = "") -> Scenario:
-    """Validate a raw mapping (from TOML or a parent process) into a Scenario."""
+def scenario_from_raw(
+    raw: dict[str, Any], file: str = "", *, check: ScenarioCheck | None = None
+) -> Scenario:
+    """Validate a raw mapping (from TOML or a parent process) into a Scenario, then `check` it."""
     try:
-        return build(Scenario, raw, file=file)
+        scenario = build(Scenario, raw, file=file)
     except ConfigError:
         raise
     except TypeError as exc:  # a programming error in a config dataclass, still say where
-        raise ConfigError(file, "", str(exc)) from None
+        raise ConfigError(file, (), str(exc)) from None
+    if check is not None:
+        check(scenario, file)
+    return scenario

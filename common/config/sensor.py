@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from common.config.errors import ConfigValueError
+
 
 @dataclass(frozen=True, kw_only=True)
 class SensorConfig:
@@ -28,7 +30,7 @@ class SensorConfig:
         for name in ("nav_rate_hz", "obstacle_rate_hz", "det_range_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name}: {value!r} must be a finite number > 0")
+                raise ConfigValueError(name, f"{value!r} must be a finite number > 0")
         for name in (
             "nav_std_xy_m",
             "nav_std_heading_rad",
@@ -38,20 +40,23 @@ class SensorConfig:
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{name}: {value!r} must be a finite number >= 0")
+                raise ConfigValueError(name, f"{value!r} must be a finite number >= 0")
         if not 0.0 < self.det_fov_half_angle_rad <= math.pi:
-            raise ValueError(
-                f"det_fov_half_angle_rad: {self.det_fov_half_angle_rad!r}, expected (0, pi]"
+            raise ConfigValueError(
+                "det_fov_half_angle_rad", f"{self.det_fov_half_angle_rad!r}, expected (0, pi]"
             )
         if not 0.0 <= self.p_detect <= 1.0:
-            raise ValueError(f"p_detect: {self.p_detect!r}, expected a probability in [0, 1]")
+            raise ConfigValueError(
+                "p_detect", f"{self.p_detect!r}, expected a probability in [0, 1]"
+            )
         slow = min(self.nav_rate_hz, self.obstacle_rate_hz)
         ratio = self.base_rate_hz / slow
         if abs(ratio - round(ratio)) > 1e-9 * ratio:
-            raise ValueError(
-                f"obstacle_rate_hz: {self.base_rate_hz} / {slow} = {ratio:g} Hz ratio, "
+            raise ConfigValueError(
+                "obstacle_rate_hz",
+                f"{self.base_rate_hz} / {slow} = {ratio:g} Hz ratio, "
                 "expected the faster of nav_rate_hz/obstacle_rate_hz to be an integer "
-                "multiple of the slower"
+                "multiple of the slower",
             )
 
     @property

@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 
 from common.config.checks import nonneg, positive
+from common.config.errors import ConfigValueError
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -36,7 +37,7 @@ class CurrentConfig:
     def __post_init__(self) -> None:
         for name in ("x_mps", "y_mps"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name}: {getattr(self, name)!r} is not a finite number")
+                raise ConfigValueError(name, f"{getattr(self, name)!r} is not a finite number")
         nonneg("sigma_mps", self.sigma_mps)
         positive("tau_s", self.tau_s)
         positive("update_s", self.update_s)
@@ -57,14 +58,15 @@ class WatchdogConfig:
         positive("failsafe_after_s", self.failsafe_after_s)
         positive("hold_decel_mps2", self.hold_decel_mps2)
         if self.hold_after_s < self.max_command_age_s:
-            raise ValueError(
-                f"hold_after_s: {self.hold_after_s!r} is below max_command_age_s "
-                f"({self.max_command_age_s!r}), expected hold_after_s >= max_command_age_s"
+            raise ConfigValueError(
+                "hold_after_s",
+                f"{self.hold_after_s!r} is below max_command_age_s "
+                f"({self.max_command_age_s!r}), expected hold_after_s >= max_command_age_s",
             )
         if self.failsafe_after_s <= self.hold_after_s:
-            raise ValueError(
-                f"failsafe_after_s: {self.failsafe_after_s!r} must exceed hold_after_s "
-                f"({self.hold_after_s!r})"
+            raise ConfigValueError(
+                "failsafe_after_s",
+                f"{self.failsafe_after_s!r} must exceed hold_after_s ({self.hold_after_s!r})",
             )
 
 
@@ -131,35 +133,42 @@ class VehicleConfig:
         ):  # fmt: skip
             nonneg(name, getattr(self, name))
         if self.v_min_mps >= self.v_max_mps:
-            raise ValueError(
-                f"v_min_mps: {self.v_min_mps!r} must be below v_max_mps ({self.v_max_mps!r})"
+            raise ConfigValueError(
+                "v_min_mps", f"{self.v_min_mps!r} must be below v_max_mps ({self.v_max_mps!r})"
             )
         if not (math.isfinite(self.w_min_rps) and self.w_min_rps < 0.0):
-            raise ValueError(f"w_min_rps: {self.w_min_rps!r} is invalid, expected a value < 0")
+            raise ConfigValueError(
+                "w_min_rps", f"{self.w_min_rps!r} is invalid, expected a value < 0"
+            )
         if not (self.v_min_mps <= self.cruise_speed_mps <= self.v_max_mps):
-            raise ValueError(
-                f"cruise_speed_mps: {self.cruise_speed_mps!r} is outside [v_min_mps, v_max_mps] "
-                f"= [{self.v_min_mps!r}, {self.v_max_mps!r}]"
+            raise ConfigValueError(
+                "cruise_speed_mps",
+                f"{self.cruise_speed_mps!r} is outside [v_min_mps, v_max_mps] "
+                f"= [{self.v_min_mps!r}, {self.v_max_mps!r}]",
             )
         if self.cruise_speed_mps / self.turn_radius_min_m > min(self.w_max_rps, -self.w_min_rps):
-            raise ValueError(
-                f"turn_radius_min_m: {self.turn_radius_min_m!r} is too tight: turning on it at "
+            raise ConfigValueError(
+                "turn_radius_min_m",
+                f"{self.turn_radius_min_m!r} is too tight: turning on it at "
                 f"cruise speed needs a yaw rate above the eq. (11) bound, expected "
-                f"R_min >= cruise_speed_mps / min(w_max_rps, -w_min_rps)"
+                f"R_min >= cruise_speed_mps / min(w_max_rps, -w_min_rps)",
             )
         if self.wetted_fraction > 1.0:
-            raise ValueError(f"wetted_fraction: {self.wetted_fraction!r} must be <= 1")
+            raise ConfigValueError("wetted_fraction", f"{self.wetted_fraction!r} must be <= 1")
         if not (math.isfinite(self.thrust_min_n) and self.thrust_min_n <= 0.0):
-            raise ValueError(f"thrust_min_n: {self.thrust_min_n!r} is invalid, expected <= 0")
+            raise ConfigValueError(
+                "thrust_min_n", f"{self.thrust_min_n!r} is invalid, expected <= 0"
+            )
         if self.dt_internal_s > self.period_s:
-            raise ValueError(
-                f"dt_internal_s: {self.dt_internal_s!r} exceeds period_s ({self.period_s!r})"
+            raise ConfigValueError(
+                "dt_internal_s", f"{self.dt_internal_s!r} exceeds period_s ({self.period_s!r})"
             )
         ratio = self.current.update_s / self.dt_internal_s
         if abs(ratio - round(ratio)) > 1e-9 * ratio:
-            raise ValueError(
-                f"current: update_s {self.current.update_s!r} is not a multiple of "
-                f"dt_internal_s ({self.dt_internal_s!r})"
+            raise ConfigValueError(
+                "current",
+                f"update_s {self.current.update_s!r} is not a multiple of "
+                f"dt_internal_s ({self.dt_internal_s!r})",
             )
 
     @property

@@ -1,10 +1,16 @@
-"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4)."""
+"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4).
+
+Checks that need the geometry model (simple polygons, start and goal outside every obstacle)
+run after loading, in common.world.check; this package does not import common.world.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 from typing import Literal
+
+from common.config.errors import ConfigValueError
 
 MovingKind = Literal["line", "waypoints", "sinusoid"]
 
@@ -21,13 +27,13 @@ class AreaConfig:
     def __post_init__(self) -> None:
         for name in ("x_min_m", "x_max_m", "y_min_m", "y_max_m"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(
-                    f"{name}: {getattr(self, name)!r} is not finite, expected a number"
+                raise ConfigValueError(
+                    name, f"{getattr(self, name)!r} is not finite, expected a number"
                 )
         if self.x_min_m >= self.x_max_m:
-            raise ValueError(f"x_min_m: {self.x_min_m} must be < x_max_m ({self.x_max_m})")
+            raise ConfigValueError("x_min_m", f"{self.x_min_m} must be < x_max_m ({self.x_max_m})")
         if self.y_min_m >= self.y_max_m:
-            raise ValueError(f"y_min_m: {self.y_min_m} must be < y_max_m ({self.y_max_m})")
+            raise ConfigValueError("y_min_m", f"{self.y_min_m} must be < y_max_m ({self.y_max_m})")
 
     def contains(self, x: float, y: float) -> bool:
         return self.x_min_m <= x <= self.x_max_m and self.y_min_m <= y <= self.y_max_m
@@ -44,8 +50,8 @@ class PoseConfig:
     def __post_init__(self) -> None:
         for name in ("x_m", "y_m", "theta_rad"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(
-                    f"{name}: {getattr(self, name)!r} is not finite, expected a number"
+                raise ConfigValueError(
+                    name, f"{getattr(self, name)!r} is not finite, expected a number"
                 )
 
 
@@ -61,7 +67,7 @@ class CircleObstacleConfig:
     def __post_init__(self) -> None:
         _check_id(self.id)
         if not self.radius_m > 0.0:
-            raise ValueError(f"radius_m: {self.radius_m!r} must be > 0")
+            raise ConfigValueError("radius_m", f"{self.radius_m!r} must be > 0")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,20 +80,14 @@ class PolygonObstacleConfig:
     def __post_init__(self) -> None:
         _check_id(self.id)
         if len(self.vertices_m) % 2 or len(self.vertices_m) < 6:
-            raise ValueError(
-                f"vertices_m: {len(self.vertices_m)} numbers, expected an even count >= 6 "
-                "(at least three x, y vertices)"
+            raise ConfigValueError(
+                "vertices_m",
+                f"{len(self.vertices_m)} numbers, expected an even count >= 6 "
+                "(at least three x, y vertices)",
             )
         if not all(math.isfinite(v) for v in self.vertices_m):
-            raise ValueError("vertices_m: every coordinate must be finite")
-        # Lazy import: common.world imports this module, so a top-level import would be circular.
-        from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
-
-        v = vertices_array(self.vertices_m)
-        if not polygon_is_simple(v):
-            raise ValueError("vertices_m: edges cross each other, expected a simple polygon")
-        if abs(polygon_area(v)) < 1e-9:
-            raise ValueError("vertices_m: the polygon has zero area, expected a proper polygon")
+            raise ConfigValueError("vertices_m", "every coordinate must be finite")
+        # Simplicity and non-zero area are geometry: common.world.check checks them after loading.
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -116,9 +116,11 @@ class MovingObstacleConfig:
     def __post_init__(self) -> None:
         _check_id(self.id)
         if self.kind not in ("line", "waypoints", "sinusoid"):
-            raise ValueError(f"kind: {self.kind!r}, expected 'line', 'waypoints' or 'sinusoid'")
+            raise ConfigValueError(
+                "kind", f"{self.kind!r}, expected 'line', 'waypoints' or 'sinusoid'"
+            )
         if not self.radius_m > 0.0:
-            raise ValueError(f"radius_m: {self.radius_m!r} must be > 0")
+            raise ConfigValueError("radius_m", f"{self.radius_m!r} must be > 0")
         for name in (
             "x0_m",
             "y0_m",
@@ -130,25 +132,30 @@ class MovingObstacleConfig:
             "phase_rad",
         ):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name}: {getattr(self, name)!r}, expected a finite number")
+                raise ConfigValueError(name, f"{getattr(self, name)!r}, expected a finite number")
         if not all(math.isfinite(v) for v in self.waypoints_m):
-            raise ValueError("waypoints_m: every coordinate must be finite")
+            raise ConfigValueError("waypoints_m", "every coordinate must be finite")
         if self.kind == "waypoints":
             if len(self.waypoints_m) % 2 or not self.waypoints_m:
-                raise ValueError(
-                    "waypoints_m: expected an even, non-empty list of x, y (the loop after p0)"
+                raise ConfigValueError(
+                    "waypoints_m", "expected an even, non-empty list of x, y (the loop after p0)"
                 )
             if not self.speed_mps > 0.0:
-                raise ValueError(f"speed_mps: {self.speed_mps!r} must be > 0 for kind 'waypoints'")
+                raise ConfigValueError(
+                    "speed_mps", f"{self.speed_mps!r} must be > 0 for kind 'waypoints'"
+                )
             pts = ((self.x0_m, self.y0_m), *_pairs(self.waypoints_m))
             loop = sum(math.dist(a, b) for a, b in zip(pts, pts[1:] + pts[:1], strict=True))
             if loop < 1e-9:
-                raise ValueError("waypoints_m: the loop has zero length")
+                raise ConfigValueError("waypoints_m", "the loop has zero length")
         if self.kind == "sinusoid":
             if math.hypot(self.vx_mps, self.vy_mps) <= 0.0:
-                raise ValueError("vx_mps: a 'sinusoid' needs a non-zero drift velocity (vx, vy)")
-            if not (self.amplitude_m >= 0.0 and self.frequency_hz >= 0.0):
-                raise ValueError("amplitude_m: amplitude_m and frequency_hz must be >= 0")
+                raise ConfigValueError(
+                    "vx_mps", "a 'sinusoid' needs a non-zero drift velocity (vx, vy)"
+                )
+            for name in ("amplitude_m", "frequency_hz"):
+                if not getattr(self, name) >= 0.0:
+                    raise ConfigValueError(name, f"{getattr(self, name)!r} must be >= 0")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -165,41 +172,47 @@ class WorldConfig:
 
     def __post_init__(self) -> None:
         if not self.goal_tolerance_m > 0.0:
-            raise ValueError(f"goal_tolerance_m: {self.goal_tolerance_m!r} must be > 0")
+            raise ConfigValueError("goal_tolerance_m", f"{self.goal_tolerance_m!r} must be > 0")
         for name, pose in (("start", self.start), ("goal", self.goal)):
             if not self.area.contains(pose.x_m, pose.y_m):
-                raise ValueError(f"{name}: ({pose.x_m}, {pose.y_m}) lies outside the area")
-        ids = [c.id for c in self.circles] + [p.id for p in self.polygons]
-        ids += [m.id for m in self.moving]
-        dup = sorted({i for i in ids if ids.count(i) > 1})
-        if dup:
-            raise ValueError(f"circles/polygons/moving: obstacle ids {dup} are used twice")
+                raise ConfigValueError(name, f"({pose.x_m}, {pose.y_m}) lies outside the area")
+        seen: set[int] = set()
+        for group, ids in (
+            ("circles", [c.id for c in self.circles]),
+            ("polygons", [p.id for p in self.polygons]),
+            ("moving", [m.id for m in self.moving]),
+        ):
+            for i, oid in enumerate(ids):
+                if oid in seen:
+                    raise ConfigValueError(
+                        (group, i, "id"),
+                        f"obstacle id {oid} is used twice, expected ids unique over "
+                        "circles, polygons and moving",
+                    )
+                seen.add(oid)
         for i, c in enumerate(self.circles):
             if not self.area.contains(c.x_m, c.y_m):
-                raise ValueError(f"circles[{i}]: centre ({c.x_m}, {c.y_m}) lies outside the area")
+                raise ConfigValueError(
+                    ("circles", i), f"centre ({c.x_m}, {c.y_m}) lies outside the area"
+                )
         for i, p in enumerate(self.polygons):
             xs, ys = p.vertices_m[::2], p.vertices_m[1::2]
             if not all(self.area.contains(x, y) for x, y in zip(xs, ys, strict=True)):
-                raise ValueError(f"polygons[{i}]: a vertex lies outside the area")
+                raise ConfigValueError(
+                    ("polygons", i, "vertices_m"), "a vertex lies outside the area"
+                )
         for i, m in enumerate(self.moving):
             pts = ((m.x0_m, m.y0_m), *_pairs(m.waypoints_m))
             if not all(self.area.contains(x, y) for x, y in pts):
-                raise ValueError(f"moving[{i}]: its start or a waypoint lies outside the area")
-        self._check_free("start", self.start)
-        self._check_free("goal", self.goal)
-
-    def _check_free(self, name: str, pose: PoseConfig) -> None:
-        # Lazy import: common.world imports this module, so a top-level import would be circular.
-        from common.world.model import World
-
-        # eq. (12) with r = 0 and the obstacles at t = 0: the pose must not lie inside any.
-        if World(self).clearance(pose.x_m, pose.y_m, 0.0, 0.0) <= 0.0:
-            raise ValueError(f"{name}: ({pose.x_m}, {pose.y_m}) lies inside an obstacle at t = 0")
+                raise ConfigValueError(
+                    ("moving", i), "its start or a waypoint lies outside the area"
+                )
+        # Whether start and goal lie inside an obstacle is geometry: common.world.check.
 
 
 def _check_id(i: int) -> None:
     if not isinstance(i, int) or isinstance(i, bool) or i < 0:
-        raise ValueError(f"id: {i!r} must be an integer >= 0")
+        raise ConfigValueError("id", f"{i!r} must be an integer >= 0")
 
 
 def _pairs(flat: tuple[float, ...]) -> tuple[tuple[float, float], ...]:

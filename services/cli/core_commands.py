@@ -36,8 +36,9 @@ def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
 def cmd_check(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.model.mission import load_mission
+    from common.world.check import check_scenario
 
-    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed)
+    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=check_scenario)
     names = ", ".join(load_mission(scenario).dataflow.names)
     print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {names})")
     return 0
@@ -46,13 +47,14 @@ def cmd_check(a: argparse.Namespace) -> int:
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario, write_outputs
+    from common.world.check import check_scenario
 
     overrides = list(a.overrides)
     if a.runtime:
         overrides.append(f'runtime.kind="{a.runtime}"')
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
-    scenario, raw = load_scenario(a.scenario, overrides, a.seed)
+    scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=check_scenario)
     out = (
         a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
     )

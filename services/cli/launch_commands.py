@@ -30,10 +30,11 @@ def cmd_launch(a: argparse.Namespace) -> int:
     from common.runtime.model.mission import load_mission
     from common.runtime.processes.policy import RestartPolicy, policies_for
     from common.runtime.processes.signals import Interrupted
+    from common.world.check import check_scenario
     from services.launcher import LaunchOptions, launch
     from services.launcher.progress import make_display
 
-    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed, check=check_scenario)
     names = load_mission(scenario).dataflow.names
     if a.restart and scenario.runtime.kind == "lockstep":
         raise ValueError(

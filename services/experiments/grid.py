@@ -12,6 +12,7 @@ from typing import Any
 
 from common.config.loader import ConfigError, apply_override, read_toml
 from common.config.scenario import scenario_from_raw
+from common.world.check import check_scenario
 from services.experiments.schema import Experiment, SetValue
 
 
@@ -126,14 +127,14 @@ def _validate(
 ) -> None:
     """Build the cell's scenario now, so a bad cell fails the sweep before any run starts."""
     try:
-        scenario_from_raw(raw, exp.scenario)
+        scenario_from_raw(raw, exp.scenario, check=check_scenario)
     except ConfigError as exc:
         # blame the override that wrote the failing key, if one did (else the base scenario)
         culprit = next(
             (
                 o
                 for o, k, _ in reversed(where)
-                if exc.key == k or exc.key.startswith(k + ".") or exc.key.startswith(k + "[")
+                if exc.key_path[: len(k.split("."))] == tuple(k.split("."))
             ),
             "",
         )

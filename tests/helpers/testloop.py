@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from common.config.errors import ConfigValueError
 from common.config.loader import build
 from common.config.scenario import Scenario
 from common.messages import NavFix, StateEstimate, TruthState, VehicleStatus, VelocityCommand
@@ -191,11 +192,11 @@ class TestLoopParams:
 
     def __post_init__(self) -> None:
         if self.crash_service and self.crash_service not in ("ctrl", "filter", "plant", "sensor"):
-            raise ValueError("crash_service: must be one of ctrl, filter, plant, sensor")
+            raise ConfigValueError("crash_service", "must be one of ctrl, filter, plant, sensor")
 
     @classmethod
     def of(cls, scenario: Scenario) -> TestLoopParams:
-        return build(cls, dict(scenario.run.mission_params), key="run.mission_params")
+        return build(cls, dict(scenario.run.mission_params), path=("run", "mission_params"))
 
 
 def _crashing(name: str, core: ServiceCore, p: TestLoopParams) -> ServiceCore:
