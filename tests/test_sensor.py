@@ -11,9 +11,10 @@ from common.config.sensor import SensorConfig
 from common.config.world import CircleObstacleConfig, MovingObstacleConfig, WorldConfig
 from common.messages import NavFix, ObstacleDetections, TruthState
 from common.runtime.core import Delivery, Emit, QueuePolicy
+from common.scalar import wrap_angle
 from common.world import World, paper_field
 from services.sensor import SensorCore
-from services.sensor.models import in_view, wrap_angle
+from services.sensor.models import in_view
 
 
 def _truth(

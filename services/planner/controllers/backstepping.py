@@ -5,7 +5,7 @@ autonomous mobile robot", IEEE ICRA 1990. A reference posture p_r = (x_r, y_r, t
 moves along the path with speed v_r and yaw rate w_r = v_r kappa(s_r). The error posture in
 the vehicle frame is
 
-    [e_x, e_y]^T = R(theta)^T [x_r - x, y_r - y]^T,   e_theta = wrap(theta_r - theta)
+    [e_x, e_y]^T = R(theta)^T [x_r - x, y_r - y]^T,   e_theta = wrap_angle(theta_r - theta)
 
 and the law (their eq. 6) is
 
@@ -35,7 +35,8 @@ from __future__ import annotations
 import math
 
 from common.config.controller import BacksteppingGains
-from services.planner.controllers.base import Limits, Pose, clamp, predict_pose, wrap
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.base import Limits, Pose, predict_pose
 from services.planner.controllers.reference import Reference
 
 
@@ -89,7 +90,7 @@ class Backstepping:
         c, sn = math.cos(theta), math.sin(theta)
         e_x = c * (xr - x) + sn * (yr - y)
         e_y = -sn * (xr - x) + c * (yr - y)
-        e_th = wrap(th_r - theta)
+        e_th = wrap_angle(th_r - theta)
         self.last_errors = (e_x, e_y, e_th)
         v = v_r * math.cos(e_th) + g.k_x_ps * e_x
         w = w_r + v_r * (g.k_y_pm2 * e_y + g.k_theta_pm * math.sin(e_th))

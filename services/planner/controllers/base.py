@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from common.config.vehicle import VehicleConfig
+from common.scalar import clamp, wrap_angle
 from services.planner.controllers.reference import Reference
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate or truth)
@@ -51,16 +52,6 @@ class Controller(Protocol):
     def reset(self) -> None: ...
 
 
-def clamp(x: float, lo: float, hi: float) -> float:
-    """x limited to [lo, hi]."""
-    return lo if x < lo else hi if x > hi else x
-
-
-def wrap(a: float) -> float:
-    """Angle wrapped to [-pi, pi]."""
-    return math.remainder(a, 2.0 * math.pi)
-
-
 def predict_pose(pose: Pose, horizon_s: float) -> Pose:
     """eq. (7) integrated exactly for a constant twist (v, w) over horizon_s (an arc).
 
@@ -88,4 +79,4 @@ def path_errors(x: float, y: float, theta: float, ref: Reference, s: float) -> t
     px, py = ref.point(s)
     hp = ref.heading(s)
     e_y = -math.sin(hp) * (x - px) + math.cos(hp) * (y - py)
-    return e_y, wrap(theta - hp)
+    return e_y, wrap_angle(theta - hp)

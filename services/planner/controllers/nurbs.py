@@ -8,7 +8,7 @@ lateral error (> 0 left), e_theta = theta - theta_p(s) and kappa(s) the signed c
     chi     = -atan(e_y / Delta)                  desired approach angle, Delta = look-ahead
     w       = kappa s_dot                         curvature feed-forward (= v kappa on the path)
               + dchi/de_y * v sin(e_theta)        keeps the approach angle consistent
-              - k_h wrap(e_theta - chi)           heading feedback
+              - k_h wrap_angle(e_theta - chi)           heading feedback
 
 With z = e_theta - chi, unsaturated and with the true speed v, this gives dz/dt = -k_h z
 exactly, and with z = 0 the cross-track error obeys de_y/dt = -v e_y / sqrt(Delta^2 + e_y^2)
@@ -32,14 +32,8 @@ from __future__ import annotations
 import math
 
 from common.config.controller import NurbsGains
-from services.planner.controllers.base import (
-    Limits,
-    Pose,
-    clamp,
-    path_errors,
-    predict_pose,
-    wrap,
-)
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
 from services.planner.controllers.reference import Reference
 
 _PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
@@ -96,7 +90,7 @@ class NurbsTracker:
         denom = max(1.0 - kappa * e_y, 0.2)  # guard the Frenet singularity at the centre
         w_ff = kappa * v_k * math.cos(e_th) / denom  # curvature feed-forward
         dchi = -delta / (delta * delta + e_y * e_y) * v_k * math.sin(e_th)
-        w = w_ff + dchi - g.k_heading_ps * wrap(e_th - chi)
+        w = w_ff + dchi - g.k_heading_ps * wrap_angle(e_th - chi)
         # turning radius >= R_min (eqs. 19-20), then eq. (11)
         w_r = v_cmd / lim.r_min
         w = clamp(w, -w_r, w_r)

@@ -5,9 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
+from common.scalar import clamp
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -30,7 +28,7 @@ class StraightLine:
 
     def project(self, x: float, y: float, s_hint: float | None) -> float:
         ux, uy = self._unit()
-        return _clamp((x - self.x0) * ux + (y - self.y0) * uy, 0.0, self.length)
+        return clamp((x - self.x0) * ux + (y - self.y0) * uy, 0.0, self.length)
 
     def point(self, s: float) -> tuple[float, float]:
         ux, uy = self._unit()
@@ -69,7 +67,7 @@ class Circle:
         lap = 2.0 * math.pi * self.radius
         hint = 0.0 if s_hint is None else s_hint
         # the unwrapped arc length closest to the hint (the previous projection)
-        return _clamp(base + lap * round((hint - base) / lap), 0.0, self.length)
+        return clamp(base + lap * round((hint - base) / lap), 0.0, self.length)
 
     def point(self, s: float) -> tuple[float, float]:
         phase = self.phase0 + self._sign * s / self.radius
@@ -121,14 +119,14 @@ class Polyline:
             seg = self._cum[i + 1] - self._cum[i]
             if seg <= 0.0:
                 continue
-            u = _clamp(((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0)) / (seg * seg), 0.0, 1.0)
+            u = clamp(((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0)) / (seg * seg), 0.0, 1.0)
             d = math.hypot(x0 + u * (x1 - x0) - x, y0 + u * (y1 - y0) - y)
             if d < best_d:
                 best_s, best_d = self._cum[i] + u * seg, d
         return best_s
 
     def point(self, s: float) -> tuple[float, float]:
-        s = _clamp(s, 0.0, self.length)
+        s = clamp(s, 0.0, self.length)
         i = self._leg(s)
         x0, y0, x1, y1 = self.points[2 * i : 2 * i + 4]
         seg = self._cum[i + 1] - self._cum[i]
@@ -136,7 +134,7 @@ class Polyline:
         return x0 + u * (x1 - x0), y0 + u * (y1 - y0)
 
     def heading(self, s: float) -> float:
-        i = self._leg(_clamp(s, 0.0, self.length))
+        i = self._leg(clamp(s, 0.0, self.length))
         x0, y0, x1, y1 = self.points[2 * i : 2 * i + 4]
         return math.atan2(y1 - y0, x1 - x0)
 
