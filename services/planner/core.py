@@ -40,7 +40,6 @@ class PlannerCore:
         vehicle: VehicleConfig,
         world: WorldConfig,
         *,
-        period_s: float = 0.1,
         expected_downlink_s: float = 0.0,
     ) -> None:
         self.spec = CoreSpec(
@@ -63,8 +62,8 @@ class PlannerCore:
                 OutputSpec(stream="path", msg_type=PathMsg),
                 OutputSpec(stream="cmd", msg_type=VelocityCommand),
             ),
-            period_s=period_s,
-            offset_s=period_s / 2,  # half a period after the estimator publishes
+            period_s=planner.period_s,
+            offset_s=planner.period_s / 2,  # half a period after the estimator publishes
         )
         self.cfg = planner
         self.vehicle = vehicle
