@@ -21,7 +21,7 @@ from services.planner.geometry import (
     Pose2D,
     StaticField,
 )
-from services.planner.nurbs import curvature
+from services.planner.nurbs_curve import curvature
 from services.planner.plan import PlanRequest, PlanResult, plan_path
 from services.planner.prediction import predicted_discs
 from services.planner.search import shortest_path

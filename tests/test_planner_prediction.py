@@ -8,7 +8,7 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from services.planner.geometry import MovingCircle, Pose2D
-from services.planner.nurbs import Nurbs, clamped_uniform_knots
+from services.planner.nurbs_curve import NurbsCurve, clamped_uniform_knots
 from services.planner.prediction import intercept_time, passing_discs, predicted_discs
 
 CFG = PlannerConfig(moving_window_s=3.0)
@@ -38,7 +38,7 @@ def test_predicted_discs_sweep_the_window_around_the_intercept() -> None:
 def test_passing_discs_follow_the_time_the_curve_passes() -> None:
     # straight curve y = 20 from x = 0 to 90 at 1.5 m/s: at x = 45 at t = 30 s
     ctrl = np.stack([np.linspace(0.0, 90.0, 6), np.full(6, 20.0)], axis=1)
-    curve = Nurbs(3, ctrl, np.ones(6), clamped_uniform_knots(6, 3))
+    curve = NurbsCurve(3, ctrl, np.ones(6), clamped_uniform_knots(6, 3))
     o = MovingCircle(id=1, x=45.0, y=-10.0, vx=0.0, vy=1.0, radius=1.0)  # at y = 20 at t = 30
     discs = passing_discs(curve, (o,), 1.5, CFG)
     ys = np.array([d.y for d in discs])

@@ -4,7 +4,7 @@ Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
 
     result = plan_path(PlanRequest(start=..., goal=..., obstacles=...), PlannerConfig())
     if result.ok:
-        path = NurbsPath(result.curve())  # arc length, projection, curvature for tracking
+        path = PlannedPath(result.curve())  # arc length, projection, curvature for tracking
 """
 
 from services.planner.geometry import (
@@ -15,17 +15,17 @@ from services.planner.geometry import (
     Polygon,
     Pose2D,
 )
-from services.planner.nurbs import Nurbs
-from services.planner.nurbs_path import NurbsPath
+from services.planner.nurbs_curve import NurbsCurve
 from services.planner.plan import PlanRequest, PlanResult, PlanTiming, plan_path
+from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy, replan_request
 
 __all__ = [
     "Area",
     "Circle",
     "MovingCircle",
-    "Nurbs",
-    "NurbsPath",
+    "NurbsCurve",
+    "PlannedPath",
     "Obstacles",
     "PlanRequest",
     "PlanResult",

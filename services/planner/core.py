@@ -20,10 +20,10 @@ from common.runtime.core import CoreSpec, Delivery, Emit, InputSpec, OutputSpec,
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.geometry import Area, Circle, MovingCircle, Obstacles, Polygon, Pose2D
-from services.planner.nurbs_path import NurbsPath
+from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import PlanRequest, PlanResult, plan_path
+from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanPolicy
-from services.planner.tracking_ref import NurbsReference
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -87,7 +87,7 @@ class PlannerCore:
         self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
-        self.ref: NurbsReference | None = None
+        self.ref: PathArcReference | None = None
         self.path_id = 0
         self.last_result: PlanResult | None = None
         self.arrived = False
@@ -177,7 +177,7 @@ class PlannerCore:
         self.last_result = result
         self.path_id += 1
         if result.ok:
-            self.ref = NurbsReference(NurbsPath(result.curve()), self.vehicle.cruise_speed_mps)
+            self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
             return PathMsg(
                 stamp=t,

@@ -19,7 +19,7 @@ import numpy as np
 
 from services.planner.costmap import CostMap
 from services.planner.geometry import Area, FloatArray, MovingCircle, Pose2D, StaticField
-from services.planner.nurbs import Nurbs, averaged_knots
+from services.planner.nurbs_curve import NurbsCurve, averaged_knots
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +147,9 @@ def turn_arc(pts: FloatArray, theta: float, radius: float) -> tuple[FloatArray, 
     return np.array(out), i_keep
 
 
-def initial_curve(prob: FitProblem, waypoints: FloatArray, spacing: float, degree: int) -> Nurbs:
+def initial_curve(
+    prob: FitProblem, waypoints: FloatArray, spacing: float, degree: int
+) -> NurbsCurve:
     """Control polygon from the densified waypoints plus the boundary tangents of eq. (10)."""
     radius = 1.25 * prob.r_min_m
     lead, i0 = turn_arc(waypoints, prob.start.theta, radius)
@@ -171,10 +173,10 @@ def initial_curve(prob: FitProblem, waypoints: FloatArray, spacing: float, degre
     ctrl = np.concatenate(
         [dense[:1], [start_xy + a * lay.h0], dense[1:-1], [goal_xy - b * hf], dense[-1:]]
     )
-    return Nurbs(degree, ctrl, np.ones(len(ctrl)), averaged_knots(ctrl, degree))
+    return NurbsCurve(degree, ctrl, np.ones(len(ctrl)), averaged_knots(ctrl, degree))
 
 
-def resample(curve: Nurbs, spacing: float) -> FloatArray:
+def resample(curve: NurbsCurve, spacing: float) -> FloatArray:
     """Points along a curve about `spacing` apart in arc length (ends included)."""
     u = np.linspace(curve.u_min, curve.u_max, 400)
     pts = curve.evaluate(u, n_ders=0)[0]

@@ -18,7 +18,7 @@ from services.planner.check import CurveCheck, check_curve
 from services.planner.costmap import CostMap, build_costmap
 from services.planner.fit import FitProblem, initial_curve, resample
 from services.planner.geometry import FloatArray, Pose2D, StaticField, moving_distance
-from services.planner.nurbs import Nurbs
+from services.planner.nurbs_curve import NurbsCurve
 from services.planner.prediction import passing_discs, predicted_discs
 from services.planner.refine import RefineWeights, refine
 from services.planner.result import PlanRequest, PlanResult, PlanStatus, PlanTiming
@@ -182,7 +182,7 @@ def plan_path(
 
 def _fit_and_check(
     prob: FitProblem, waypoints: FloatArray, cfg: PlannerConfig, clk: _Clock
-) -> tuple[Nurbs, CurveCheck, int, Nurbs | None]:
+) -> tuple[NurbsCurve, CurveCheck, int, NurbsCurve | None]:
     """Fit, then refine and check in rounds.
 
     Each failed round stiffens the penalties (eq. (9): c_n "a larger value") and tightens
@@ -193,7 +193,7 @@ def _fit_and_check(
     a moving obstacle (None if none did).
     """
     spacing = cfg.ctrl_spacing_m
-    met_moving: Nurbs | None = None
+    met_moving: NurbsCurve | None = None
     wts = RefineWeights(
         c_d=cfg.penalty_clearance,
         c_k=cfg.penalty_curvature,

@@ -15,7 +15,7 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from services.planner.geometry import Circle, MovingCircle, Pose2D
-from services.planner.nurbs import Nurbs
+from services.planner.nurbs_curve import NurbsCurve
 
 
 def intercept_time(
@@ -53,7 +53,7 @@ def predicted_discs(
 
 
 def passing_discs(
-    curve: Nurbs, moving: tuple[MovingCircle, ...], v_ref: float, cfg: PlannerConfig
+    curve: NurbsCurve, moving: tuple[MovingCircle, ...], v_ref: float, cfg: PlannerConfig
 ) -> tuple[Circle, ...]:
     """Swept discs around the time the given curve comes closest to each moving obstacle."""
     u = np.linspace(curve.u_min, curve.u_max, 800)

@@ -9,7 +9,7 @@ from typing import Literal
 import numpy as np
 
 from services.planner.geometry import Area, FloatArray, Obstacles, Pose2D
-from services.planner.nurbs import Nurbs
+from services.planner.nurbs_curve import NurbsCurve
 
 PlanStatus = Literal["OK", "NO_PATH"]
 
@@ -68,7 +68,7 @@ class PlanResult:
     def ok(self) -> bool:
         return self.status == "OK"
 
-    def curve(self) -> Nurbs:
+    def curve(self) -> NurbsCurve:
         if not self.ok:
             raise ValueError(f"no curve: {self.reason}")
-        return Nurbs(self.degree, self.control_points, self.weights, self.knots)
+        return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)

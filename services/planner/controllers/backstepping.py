@@ -36,8 +36,8 @@ import math
 
 from common.config.controller import BacksteppingGains
 from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits, Pose, predict_pose
-from services.planner.controllers.reference import Reference
 
 
 class Backstepping:
@@ -63,7 +63,7 @@ class Backstepping:
         self.last_errors = (0.0, 0.0, 0.0)
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) from the Kanayama law, saturated to eq. (11)."""
         g, lim = self.gains, self.limits
@@ -71,7 +71,7 @@ class Backstepping:
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, _, _ = pose
-        s_proj = ref.project(x, y, self._s_hint)
+        s_proj = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s_proj
         # the virtual reference: advanced at v_r by the caller's clock, on a leash
         if self._s_r is None or self._t_prev is None:
@@ -83,9 +83,9 @@ class Backstepping:
         s_eval = s_r
         if s_eval >= ref.length:
             v_r = 0.0  # the reference stopped at the end of the path
-        xr, yr = ref.point(s_eval)
-        th_r = ref.heading(s_eval)
-        w_r = v_r * ref.curvature(s_eval)
+        xr, yr = ref.point_at_s(s_eval)
+        th_r = ref.heading_at_s(s_eval)
+        w_r = v_r * ref.curvature_at_s(s_eval)
         # error posture in the vehicle frame (Kanayama eq. 3)
         c, sn = math.cos(theta), math.sin(theta)
         e_x = c * (xr - x) + sn * (yr - y)

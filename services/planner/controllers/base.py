@@ -8,7 +8,7 @@ from typing import Protocol
 
 from common.config.vehicle import VehicleConfig
 from common.scalar import clamp, wrap_angle
-from services.planner.controllers.reference import Reference
+from services.planner.controllers.arc_reference import ArcLengthReference
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate or truth)
 
@@ -46,7 +46,7 @@ class Controller(Protocol):
     name: str
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]: ...
 
     def reset(self) -> None: ...
@@ -74,9 +74,11 @@ def predict_pose(pose: Pose, horizon_s: float) -> Pose:
     )
 
 
-def path_errors(x: float, y: float, theta: float, ref: Reference, s: float) -> tuple[float, float]:
+def path_errors(
+    x: float, y: float, theta: float, ref: ArcLengthReference, s: float
+) -> tuple[float, float]:
     """Serret-Frenet errors at arc length s: (e_y lateral, > 0 left of the path; e_theta)."""
-    px, py = ref.point(s)
-    hp = ref.heading(s)
+    px, py = ref.point_at_s(s)
+    hp = ref.heading_at_s(s)
     e_y = -math.sin(hp) * (x - px) + math.cos(hp) * (y - py)
     return e_y, wrap_angle(theta - hp)

@@ -35,9 +35,9 @@ import math
 
 from common.config.controller import FuzzyPidGains
 from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
 from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
-from services.planner.controllers.reference import Reference
 
 _TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
 
@@ -66,14 +66,14 @@ class ImmuneFuzzyPid:
         self.last_gains = (self.gains.kp_ps, self.gains.ki_ps2, self.gains.kd, 1.0)
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) from the immune fuzzy PID, saturated to eq. (11)."""
         g, lim = self.gains, self.limits
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, _, _ = pose
-        s = ref.project(x, y, self._s_hint)
+        s = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         e = wrap_angle(-math.atan(e_y / g.lookahead_m) - e_th)
