@@ -8,8 +8,9 @@ from typing import Literal
 
 import numpy as np
 
+from common.world.geometry import FloatArray
+from services.planner.clearance import moving_distance
 from services.planner.fit import FitProblem
-from services.planner.geometry import FloatArray, moving_distance
 from services.planner.nurbs_curve import NurbsCurve, curvature
 from services.planner.refine import gauss_legendre
 
@@ -75,10 +76,10 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
     min_moving = float(d_moving.min()) - r
     a = prob.area
     inside = (
-        (c[:, 0] >= a.x_min + r - 1e-9)
-        & (c[:, 0] <= a.x_max - r + 1e-9)
-        & (c[:, 1] >= a.y_min + r - 1e-9)
-        & (c[:, 1] <= a.y_max - r + 1e-9)
+        (c[:, 0] >= a.x_min_m + r - 1e-9)
+        & (c[:, 0] <= a.x_max_m - r + 1e-9)
+        & (c[:, 1] >= a.y_min_m + r - 1e-9)
+        & (c[:, 1] <= a.y_max_m - r + 1e-9)
     )
     reason = ""
     failed: FailKind = ""

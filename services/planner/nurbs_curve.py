@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from services.planner.geometry import FloatArray
+from common.world.geometry import FloatArray
 
 IntArray = NDArray[np.intp]
 

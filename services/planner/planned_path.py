@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from services.planner.geometry import FloatArray
+from common.world.geometry import FloatArray
 from services.planner.nurbs_curve import NurbsCurve, curvature
 
 # 3-point Gauss-Legendre on [0, 1]: exact for polynomials of degree 5 between table points

@@ -25,8 +25,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import minimize
 
+from common.world.geometry import FloatArray
 from services.planner.fit import FitProblem, Layout
-from services.planner.geometry import FloatArray
 from services.planner.nurbs_curve import NurbsCurve, rational_basis
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
@@ -90,7 +90,7 @@ class Objective:
         t_s = s / prob.v_ref_mps
         self.centres = np.zeros((len(prob.moving), len(u), 2))  # alpha_k(t_j), eq. (12)
         for i, o in enumerate(prob.moving):
-            self.centres[i] = o.positions(t_s, prob.accel_horizon_s)
+            self.centres[i] = o.centre_at(t_s, prob.accel_horizon_s)
         self.radii = np.array([o.radius for o in prob.moving])[:, None]
 
     def __call__(
