@@ -1,4 +1,4 @@
-"""The simulated world: obstacles alpha_k(t) and the clearance of eq. (12)."""
+"""The one world model: obstacles alpha_k(t), their prediction, polygon geometry, eq. (12)."""
 
 from common.world.model import ObstacleState, World
 
