@@ -1,37 +1,50 @@
-"""Benchmark full replans (cost map, search, NURBS fit, refinement, check) on a paper-like field."""
+"""Benchmark full replans (cost map, search, NURBS fit, refinement, check) on the default field."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 
 from common.config.planner import PlannerConfig
-from services.planner.demo_field import (
-    paper_area,
-    paper_goal,
-    paper_obstacles,
-    paper_start,
-)
-from services.planner.geometry import Pose2D
-from services.planner.plan import PlanRequest, PlanResult, plan_path
+from common.config.scenario import load_scenario
+from common.world import World
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
+
+DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 
 
 def main(n_replans: int, seed: int, cfg: PlannerConfig) -> list[PlanResult]:
-    """Run n_replans plans from slightly varied starts; print latency percentiles and stages."""
+    """Run n_replans plans from slightly varied starts; print latency percentiles and stages.
+
+    The field, vehicle radius, R_min and cruise speed are the default scenario's; moving
+    obstacles are taken at t = 0.
+    """
+    scenario, _ = load_scenario(DEFAULT_SCENARIO)
+    world, vehicle = scenario.world, scenario.vehicle
+    obstacles = Obstacles(
+        circles=world.circles,
+        polygons=world.polygons,
+        moving=tuple(o for o in World(world).obstacles_at(0.0) if o.moving),
+    )
+    goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
     rng = np.random.default_rng(seed)
-    base = paper_start()
+    base = world.start
     requests = [
         PlanRequest(
             start=Pose2D(
-                x=base.x + float(rng.uniform(-1.0, 1.0)),
-                y=base.y + float(rng.uniform(-2.0, 2.0)),
-                theta=base.theta + float(rng.uniform(-0.3, 0.3)),
+                x=base.x_m + float(rng.uniform(-1.0, 1.0)),
+                y=base.y_m + float(rng.uniform(-2.0, 2.0)),
+                theta=base.theta_rad + float(rng.uniform(-0.3, 0.3)),
             ),
-            goal=paper_goal(),
-            area=paper_area(),
-            obstacles=paper_obstacles(),
+            goal=goal,
+            area=world.area,
+            obstacles=obstacles,
+            vehicle_radius_m=vehicle.radius_m,
+            r_min_m=vehicle.turn_radius_min_m,
+            v_ref_mps=vehicle.cruise_speed_mps,
         )
         for _ in range(n_replans)
     ]

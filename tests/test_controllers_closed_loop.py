@@ -12,8 +12,8 @@ from common.config.vehicle import VehicleConfig
 from common.messages import TruthState, VelocityCommand
 from common.runtime.model.core import Delivery
 from services.planner.controllers import Circle, Limits, StraightLine, make_controller
+from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import path_errors
-from services.planner.controllers.reference import Reference
 from services.vehicle.core import VehicleCore
 
 VCFG = VehicleConfig()
@@ -23,7 +23,7 @@ KINDS: tuple[ControllerKind, ...] = ("nurbs", "backstepping", "fuzzy_pid")
 
 def closed_loop(
     kind: ControllerKind,
-    ref: Reference,
+    ref: ArcLengthReference,
     start: tuple[float, float, float],
     t_end: float,
     *,
@@ -54,7 +54,7 @@ def closed_loop(
             v_cmd, w_cmd = ctrl.command(t, pose, ref, latency_s=pose_delay_s)
             msg = VelocityCommand(stamp=t, v=v_cmd, w=w_cmd, path_id=0, controller=kind)
             core.deliver(Delivery(source="planner", stream="cmd", msg=msg, t=t))
-        s_hint = ref.project(truth.x, truth.y, s_hint)
+        s_hint = ref.closest_s(truth.x, truth.y, s_hint)
         e_y, _ = path_errors(truth.x, truth.y, truth.theta, ref, s_hint)
         rows.append((t, e_y, v_cmd, w_cmd))
     return np.array(rows)

@@ -22,6 +22,7 @@ from services.planner.controllers import (
     make_controller,
     predict_pose,
 )
+from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import path_errors
 from services.planner.controllers.fuzzy import (
     DKD_TABLE,
@@ -31,23 +32,24 @@ from services.planner.controllers.fuzzy import (
     memberships,
     parse_table,
 )
-from services.planner.controllers.reference import Reference
 
 LIMITS = Limits.from_vehicle(VehicleConfig())
 
 
 def test_straight_line_reference() -> None:
-    ref: Reference = StraightLine(x0=1.0, y0=1.0, x1=4.0, y1=5.0, v_ref=1.0)
+    ref: ArcLengthReference = StraightLine(x0=1.0, y0=1.0, x1=4.0, y1=5.0, v_ref=1.0)
     assert ref.length == 5.0
-    assert math.isclose(ref.project(4.0 + 4.0, 5.0 - 3.0, None), 5.0)  # clamped at the end
+    assert math.isclose(ref.closest_s(4.0 + 4.0, 5.0 - 3.0, None), 5.0)  # clamped at the end
     # 3 m to the left of s = 2 (point (2.2, 2.6), left normal (-0.8, 0.6)) projects to s = 2
-    assert math.isclose(ref.project(2.2 - 2.4, 2.6 + 1.8, None), 2.0)
-    assert ref.project(-5.0, 1.0, None) == 0.0  # clamped at the start
-    x, y = ref.point(2.5)
+    assert math.isclose(ref.closest_s(2.2 - 2.4, 2.6 + 1.8, None), 2.0)
+    assert ref.closest_s(-5.0, 1.0, None) == 0.0  # clamped at the start
+    x, y = ref.point_at_s(2.5)
     assert math.isclose(x, 2.5) and math.isclose(y, 3.0)
-    assert math.isclose(ref.heading(0.0), math.atan2(4.0, 3.0)) and ref.curvature(1.0) == 0.0
+    assert (
+        math.isclose(ref.heading_at_s(0.0), math.atan2(4.0, 3.0)) and ref.curvature_at_s(1.0) == 0.0
+    )
     # a point 2 m to the left of the direction of travel has e_y = +2
-    e_y, e_th = path_errors(2.5 - 2.0 * 0.8, 3.0 + 2.0 * 0.6, ref.heading(0.0), ref, 2.5)
+    e_y, e_th = path_errors(2.5 - 2.0 * 0.8, 3.0 + 2.0 * 0.6, ref.heading_at_s(0.0), ref, 2.5)
     assert math.isclose(e_y, 2.0) and abs(e_th) < 1e-15
 
 
@@ -56,33 +58,34 @@ def test_circle_reference(ccw: bool) -> None:
     ref = Circle(cx=2.0, cy=-1.0, radius=8.0, phase0=0.3, ccw=ccw, turns=3.0)
     lap = 2.0 * math.pi * 8.0
     sign = 1.0 if ccw else -1.0
-    assert math.isclose(ref.curvature(1.0), sign / 8.0)
+    assert math.isclose(ref.curvature_at_s(1.0), sign / 8.0)
     for s in (0.5, 10.0, lap + 3.0, 2.0 * lap + 40.0):
-        x, y = ref.point(s)
+        x, y = ref.point_at_s(s)
         assert math.isclose(math.hypot(x - 2.0, y + 1.0), 8.0)
         # the heading is the direction of d point / ds (central difference, 1e-6)
-        x1, y1 = ref.point(s + 1e-6)
-        x0, y0 = ref.point(s - 1e-6)
+        x1, y1 = ref.point_at_s(s + 1e-6)
+        x0, y0 = ref.point_at_s(s - 1e-6)
         assert (
-            abs(math.remainder(math.atan2(y1 - y0, x1 - x0) - ref.heading(s), 2 * math.pi)) < 1e-6
+            abs(math.remainder(math.atan2(y1 - y0, x1 - x0) - ref.heading_at_s(s), 2 * math.pi))
+            < 1e-6
         )
         # a point 1.5 m outside projects back onto s when the hint is on the same lap
         ox, oy = 2.0 + (x - 2.0) * 9.5 / 8.0, -1.0 + (y + 1.0) * 9.5 / 8.0
-        assert math.isclose(ref.project(ox, oy, s + 2.0), s, abs_tol=1e-9)
-        e_y, _ = path_errors(ox, oy, ref.heading(s), ref, s)
+        assert math.isclose(ref.closest_s(ox, oy, s + 2.0), s, abs_tol=1e-9)
+        e_y, _ = path_errors(ox, oy, ref.heading_at_s(s), ref, s)
         assert math.isclose(e_y, -1.5 * sign)  # outside is to the right of a ccw circle
 
 
 def test_polyline_reference() -> None:
     ref = Polyline(points=(0.0, 0.0, 10.0, 0.0, 10.0, 10.0, 0.0, 10.0), window_m=4.0)
     assert ref.length == 30.0
-    assert math.isclose(ref.project(12.0, 4.0, None), 14.0)
-    assert math.isclose(ref.heading(14.0), 0.5 * math.pi)
-    assert ref.point(25.0) == (5.0, 10.0)
+    assert math.isclose(ref.closest_s(12.0, 4.0, None), 14.0)
+    assert math.isclose(ref.heading_at_s(14.0), 0.5 * math.pi)
+    assert ref.point_at_s(25.0) == (5.0, 10.0)
     # (5, 4) is closest to the first leg, but with a hint on the last leg (only legs within
     # 4 m of the hint are searched) it stays there
-    assert math.isclose(ref.project(5.0, 4.0, None), 5.0)
-    assert math.isclose(ref.project(5.0, 4.0, 25.0), 25.0)
+    assert math.isclose(ref.closest_s(5.0, 4.0, None), 5.0)
+    assert math.isclose(ref.closest_s(5.0, 4.0, 25.0), 25.0)
     with pytest.raises(ValueError, match="points"):
         Polyline(points=(0.0, 0.0, 1.0))
 
@@ -188,12 +191,12 @@ def test_backstepping_on_the_reference_commands_the_feed_forward() -> None:
     # the vehicle exactly on the reference posture: v = v_r, w = v_r kappa (Kanayama eq. 6)
     ref = Circle(cx=0.0, cy=0.0, radius=8.0, v_ref=1.2)
     ctrl = Backstepping(ControllerConfig().backstepping, LIMITS)
-    x, y = ref.point(0.0)
-    v, w = ctrl.command(0.0, (x, y, ref.heading(0.0), 1.2, 0.15), ref)
+    x, y = ref.point_at_s(0.0)
+    v, w = ctrl.command(0.0, (x, y, ref.heading_at_s(0.0), 1.2, 0.15), ref)
     assert math.isclose(v, 1.2) and math.isclose(w, 1.2 / 8.0)
     # a vehicle that does not move: the virtual point stops max_lead_m = 5 m ahead
     for k in range(1, 200):
-        ctrl.command(0.1 * k, (x, y, ref.heading(0.0), 0.0, 0.0), ref)
+        ctrl.command(0.1 * k, (x, y, ref.heading_at_s(0.0), 0.0, 0.0), ref)
     e_x, _, _ = ctrl.last_errors
     assert e_x < 5.0 + 1e-9 and e_x > 4.0
 
@@ -214,7 +217,7 @@ def test_every_command_is_inside_eq11(
 ) -> None:
     # whatever the poses (jumping around, far off the path) and latency: eq. (11) holds,
     # and the NURBS tracker's turning radius is >= R_min
-    ref: Reference = (
+    ref: ArcLengthReference = (
         Circle(cx=0.0, cy=0.0, radius=8.0) if circle else StraightLine(x0=0, y0=0, x1=50, y1=5)
     )
     kinds: tuple[ControllerKind, ...] = ("nurbs", "backstepping", "fuzzy_pid")

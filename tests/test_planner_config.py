@@ -36,6 +36,7 @@ def test_defaults_are_valid_and_documented_values() -> None:
         ("deviation_threshold_m", float("nan")),
         ("min_replan_interval_s", float("inf")),
         ("penalty_clearance", -1.0),
+        ("period_s", 0.0),
     ],
 )
 def test_bad_values_are_rejected_naming_the_field(field: str, value: object) -> None:

@@ -5,25 +5,31 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from helpers.planner_world import circle, default_obstacles, default_scenario, moving_circle
 from matplotlib.path import Path as MplPath
 
 from common.config.planner import PlannerConfig
+from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
+from common.world.geometry import vertices_array
+from services.planner.clearance import StaticField
 from services.planner.costmap import build_costmap, grid_shape, repulsive_cost, smoothing_kernel
-from services.planner.demo_field import paper_area, paper_obstacles
-from services.planner.geometry import Area, Circle, MovingCircle, Polygon, StaticField
 
-R_VEH = 0.1
+R_VEH = default_scenario().vehicle.radius_m
+NO_DISCS = np.zeros((0, 3))
+AREA = default_scenario().world.area
 
 
 def _brute_distance(
-    pts: np.ndarray, circles: tuple[Circle, ...], polys: tuple[Polygon, ...]
+    pts: np.ndarray,
+    circles: tuple[CircleObstacleConfig, ...],
+    polys: tuple[PolygonObstacleConfig, ...],
 ) -> np.ndarray:
     """Signed distance to the nearest obstacle surface, computed the slow independent way."""
     best = np.full(len(pts), np.inf)
     for c in circles:
-        best = np.minimum(best, np.hypot(pts[:, 0] - c.x, pts[:, 1] - c.y) - c.radius)
+        best = np.minimum(best, np.hypot(pts[:, 0] - c.x_m, pts[:, 1] - c.y_m) - c.radius_m)
     for p in polys:
-        v = np.array(p.vertices)
+        v = vertices_array(p.vertices_m)
         d = np.full(len(pts), np.inf)
         for a, b in zip(v, np.roll(v, -1, axis=0), strict=True):
             ab = b - a
@@ -35,12 +41,12 @@ def _brute_distance(
 
 
 def test_grid_is_200_by_80_at_half_a_metre() -> None:
-    assert grid_shape(Area(), 0.5) == (200, 80)
-    assert grid_shape(Area(x_max=10.2, y_max=4.0), 0.5) == (21, 8)
+    assert grid_shape(AreaConfig(), 0.5) == (200, 80)
+    assert grid_shape(AreaConfig(x_max_m=10.2, y_max_m=4.0), 0.5) == (21, 8)
 
 
 def test_static_field_matches_brute_force_distance_and_gradient() -> None:
-    obs = paper_obstacles()
+    obs = default_obstacles()
     field = StaticField.build(obs.circles, obs.polygons)
     rng = np.random.default_rng(5)
     pts = rng.uniform([0.0, 0.0], [100.0, 40.0], (3000, 2))
@@ -57,14 +63,16 @@ def test_static_field_matches_brute_force_distance_and_gradient() -> None:
 
 def test_occupancy_is_exactly_the_inflated_obstacles() -> None:
     cfg = PlannerConfig()
-    obs = paper_obstacles()
-    cmap = build_costmap(paper_area(), StaticField.build(obs.circles, obs.polygons), (), R_VEH, cfg)
+    obs = default_obstacles()
+    cmap = build_costmap(AREA, StaticField.build(obs.circles, obs.polygons), NO_DISCS, R_VEH, cfg)
     iy, ix = np.mgrid[0 : cmap.ny, 0 : cmap.nx]
     centres = cmap.centre(ix.ravel(), iy.ravel())
     d = _brute_distance(centres, obs.circles, obs.polygons).reshape(cmap.ny, cmap.nx)
-    # occupied <=> hull closer than rho0: centre-to-surface distance < r + rho0 (bar the edge ring)
+    # occupied <=> hull closer than rho0: centre-to-surface distance < r + rho0 (bar the cells
+    # whose centre is within r of the area's edge: the hull must stay inside the area)
+    ring = math.ceil(R_VEH / cfg.resolution_m)
     interior = np.zeros_like(cmap.blocked)
-    interior[1:-1, 1:-1] = True
+    interior[ring:-ring, ring:-ring] = True
     assert np.array_equal(cmap.blocked[interior], (d < R_VEH + cfg.rho0_m)[interior])
     near = d < R_VEH + cfg.rho_m + 0.5  # inside the window of every obstacle: exact clearance
     assert np.allclose(cmap.static_clearance[near], d[near], atol=1e-9)
@@ -80,8 +88,8 @@ def test_repulsive_cost_follows_eq6_without_smoothing() -> None:
     assert np.allclose(repulsive_cost(rho, cfg), expect, atol=1e-12)
     assert repulsive_cost(np.array([1.0 + 1e-6]), cfg)[0] == 10.0  # capped near rho0
     assert abs(repulsive_cost(np.array([4.0]), cfg)[0]) < 1e-12  # continuous at rho_m
-    one = Circle(x=50.0, y=20.0, radius=2.0)
-    cmap = build_costmap(Area(), StaticField.build((one,), ()), (), R_VEH, cfg)
+    one = circle(x=50.0, y=20.0, radius=2.0)
+    cmap = build_costmap(AreaConfig(), StaticField.build((one,), ()), NO_DISCS, R_VEH, cfg)
     rho_grid = cmap.static_clearance - R_VEH
     free = ~cmap.blocked
     assert np.allclose(cmap.cost[free], repulsive_cost(rho_grid, cfg)[free], atol=1e-12)
@@ -92,10 +100,10 @@ def test_eq17_kernel_and_smoothing() -> None:
     assert np.allclose(smoothing_kernel(1), np.array([1, 2, 1]) / 4.0)
     assert np.allclose(smoothing_kernel(0), [1.0])
     cfg = PlannerConfig(smoothing_len=3)
-    one = Circle(x=50.0, y=20.0, radius=2.0)
-    smooth = build_costmap(Area(), StaticField.build((one,), ()), (), R_VEH, cfg)
+    one = circle(x=50.0, y=20.0, radius=2.0)
+    smooth = build_costmap(AreaConfig(), StaticField.build((one,), ()), NO_DISCS, R_VEH, cfg)
     raw = build_costmap(
-        Area(), StaticField.build((one,), ()), (), R_VEH, PlannerConfig(smoothing_len=0)
+        AreaConfig(), StaticField.build((one,), ()), NO_DISCS, R_VEH, PlannerConfig(smoothing_len=0)
     )
     free = ~smooth.blocked
     assert np.all(smooth.cost >= 0.0)
@@ -105,9 +113,9 @@ def test_eq17_kernel_and_smoothing() -> None:
 
 
 def test_bilinear_static_clearance_is_within_resolution_sqrt2() -> None:
-    obs = paper_obstacles()
+    obs = default_obstacles()
     field = StaticField.build(obs.circles, obs.polygons)
-    cmap = build_costmap(paper_area(), field, (), R_VEH, PlannerConfig())
+    cmap = build_costmap(AREA, field, NO_DISCS, R_VEH, PlannerConfig())
     rng = np.random.default_rng(9)
     pts = rng.uniform([0.0, 0.0], [100.0, 40.0], (5000, 2))
     exact = field.distance(pts)[0]
@@ -117,17 +125,17 @@ def test_bilinear_static_clearance_is_within_resolution_sqrt2() -> None:
 
 
 def test_moving_discs_block_cells_and_prediction_holds_acceleration_to_the_horizon() -> None:
-    o = MovingCircle(id=3, x=10.0, y=5.0, vx=1.0, vy=0.0, ax=0.0, ay=0.2, radius=1.0)
+    o = moving_circle(id=3, x=10.0, y=5.0, vx=1.0, vy=0.0, ax=0.0, ay=0.2, radius=1.0)
     t = np.array([0.0, 2.0, 5.0, 8.0])
-    p = o.positions(t, accel_horizon_s=5.0)
+    p = o.centre_at(t, accel_horizon_s=5.0)
     assert np.allclose(p[:3, 1], 5.0 + 0.1 * t[:3] ** 2)  # alpha(t) = p + v t + a t^2 / 2
     assert np.isclose(p[3, 1], 5.0 + 0.1 * 25.0 + 1.0 * 3.0)  # then constant velocity a T
-    shifted = o.shifted(2.0)
+    shifted = o.advanced(2.0)
     assert np.allclose(
-        shifted.positions(np.array([1.0]), math.inf), o.positions(np.array([3.0]), math.inf)
+        shifted.centre_at(np.array([1.0]), math.inf), o.centre_at(np.array([3.0]), math.inf)
     )
-    disc = (Circle(x=30.0, y=20.0, radius=1.0),)
-    cmap = build_costmap(Area(), StaticField.build((), ()), disc, R_VEH, PlannerConfig())
+    disc = np.array([[30.0, 20.0, 1.0]])  # x, y, radius
+    cmap = build_costmap(AreaConfig(), StaticField.build((), ()), disc, R_VEH, PlannerConfig())
     ix, iy = cmap.cell_of(30.0, 20.0)
     assert cmap.blocked[iy, ix] and not cmap.blocked[0 + 10, 0 + 10]
     assert np.all(cmap.static_clearance > 4.0)  # the static grid stays free of moving discs

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+from helpers.planner_world import circle, default_scenario, moving_circle
 
 from common.config.planner import PlannerConfig
-from services.planner.geometry import Circle, MovingCircle, Obstacles, Pose2D
 from services.planner.plan import PlanRequest, PlanResult, plan_path
 from services.planner.replan import ReplanPolicy, replan_request
+from services.planner.result import Obstacles, Pose2D
 
 CFG = PlannerConfig(corridor_halfwidth_m=3.0, deviation_threshold_m=2.0, min_replan_interval_s=1.0)
 V = 1.5
+R_VEH = default_scenario().vehicle.radius_m
 START = Pose2D(x=5.0, y=20.0, theta=0.0)
 GOAL = Pose2D(x=95.0, y=20.0, theta=0.0)
 NONE = Obstacles()
@@ -18,9 +20,9 @@ NONE = Obstacles()
 
 def _planned() -> tuple[ReplanPolicy, PlanResult]:
     """A policy holding a straight path y = 20 from x = 5 to 95, planned at t = 0."""
-    res = plan_path(PlanRequest(start=START, goal=GOAL, v_ref_mps=V), CFG)
+    res = plan_path(PlanRequest(start=START, goal=GOAL, v_ref_mps=V, vehicle_radius_m=R_VEH), CFG)
     assert res.ok
-    pol = ReplanPolicy(CFG, vehicle_radius_m=0.1, v_ref_mps=V)
+    pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
     pol.on_planned(0.0, res, GOAL, NONE)
     return pol, res
 
@@ -32,8 +34,8 @@ def _on_path(t: float, dy: float = 0.0) -> Pose2D:
 def test_no_replan_without_an_event() -> None:
     pol, _ = _planned()
     far = Obstacles(
-        circles=(Circle(x=50.0, y=35.0, radius=2.0),),  # 12.9 m from the path
-        moving=(MovingCircle(id=4, x=50.0, y=2.0, vx=0.5, vy=0.0, radius=1.0),),  # parallel, 17 m
+        circles=(circle(x=50.0, y=35.0, radius=2.0),),  # 12.9 m from the path
+        moving=(moving_circle(id=4, x=50.0, y=2.0, vx=0.5, vy=0.0, radius=1.0),),  # parallel, 17 m
     )
     for t in np.arange(0.0, 40.0, 0.5):
         d = pol.check(float(t), _on_path(float(t), dy=0.5), GOAL, far)
@@ -41,7 +43,7 @@ def test_no_replan_without_an_event() -> None:
 
 
 def test_no_path_yet_and_after_a_failed_attempt() -> None:
-    pol = ReplanPolicy(CFG, vehicle_radius_m=0.1, v_ref_mps=V)
+    pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
     d = pol.check(0.0, START, GOAL, NONE)
     assert d.replan and d.reason == "no_path"
     pol.on_planned(0.0, PlanResult(status="NO_PATH", reason="walled off"), GOAL, NONE)
@@ -60,18 +62,18 @@ def test_deviation_beyond_the_threshold_and_the_minimum_interval() -> None:
 
 def test_static_obstacle_on_the_path_ahead_makes_it_infeasible() -> None:
     pol, _ = _planned()
-    blocker = Obstacles(circles=(Circle(x=60.0, y=20.5, radius=1.0),))
+    blocker = Obstacles(circles=(circle(x=60.0, y=20.5, radius=1.0),))
     d = pol.check(5.0, _on_path(5.0), GOAL, blocker)
     assert d.replan and d.reason == "infeasible"
-    behind = Obstacles(circles=(Circle(x=8.0, y=20.5, radius=0.5),))  # already passed
+    behind = Obstacles(circles=(circle(x=8.0, y=20.5, radius=0.5),))  # already passed
     assert not pol.check(10.0, _on_path(10.0), GOAL, behind).replan
 
 
 def test_moving_obstacle_predicted_on_the_path_makes_it_infeasible() -> None:
     pol, _ = _planned()
     # crosses y = 20 at x = 50 at t = 30 s, when the vehicle (x = 5 + 1.5 t) is there too
-    crossing = MovingCircle(id=7, x=50.0, y=5.0, vx=0.0, vy=0.5, radius=1.0)
-    d = pol.check(0.0 + 1.0, _on_path(1.0), GOAL, Obstacles(moving=(crossing.shifted(1.0),)))
+    crossing = moving_circle(id=7, x=50.0, y=5.0, vx=0.0, vy=0.5, radius=1.0)
+    d = pol.check(0.0 + 1.0, _on_path(1.0), GOAL, Obstacles(moving=(crossing.advanced(1.0),)))
     assert d.replan and d.reason == "infeasible"
 
 
@@ -79,14 +81,14 @@ def test_new_track_entering_the_corridor() -> None:
     pol, _ = _planned()
     # passes 2 m (hull gap ~1.9 m) below the path when the vehicle is there: safe (> rho0)
     # but inside the 3 m corridor, and unknown to the current plan
-    near = MovingCircle(id=9, x=50.0, y=5.0, vx=0.0, vy=(17.0 - 5.0) / 30.0, radius=1.0)
-    d = pol.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(near.shifted(1.0),)))
+    near = moving_circle(id=9, x=50.0, y=5.0, vx=0.0, vy=(17.0 - 5.0) / 30.0, radius=1.0)
+    d = pol.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(near.advanced(1.0),)))
     assert d.replan and d.reason == "corridor", d
     # a track the plan already accounted for (inside the corridor at plan time) is tolerated
-    res = plan_path(PlanRequest(start=START, goal=GOAL, v_ref_mps=V), CFG)
-    pol2 = ReplanPolicy(CFG, vehicle_radius_m=0.1, v_ref_mps=V)
+    res = plan_path(PlanRequest(start=START, goal=GOAL, v_ref_mps=V, vehicle_radius_m=R_VEH), CFG)
+    pol2 = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
     pol2.on_planned(0.0, res, GOAL, Obstacles(moving=(near,)))
-    assert not pol2.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(near.shifted(1.0),))).replan
+    assert not pol2.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(near.advanced(1.0),))).replan
 
 
 def test_goal_change_triggers_and_replans_start_from_the_current_pose() -> None:
@@ -95,7 +97,9 @@ def test_goal_change_triggers_and_replans_start_from_the_current_pose() -> None:
     d = pol.check(2.0, _on_path(2.0), new_goal, NONE)
     assert d.replan and d.reason == "goal_changed"
     here = _on_path(2.0, dy=0.3)
-    req = replan_request(PlanRequest(start=START, goal=new_goal), here, NONE)
+    req = replan_request(
+        PlanRequest(start=START, goal=new_goal, vehicle_radius_m=R_VEH), here, NONE
+    )
     assert req.start == here and req.goal == new_goal
     res = plan_path(req, CFG)
     assert res.ok and np.allclose(res.control_points[0], [here.x, here.y])

@@ -6,11 +6,12 @@ import dataclasses
 import math
 
 import numpy as np
+from helpers.planner_world import circle, default_obstacles, default_scenario, polygon
 
 from common.config.planner import PlannerConfig
+from common.config.world import AreaConfig
+from services.planner.clearance import StaticField
 from services.planner.costmap import CostMap, build_costmap
-from services.planner.demo_field import paper_area, paper_obstacles
-from services.planner.geometry import Area, Circle, Polygon, StaticField
 from services.planner.search import (
     directions,
     edge_weights,
@@ -20,11 +21,14 @@ from services.planner.search import (
 )
 
 CFG = PlannerConfig()
+R_VEH = 0.1  # the hand-built geometries below are sized for this vehicle radius (m)
+NO_DISCS = np.zeros((0, 3))  # no predicted moving discs
 
 
 def _paper_map() -> CostMap:
-    obs = paper_obstacles()
-    return build_costmap(paper_area(), StaticField.build(obs.circles, obs.polygons), (), 0.1, CFG)
+    obs, s = default_obstacles(), default_scenario()
+    static = StaticField.build(obs.circles, obs.polygons)
+    return build_costmap(s.world.area, static, NO_DISCS, s.vehicle.radius_m, CFG)
 
 
 def _idx(cmap: CostMap, x: float, y: float) -> int:
@@ -74,7 +78,7 @@ def test_dijkstra_and_astar_agree_on_the_optimal_cost() -> None:
 
 
 def test_free_field_straight_path_prunes_to_two_waypoints() -> None:
-    cmap = build_costmap(Area(), StaticField.build((), ()), (), 0.1, CFG)
+    cmap = build_costmap(AreaConfig(), StaticField.build((), ()), NO_DISCS, R_VEH, CFG)
     s, g = _idx(cmap, 5.25, 20.25), _idx(cmap, 95.25, 20.25)
     path = shortest_path(cmap, s, g, 16)
     assert path is not None
@@ -112,21 +116,23 @@ def test_pruned_segments_are_free_and_no_dearer_than_the_grid_path() -> None:
 
 
 def test_a_wall_makes_the_goal_unreachable() -> None:
-    wall = Polygon(vertices=((49.0, 0.0), (51.0, 0.0), (51.0, 40.0), (49.0, 40.0)))
-    cmap = build_costmap(Area(), StaticField.build((), (wall,)), (), 0.1, CFG)
+    wall = polygon(((49.0, 0.0), (51.0, 0.0), (51.0, 40.0), (49.0, 40.0)))
+    cmap = build_costmap(AreaConfig(), StaticField.build((), (wall,)), NO_DISCS, R_VEH, CFG)
     s, g = _idx(cmap, 5.0, 20.0), _idx(cmap, 95.0, 20.0)
     assert shortest_path(cmap, s, g, 8) is None
     assert shortest_path(cmap, s, g, 16, "astar") is None
     # a gap wider than 2 (r + rho0) = 2.2 m (plus a cell) opens it again
-    top = Polygon(vertices=((49.0, 22.0), (51.0, 22.0), (51.0, 40.0), (49.0, 40.0)))
-    low = Polygon(vertices=((49.0, 0.0), (51.0, 0.0), (51.0, 19.0), (49.0, 19.0)))
-    cmap2 = build_costmap(Area(), StaticField.build((), (top, low)), (), 0.1, CFG)
+    top = polygon(((49.0, 22.0), (51.0, 22.0), (51.0, 40.0), (49.0, 40.0)))
+    low = polygon(((49.0, 0.0), (51.0, 0.0), (51.0, 19.0), (49.0, 19.0)))
+    cmap2 = build_costmap(AreaConfig(), StaticField.build((), (top, low)), NO_DISCS, R_VEH, CFG)
     assert shortest_path(cmap2, s, g, 8) is not None
 
 
 def test_a_thin_diagonal_wall_is_not_leaked_through_a_corner() -> None:
     # a one-cell diagonal staircase of occupied cells: 8-connected arcs may not cut its corners
-    cmap = build_costmap(Area(x_max=10.0, y_max=10.0), StaticField.build((), ()), (), 0.1, CFG)
+    cmap = build_costmap(
+        AreaConfig(x_max_m=10.0, y_max_m=10.0), StaticField.build((), ()), NO_DISCS, R_VEH, CFG
+    )
     blocked = np.zeros_like(cmap.blocked)
     for i in range(cmap.nx):
         blocked[i, i] = True
@@ -137,8 +143,8 @@ def test_a_thin_diagonal_wall_is_not_leaked_through_a_corner() -> None:
 
 
 def test_disc_around_the_start_is_searched_out_of() -> None:
-    disc = (Circle(x=20.0, y=20.0, radius=3.0),)
-    cmap = build_costmap(Area(), StaticField.build(disc, ()), (), 0.1, CFG)
+    disc = (circle(x=20.0, y=20.0, radius=3.0),)
+    cmap = build_costmap(AreaConfig(), StaticField.build(disc, ()), NO_DISCS, R_VEH, CFG)
     assert not cmap.blocked[cmap.cell_of(20.0, 24.5)[1], cmap.cell_of(20.0, 24.5)[0]]
     path = shortest_path(cmap, _idx(cmap, 20.0, 24.5), _idx(cmap, 20.0, 15.5), 8)
     assert path is not None  # around the disc

@@ -6,14 +6,16 @@ import math
 
 import numpy as np
 import pytest
+from helpers.planner_world import default_scenario
 
 from common.config.sensor import SensorConfig
 from common.config.world import CircleObstacleConfig, MovingObstacleConfig, WorldConfig
 from common.messages import NavFix, ObstacleDetections, TruthState
 from common.runtime.model.core import Delivery, Emit
-from common.world import World, paper_field
+from common.scalar import wrap_angle
+from common.world import World
 from services.sensor import SensorCore
-from services.sensor.models import in_view, wrap_angle
+from services.sensor.models import in_view
 
 
 def _truth(
@@ -151,7 +153,7 @@ def test_sector_edges() -> None:
 
 def test_rates_and_integer_tick_schedule() -> None:
     cfg = SensorConfig(nav_rate_hz=10.0, obstacle_rate_hz=2.5)
-    core = SensorCore(cfg, World(paper_field()), np.random.default_rng(4))
+    core = SensorCore(cfg, World(default_scenario().world), np.random.default_rng(4))
     navs, scans, _ = _run(core, 1000)  # 100 s
     assert len(navs) == 1000 and len(scans) == 250
     with pytest.raises(ValueError, match="obstacle_rate_hz"):
@@ -161,7 +163,7 @@ def test_rates_and_integer_tick_schedule() -> None:
 
 
 def test_no_truth_no_output_and_stale_truth_not_resampled() -> None:
-    core = SensorCore(SensorConfig(), World(paper_field()), np.random.default_rng(5))
+    core = SensorCore(SensorConfig(), World(default_scenario().world), np.random.default_rng(5))
     assert core.step(0.0) == []
     core.deliver(Delivery(source="vehicle", stream="truth", msg=_truth(0.0), t=0.0))
     assert {e.stream for e in core.step(0.0)} == {"nav", "obstacles"}
@@ -170,7 +172,7 @@ def test_no_truth_no_output_and_stale_truth_not_resampled() -> None:
 
 
 def test_same_seed_identical_and_draws_independent_of_visibility() -> None:
-    world = World(paper_field())
+    world = World(default_scenario().world)
     a = _run(SensorCore(SensorConfig(), world, np.random.default_rng(7)), 300)
     b = _run(SensorCore(SensorConfig(), world, np.random.default_rng(7)), 300)
     assert a[0] == b[0] and a[1] == b[1]

@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 import pytest
+from helpers.planner_world import default_scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
@@ -19,7 +20,7 @@ from common.config.world import (
     PoseConfig,
     WorldConfig,
 )
-from common.world import World, paper_field
+from common.world import World
 from common.world.check import check_world
 from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
 
@@ -97,7 +98,7 @@ def test_waypoint_loop_hand_computed() -> None:
 
 
 def test_velocity_and_acceleration_match_finite_differences() -> None:
-    w = World(paper_field())
+    w = World(default_scenario().world)
     h = 1e-4
     for t in (0.0, 7.3, 21.0):
         before, now, after = w.obstacles_at(t - h), w.obstacles_at(t), w.obstacles_at(t + h)
@@ -116,7 +117,7 @@ def test_velocity_and_acceleration_match_finite_differences() -> None:
     t=st.floats(0.0, 120.0),
 )
 def test_vectorised_equals_scalar(xs: list[float], y: float, r: float, t: float) -> None:
-    w = World(paper_field())
+    w = World(default_scenario().world)
     ys = [y + 0.37 * i for i in range(len(xs))]
     ts = [t + 0.5 * i for i in range(len(xs))]
     many = w.clearance_many(np.array(xs), np.array(ys), r, np.array(ts))
@@ -182,8 +183,8 @@ def _connected(w: World, r: float, t: float) -> bool:
     return bool(s > 0 and s == g)
 
 
-def test_paper_field_blocked_line_and_4m_passage() -> None:
-    cfg = paper_field()
+def test_default_field_blocked_line_and_4m_passage() -> None:
+    cfg = default_scenario().world
     assert (cfg.area.x_max_m, cfg.area.y_max_m) == (100.0, 40.0)
     assert (cfg.start.x_m, cfg.start.y_m, cfg.goal.x_m, cfg.goal.y_m) == (5, 20, 95, 20)
     assert 6 <= len(cfg.circles) + len(cfg.polygons) <= 8

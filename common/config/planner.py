@@ -21,6 +21,7 @@ RefineMethod = Literal["levenberg_marquardt", "lbfgsb"]
 class PlannerConfig:
     """Tunables of the replan pipeline (cost map -> graph search -> NURBS fit -> refinement)."""
 
+    period_s: float = 0.1  # check for replans and send a command every period
     # --- cost grid, eq. (5)-(6) and (17)
     resolution_m: float = 0.5  # grid cell size; 100 m x 40 m -> 200 x 80 cells
     rho0_m: float = 1.0  # eq. (6) minimum safe distance (vehicle surface to obstacle surface)
@@ -66,6 +67,7 @@ class PlannerConfig:
             nonneg(name, getattr(self, name))
         for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
             nonneg(name, getattr(self, name))
+        positive("period_s", self.period_s)
         positive("max_estimate_age_s", self.max_estimate_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
             raise ConfigValueError(

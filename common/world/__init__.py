@@ -1,6 +1,5 @@
-"""The simulated world: obstacles alpha_k(t) and the clearance of eq. (12)."""
+"""The one world model: obstacles alpha_k(t), their prediction, polygon geometry, eq. (12)."""
 
-from common.world.fields import paper_field
 from common.world.model import ObstacleState, World
 
-__all__ = ["ObstacleState", "World", "paper_field"]
+__all__ = ["ObstacleState", "World"]

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
@@ -64,26 +65,64 @@ def polygon_is_simple(v: FloatArray) -> bool:
     return True
 
 
-def polygon_signed_distance(v: FloatArray, px: FloatArray, py: FloatArray) -> FloatArray:
+@dataclass(frozen=True, eq=False)
+class PolygonEdges:
+    """The edges of one or more polygons stacked into arrays, for vectorised signed distance."""
+
+    a: FloatArray  # (ne, 2) edge start points, polygons contiguous
+    b: FloatArray  # (ne, 2) edge end points
+    starts: NDArray[np.intp]  # (npoly,) first edge of each polygon
+    edge_poly: NDArray[np.intp]  # (ne,) polygon index of each edge
+
+    @staticmethod
+    def of(polygons: Sequence[FloatArray]) -> PolygonEdges:
+        """Edges of polygons given as (n, 2) vertex arrays, either winding."""
+        a = np.concatenate(polygons) if polygons else np.zeros((0, 2))
+        b = np.concatenate([np.roll(v, -1, axis=0) for v in polygons]) if polygons else a
+        sizes = [len(v) for v in polygons]
+        starts = np.cumsum([0] + sizes[:-1]).astype(np.intp) if polygons else np.zeros(0, np.intp)
+        edge_poly = np.repeat(np.arange(len(polygons)), sizes).astype(np.intp)
+        return PolygonEdges(a, b, starts, edge_poly)
+
+    def signed_distance(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Distance (m,) from points (m, 2) to the nearest polygon's boundary, negative inside,
+        and its gradient (m, 2) w.r.t. the point (the unit normal of the nearest edge)."""
+        a, b = self.a, self.b
+        ab = b - a  # (ne, 2)
+        ap = pts[:, None, :] - a[None, :, :]  # (m, ne, 2)
+        len2 = np.maximum(np.einsum("ed,ed->e", ab, ab), 1e-18)
+        # projection parameter of each point onto each edge, clamped to the segment
+        t = np.clip(np.einsum("med,ed->me", ap, ab) / len2, 0.0, 1.0)
+        diff = ap - t[:, :, None] * ab[None, :, :]  # point minus closest point on the edge
+        d2 = np.einsum("med,med->me", diff, diff)
+        # even-odd crossing test of a ray towards +x, per edge, summed per polygon
+        py = pts[:, 1:2]
+        ay, by = a[None, :, 1], b[None, :, 1]
+        straddle = (ay > py) != (by > py)
+        dy = np.where(by == ay, 1.0, by - ay)
+        x_cross = a[None, :, 0] + (py - ay) * ab[None, :, 0] / dy
+        crosses = (straddle & (pts[:, 0:1] < x_cross)).astype(np.int64)
+        rows = np.arange(len(pts))
+        inside = np.add.reduceat(crosses, self.starts, axis=1) % 2 == 1  # (m, npoly)
+        d2_poly = np.minimum.reduceat(d2, self.starts, axis=1)
+        dist = np.sqrt(d2_poly)
+        signed = np.where(inside, -dist, dist)
+        kp = np.argmin(signed, axis=1)
+        best = signed[rows, kp]
+        # the nearest edge of the chosen polygon gives the gradient direction
+        d2_masked = np.where(self.edge_poly[None, :] == kp[:, None], d2, np.inf)
+        ke = np.argmin(d2_masked, axis=1)
+        g = diff[rows, ke]
+        g = g / np.maximum(np.sqrt(d2[rows, ke]), 1e-12)[:, None]
+        g = np.where(inside[rows, kp][:, None], -g, g)
+        return best, g
+
+
+def polygon_signed_distance(v: FloatArray, px: ArrayLike, py: ArrayLike) -> FloatArray:
     """Exact Euclidean distance from points to the polygon boundary, negative inside.
 
     px, py: arrays of one shape; the result has that shape.
     """
-    px = np.asarray(px, dtype=np.float64)
-    py = np.asarray(py, dtype=np.float64)
-    a = v  # edge starts (n, 2)
-    b = np.roll(v, -1, axis=0)  # edge ends
-    ex, ey = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-    qx = px[..., None] - a[:, 0]  # (..., n)
-    qy = py[..., None] - a[:, 1]
-    # projection parameter of each point onto each edge, clamped to the segment
-    u = np.clip((qx * ex + qy * ey) / (ex * ex + ey * ey), 0.0, 1.0)
-    d = np.min(np.hypot(qx - u * ex, qy - u * ey), axis=-1)
-    # even-odd ray casting towards +x for inside/outside
-    ay, by = a[:, 1], b[:, 1]
-    straddle = (ay > py[..., None]) != (by > py[..., None])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = a[:, 0] + (py[..., None] - ay) * ex / np.where(ey == 0.0, 1.0, ey)
-    hits = np.sum(straddle & (px[..., None] < x_cross), axis=-1)
-    inside = (hits % 2) == 1
-    return np.where(inside, -d, d)
+    bx, by = np.broadcast_arrays(np.asarray(px, np.float64), np.asarray(py, np.float64))
+    pts = np.stack([bx.ravel(), by.ravel()], axis=1)
+    return PolygonEdges.of([v]).signed_distance(pts)[0].reshape(bx.shape)

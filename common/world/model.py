@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -32,6 +33,31 @@ class ObstacleState:
     ay: float
     radius: float
     moving: bool
+
+    def centre_at(self, t_s: ArrayLike, accel_horizon_s: float = math.inf) -> FloatArray:
+        """Centre (..., 2) predicted t_s ahead, constant acceleration: the one extrapolation.
+
+        alpha_k(t) = p + v t + a t^2 / 2 (eq. (12)), the acceleration held only up to
+        `accel_horizon_s`: a tracked acceleration extrapolated for a minute would fling the
+        obstacle across the area, so past the horizon it keeps the velocity it has reached.
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        ta = np.minimum(t, accel_horizon_s)
+        quad = 0.5 * ta * ta + ta * (t - ta)  # integral of min(t, T_a): acceleration term
+        x = self.x + self.vx * t + self.ax * quad
+        y = self.y + self.vy * t + self.ay * quad
+        return np.stack([x, y], axis=-1)
+
+    def advanced(self, dt_s: float) -> ObstacleState:
+        """The same obstacle with its state extrapolated dt_s ahead (acceleration held)."""
+        p = self.centre_at(dt_s)
+        return dataclasses.replace(
+            self,
+            x=float(p[0]),
+            y=float(p[1]),
+            vx=self.vx + self.ax * dt_s,
+            vy=self.vy + self.ay * dt_s,
+        )
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

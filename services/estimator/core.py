@@ -10,10 +10,10 @@ from numpy.typing import NDArray
 from common.config.estimator import EstimatorConfig
 from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
 from common.runtime.model.core import Delivery, Emit
+from common.scalar import wrap_angle
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
 from services.estimator.tracks import ObstacleTracker, TrackerState
-from services.estimator.unicycle import wrap_angle
 from services.estimator.vehicle_filter import make_vehicle_filter
 
 FloatArray = NDArray[np.float64]

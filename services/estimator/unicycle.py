@@ -10,19 +10,13 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from common.scalar import wrap_angle
+
 FloatArray = NDArray[np.float64]
 
 DIM_X = 5
 DIM_Z = 4
 H_NAV = np.eye(DIM_Z, DIM_X)  # the fix observes x, y, theta, v directly
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to [-pi, pi) (unchanged, bit for bit, when already inside)."""
-    if -math.pi <= a < math.pi:
-        return a
-    w = (a + math.pi) % (2.0 * math.pi) - math.pi
-    return w if w < math.pi else -math.pi  # rounding can land exactly on +pi
 
 
 def fx(s: FloatArray, dt: float) -> FloatArray:

@@ -10,6 +10,7 @@ from filterpy.kalman import ExtendedKalmanFilter, MerweScaledSigmaPoints, Unscen
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
+from common.scalar import wrap_angle
 from services.estimator.unicycle import (
     DIM_X,
     DIM_Z,
@@ -21,7 +22,6 @@ from services.estimator.unicycle import (
     process_noise,
     residual_x,
     residual_z,
-    wrap_angle,
 )
 
 FloatArray = NDArray[np.float64]

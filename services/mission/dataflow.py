@@ -63,8 +63,8 @@ def auv_dataflow(s: Scenario) -> Dataflow:
         Service(
             name="planner",
             factory=make_planner,
-            period_s=0.1,
-            offset_s=0.05,  # half a period after the estimator publishes
+            period_s=s.planner.period_s,
+            offset_s=s.planner.period_s / 2,  # half a period after the estimator publishes
             inputs=(
                 Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
                 Input(source="estimator", stream="tracks", msg_type=ObstacleTracks, policy=NEWEST),

@@ -12,7 +12,7 @@ from common.config.scenario import Scenario
 from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
-from services.planner.nurbs import Nurbs
+from services.planner.nurbs_curve import NurbsCurve
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
 # within this distance of the first planned path at the moment the command is issued.
@@ -24,7 +24,7 @@ MIN_SPEED_FOR_CURVATURE = 0.3
 def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
     """Dense samples of a planned NURBS path, (n, 2)."""
     cp = np.asarray(p.control_points, dtype=np.float64).reshape(-1, 2)
-    curve = Nurbs(p.degree, cp, np.asarray(p.weights), np.asarray(p.knots))
+    curve = NurbsCurve(p.degree, cp, np.asarray(p.weights), np.asarray(p.knots))
     u = np.linspace(curve.u_min, curve.u_max, n)
     return np.asarray(curve.evaluate(u, n_ders=0)[0])
 

@@ -2,35 +2,31 @@
 
 Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
 
-    result = plan_path(PlanRequest(start=..., goal=..., obstacles=...), PlannerConfig())
+    req = PlanRequest(start=..., goal=..., obstacles=..., vehicle_radius_m=vehicle.radius_m)
+    result = plan_path(req, PlannerConfig())
     if result.ok:
-        path = NurbsPath(result.curve())  # arc length, projection, curvature for tracking
+        path = PlannedPath(result.curve())  # on the curve parameter u, with s(u) and u(s)
+        ref = PathArcReference(path, v_ref)  # on arc length s: what a controller follows
+
+Obstacles use the world's types (common.config.world circles and polygons, common.world's
+ObstacleState for moving ones); the area is the scenario's AreaConfig.
 """
 
-from services.planner.geometry import (
-    Area,
-    Circle,
-    MovingCircle,
-    Obstacles,
-    Polygon,
-    Pose2D,
-)
-from services.planner.nurbs import Nurbs
-from services.planner.nurbs_path import NurbsPath
+from services.planner.nurbs_curve import NurbsCurve
+from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import PlanRequest, PlanResult, PlanTiming, plan_path
+from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy, replan_request
+from services.planner.result import Obstacles, Pose2D
 
 __all__ = [
-    "Area",
-    "Circle",
-    "MovingCircle",
-    "Nurbs",
-    "NurbsPath",
+    "NurbsCurve",
     "Obstacles",
+    "PathArcReference",
     "PlanRequest",
     "PlanResult",
     "PlanTiming",
-    "Polygon",
+    "PlannedPath",
     "Pose2D",
     "ReplanDecision",
     "ReplanPolicy",

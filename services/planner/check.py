@@ -8,9 +8,10 @@ from typing import Literal
 
 import numpy as np
 
+from common.world.geometry import FloatArray
+from services.planner.clearance import moving_distance
 from services.planner.fit import FitProblem
-from services.planner.geometry import FloatArray, moving_distance
-from services.planner.nurbs import Nurbs, curvature
+from services.planner.nurbs_curve import NurbsCurve, curvature
 from services.planner.refine import gauss_legendre
 
 FailKind = Literal["", "curvature", "static", "moving", "area"]
@@ -49,7 +50,7 @@ def turn_penalty(k: FloatArray, r_min_m: float) -> float:
     return float(np.sum(1.0 / (r - r_min_m)))
 
 
-def check_curve(curve: Nurbs, prob: FitProblem, n_samples: int) -> CurveCheck:
+def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveCheck:
     """Sample the curve densely (uniform in u) and test every hard constraint."""
     u = np.linspace(curve.u_min, curve.u_max, n_samples)
     c, d1, d2 = curve.evaluate(u, n_ders=2)
@@ -75,10 +76,10 @@ def check_curve(curve: Nurbs, prob: FitProblem, n_samples: int) -> CurveCheck:
     min_moving = float(d_moving.min()) - r
     a = prob.area
     inside = (
-        (c[:, 0] >= a.x_min + r - 1e-9)
-        & (c[:, 0] <= a.x_max - r + 1e-9)
-        & (c[:, 1] >= a.y_min + r - 1e-9)
-        & (c[:, 1] <= a.y_max - r + 1e-9)
+        (c[:, 0] >= a.x_min_m + r - 1e-9)
+        & (c[:, 0] <= a.x_max_m - r + 1e-9)
+        & (c[:, 1] >= a.y_min_m + r - 1e-9)
+        & (c[:, 1] <= a.y_max_m - r + 1e-9)
     )
     reason = ""
     failed: FailKind = ""

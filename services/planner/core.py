@@ -17,13 +17,13 @@ from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
+from common.world import ObstacleState
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.geometry import Area, Circle, MovingCircle, Obstacles, Polygon, Pose2D
-from services.planner.nurbs_path import NurbsPath
-from services.planner.plan import PlanRequest, PlanResult, plan_path
+from services.planner.path_arc_reference import PathArcReference
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
+from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanPolicy
-from services.planner.tracking_ref import NurbsReference
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -40,7 +40,6 @@ class PlannerCore:
         vehicle: VehicleConfig,
         world: WorldConfig,
         *,
-        period_s: float = 0.1,
         expected_downlink_s: float = 0.0,
     ) -> None:
         self.cfg = planner
@@ -48,14 +47,7 @@ class PlannerCore:
         self.world = world
         self.kind = controller.kind
         self.expected_downlink_s = expected_downlink_s
-        a = world.area
-        self.area = Area(x_min=a.x_min_m, x_max=a.x_max_m, y_min=a.y_min_m, y_max=a.y_max_m)
         self.goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
-        self.circles = tuple(Circle(x=c.x_m, y=c.y_m, radius=c.radius_m) for c in world.circles)
-        self.polygons = tuple(
-            Polygon(vertices=tuple(zip(p.vertices_m[0::2], p.vertices_m[1::2], strict=True)))
-            for p in world.polygons
-        )
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
             p.id for p in world.polygons
         )
@@ -65,7 +57,7 @@ class PlannerCore:
         self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
-        self.ref: NurbsReference | None = None
+        self.ref: PathArcReference | None = None
         self.path_id = 0
         self.last_result: PlanResult | None = None
         self.arrived = False
@@ -85,19 +77,21 @@ class PlannerCore:
             for k in self.tracks.tracks:
                 if k.id in self.static_ids:
                     continue  # charted static obstacles are planned from the chart
-                moving.append(
-                    MovingCircle(
-                        id=k.id,
-                        x=k.x + k.vx * dt + 0.5 * k.ax * dt * dt,
-                        y=k.y + k.vy * dt + 0.5 * k.ay * dt * dt,
-                        vx=k.vx + k.ax * dt,
-                        vy=k.vy + k.ay * dt,
-                        ax=k.ax,
-                        ay=k.ay,
-                        radius=k.radius,
-                    )
+                track = ObstacleState(
+                    id=k.id,
+                    x=k.x,
+                    y=k.y,
+                    vx=k.vx,
+                    vy=k.vy,
+                    ax=k.ax,
+                    ay=k.ay,
+                    radius=k.radius,
+                    moving=True,
                 )
-        return Obstacles(circles=self.circles, polygons=self.polygons, moving=tuple(moving))
+                moving.append(track.advanced(dt))
+        return Obstacles(
+            circles=self.world.circles, polygons=self.world.polygons, moving=tuple(moving)
+        )
 
     def step(self, t: float) -> list[Emit]:
         if self.state is None:
@@ -144,7 +138,7 @@ class PlannerCore:
         req = PlanRequest(
             start=here,
             goal=self.goal,
-            area=self.area,
+            area=self.world.area,
             obstacles=obstacles,
             vehicle_radius_m=self.vehicle.radius_m,
             r_min_m=self.vehicle.turn_radius_min_m,
@@ -155,7 +149,7 @@ class PlannerCore:
         self.last_result = result
         self.path_id += 1
         if result.ok:
-            self.ref = NurbsReference(NurbsPath(result.curve()), self.vehicle.cruise_speed_mps)
+            self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
             return PathMsg(
                 stamp=t,

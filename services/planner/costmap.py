@@ -10,7 +10,9 @@ from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
 
 from common.config.planner import PlannerConfig
-from services.planner.geometry import Area, Circle, FloatArray, StaticField
+from common.config.world import AreaConfig
+from common.world.geometry import FloatArray
+from services.planner.clearance import StaticField
 
 BoolArray = NDArray[np.bool_]
 
@@ -19,7 +21,7 @@ BoolArray = NDArray[np.bool_]
 class CostMap:
     """A cell-centred grid: clearance, occupancy and cost. Row iy is y, column ix is x."""
 
-    area: Area
+    area: AreaConfig
     resolution_m: float
     nx: int
     ny: int
@@ -30,20 +32,20 @@ class CostMap:
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(ix, iy) of the cell containing (x, y), clamped into the grid."""
-        ix = int((x - self.area.x_min) / self.resolution_m)
-        iy = int((y - self.area.y_min) / self.resolution_m)
+        ix = int((x - self.area.x_min_m) / self.resolution_m)
+        iy = int((y - self.area.y_min_m) / self.resolution_m)
         return min(max(ix, 0), self.nx - 1), min(max(iy, 0), self.ny - 1)
 
     def centre(self, ix: NDArray[np.intp], iy: NDArray[np.intp]) -> FloatArray:
         """World coordinates (k, 2) of cell centres."""
-        x = self.area.x_min + (np.asarray(ix) + 0.5) * self.resolution_m
-        y = self.area.y_min + (np.asarray(iy) + 0.5) * self.resolution_m
+        x = self.area.x_min_m + (np.asarray(ix) + 0.5) * self.resolution_m
+        y = self.area.y_min_m + (np.asarray(iy) + 0.5) * self.resolution_m
         return np.stack([x, y], axis=-1).astype(np.float64)
 
     def lookup(self, pts: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """(ix, iy) cell indices of points (k, 2), clamped into the grid (vectorised)."""
-        ix = ((pts[:, 0] - self.area.x_min) / self.resolution_m).astype(np.intp)
-        iy = ((pts[:, 1] - self.area.y_min) / self.resolution_m).astype(np.intp)
+        ix = ((pts[:, 0] - self.area.x_min_m) / self.resolution_m).astype(np.intp)
+        iy = ((pts[:, 1] - self.area.y_min_m) / self.resolution_m).astype(np.intp)
         return np.clip(ix, 0, self.nx - 1), np.clip(iy, 0, self.ny - 1)
 
     def static_clearance_at(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -54,8 +56,8 @@ class CostMap:
         geometry.
         """
         res = self.resolution_m
-        gx = (pts[:, 0] - self.area.x_min) / res - 0.5
-        gy = (pts[:, 1] - self.area.y_min) / res - 0.5
+        gx = (pts[:, 0] - self.area.x_min_m) / res - 0.5
+        gy = (pts[:, 1] - self.area.y_min_m) / res - 0.5
         ix = np.minimum(np.maximum(np.floor(gx).astype(np.intp), 0), self.nx - 2)
         iy = np.minimum(np.maximum(np.floor(gy).astype(np.intp), 0), self.ny - 2)
         fx = np.minimum(np.maximum(gx - ix, 0.0), 1.0)
@@ -71,10 +73,10 @@ class CostMap:
         return val, np.stack([dx, dy], axis=1)
 
 
-def grid_shape(area: Area, resolution_m: float) -> tuple[int, int]:
+def grid_shape(area: AreaConfig, resolution_m: float) -> tuple[int, int]:
     """(nx, ny) cells covering the area at the given resolution."""
-    nx = max(1, math.ceil((area.x_max - area.x_min) / resolution_m - 1e-9))
-    ny = max(1, math.ceil((area.y_max - area.y_min) / resolution_m - 1e-9))
+    nx = max(1, math.ceil((area.x_max_m - area.x_min_m) / resolution_m - 1e-9))
+    ny = max(1, math.ceil((area.y_max_m - area.y_min_m) / resolution_m - 1e-9))
     return nx, ny
 
 
@@ -106,13 +108,15 @@ def repulsive_cost(rho: FloatArray, cfg: PlannerConfig) -> FloatArray:
 
 
 def build_costmap(
-    area: Area,
+    area: AreaConfig,
     static: StaticField,
-    extra_discs: tuple[Circle, ...],
+    extra_discs: FloatArray,
     vehicle_radius_m: float,
     cfg: PlannerConfig,
 ) -> CostMap:
     """Clearance, occupancy and cost grid for the static field plus extra (predicted) discs.
+
+    extra_discs: (k, 3) x, y, radius of each disc (m), e.g. from prediction.predicted_discs.
 
     Distances use exact geometry (circles and polygon edges), evaluated only in each obstacle's
     window of influence (bounding box grown by r + rho_m); beyond it nothing is blocked and
@@ -127,14 +131,14 @@ def build_costmap(
     # cells outside every window are farther than `reach` from all obstacles: the cap is a
     # lower bound of the true clearance, which the final check relies on
     clear = np.full((ny, nx), reach)
-    xs = area.x_min + (np.arange(nx) + 0.5) * res
-    ys = area.y_min + (np.arange(ny) + 0.5) * res
+    xs = area.x_min_m + (np.arange(nx) + 0.5) * res
+    ys = area.y_min_m + (np.arange(ny) + 0.5) * res
 
     def window(x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice]:
-        i0 = max(0, int((x0 - reach - area.x_min) / res))
-        i1 = min(nx, int((x1 + reach - area.x_min) / res) + 2)
-        j0 = max(0, int((y0 - reach - area.y_min) / res))
-        j1 = min(ny, int((y1 + reach - area.y_min) / res) + 2)
+        i0 = max(0, int((x0 - reach - area.x_min_m) / res))
+        i1 = min(nx, int((x1 + reach - area.x_min_m) / res) + 2)
+        j0 = max(0, int((y0 - reach - area.y_min_m) / res))
+        j1 = min(ny, int((y1 + reach - area.y_min_m) / res) + 2)
         return slice(j0, j1), slice(i0, i1)
 
     def add_disc(grid: FloatArray, cx: float, cy: float, cr: float) -> None:
@@ -146,32 +150,24 @@ def build_costmap(
     for cx, cy, cr in static.circ.tolist():
         add_disc(clear, cx, cy, cr)
     n_circ = len(static.circ)
-    for p in range(len(static.poly_starts)):
+    for p in range(len(static.edges.starts)):
         box = static.bbox[n_circ + p]
         sy, sx = window(*box)
         if sy.start >= sy.stop or sx.start >= sx.stop:
             continue
-        sel = static.edge_poly == p
-        single = StaticField(
-            np.zeros((0, 3)),
-            static.edge_a[sel],
-            static.edge_b[sel],
-            np.zeros(1, np.intp),
-            np.zeros(int(sel.sum()), np.intp),
-            box[None, :],
-        )
         gx, gy = np.meshgrid(xs[sx], ys[sy])
-        d, _ = single.distance(np.stack([gx.ravel(), gy.ravel()], axis=1))
+        d, _ = static.polygon(p).signed_distance(np.stack([gx.ravel(), gy.ravel()], axis=1))
         clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
     static_clear = clear.copy()
-    for c in extra_discs:
-        add_disc(clear, c.x, c.y, c.radius)
+    for cx, cy, cr in np.asarray(extra_discs, dtype=np.float64).reshape(-1, 3).tolist():
+        add_disc(clear, cx, cy, cr)
 
     rho = clear - vehicle_radius_m  # eq. (5): surface-to-surface distance
     blocked = rho < cfg.rho0_m  # inflated by r + rho0 -> occupied
     # the vehicle body must stay inside the area X (eq. (10))
     edge_gap = np.minimum.outer(
-        np.minimum(ys - area.y_min, area.y_max - ys), np.minimum(xs - area.x_min, area.x_max - xs)
+        np.minimum(ys - area.y_min_m, area.y_max_m - ys),
+        np.minimum(xs - area.x_min_m, area.x_max_m - xs),
     )
     blocked |= edge_gap < vehicle_radius_m
     cost = repulsive_cost(rho, cfg)

@@ -17,9 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.config.world import AreaConfig
+from common.world import ObstacleState
+from common.world.geometry import FloatArray
+from services.planner.clearance import StaticField
 from services.planner.costmap import CostMap
-from services.planner.geometry import Area, FloatArray, MovingCircle, Pose2D, StaticField
-from services.planner.nurbs import Nurbs, averaged_knots
+from services.planner.nurbs_curve import NurbsCurve, averaged_knots
+from services.planner.result import Pose2D
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,9 +33,9 @@ class FitProblem:
     start: Pose2D
     goal: Pose2D
     fix_goal_heading: bool
-    area: Area
+    area: AreaConfig
     static: StaticField
-    moving: tuple[MovingCircle, ...]
+    moving: tuple[ObstacleState, ...]
     vehicle_radius_m: float
     r_min_m: float
     v_ref_mps: float
@@ -103,7 +107,7 @@ class Layout:
         return (self.p_fixed + self.m @ x).reshape(self.n, 2)
 
     def bounds(
-        self, area: Area, margin: float, tangent_max: float
+        self, area: AreaConfig, margin: float, tangent_max: float
     ) -> tuple[FloatArray, FloatArray]:
         """Box bounds: tangent lengths in [0.05, tangent_max], free points inside the area.
 
@@ -111,8 +115,8 @@ class Layout:
         keeps it inside the area X of eq. (9)-(10).
         """
         n_pts = self.free_hi - 2
-        lo = [0.05] * self.n_head + [area.x_min + margin, area.y_min + margin] * n_pts
-        hi = [tangent_max] * self.n_head + [area.x_max - margin, area.y_max - margin] * n_pts
+        lo = [0.05] * self.n_head + [area.x_min_m + margin, area.y_min_m + margin] * n_pts
+        hi = [tangent_max] * self.n_head + [area.x_max_m - margin, area.y_max_m - margin] * n_pts
         return np.array(lo), np.array(hi)
 
 
@@ -147,7 +151,9 @@ def turn_arc(pts: FloatArray, theta: float, radius: float) -> tuple[FloatArray, 
     return np.array(out), i_keep
 
 
-def initial_curve(prob: FitProblem, waypoints: FloatArray, spacing: float, degree: int) -> Nurbs:
+def initial_curve(
+    prob: FitProblem, waypoints: FloatArray, spacing: float, degree: int
+) -> NurbsCurve:
     """Control polygon from the densified waypoints plus the boundary tangents of eq. (10)."""
     radius = 1.25 * prob.r_min_m
     lead, i0 = turn_arc(waypoints, prob.start.theta, radius)
@@ -171,10 +177,10 @@ def initial_curve(prob: FitProblem, waypoints: FloatArray, spacing: float, degre
     ctrl = np.concatenate(
         [dense[:1], [start_xy + a * lay.h0], dense[1:-1], [goal_xy - b * hf], dense[-1:]]
     )
-    return Nurbs(degree, ctrl, np.ones(len(ctrl)), averaged_knots(ctrl, degree))
+    return NurbsCurve(degree, ctrl, np.ones(len(ctrl)), averaged_knots(ctrl, degree))
 
 
-def resample(curve: Nurbs, spacing: float) -> FloatArray:
+def resample(curve: NurbsCurve, spacing: float) -> FloatArray:
     """Points along a curve about `spacing` apart in arc length (ends included)."""
     u = np.linspace(curve.u_min, curve.u_max, 400)
     pts = curve.evaluate(u, n_ders=0)[0]

@@ -14,17 +14,34 @@ from collections.abc import Callable
 import numpy as np
 
 from common.config.planner import PlannerConfig
+from common.config.world import AreaConfig
+from common.world.geometry import FloatArray
 from services.planner.check import CurveCheck, check_curve
+from services.planner.clearance import StaticField, moving_distance
 from services.planner.costmap import CostMap, build_costmap
 from services.planner.fit import FitProblem, initial_curve, resample
-from services.planner.geometry import FloatArray, Pose2D, StaticField, moving_distance
-from services.planner.nurbs import Nurbs
+from services.planner.nurbs_curve import NurbsCurve
 from services.planner.prediction import passing_discs, predicted_discs
 from services.planner.refine import RefineWeights, refine
-from services.planner.result import PlanRequest, PlanResult, PlanStatus, PlanTiming
+from services.planner.result import (
+    Obstacles,
+    PlanRequest,
+    PlanResult,
+    PlanStatus,
+    PlanTiming,
+    Pose2D,
+)
 from services.planner.search import prune_path, shortest_path
 
-__all__ = ["PlanRequest", "PlanResult", "PlanStatus", "PlanTiming", "plan_path"]
+__all__ = [
+    "Obstacles",
+    "PlanRequest",
+    "PlanResult",
+    "PlanStatus",
+    "PlanTiming",
+    "Pose2D",
+    "plan_path",
+]
 
 
 class _Clock:
@@ -54,6 +71,14 @@ def _no_path(reason: str, clock: _Clock, grid: FloatArray | None = None) -> Plan
     )
 
 
+def _inside(area: AreaConfig, p: Pose2D, margin: float) -> bool:
+    """Is the disc of radius `margin` around p inside the area (eq. (10))?"""
+    return (
+        area.x_min_m + margin <= p.x <= area.x_max_m - margin
+        and area.y_min_m + margin <= p.y <= area.y_max_m - margin
+    )
+
+
 def _unblock_start_goal(
     cmap: CostMap, start: Pose2D, goal: Pose2D, r: float, escape_m: float | None
 ) -> CostMap:
@@ -66,8 +91,8 @@ def _unblock_start_goal(
     """
     blocked = cmap.blocked.copy()
     if escape_m is not None:
-        xs = cmap.area.x_min + (np.arange(cmap.nx) + 0.5) * cmap.resolution_m
-        ys = cmap.area.y_min + (np.arange(cmap.ny) + 0.5) * cmap.resolution_m
+        xs = cmap.area.x_min_m + (np.arange(cmap.nx) + 0.5) * cmap.resolution_m
+        ys = cmap.area.y_min_m + (np.arange(cmap.ny) + 0.5) * cmap.resolution_m
         near = np.hypot(xs[None, :] - start.x, ys[:, None] - start.y) <= escape_m
         blocked &= ~(near & (cmap.clearance > r))
     for p in (start, goal):
@@ -88,9 +113,9 @@ def plan_path(
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
     s_xy = np.array([req.start.x, req.start.y])
     g_xy = np.array([req.goal.x, req.goal.y])
-    if not area.contains(req.start.x, req.start.y, r):
+    if not _inside(area, req.start, r):
         return _no_path("start is outside the area", clk)
-    if not area.contains(req.goal.x, req.goal.y, r):
+    if not _inside(area, req.goal, r):
         return _no_path("goal is outside the area", clk)
     d_min = float(np.hypot(*(g_xy - s_xy)))
     if d_min < 1e-6:
@@ -109,7 +134,11 @@ def plan_path(
     )
     if d_start <= r:
         return _no_path("start is in contact with an obstacle", clk)
-    t_max = 2.0 * float(np.hypot(area.x_max - area.x_min, area.y_max - area.y_min)) / req.v_ref_mps
+    t_max = (
+        2.0
+        * float(np.hypot(area.x_max_m - area.x_min_m, area.y_max_m - area.y_min_m))
+        / req.v_ref_mps
+    )
     discs = predicted_discs(obs.moving, req.start, req.v_ref_mps, t_max, cfg)
     clk.lap("costmap_s")
 
@@ -127,7 +156,7 @@ def plan_path(
         path = shortest_path(cmap, start_i, goal_i, cfg.connectivity, cfg.search)
         if path is None:
             clk.lap("search_s")
-            moving = " and moving ones where predicted" if discs else ""
+            moving = " and moving ones where predicted" if len(discs) else ""
             return _no_path(
                 f"goal unreachable: static obstacles{moving}, inflated by r + rho0, wall it off "
                 f"from the start on the {cfg.resolution_m:g} m grid",
@@ -174,7 +203,7 @@ def plan_path(
             break
         # a curve met a moving obstacle at a time the grid did not predict: block each
         # obstacle around the time that curve passes it, and search again
-        discs = discs + passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)
+        discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)])
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
     return _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
@@ -182,7 +211,7 @@ def plan_path(
 
 def _fit_and_check(
     prob: FitProblem, waypoints: FloatArray, cfg: PlannerConfig, clk: _Clock
-) -> tuple[Nurbs, CurveCheck, int, Nurbs | None]:
+) -> tuple[NurbsCurve, CurveCheck, int, NurbsCurve | None]:
     """Fit, then refine and check in rounds.
 
     Each failed round stiffens the penalties (eq. (9): c_n "a larger value") and tightens
@@ -193,7 +222,7 @@ def _fit_and_check(
     a moving obstacle (None if none did).
     """
     spacing = cfg.ctrl_spacing_m
-    met_moving: Nurbs | None = None
+    met_moving: NurbsCurve | None = None
     wts = RefineWeights(
         c_d=cfg.penalty_clearance,
         c_k=cfg.penalty_curvature,

@@ -25,9 +25,9 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import minimize
 
+from common.world.geometry import FloatArray
 from services.planner.fit import FitProblem, Layout
-from services.planner.geometry import FloatArray
-from services.planner.nurbs import Nurbs, rational_basis
+from services.planner.nurbs_curve import NurbsCurve, rational_basis
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
 _BAND_K = 0.1  # curvature hinges within this fraction of the target do too
@@ -75,7 +75,9 @@ def quadrature(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray
 class Objective:
     """F(x) of eq. (9) with its gradient and a Gauss-Newton / majoriser Hessian."""
 
-    def __init__(self, prob: FitProblem, curve: Nurbs, per_span: int, wts: RefineWeights) -> None:
+    def __init__(
+        self, prob: FitProblem, curve: NurbsCurve, per_span: int, wts: RefineWeights
+    ) -> None:
         self.prob, self.wts = prob, wts
         self.lay = Layout(prob, len(curve.ctrl))
         u, self.wq = quadrature(curve.knots, per_span)
@@ -88,7 +90,7 @@ class Objective:
         t_s = s / prob.v_ref_mps
         self.centres = np.zeros((len(prob.moving), len(u), 2))  # alpha_k(t_j), eq. (12)
         for i, o in enumerate(prob.moving):
-            self.centres[i] = o.positions(t_s, prob.accel_horizon_s)
+            self.centres[i] = o.centre_at(t_s, prob.accel_horizon_s)
         self.radii = np.array([o.radius for o in prob.moving])[:, None]
 
     def __call__(
@@ -208,13 +210,13 @@ def lbfgsb(
 
 def refine(
     prob: FitProblem,
-    curve: Nurbs,
+    curve: NurbsCurve,
     wts: RefineWeights,
     *,
     per_span: int,
     max_iter: int,
     method: str = "levenberg_marquardt",
-) -> Nurbs:
+) -> NurbsCurve:
     """One refinement round: minimise eq. (9) over the free control points."""
     obj = Objective(prob, curve, per_span, wts)
     lay = obj.lay
@@ -223,4 +225,4 @@ def refine(
     if max_iter > 0 and lay.dim:
         solve = lbfgsb if method == "lbfgsb" else levenberg_marquardt
         x0 = solve(obj, x0, lo, hi, max_iter)
-    return Nurbs(curve.degree, lay.ctrl(x0), curve.weights, curve.knots)
+    return NurbsCurve(curve.degree, lay.ctrl(x0), curve.weights, curve.knots)

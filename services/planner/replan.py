@@ -22,8 +22,10 @@ from typing import Literal
 import numpy as np
 
 from common.config.planner import PlannerConfig
-from services.planner.geometry import FloatArray, Obstacles, Pose2D, StaticField
+from common.world.geometry import FloatArray
+from services.planner.clearance import StaticField
 from services.planner.plan import PlanRequest, PlanResult
+from services.planner.result import Obstacles, Pose2D
 
 ReplanReason = Literal["", "no_path", "goal_changed", "deviation", "infeasible", "corridor"]
 
@@ -175,7 +177,7 @@ class ReplanPolicy:
         tau = (self.s[i_now:] - s_now) / self.v_ref
         gaps = []
         for o in obstacles.moving:
-            c = o.positions(tau, self.cfg.accel_horizon_s)
+            c = o.centre_at(tau, self.cfg.accel_horizon_s)
             gaps.append(float(np.min(np.hypot(*(ahead - c).T))) - o.radius - self.r)
         return np.array(gaps), np.array([o.id for o in obstacles.moving], dtype=np.int64)
 

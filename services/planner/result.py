@@ -1,4 +1,4 @@
-"""The planner's request and result types (plain frozen dataclasses over numpy arrays)."""
+"""The planner's request and result types: poses, obstacles to avoid, request, result."""
 
 from __future__ import annotations
 
@@ -8,10 +8,34 @@ from typing import Literal
 
 import numpy as np
 
-from services.planner.geometry import Area, FloatArray, Obstacles, Pose2D
-from services.planner.nurbs import Nurbs
+from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
+from common.world import ObstacleState
+from common.world.geometry import FloatArray
+from services.planner.nurbs_curve import NurbsCurve
 
 PlanStatus = Literal["OK", "NO_PATH"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pose2D:
+    """A planar pose: position (m) and heading theta (rad, from +x, counter-clockwise)."""
+
+    x: float
+    y: float
+    theta: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Obstacles:
+    """Everything one plan avoids: the chart's static obstacles, moving ones at plan time t = 0.
+
+    The world's own types: static circles and polygons as in the scenario, moving obstacles
+    as `ObstacleState` (predicted with `ObstacleState.centre_at`).
+    """
+
+    circles: tuple[CircleObstacleConfig, ...] = ()
+    polygons: tuple[PolygonObstacleConfig, ...] = ()
+    moving: tuple[ObstacleState, ...] = ()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -20,9 +44,9 @@ class PlanRequest:
 
     start: Pose2D
     goal: Pose2D
-    area: Area = field(default_factory=Area)
+    area: AreaConfig = field(default_factory=AreaConfig)
     obstacles: Obstacles = field(default_factory=Obstacles)
-    vehicle_radius_m: float = 0.1  # REMUS-100: 0.19 m diameter
+    vehicle_radius_m: float  # the vehicle config's radius_m
     r_min_m: float = 2.0  # minimum turning radius R_min (eq. (19)-(20))
     v_ref_mps: float = 1.5  # cruise speed: converts arc length to passing time, eq. (13)
     fix_goal_heading: bool = True  # eq. (10): also impose theta_f at the goal
@@ -68,7 +92,7 @@ class PlanResult:
     def ok(self) -> bool:
         return self.status == "OK"
 
-    def curve(self) -> Nurbs:
+    def curve(self) -> NurbsCurve:
         if not self.ok:
             raise ValueError(f"no curve: {self.reason}")
-        return Nurbs(self.degree, self.control_points, self.weights, self.knots)
+        return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)

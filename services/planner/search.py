@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from common.world.geometry import FloatArray
 from services.planner.costmap import CostMap
-from services.planner.geometry import FloatArray
 
 IntArray = NDArray[np.intp]
 

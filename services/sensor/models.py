@@ -10,20 +10,13 @@ from numpy.typing import NDArray
 
 from common.config.sensor import SensorConfig
 from common.messages import Detection, NavFix, ObstacleDetections, TruthState
+from common.scalar import wrap_angle
 from common.world import ObstacleState
 
 FloatArray = NDArray[np.float64]
 
 NAV_DRAWS = 4  # standard normals per fix: x, y, heading, speed
 SCAN_DRAWS = 3  # standard normals per obstacle per scan: x, y, radius (plus one uniform)
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to [-pi, pi) (unchanged, bit for bit, when already inside)."""
-    if -math.pi <= a < math.pi:
-        return a
-    w = (a + math.pi) % (2.0 * math.pi) - math.pi
-    return w if w < math.pi else -math.pi  # rounding can land exactly on +pi
 
 
 def nav_fix(truth: TruthState, cfg: SensorConfig, z: FloatArray) -> NavFix:

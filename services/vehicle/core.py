@@ -19,6 +19,7 @@ import numpy as np
 from common.config.vehicle import VehicleConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
+from common.scalar import wrap_angle
 from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
 from services.vehicle.watchdog import Applied, Schedule, Verdict, Watchdog
@@ -95,7 +96,9 @@ class VehicleCore:
         return [
             Emit(
                 stream="truth",
-                msg=TruthState(stamp=t, x=x, y=y, theta=_wrap(theta), v=v, w=w, collided=collided),
+                msg=TruthState(
+                    stamp=t, x=x, y=y, theta=wrap_angle(theta), v=v, w=w, collided=collided
+                ),
             ),
             Emit(
                 stream="status",
@@ -202,8 +205,3 @@ class VehicleCore:
     def drag_n(self) -> float:
         """Hydrodynamic resistance at the committed time, eq. (14) (N)."""
         return drag_n(self._state[3], self._p)
-
-
-def _wrap(a: float) -> float:
-    """Angle wrapped to [-pi, pi]."""
-    return math.remainder(a, 2.0 * math.pi)

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from common.config.vehicle import VehicleConfig
+from common.scalar import clamp
 
 # ITTC-1957 is fitted for Re >= ~1e5; below that (V -> 0) we hold Cf at its Re = 1e5 value.
 # The drag still vanishes as V^2, so the guard only avoids log10(Re) <= 2 (a pole).
@@ -75,10 +76,6 @@ def drag_n(v: float, p: PlantParams) -> float:
     return p.half_rho_s * v * abs(v) * (cf + p.delta_cf + p.c_pv)
 
 
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
-
-
 def thrust_n(v_cmd: float, ff_n: float, v: float, z: float, p: PlantParams) -> tuple[float, float]:
     """Speed loop: T = R(v_cmd) + kp e + ki z, bounded; returns (T, dz/dt) with anti-windup.
 
@@ -91,7 +88,7 @@ def thrust_n(v_cmd: float, ff_n: float, v: float, z: float, p: PlantParams) -> t
     """
     e = v_cmd - v
     t_raw = ff_n + p.kp * e + p.ki * z
-    t = _clamp(t_raw, p.thrust_min_n, p.thrust_max_n)
+    t = clamp(t_raw, p.thrust_min_n, p.thrust_max_n)
     x = e / p.int_band
     g = math.exp(-x * x)
     return t, g * (e + (t - t_raw) / p.kp)
@@ -107,9 +104,9 @@ def derivatives(
     dy = v * math.sin(theta) + cy
     # surge: m_eff dv/dt = T - R(v) (eq. 14), acceleration bounded
     t, dz = thrust_n(v_cmd, ff_n, v, z, p)
-    dv = _clamp((t - drag_n(v, p)) / p.mass_eff_kg, -p.accel_max, p.accel_max)
+    dv = clamp((t - drag_n(v, p)) / p.mass_eff_kg, -p.accel_max, p.accel_max)
     # yaw: first-order towards the command, yaw acceleration bounded
-    dw = _clamp((w_cmd - w) / p.yaw_tau_s, -p.yaw_accel_max, p.yaw_accel_max)
+    dw = clamp((w_cmd - w) / p.yaw_tau_s, -p.yaw_accel_max, p.yaw_accel_max)
     return dx, dy, w, dv, dw, dz
 
 
@@ -139,7 +136,7 @@ def rk4_step(
         a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
         for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
     )
-    return x, y, theta, _clamp(v, 0.0, p.v_max), _clamp(w, p.w_min, p.w_max), z
+    return x, y, theta, clamp(v, 0.0, p.v_max), clamp(w, p.w_min, p.w_max), z
 
 
 def _axpy(s: State, h: float, k: State) -> State:

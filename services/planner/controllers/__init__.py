@@ -1,11 +1,11 @@
 """Path-tracking controllers: the NURBS tracker (the paper's method) and its two baselines."""
 
+from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.backstepping import Backstepping
 from services.planner.controllers.base import Controller, Limits, Pose, predict_pose
 from services.planner.controllers.factory import make_controller
 from services.planner.controllers.fuzzy_pid import ImmuneFuzzyPid
-from services.planner.controllers.nurbs import NurbsTracker
-from services.planner.controllers.reference import Reference
+from services.planner.controllers.nurbs_tracker import NurbsTracker
 from services.planner.controllers.shapes import Circle, Polyline, StraightLine
 
 __all__ = [
@@ -17,7 +17,7 @@ __all__ = [
     "NurbsTracker",
     "Polyline",
     "Pose",
-    "Reference",
+    "ArcLengthReference",
     "StraightLine",
     "make_controller",
     "predict_pose",

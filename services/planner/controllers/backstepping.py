@@ -5,7 +5,7 @@ autonomous mobile robot", IEEE ICRA 1990. A reference posture p_r = (x_r, y_r, t
 moves along the path with speed v_r and yaw rate w_r = v_r kappa(s_r). The error posture in
 the vehicle frame is
 
-    [e_x, e_y]^T = R(theta)^T [x_r - x, y_r - y]^T,   e_theta = wrap(theta_r - theta)
+    [e_x, e_y]^T = R(theta)^T [x_r - x, y_r - y]^T,   e_theta = wrap_angle(theta_r - theta)
 
 and the law (their eq. 6) is
 
@@ -35,8 +35,9 @@ from __future__ import annotations
 import math
 
 from common.config.controller import BacksteppingGains
-from services.planner.controllers.base import Limits, Pose, clamp, predict_pose, wrap
-from services.planner.controllers.reference import Reference
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Limits, Pose, predict_pose
 
 
 class Backstepping:
@@ -62,7 +63,7 @@ class Backstepping:
         self.last_errors = (0.0, 0.0, 0.0)
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) from the Kanayama law, saturated to eq. (11)."""
         g, lim = self.gains, self.limits
@@ -70,7 +71,7 @@ class Backstepping:
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, _, _ = pose
-        s_proj = ref.project(x, y, self._s_hint)
+        s_proj = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s_proj
         # the virtual reference: advanced at v_r by the caller's clock, on a leash
         if self._s_r is None or self._t_prev is None:
@@ -82,14 +83,14 @@ class Backstepping:
         s_eval = s_r
         if s_eval >= ref.length:
             v_r = 0.0  # the reference stopped at the end of the path
-        xr, yr = ref.point(s_eval)
-        th_r = ref.heading(s_eval)
-        w_r = v_r * ref.curvature(s_eval)
+        xr, yr = ref.point_at_s(s_eval)
+        th_r = ref.heading_at_s(s_eval)
+        w_r = v_r * ref.curvature_at_s(s_eval)
         # error posture in the vehicle frame (Kanayama eq. 3)
         c, sn = math.cos(theta), math.sin(theta)
         e_x = c * (xr - x) + sn * (yr - y)
         e_y = -sn * (xr - x) + c * (yr - y)
-        e_th = wrap(th_r - theta)
+        e_th = wrap_angle(th_r - theta)
         self.last_errors = (e_x, e_y, e_th)
         v = v_r * math.cos(e_th) + g.k_x_ps * e_x
         w = w_r + v_r * (g.k_y_pm2 * e_y + g.k_theta_pm * math.sin(e_th))

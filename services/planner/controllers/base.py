@@ -7,7 +7,8 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from common.config.vehicle import VehicleConfig
-from services.planner.controllers.reference import Reference
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate or truth)
 
@@ -45,20 +46,10 @@ class Controller(Protocol):
     name: str
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]: ...
 
     def reset(self) -> None: ...
-
-
-def clamp(x: float, lo: float, hi: float) -> float:
-    """x limited to [lo, hi]."""
-    return lo if x < lo else hi if x > hi else x
-
-
-def wrap(a: float) -> float:
-    """Angle wrapped to [-pi, pi]."""
-    return math.remainder(a, 2.0 * math.pi)
 
 
 def predict_pose(pose: Pose, horizon_s: float) -> Pose:
@@ -83,9 +74,11 @@ def predict_pose(pose: Pose, horizon_s: float) -> Pose:
     )
 
 
-def path_errors(x: float, y: float, theta: float, ref: Reference, s: float) -> tuple[float, float]:
+def path_errors(
+    x: float, y: float, theta: float, ref: ArcLengthReference, s: float
+) -> tuple[float, float]:
     """Serret-Frenet errors at arc length s: (e_y lateral, > 0 left of the path; e_theta)."""
-    px, py = ref.point(s)
-    hp = ref.heading(s)
+    px, py = ref.point_at_s(s)
+    hp = ref.heading_at_s(s)
     e_y = -math.sin(hp) * (x - px) + math.cos(hp) * (y - py)
-    return e_y, wrap(theta - hp)
+    return e_y, wrap_angle(theta - hp)

@@ -6,7 +6,7 @@ from common.config.controller import ControllerConfig
 from services.planner.controllers.backstepping import Backstepping
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.fuzzy_pid import ImmuneFuzzyPid
-from services.planner.controllers.nurbs import NurbsTracker
+from services.planner.controllers.nurbs_tracker import NurbsTracker
 
 
 def make_controller(cfg: ControllerConfig, limits: Limits) -> Controller:

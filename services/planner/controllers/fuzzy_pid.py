@@ -2,7 +2,7 @@
 
 Error: cross-track and heading combined through a look-ahead (line-of-sight) angle,
 
-    e = wrap(chi - e_theta),  chi = -atan(e_y / L)
+    e = wrap_angle(chi - e_theta),  chi = -atan(e_y / L)
 
 i.e. the desired heading minus the actual one (rad; > 0 asks for a left turn).
 
@@ -34,9 +34,10 @@ from __future__ import annotations
 import math
 
 from common.config.controller import FuzzyPidGains
-from services.planner.controllers.base import Limits, Pose, clamp, path_errors, predict_pose, wrap
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
 from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
-from services.planner.controllers.reference import Reference
 
 _TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
 
@@ -65,20 +66,20 @@ class ImmuneFuzzyPid:
         self.last_gains = (self.gains.kp_ps, self.gains.ki_ps2, self.gains.kd, 1.0)
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) from the immune fuzzy PID, saturated to eq. (11)."""
         g, lim = self.gains, self.limits
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, _, _ = pose
-        s = ref.project(x, y, self._s_hint)
+        s = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
-        e = wrap(-math.atan(e_y / g.lookahead_m) - e_th)
+        e = wrap_angle(-math.atan(e_y / g.lookahead_m) - e_th)
         dt = 0.0 if self._t_prev is None else max(0.0, t - self._t_prev)
         if dt > 0.0:
-            de_raw = wrap(e - self._e_prev) / dt
+            de_raw = wrap_angle(e - self._e_prev) / dt
             # eq. (3): u_i = (dt e_i + T u_{i-1}) / (dt + T), a first-order lag on de/dt
             self._de = (dt * de_raw + g.de_filter_s * self._de) / (dt + g.de_filter_s)
         # fuzzy self-tuning of the PID gains

@@ -5,9 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
+from common.scalar import clamp
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,18 +26,18 @@ class StraightLine:
         n = self.length
         return (self.x1 - self.x0) / n, (self.y1 - self.y0) / n
 
-    def project(self, x: float, y: float, s_hint: float | None) -> float:
+    def closest_s(self, x: float, y: float, s_hint: float | None) -> float:
         ux, uy = self._unit()
-        return _clamp((x - self.x0) * ux + (y - self.y0) * uy, 0.0, self.length)
+        return clamp((x - self.x0) * ux + (y - self.y0) * uy, 0.0, self.length)
 
-    def point(self, s: float) -> tuple[float, float]:
+    def point_at_s(self, s: float) -> tuple[float, float]:
         ux, uy = self._unit()
         return self.x0 + s * ux, self.y0 + s * uy
 
-    def heading(self, s: float) -> float:
+    def heading_at_s(self, s: float) -> float:
         return math.atan2(self.y1 - self.y0, self.x1 - self.x0)
 
-    def curvature(self, s: float) -> float:
+    def curvature_at_s(self, s: float) -> float:
         return 0.0
 
 
@@ -63,22 +61,22 @@ class Circle:
     def _sign(self) -> float:
         return 1.0 if self.ccw else -1.0
 
-    def project(self, x: float, y: float, s_hint: float | None) -> float:
+    def closest_s(self, x: float, y: float, s_hint: float | None) -> float:
         phase = math.atan2(y - self.cy, x - self.cx)
         base = self._sign * (phase - self.phase0) * self.radius
         lap = 2.0 * math.pi * self.radius
         hint = 0.0 if s_hint is None else s_hint
         # the unwrapped arc length closest to the hint (the previous projection)
-        return _clamp(base + lap * round((hint - base) / lap), 0.0, self.length)
+        return clamp(base + lap * round((hint - base) / lap), 0.0, self.length)
 
-    def point(self, s: float) -> tuple[float, float]:
+    def point_at_s(self, s: float) -> tuple[float, float]:
         phase = self.phase0 + self._sign * s / self.radius
         return self.cx + self.radius * math.cos(phase), self.cy + self.radius * math.sin(phase)
 
-    def heading(self, s: float) -> float:
+    def heading_at_s(self, s: float) -> float:
         return self.phase0 + self._sign * (s / self.radius + 0.5 * math.pi)
 
-    def curvature(self, s: float) -> float:
+    def curvature_at_s(self, s: float) -> float:
         return self._sign / self.radius
 
 
@@ -110,7 +108,7 @@ class Polyline:
                 return i
         return len(self._cum) - 2
 
-    def project(self, x: float, y: float, s_hint: float | None) -> float:
+    def closest_s(self, x: float, y: float, s_hint: float | None) -> float:
         best_s, best_d = 0.0, math.inf
         for i in range(len(self._cum) - 1):
             if s_hint is not None and (
@@ -121,24 +119,24 @@ class Polyline:
             seg = self._cum[i + 1] - self._cum[i]
             if seg <= 0.0:
                 continue
-            u = _clamp(((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0)) / (seg * seg), 0.0, 1.0)
+            u = clamp(((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0)) / (seg * seg), 0.0, 1.0)
             d = math.hypot(x0 + u * (x1 - x0) - x, y0 + u * (y1 - y0) - y)
             if d < best_d:
                 best_s, best_d = self._cum[i] + u * seg, d
         return best_s
 
-    def point(self, s: float) -> tuple[float, float]:
-        s = _clamp(s, 0.0, self.length)
+    def point_at_s(self, s: float) -> tuple[float, float]:
+        s = clamp(s, 0.0, self.length)
         i = self._leg(s)
         x0, y0, x1, y1 = self.points[2 * i : 2 * i + 4]
         seg = self._cum[i + 1] - self._cum[i]
         u = 0.0 if seg <= 0.0 else (s - self._cum[i]) / seg
         return x0 + u * (x1 - x0), y0 + u * (y1 - y0)
 
-    def heading(self, s: float) -> float:
-        i = self._leg(_clamp(s, 0.0, self.length))
+    def heading_at_s(self, s: float) -> float:
+        i = self._leg(clamp(s, 0.0, self.length))
         x0, y0, x1, y1 = self.points[2 * i : 2 * i + 4]
         return math.atan2(y1 - y0, x1 - x0)
 
-    def curvature(self, s: float) -> float:
+    def curvature_at_s(self, s: float) -> float:
         return 0.0

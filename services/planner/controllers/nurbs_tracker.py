@@ -1,4 +1,4 @@
-"""NurbsTracker: the paper's method, tracking the NURBS path by its curvature, delay-aware.
+"""The NURBS tracking controller (the paper's method): curvature feed-forward, delay-aware.
 
 Law (Serret-Frenet path following, e.g. Samson 1995; Lekkas & Fossen 2012 for the
 look-ahead form). With s the projection of the (predicted) pose on the path, e_y the
@@ -8,7 +8,7 @@ lateral error (> 0 left), e_theta = theta - theta_p(s) and kappa(s) the signed c
     chi     = -atan(e_y / Delta)                  desired approach angle, Delta = look-ahead
     w       = kappa s_dot                         curvature feed-forward (= v kappa on the path)
               + dchi/de_y * v sin(e_theta)        keeps the approach angle consistent
-              - k_h wrap(e_theta - chi)           heading feedback
+              - k_h wrap_angle(e_theta - chi)           heading feedback
 
 With z = e_theta - chi, unsaturated and with the true speed v, this gives dz/dt = -k_h z
 exactly, and with z = 0 the cross-track error obeys de_y/dt = -v e_y / sqrt(Delta^2 + e_y^2)
@@ -32,15 +32,9 @@ from __future__ import annotations
 import math
 
 from common.config.controller import NurbsGains
-from services.planner.controllers.base import (
-    Limits,
-    Pose,
-    clamp,
-    path_errors,
-    predict_pose,
-    wrap,
-)
-from services.planner.controllers.reference import Reference
+from common.scalar import clamp, wrap_angle
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
 
 _PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
 
@@ -61,7 +55,7 @@ class NurbsTracker:
         self._s_hint = None
         self.last_errors = (0.0, 0.0)
 
-    def speed_for(self, ref: Reference, s: float) -> float:
+    def speed_for(self, ref: ArcLengthReference, s: float) -> float:
         """v_ref reduced so that v |kappa| <= budget * w_max over the preview window."""
         lim, g = self.limits, self.gains
         v = min(ref.v_ref, lim.v_max)
@@ -69,25 +63,25 @@ class NurbsTracker:
         k_max = 0.0
         for i in range(_PREVIEW_SAMPLES):
             si = s + (horizon - s) * i / (_PREVIEW_SAMPLES - 1)
-            k_max = max(k_max, abs(ref.curvature(si)))
+            k_max = max(k_max, abs(ref.curvature_at_s(si)))
         w_room = g.curvature_budget * min(lim.w_max, -lim.w_min)
         if k_max * v > w_room:
             v = w_room / k_max
         return clamp(v, lim.v_min, lim.v_max)
 
     def command(
-        self, t: float, pose: Pose, ref: Reference, latency_s: float = 0.0
+        self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) for the pose, saturated to eq. (11) and |w| <= v / R_min."""
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, v_meas, _ = pose
         lim, g = self.limits, self.gains
-        s = ref.project(x, y, self._s_hint)
+        s = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
-        kappa = ref.curvature(s)
+        kappa = ref.curvature_at_s(s)
         v_cmd = self.speed_for(ref, s)
         # kinematic terms use the measured speed: the vehicle turns at w / v_actual
         v_k = max(v_meas, 0.0)
@@ -96,7 +90,7 @@ class NurbsTracker:
         denom = max(1.0 - kappa * e_y, 0.2)  # guard the Frenet singularity at the centre
         w_ff = kappa * v_k * math.cos(e_th) / denom  # curvature feed-forward
         dchi = -delta / (delta * delta + e_y * e_y) * v_k * math.sin(e_th)
-        w = w_ff + dchi - g.k_heading_ps * wrap(e_th - chi)
+        w = w_ff + dchi - g.k_heading_ps * wrap_angle(e_th - chi)
         # turning radius >= R_min (eqs. 19-20), then eq. (11)
         w_r = v_cmd / lim.r_min
         w = clamp(w, -w_r, w_r)

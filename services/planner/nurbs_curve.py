@@ -1,4 +1,6 @@
-"""Planar NURBS curves: knot vectors, vectorised Cox-de Boor basis, rational derivatives, curvature.
+"""The NURBS curve math, on the curve parameter u: knots, basis, derivatives, curvature.
+
+Knot vectors, the vectorised Cox-de Boor basis, rational derivatives and eq. (20) curvature.
 
 Everything is evaluated for many parameters at once: the p + 1 non-zero basis functions and
 their derivatives come from the Cox-de Boor triangle run on (m,) arrays, and the rational
@@ -13,13 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from services.planner.geometry import FloatArray
+from common.world.geometry import FloatArray
 
 IntArray = NDArray[np.intp]
 
 
 @dataclass(frozen=True, eq=False)
-class Nurbs:
+class NurbsCurve:
     """A planar NURBS curve of eq. (19)-(20): degree p, control points, weights, knots."""
 
     degree: int

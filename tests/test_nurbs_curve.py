@@ -1,4 +1,4 @@
-"""NURBS evaluation against geomdl, exact circles, arc length and projection."""
+"""NurbsCurve (on u) against geomdl and exact circles; PlannedPath's arc length and projection."""
 
 from __future__ import annotations
 
@@ -9,28 +9,28 @@ from geomdl import NURBS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from services.planner.nurbs import (
-    Nurbs,
+from services.planner.nurbs_curve import (
+    NurbsCurve,
     averaged_knots,
     basis_local,
     clamped_uniform_knots,
     curvature,
     rational_basis,
 )
-from services.planner.nurbs_path import NurbsPath
+from services.planner.planned_path import PlannedPath
 
 
-def _random_curve(rng: np.random.Generator) -> Nurbs:
+def _random_curve(rng: np.random.Generator) -> NurbsCurve:
     p = int(rng.integers(2, 5))  # degree 2..4
     n = int(rng.integers(p + 1, p + 10))
     ctrl = rng.uniform(-10.0, 10.0, (n, 2))
     w = rng.uniform(0.2, 5.0, n)
     inner = np.sort(rng.uniform(0.0, 1.0, n - p - 1))
     knots = np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
-    return Nurbs(p, ctrl, w, knots)
+    return NurbsCurve(p, ctrl, w, knots)
 
 
-def _geomdl(c: Nurbs) -> NURBS.Curve:
+def _geomdl(c: NurbsCurve) -> NURBS.Curve:
     g = NURBS.Curve()
     g.degree = c.degree
     g.ctrlptsw = [[x * w, y * w, w] for (x, y), w in zip(c.ctrl, c.weights, strict=True)]
@@ -100,11 +100,11 @@ def test_knot_vectors_are_clamped_and_nondecreasing() -> None:
     assert np.all(np.diff(a) >= 0.0) and a[0] == 0.0 and a[-1] == 1.0
 
 
-def _circle_quarter(radius: float) -> Nurbs:
+def _circle_quarter(radius: float) -> NurbsCurve:
     # exact quarter circle: degree 2, weights 1, sqrt(2)/2, 1
     ctrl = np.array([[radius, 0.0], [radius, radius], [0.0, radius]])
     w = np.array([1.0, math.sqrt(0.5), 1.0])
-    return Nurbs(2, ctrl, w, np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]))
+    return NurbsCurve(2, ctrl, w, np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]))
 
 
 def test_rational_quarter_circle_is_exact_radius_and_curvature() -> None:
@@ -118,12 +118,12 @@ def test_rational_quarter_circle_is_exact_radius_and_curvature() -> None:
 
 def test_arc_length_and_inverse_on_quarter_circle() -> None:
     radius = 3.0
-    path = NurbsPath(_circle_quarter(radius), n_table=2000)
+    path = PlannedPath(_circle_quarter(radius), n_table=2000)
     assert abs(path.length - math.pi * radius / 2.0) < 1e-9
     s = np.linspace(0.0, path.length, 37)
-    assert np.allclose(path.s_of_u(path.u_of_s(s)), s, atol=1e-9)
+    assert np.allclose(path.s_at_u(path.u_at_s(s)), s, atol=1e-9)
     # u(s) puts the point at angle s / R on the circle (table interpolation: < 1 mm)
-    p = path.point(path.u_of_s(s))
+    p = path.point_at_u(path.u_at_s(s))
     assert np.allclose(np.arctan2(p[:, 1], p[:, 0]), s / radius, atol=1e-3 / radius)
 
 
@@ -131,17 +131,17 @@ def test_projection_finds_the_closest_point() -> None:
     rng = np.random.default_rng(11)
     for _ in range(10):
         c = _random_curve(rng)
-        path = NurbsPath(c, n_table=500)
+        path = PlannedPath(c, n_table=500)
         dense = c.evaluate(np.linspace(0.0, 1.0, 20001), 0)[0]
         for q in rng.uniform(-10.0, 10.0, (5, 2)):
-            u, d = path.project(q)
+            u, d = path.closest_u(q)
             brute = float(np.min(np.hypot(*(dense - q).T)))
             # never worse than a 20001-point brute force by more than its own sampling error
             assert d <= brute + 1e-6
-            assert abs(d - float(np.hypot(*(path.point(u)[0] - q)))) < 1e-12
+            assert abs(d - float(np.hypot(*(path.point_at_u(u)[0] - q)))) < 1e-12
 
 
 def test_projection_respects_a_parameter_window() -> None:
-    path = NurbsPath(_circle_quarter(3.0))
-    u, _ = path.project(np.array([3.0, 0.0]), u_lo=0.5, u_hi=1.0)
+    path = PlannedPath(_circle_quarter(3.0))
+    u, _ = path.closest_u(np.array([3.0, 0.0]), u_lo=0.5, u_hi=1.0)
     assert 0.5 <= u <= 1.0 and abs(u - 0.5) < 1e-9

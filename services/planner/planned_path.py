@@ -1,26 +1,30 @@
-"""A NURBS path ready for tracking: arc-length table (s(u), u(s)) and closest-point projection."""
+"""The planned path: a NURBS curve with its arc-length table s(u), u(s); methods take u.
+
+Every method named `*_at_u` takes the curve parameter u; `s_at_u` / `u_at_s` convert to and
+from arc length s, and `closest_u` projects a point onto the curve.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from services.planner.geometry import FloatArray
-from services.planner.nurbs import Nurbs, curvature
+from common.world.geometry import FloatArray
+from services.planner.nurbs_curve import NurbsCurve, curvature
 
 # 3-point Gauss-Legendre on [0, 1]: exact for polynomials of degree 5 between table points
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
 
 
-class NurbsPath:
+class PlannedPath:
     """A curve with a dense table of parameters, points and arc length, built once per path.
 
-    `project` finds the closest parameter to a point: nearest table sample (optionally inside
+    `closest_u` finds the closest parameter to a point: nearest table sample (optionally inside
     a parameter window, so a controller does not jump to another leg of the path), then
     Newton steps on f(u) = (C(u) - q) . C'(u) = 0.
     """
 
-    def __init__(self, curve: Nurbs, n_table: int = 2000) -> None:
+    def __init__(self, curve: NurbsCurve, n_table: int = 2000) -> None:
         self.curve = curve
         u = np.linspace(curve.u_min, curve.u_max, n_table)
         self.u_table = u
@@ -37,32 +41,32 @@ class NurbsPath:
     def length(self) -> float:
         return float(self.s_table[-1])
 
-    def s_of_u(self, u: FloatArray | float) -> FloatArray:
+    def s_at_u(self, u: FloatArray | float) -> FloatArray:
         return np.asarray(np.interp(u, self.u_table, self.s_table), dtype=np.float64)
 
-    def u_of_s(self, s: FloatArray | float) -> FloatArray:
+    def u_at_s(self, s: FloatArray | float) -> FloatArray:
         return np.asarray(np.interp(s, self.s_table, self.u_table), dtype=np.float64)
 
-    def point(self, u: FloatArray | float) -> FloatArray:
+    def point_at_u(self, u: FloatArray | float) -> FloatArray:
         return self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=0)[0]
 
-    def heading(self, u: FloatArray | float) -> FloatArray:
+    def heading_at_u(self, u: FloatArray | float) -> FloatArray:
         d1 = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=1)[1]
         return np.arctan2(d1[:, 1], d1[:, 0])
 
-    def curvature(self, u: FloatArray | float) -> FloatArray:
+    def curvature_at_u(self, u: FloatArray | float) -> FloatArray:
         """Unsigned curvature at u (eq. (20))."""
         d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
         return curvature(d[1], d[2])
 
-    def signed_curvature(self, u: FloatArray | float) -> FloatArray:
+    def signed_curvature_at_u(self, u: FloatArray | float) -> FloatArray:
         """Curvature with sign (> 0 turning left), as a path-following controller feeds forward."""
         d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
         cross = d[1][:, 0] * d[2][:, 1] - d[1][:, 1] * d[2][:, 0]
         speed3 = np.maximum(np.hypot(d[1][:, 0], d[1][:, 1]) ** 3, 1e-300)
         return np.asarray(cross / speed3)
 
-    def project(
+    def closest_u(
         self,
         q: FloatArray,
         u_lo: float | None = None,

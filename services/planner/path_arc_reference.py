@@ -1,4 +1,4 @@
-"""The planned NURBS path seen by a tracking controller: the Reference protocol by arc length.
+"""The planned path as the arc-length reference a controller follows (methods take s).
 
 Controllers query the path several times per step (projection, point, heading, curvature over
 a preview window). Evaluating the NURBS each time cost about a millisecond per step, so the
@@ -12,25 +12,25 @@ import math
 
 import numpy as np
 
-from services.planner.nurbs_path import NurbsPath
+from services.planner.planned_path import PlannedPath
 
 
-class NurbsReference:
-    """Adapts a NurbsPath (parameter u) to the controllers' Reference (arc length s)."""
+class PathArcReference:
+    """Adapts a PlannedPath (parameter u) to the controllers' ArcLengthReference (arc length s)."""
 
     # the projection searches this window around the previous one, so the controller never
     # jumps to another leg of a path that comes back near itself
     BEHIND_M = 5.0
     AHEAD_M = 15.0
 
-    def __init__(self, path: NurbsPath, v_ref: float) -> None:
+    def __init__(self, path: PlannedPath, v_ref: float) -> None:
         self.path = path
         self._v_ref = v_ref
         self._s = path.s_table
         self._x = path.xy_table[:, 0]
         self._y = path.xy_table[:, 1]
-        self._heading = np.unwrap(path.heading(path.u_table))
-        self._k = path.signed_curvature(path.u_table)
+        self._heading = np.unwrap(path.heading_at_u(path.u_table))
+        self._k = path.signed_curvature_at_u(path.u_table)
 
     @property
     def length(self) -> float:
@@ -40,7 +40,7 @@ class NurbsReference:
     def v_ref(self) -> float:
         return self._v_ref
 
-    def project(self, x: float, y: float, s_hint: float | None) -> float:
+    def closest_s(self, x: float, y: float, s_hint: float | None) -> float:
         """Arc length of the closest point: nearest table sample, then the exact foot of the
         perpendicular on the neighbouring table segments."""
         lo, hi = 0, len(self._s)
@@ -67,11 +67,11 @@ class NurbsReference:
                 best_s = float(self._s[j] + f * (self._s[j + 1] - self._s[j]))
         return best_s
 
-    def point(self, s: float) -> tuple[float, float]:
+    def point_at_s(self, s: float) -> tuple[float, float]:
         return float(np.interp(s, self._s, self._x)), float(np.interp(s, self._s, self._y))
 
-    def heading(self, s: float) -> float:
+    def heading_at_s(self, s: float) -> float:
         return math.remainder(float(np.interp(s, self._s, self._heading)), 2.0 * math.pi)
 
-    def curvature(self, s: float) -> float:
+    def curvature_at_s(self, s: float) -> float:
         return float(np.interp(s, self._s, self._k))

@@ -1,0 +1,53 @@
+"""PathArcReference (on s) agrees with exact NURBS evaluation closely enough to steer by."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from services.planner.nurbs_curve import NurbsCurve, clamped_uniform_knots
+from services.planner.path_arc_reference import PathArcReference
+from services.planner.planned_path import PlannedPath
+
+
+def _path() -> PlannedPath:
+    ctrl = np.array([[0, 0], [10, 0], [20, 8], [30, 8], [40, -4], [50, 0], [60, 0]], float)
+    curve = NurbsCurve(3, ctrl, np.ones(len(ctrl)), clamped_uniform_knots(len(ctrl), 3))
+    return PlannedPath(curve)
+
+
+def test_point_heading_curvature_match_exact_evaluation() -> None:
+    path = _path()
+    ref = PathArcReference(path, 1.5)
+    s = np.linspace(0.0, ref.length, 157)
+    u = path.u_at_s(s)
+    xy = path.point_at_u(u)
+    for i, si in enumerate(s):
+        px, py = ref.point_at_s(float(si))
+        assert math.hypot(px - xy[i, 0], py - xy[i, 1]) < 1e-4  # m
+        dh = math.remainder(
+            ref.heading_at_s(float(si)) - float(path.heading_at_u(u[i : i + 1])[0]), 2 * math.pi
+        )
+        assert abs(dh) < 1e-3  # rad
+        assert (
+            abs(ref.curvature_at_s(float(si)) - float(path.signed_curvature_at_u(u[i : i + 1])[0]))
+            < 1e-3
+        )
+
+
+def test_projection_matches_the_exact_closest_point() -> None:
+    path = _path()
+    ref = PathArcReference(path, 1.5)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        s_true = float(rng.uniform(1.0, ref.length - 1.0))
+        u = path.u_at_s(np.array([s_true]))
+        p = path.point_at_u(u)[0]
+        h = float(path.heading_at_u(u)[0])
+        off = float(rng.uniform(-1.5, 1.5))  # a point off the path, along the normal
+        q = p + off * np.array([-math.sin(h), math.cos(h)])
+        u_exact, _ = path.closest_u(q)
+        s_exact = float(path.s_at_u(np.array([u_exact]))[0])
+        assert abs(ref.closest_s(float(q[0]), float(q[1]), s_true) - s_exact) < 5e-3  # m
+        assert abs(ref.closest_s(float(q[0]), float(q[1]), None) - s_exact) < 5e-3
