@@ -60,8 +60,3 @@ def test_walled_off_goal_stops_the_vehicle_and_says_why() -> None:
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
     assert isinstance(cmd, VelocityCommand)
     assert (cmd.v, cmd.w) == (0.0, 0.0)
-
-
-def test_the_period_comes_from_the_planner_config() -> None:
-    core = _core(["planner.period_s=0.25"])
-    assert (core.spec.period_s, core.spec.offset_s) == (0.25, 0.125)
