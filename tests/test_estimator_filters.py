@@ -12,7 +12,7 @@ from scipy.stats import chi2
 
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
-from common.messages import NavFix, ObstacleTracks, StateEstimate, TruthState
+from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate, TruthState
 from common.runtime.core import Delivery
 from services.estimator import EstimatorCore
 from services.estimator.prefilter import (
@@ -196,7 +196,7 @@ def test_spec_and_outputs() -> None:
     assert core.spec.name == "estimator"
     assert [(i.source, i.stream, i.msg_type) for i in core.spec.inputs] == [
         ("sensor", "nav", NavFix),
-        ("sensor", "obstacles", core.spec.inputs[1].msg_type),
+        ("sensor", "obstacles", ObstacleDetections),
     ]
     assert [o.stream for o in core.spec.outputs] == ["state", "tracks"]
     out = core.step(1.25)
