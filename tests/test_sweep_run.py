@@ -148,6 +148,7 @@ def test_a_dask_cluster_runs_the_same_runs(
             ),
         )
     assert (got.total, got.ran, got.errors) == (2, 2, 0)
+    assert len(got.rows) == 2  # the loop below checks every run, not none
     local = {r["run_id"]: r["trajectory_sha256"] for r in rep.rows}
     for r in got.rows:  # same run ids as the local sweep, bit-identical trajectories
         assert local[r["run_id"]] == r["trajectory_sha256"]
