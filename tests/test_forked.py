@@ -6,9 +6,8 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
-
-import pytest
 
 from common.runtime.processes.children import fork, stop_all
 from common.runtime.processes.forkserver import fork_module
@@ -17,13 +16,21 @@ TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
 
 
+def _wait_for_line(log: Path, text: str, timeout_s: float = 30.0) -> None:
+    """Poll a child's log file until `text` appears (the child is a separate process)."""
+    deadline = time.monotonic() + timeout_s
+    while text not in (log.read_text() if log.exists() else ""):
+        assert time.monotonic() < deadline, f"{text!r} never appeared in {log}"
+        time.sleep(0.01)
+
+
 def test_a_forked_module_runs_main_with_its_argv_logs_and_exits_with_its_code(
     tmp_path: Path,
 ) -> None:
     log = tmp_path / "x.log"
     proc = fork_module("helpers.fork_target", ["exit", "3"], log)
-    assert proc.pid != os.getpid()
     assert proc.wait(timeout=30) == 3
+    assert proc.returncode == 3
     assert proc.poll() == 3
     text = log.read_text()
     assert "child argv ['exit', '3']" in text
@@ -32,8 +39,7 @@ def test_a_forked_module_runs_main_with_its_argv_logs_and_exits_with_its_code(
 
 def test_a_forked_process_reports_the_signal_that_ended_it(tmp_path: Path) -> None:
     child = fork("blocker", "helpers.fork_target", ["block"], tmp_path)
-    with pytest.raises(subprocess.TimeoutExpired):
-        child.proc.wait(timeout=0.2)  # it blocks until signalled
+    _wait_for_line(tmp_path / "blocker.log", "child argv ['block']")  # now in signal.pause()
     assert child.proc.poll() is None
     child.signal(signal.SIGKILL)
     assert child.proc.wait(timeout=30) == -signal.SIGKILL
@@ -43,6 +49,8 @@ def test_a_forked_process_reports_the_signal_that_ended_it(tmp_path: Path) -> No
 
 def test_stop_all_ends_forked_services_politely(tmp_path: Path) -> None:
     children = [fork(f"b{i}", "helpers.fork_target", ["block"], tmp_path) for i in range(2)]
+    for c in children:  # blocked, so the stop really meets a waiting service
+        _wait_for_line(c.log_path, "child argv ['block']")
     stop_all(children, grace_s=5.0)
     # SIGINT ends signal.pause() with KeyboardInterrupt: a non-zero exit, not a kill
     assert all(c.proc.poll() not in (None, -signal.SIGKILL) for c in children)

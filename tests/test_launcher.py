@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import time
 from pathlib import Path
 from typing import Any
 
@@ -101,11 +100,10 @@ def test_a_killed_service_is_restarted_and_rejoins_the_clock(tmp_path: Path, out
 def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
     tmp_path: Path, out: Path
 ) -> None:
-    scenario = _scenario(tmp_path, max_time=30.0, crash="filter")
-    t0 = time.monotonic()
+    # 300 s of wall clock to max_time: ending within WAIT_S proves the run failed fast
+    scenario = _scenario(tmp_path, max_time=600.0, crash="filter")
     with Tidelink("launch", str(scenario), "--out", str(out)) as t:
         assert t.wait(WAIT_S) == 1
-    assert time.monotonic() - t0 < 25.0  # failed fast, long before max_time (15 s wall)
     assert "service 'filter' exited with code 3 (restart policy 'never')" in t.stderr
     assert not (out / "metrics.json").exists()
     assert not [p for pids in _pids(out).values() for p in pids if alive(p)]
@@ -194,7 +192,11 @@ def test_launch_runs_the_auv_mission_and_plots_it(tmp_path: Path, out: Path) -> 
     summary = {k: v for k, v in m.items() if k != "link_stats"}
     assert m["end_reason"] == "goal" and m["reached_goal"] is True, f"{t.stderr}\n{summary}"
     assert m["collisions"] == 0
-    assert m["link_stats"]["planner/cmd->vehicle"]["dropped_loss"] >= 0
+    cmd = m["link_stats"]["planner/cmd->vehicle"]
+    # 5 % loss on ~250 commands: none lost has a probability of about 3e-6
+    assert cmd["dropped_loss"] > 0
+    drops = cmd["dropped_loss"] + cmd["dropped_outage"] + cmd["dropped_queue"]
+    assert cmd["sent"] == cmd["delivered"] + drops
     assert set(m) == _inproc_keys(scenario, tmp_path, *short)
     png = (out / "run.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000

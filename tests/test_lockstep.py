@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import multiprocessing
-import os
 import time
 from pathlib import Path
 
@@ -64,10 +63,9 @@ def test_a_dead_service_fails_lockstep_fast_and_names_it(
             "run.mission_params.crash_at_s=2.0",
         ],
     )
-    t0 = time.monotonic()
+    # the message proves the exit itself was detected (a tick timeout says "timed out")
     with pytest.raises(ServiceFailed, match=r"service 'filter' exited with code 3"):
         run_lockstep(s, raw, tmp_path / "logs")
-    assert time.monotonic() - t0 < s.runtime.tick_timeout_s  # failed fast, not by a timeout
 
 
 def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> None:
@@ -76,7 +74,8 @@ def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> No
     assert r.reason == "max_time"
     assert r.metrics["final_error"] < 1.0  # same loop, wall-clock timing: converges as well
     assert {k for k, _ in r.record.keys()} >= {"ctrl", "filter", "plant", "sensor"}
-    assert all(c for c in os.listdir(tmp_path / "logs"))
+    logs = {p.stem for p in (tmp_path / "logs").glob("*.log")}
+    assert logs == {"ctrl", "filter", "plant", "sensor"}
 
 
 def test_lockstep_equals_inproc_with_event_driven_cores(

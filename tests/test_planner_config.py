@@ -11,7 +11,7 @@ def test_defaults_are_valid_and_documented_values() -> None:
     cfg = PlannerConfig()
     assert cfg.resolution_m == 0.5 and cfg.rho0_m == 1.0 and cfg.rho_m == 4.0
     assert cfg.nurbs_degree == 3 and cfg.n_samples_check == 2000
-    assert cfg.search == "dijkstra" and cfg.connectivity in (8, 16)
+    assert cfg.search == "dijkstra" and cfg.connectivity == 8
 
 
 @pytest.mark.parametrize(

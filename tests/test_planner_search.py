@@ -44,7 +44,6 @@ def test_arc_weights_are_length_times_one_plus_mean_cost() -> None:
         res = cmap.resolution_m
         iy, ix = 30, 60  # an interior cell; check every direction against the definition
         for k, (dx, dy) in enumerate(dirs):
-            a, b = cmap.cost[iy, ix], cmap.cost[iy + dy, ix + dx]
             if abs(dx) + abs(dy) == 1 or abs(dx) == abs(dy):
                 cells = [(0, 0), (dx, dy)]
                 walls = cells + ([(dx, 0), (0, dy)] if abs(dx) == abs(dy) else [])
@@ -56,8 +55,8 @@ def test_arc_weights_are_length_times_one_plus_mean_cost() -> None:
             blocked = any(cmap.blocked[iy + oy, ix + ox] for ox, oy in walls)
             expect = math.inf if blocked else math.hypot(dx, dy) * res * (1.0 + mean)
             assert w[iy, ix, k] == expect or math.isclose(w[iy, ix, k], expect, rel_tol=1e-12)
-            assert a >= 0.0 and b >= 0.0
         # every arc touching an occupied cell is absent
+        assert cmap.blocked.any()
         assert np.all(np.isinf(w[cmap.blocked]))
 
 

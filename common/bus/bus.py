@@ -82,20 +82,33 @@ class Inbox(_Rejects):
     A Zenoh callback only enqueues the sample itself (SimpleQueue.put, a C call: no Python
     frame on Zenoh's thread, so it holds the GIL as briefly as possible); reading the key,
     payload and attachment, and decoding, happen in `get`, on the caller's thread. When the
-    bus closes, samples still queued are turned into plain data (`_detach`), so no Zenoh
+    bus closes, samples still queued are turned into plain data (`detach`), so no Zenoh
     object outlives the session. Payloads that fail to decode are counted per key and
     logged once per key; the inbox carries on with the next sample.
     """
 
-    def __init__(self) -> None:
+    def __init__(
+        self,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        fifo: queue.SimpleQueue[Any] | None = None,
+    ) -> None:
+        # clock and fifo are seams for tests (a fake clock, a queue that trickles)
         super().__init__()
-        self._q: queue.SimpleQueue[zenoh.Sample | _Plain | Liveliness] = queue.SimpleQueue()
+        self._clock = clock
+        self._q: queue.SimpleQueue[zenoh.Sample | _Plain | Liveliness] = (
+            queue.SimpleQueue() if fifo is None else fifo
+        )
         self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
+
+    def pending(self) -> int:
+        """Events queued and not yet taken (valid or not: decoding happens in `get`)."""
+        return self._q.qsize()
 
     def _on_liveliness(self, sample: zenoh.Sample) -> None:
         self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
-    def _detach(self) -> None:
+    def detach(self) -> None:
         """Replace the queued Zenoh samples by plain data, keeping their order."""
         items = []
         while True:
@@ -110,7 +123,7 @@ class Inbox(_Rejects):
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
         # One deadline for the whole call: a trickle of undecodable payloads must not keep
         # restarting the wait (the caller's step would never come).
-        deadline = None if timeout is None else time.monotonic() + timeout
+        deadline = None if timeout is None else self._clock() + timeout
         try:
             item = self._q.get(timeout=timeout)
         except queue.Empty:
@@ -128,7 +141,7 @@ class Inbox(_Rejects):
                 if deadline is None:
                     item = self._q.get()
                 else:
-                    item = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
+                    item = self._q.get(timeout=max(0.0, deadline - self._clock()))
             except queue.Empty:
                 return None
 
@@ -221,11 +234,11 @@ class Bus:
             except Exception as exc:  # noqa: BLE001 - closing must go on whatever one object says
                 log.debug("undeclare failed: %s", exc)
         for inbox in inboxes:
-            inbox._detach()
+            inbox.detach()
         if session is not None:
             session.close()
         for inbox in inboxes:  # anything a callback thread was still handing over
-            inbox._detach()
+            inbox.detach()
 
     def _keep(self, obj: Any) -> Any:
         with self._lock:
