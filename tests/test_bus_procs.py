@@ -203,6 +203,9 @@ class _GarbageTrickle:
         self.calls = 0
         self.delivered = 0
 
+    def put(self, item: object) -> None:
+        raise AssertionError("no subscription feeds this inbox")
+
     def get(self, timeout: float | None = None) -> tuple[str, bytes, None]:
         self.calls += 1
         assert self.calls < 1000, "Inbox.get keeps waiting while garbage trickles in"

@@ -69,6 +69,7 @@ def cmd_service(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.distributed.lockstep_service import LockstepService
     from common.runtime.distributed.realtime_service import RealtimeService
+    from common.runtime.distributed.service_process import ServiceSetup
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
     from services.launcher.router import wait_for_endpoint
 
@@ -86,9 +87,10 @@ def cmd_service(a: argparse.Namespace) -> int:
             log.info("waiting up to %g s for the router at %s", timeout_s, a.connect)
             if not wait_for_endpoint(a.connect, timeout_s):
                 raise TimeoutError(f"no router at {a.connect} after {timeout_s:g} s")
+        setup = ServiceSetup.of(a.name, raw, a.connect)  # unknown NAME: SystemExit naming all
         if a.runtime == "lockstep":
-            return LockstepService(a.name, raw, a.connect).run()
-        return RealtimeService(a.name, raw, a.connect).run()
+            return LockstepService(setup).run()
+        return RealtimeService(setup).run()
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0

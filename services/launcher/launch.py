@@ -21,6 +21,7 @@ from common.config.scenario import Scenario
 from common.runtime.distributed import lockstep, realtime_driver
 from common.runtime.distributed.bringup import RELEASE_S, ClockSide, clock_bus, run_keys
 from common.runtime.distributed.lockstep import Coordinator
+from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
 from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.result import RunResult
@@ -146,23 +147,24 @@ def _run(
             # a restarted lockstep service would lose its state and the run its determinism
             policy = opts.policies.get(name) if kind == "realtime" else None
             sup.start(name, ["-m", SERVICE_MODULES[kind], *argv], policy)
+        ctx = RunContext(
+            scenario=scenario, mission=mission, keys=keys, sup=sup, observer=observer, stop=stop
+        )
         if kind == "lockstep":
-            coord = Coordinator(scenario, mission, keys, sup, observer=observer, stop=stop)
+            coord = Coordinator(ctx)
             try:
                 return _until_interrupted(coord, side, view)
             finally:
                 side.bus.close()  # our clock token goes: lockstep services are released
                 sup.wait_exited(list(local), RELEASE_S)
-        driver = RealtimeDriver(scenario, mission, keys, sup, observer=observer, stop=stop)
+        driver = RealtimeDriver(ctx)
         result = _until_interrupted(driver, side, view)
     # the services leave on the stop Tick: let them close their sessions before any signal
     sup.wait_exited(list(local), RELEASE_S)
     return result
 
 
-def _until_interrupted(
-    driver: Coordinator | RealtimeDriver, side: ClockSide, view: MissionView
-) -> RunResult:
+def _until_interrupted(driver: Driver, side: ClockSide, view: MissionView) -> RunResult:
     """Wait for the services and drive the run; a stop request ends it as 'interrupted'."""
     try:
         driver.await_alive(side.inbox)

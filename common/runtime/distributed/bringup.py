@@ -13,7 +13,7 @@ import json
 import logging
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +22,11 @@ from typing import Any
 from common.bus import CLOCK, Bus, Inbox, Keys
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
+from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.dataflow import Dataflow
+from common.runtime.model.mission import load_mission
+from common.runtime.model.result import RunResult
 from common.runtime.processes.children import connectable, free_port
 from common.runtime.processes.forkserver import warm_up
 from common.runtime.processes.supervisor import Supervisor
@@ -59,6 +62,24 @@ def clock_bus(cfg: BusConfig, keys: Keys, flow: Dataflow) -> Iterator[ClockSide]
         ticks = TickSender(bus, flow.names)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks)
+
+
+def run_locally(
+    scenario: Scenario,
+    raw: dict[str, Any],
+    log_dir: Path | None,
+    service_module: str,
+    make_driver: Callable[[RunContext], Driver],
+) -> RunResult:
+    """A whole run in this process and its children (see local_run), driven by one driver."""
+    if log_dir is None:
+        log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
+    mission = load_mission(scenario)
+    with local_run(scenario, raw, mission.dataflow, service_module, log_dir) as (side, sup):
+        ctx = RunContext(scenario=scenario, mission=mission, keys=run_keys(scenario), sup=sup)
+        driver = make_driver(ctx)
+        driver.await_alive(side.inbox)
+        return driver.drive(side.inbox, side.ticks)
 
 
 @contextmanager

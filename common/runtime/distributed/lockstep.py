@@ -13,23 +13,20 @@ the launcher drives the same Coordinator with its own router and supervised proc
 from __future__ import annotations
 
 import logging
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from common.bus import Inbox, Keys, Liveliness, Received
+from common.bus import Inbox, Liveliness, Received
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
-from common.runtime.distributed.bringup import local_run, run_keys
-from common.runtime.distributed.observer import LogObserver, RunObserver
+from common.runtime.distributed.bringup import run_locally
+from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.host import NEVER
-from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
-from common.runtime.processes.signals import StopRequest
-from common.runtime.processes.supervisor import ServiceFailed, Supervisor
+from common.runtime.processes.supervisor import ServiceFailed
 
 SERVICE_MODULE = "common.runtime.distributed.lockstep_service"
 PROGRESS_EVERY_S = 0.25  # wall seconds between progress reports to the observer
@@ -39,22 +36,14 @@ class Coordinator:
     """Drives the ticks of a lockstep run and records it; `sup` holds the local processes
     (any of them dying fails the run: a restarted service would lose the run's determinism)."""
 
-    def __init__(
-        self,
-        scenario: Scenario,
-        mission: Mission,
-        keys: Keys,
-        sup: Supervisor,
-        *,
-        observer: RunObserver | None = None,
-        stop: StopRequest | None = None,
-    ) -> None:
-        self.mission = mission
-        self.names = mission.dataflow.names
-        self.keys = keys
-        self.sup = sup
-        self.observer = observer or LogObserver()
-        self.stop = stop or StopRequest()
+    def __init__(self, ctx: RunContext) -> None:
+        scenario = ctx.scenario
+        self.mission = ctx.mission
+        self.names = ctx.mission.dataflow.names
+        self.keys = ctx.keys
+        self.sup = ctx.sup
+        self.observer = ctx.observer
+        self.stop = ctx.stop
         self.record = Record()
         self.acks: dict[str, TickAck] = {}
         self.alive: set[str] = set()
@@ -197,10 +186,4 @@ class Coordinator:
 
 def run_lockstep(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:
     """Run a mission with every service in its own process; see the module docstring."""
-    if log_dir is None:
-        log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
-    mission = load_mission(scenario)
-    with local_run(scenario, raw, mission.dataflow, SERVICE_MODULE, log_dir) as (side, sup):
-        coord = Coordinator(scenario, mission, run_keys(scenario), sup)
-        coord.await_alive(side.inbox)
-        return coord.drive(side.inbox, side.ticks)
+    return run_locally(scenario, raw, log_dir, SERVICE_MODULE, Coordinator)

@@ -6,11 +6,14 @@ import logging
 import sys
 import time
 
-from common.bus import CLOCK, Bus, Inbox, Keys, Liveliness, Received
-from common.config.bus import BusConfig
-from common.config.scenario import scenario_from_raw
+from common.bus import CLOCK, Bus, Inbox, Liveliness, Received
 from common.messages import Tick, TickAck, encode_routing
-from common.runtime.distributed.service_process import host_for, routing_for, service_main, wire
+from common.runtime.distributed.service_process import (
+    ServiceSetup,
+    routing_for,
+    service_main,
+    wire,
+)
 
 log = logging.getLogger("tidelink.lockstep")
 
@@ -18,12 +21,12 @@ log = logging.getLogger("tidelink.lockstep")
 class LockstepService:
     """Waits for each tick, makes sure it holds every message sent before it, runs the tick."""
 
-    def __init__(self, name: str, raw: dict[str, object], connect: str) -> None:
-        self.scenario = scenario_from_raw(raw)
-        self.name = name
-        self.host = host_for(self.scenario, name)
-        self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
-        self.bus_cfg = BusConfig(mode="client", connect=(connect,))
+    def __init__(self, setup: ServiceSetup) -> None:
+        self.scenario = setup.scenario
+        self.name = setup.name
+        self.host = setup.host
+        self.keys = setup.keys
+        self.bus_cfg = setup.bus_cfg
         self.received: dict[str, int] = {f"{i.source}/{i.stream}": 0 for i in self.host.inputs}
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 

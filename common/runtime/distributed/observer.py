@@ -1,11 +1,20 @@
-"""Hooks a run's driver calls as the run goes (progress, logs): passed in, not overridden."""
+"""What a run's driver is given: the run, its local processes, and hooks (passed in)."""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
 from typing import Protocol
 
+from common.bus import Inbox, Keys
+from common.config.scenario import Scenario
 from common.messages import Message
+from common.runtime.distributed.ticks import TickSender
+from common.runtime.model.mission import Mission
+from common.runtime.model.record import Record
+from common.runtime.model.result import RunResult
+from common.runtime.processes.signals import StopRequest
+from common.runtime.processes.supervisor import Supervisor
 
 log = logging.getLogger("tidelink.run")
 
@@ -34,3 +43,30 @@ class LogObserver:
 
     def progress(self, t_s: float) -> None:
         return None
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunContext:
+    """A driver's inputs: the scenario and its mission, the run's keys, the processes started
+    here (`sup`; a remote service has none), who watches, and the stop request to honour."""
+
+    scenario: Scenario
+    mission: Mission
+    keys: Keys
+    sup: Supervisor
+    observer: RunObserver = field(default_factory=LogObserver)
+    stop: StopRequest = field(default_factory=StopRequest)
+
+
+class Driver(Protocol):
+    """A run's driver (lockstep Coordinator, RealtimeDriver): made from a RunContext."""
+
+    mission: Mission
+    observer: RunObserver
+    record: Record
+
+    def await_alive(self, inbox: Inbox) -> None:
+        """Wait until every service has declared its liveliness token."""
+
+    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
+        """Run the mission clock until the mission ends, max_time or a stop request."""

@@ -7,29 +7,25 @@ forked here) and `tidelink launch` (a router process, supervised services, remot
 
 from __future__ import annotations
 
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from common.bus import Event, Inbox, Keys, Liveliness
+from common.bus import Event, Inbox, Liveliness
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck, replace
-from common.runtime.distributed.bringup import local_run, run_keys
+from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.clock import MissionClock
-from common.runtime.distributed.observer import LogObserver, RunObserver
+from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
-from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
-from common.runtime.processes.signals import StopRequest
 from common.runtime.processes.supervisor import (
     Exited,
     GaveUp,
     Restarted,
     Restarting,
     ServiceFailed,
-    Supervisor,
 )
 
 SERVICE_MODULE = "common.runtime.distributed.realtime_service"
@@ -41,23 +37,15 @@ FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics a
 class RealtimeDriver:
     """Drives one realtime run; `sup` runs the local services, others join over Zenoh."""
 
-    def __init__(
-        self,
-        scenario: Scenario,
-        mission: Mission,
-        keys: Keys,
-        sup: Supervisor,
-        *,
-        observer: RunObserver | None = None,
-        stop: StopRequest | None = None,
-    ) -> None:
+    def __init__(self, ctx: RunContext) -> None:
+        scenario = ctx.scenario
         self.scenario = scenario
-        self.mission = mission
-        self.names = set(mission.dataflow.names)
-        self.keys = keys
-        self.sup = sup
-        self.observer = observer or LogObserver()
-        self.stop = stop or StopRequest()
+        self.mission = ctx.mission
+        self.names = set(ctx.mission.dataflow.names)
+        self.keys = ctx.keys
+        self.sup = ctx.sup
+        self.observer = ctx.observer
+        self.stop = ctx.stop
         self.timeout_s = scenario.runtime.start_timeout_s
         self.record = Record()
         self.alive: set[str] = set()
@@ -209,10 +197,4 @@ class RealtimeDriver:
 
 def run_realtime(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:
     """Run a mission in real time (scaled by runtime.time_scale) across service processes."""
-    if log_dir is None:
-        log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
-    mission = load_mission(scenario)
-    with local_run(scenario, raw, mission.dataflow, SERVICE_MODULE, log_dir) as (side, sup):
-        driver = RealtimeDriver(scenario, mission, run_keys(scenario), sup)
-        driver.await_alive(side.inbox)
-        return driver.drive(side.inbox, side.ticks)
+    return run_locally(scenario, raw, log_dir, SERVICE_MODULE, RealtimeDriver)

@@ -6,11 +6,14 @@ import logging
 import sys
 import time
 
-from common.bus import Bus, Inbox, Keys, Liveliness, Received
-from common.config.bus import BusConfig
-from common.config.scenario import scenario_from_raw
+from common.bus import Bus, Inbox, Liveliness, Received
 from common.messages import Tick, encode_routing
-from common.runtime.distributed.service_process import host_for, routing_for, service_main, wire
+from common.runtime.distributed.service_process import (
+    ServiceSetup,
+    routing_for,
+    service_main,
+    wire,
+)
 from common.runtime.model.host import STATS_STREAM, to_us
 
 log = logging.getLogger("tidelink.realtime")
@@ -28,13 +31,12 @@ class RealtimeService:
     Tick, or when the clock's liveliness token vanishes (its launcher is gone).
     """
 
-    def __init__(self, name: str, raw: dict[str, object], connect: str) -> None:
-        self.scenario = scenario_from_raw(raw)
-        self.name = name
-        self.host = host_for(self.scenario, name)
-        self.keys = Keys(self.scenario.run.name, self.scenario.run.vehicle)
-        self.bus_cfg = BusConfig(mode="client", connect=(connect,))
-        self.scale = self.scenario.runtime.time_scale
+    def __init__(self, setup: ServiceSetup) -> None:
+        self.name = setup.name
+        self.host = setup.host
+        self.keys = setup.keys
+        self.bus_cfg = setup.bus_cfg
+        self.scale = setup.scenario.runtime.time_scale
         self.t0: float | None = None
         self.ticks = 0
         self.skipped = 0  # periods skipped because the loop fell behind

@@ -6,11 +6,13 @@ import argparse
 import json
 import logging
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
 from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
-from common.config.scenario import Scenario
+from common.config.bus import BusConfig
+from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import WireError, decode_routing
 from common.runtime.model.host import Host
 from common.runtime.model.inproc import build_host
@@ -18,6 +20,29 @@ from common.runtime.model.mission import load_mission
 from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
 log = logging.getLogger("tidelink.service")
+
+
+@dataclass(frozen=True)
+class ServiceSetup:
+    """What a service process is given: its scenario, its Host, its run's keys and bus."""
+
+    name: str
+    scenario: Scenario
+    host: Host
+    keys: Keys
+    bus_cfg: BusConfig
+
+    @classmethod
+    def of(cls, name: str, raw: dict[str, object], connect: str) -> ServiceSetup:
+        """Validate the scenario and build this service's Host; a client of `connect`."""
+        scenario = scenario_from_raw(raw)
+        return cls(
+            name=name,
+            scenario=scenario,
+            host=host_for(scenario, name),
+            keys=Keys(scenario.run.name, scenario.run.vehicle),
+            bus_cfg=BusConfig(mode="client", connect=(connect,)),
+        )
 
 
 def host_for(scenario: Scenario, name: str) -> Host:
@@ -58,9 +83,7 @@ class Runnable(Protocol):
     def run(self) -> int: ...
 
 
-def service_main(
-    make: Callable[[str, dict[str, object], str], Runnable], doc: str, argv: list[str] | None
-) -> int:
+def service_main(make: Callable[[ServiceSetup], Runnable], doc: str, argv: list[str] | None) -> int:
     """Parse `NAME --scenario-json FILE --connect ENDPOINT`, then run until done or signalled."""
     p = argparse.ArgumentParser(description=doc)
     p.add_argument("name")
@@ -73,7 +96,7 @@ def service_main(
     install_shutdown_handlers()
     raw = json.loads(a.scenario_json.read_text())
     try:
-        return make(a.name, raw, a.connect).run()
+        return make(ServiceSetup.of(a.name, raw, a.connect)).run()
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0
