@@ -31,6 +31,7 @@ from common.runtime.processes.supervisor import (
 SERVICE_MODULE = "common.runtime.distributed.realtime_service"
 
 RETELL_S = 1.0  # wall seconds between re-publications of the mission time (late joiners)
+CHECK_EVERY_S = 0.1  # wall seconds between supervision checks and progress reports
 FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
 
 
@@ -150,6 +151,7 @@ class RealtimeDriver:
         self.observer.event(f"mission clock started (time scale x{scale:g})")
         reason = "max_time"
         next_tell = time.monotonic() + RETELL_S
+        next_check = 0.0
         while True:
             if self.stop.requested:
                 reason = "interrupted"
@@ -161,8 +163,14 @@ class RealtimeDriver:
             if end is not None:
                 reason = end
                 break
-            self.supervise()
-            self._check_gone()
+            now = time.monotonic()
+            if now >= next_check:
+                # process polls and the display need not run per message: on 2 cores this
+                # loop shares the CPU with the services whose latency it would add to
+                next_check = now + CHECK_EVERY_S
+                self.supervise()
+                self._check_gone()
+                self.observer.progress(t_us / 1e6)
             ev = inbox.get(timeout=0.02)
             for _ in range(500):  # drain what is there, but keep an eye on the clock
                 if ev is None:
@@ -173,7 +181,6 @@ class RealtimeDriver:
             if time.monotonic() >= next_tell:
                 clock.tell()
                 next_tell = time.monotonic() + RETELL_S
-            self.observer.progress(t_us / 1e6)
         self.ending = True
         self.sup.stopping = True  # exits are expected from now on
         t_end_us = clock.tell(stop=True)
