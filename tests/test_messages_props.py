@@ -26,6 +26,7 @@ from common.messages import (
     Message,
     NavFix,
     PathMsg,
+    RunEnd,
     StateEstimate,
     Tick,
     TickAck,
@@ -82,6 +83,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     },
     Tick: {"tick": COUNT, "time_us": COUNT},
     TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},
+    RunEnd: {"ticks": COUNT},
 }
 
 
@@ -314,8 +316,12 @@ _VALID = encode(one_of_each()[0])
 ERROR_CASES: list[tuple[str, bytes, list[str]]] = [
     ("unknown type", _with_field("type", "Teleport"), ["unknown message type", "'Teleport'"]),
     ("no type", _without_field("type"), ["no message type"]),
-    ("wrong version", _with_version(WIRE_VERSION + 1), ["wrong wire version", "3", "speaks 2"]),
-    ("version as float", _with_version(2.0), ["wrong wire version"]),
+    (
+        "wrong version",
+        _with_version(WIRE_VERSION + 1),
+        ["wrong wire version", str(WIRE_VERSION + 1), f"speaks {WIRE_VERSION}"],
+    ),
+    ("version as float", _with_version(float(WIRE_VERSION)), ["wrong wire version"]),
     ("missing field", _without_field("heading"), ["NavFix", "missing required field", "heading"]),
     ("extra field", _with_field("depth", 3.0), ["NavFix", "unknown field", "depth"]),
     ("wrong type", _with_field("x", "ten"), ["NavFix.x", "expected `float`", "str"]),
@@ -330,9 +336,9 @@ ERROR_CASES: list[tuple[str, bytes, list[str]]] = [
     ("truncated", _VALID[:-5], ["truncated or invalid msgpack"]),
     ("trailing bytes", _VALID + b"\x00", ["trailing bytes"]),
     ("empty", b"", ["empty payload"]),
-    ("not an envelope", _packed([2]), ["not a tidelink envelope", "2-element"]),
+    ("not an envelope", _packed([WIRE_VERSION]), ["not a tidelink envelope", "2-element"]),
     ("not an array", _packed({"type": "NavFix"}), ["not a tidelink envelope"]),
-    ("body not a map", _packed([2, [1, 2]]), ["expected a map of fields", "an array"]),
+    ("body not a map", _packed([WIRE_VERSION, [1, 2]]), ["expected a map of fields", "an array"]),
     (
         "short covariance",
         _track_with_cov([1.0] * 35),

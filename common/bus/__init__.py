@@ -1,6 +1,15 @@
 """The typed Zenoh bus: the only module besides common.messages that imports zenoh."""
 
-from common.bus.bus import Bus, Event, Inbox, Liveliness, Publisher, Received, TypedCallback
+from common.bus.bus import (
+    Bus,
+    Event,
+    Inbox,
+    Liveliness,
+    Publisher,
+    RawFrame,
+    Received,
+    TypedCallback,
+)
 from common.bus.keys import CLOCK, Keys
 
 __all__ = [
@@ -11,6 +20,7 @@ __all__ = [
     "Keys",
     "Liveliness",
     "Publisher",
+    "RawFrame",
     "Received",
     "TypedCallback",
 ]

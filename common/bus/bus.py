@@ -60,18 +60,19 @@ class _Rejects:
             )
 
 
-class _Plain(NamedTuple):
-    """A received sample as plain data (what a closed bus leaves in an inbox)."""
+class RawFrame(NamedTuple):
+    """A sample as plain data: its key, the encoded payload and attachment as they crossed
+    the wire (what a closed bus leaves in an inbox, what recorders store)."""
 
     key: str
     payload: bytes
     attachment: bytes | None
 
 
-def _plain(sample: zenoh.Sample) -> _Plain:
+def _plain(sample: zenoh.Sample) -> RawFrame:
     """The key, payload and attachment of a Zenoh sample, as plain Python data."""
     att = sample.attachment
-    return _Plain(
+    return RawFrame(
         str(sample.key_expr), sample.payload.to_bytes(), None if att is None else att.to_bytes()
     )
 
@@ -96,7 +97,7 @@ class Inbox(_Rejects):
         # clock and fifo are seams for tests (a fake clock, a queue that trickles)
         super().__init__()
         self._clock = clock
-        self._q: queue.SimpleQueue[zenoh.Sample | _Plain | Liveliness] = (
+        self._q: queue.SimpleQueue[zenoh.Sample | RawFrame | Liveliness] = (
             queue.SimpleQueue() if fifo is None else fifo
         )
         self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
@@ -104,9 +105,6 @@ class Inbox(_Rejects):
     def pending(self) -> int:
         """Events queued and not yet taken (valid or not: decoding happens in `get`)."""
         return self._q.qsize()
-
-    def _on_liveliness(self, sample: zenoh.Sample) -> None:
-        self._q.put(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
     def detach(self) -> None:
         """Replace the queued Zenoh samples by plain data, keeping their order."""
@@ -117,7 +115,7 @@ class Inbox(_Rejects):
             except queue.Empty:
                 break
         for item in items:
-            self._q.put(item if isinstance(item, Liveliness | _Plain) else _plain(item))
+            self._q.put(item if isinstance(item, Liveliness | RawFrame) else _plain(item))
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
@@ -131,7 +129,7 @@ class Inbox(_Rejects):
         while True:
             if isinstance(item, Liveliness):
                 return item
-            # a tuple (_Plain) was queued when the bus closed; the rest are Zenoh samples
+            # a tuple (RawFrame) was queued when the bus closed; the rest are Zenoh samples
             key, payload, att = item if isinstance(item, tuple) else _plain(item)
             try:
                 return Received(key, decode(payload), att)
@@ -250,12 +248,27 @@ class Bus:
         return self.publisher_on(self.keys.stream(service, stream), express=express)
 
     def publisher_on(self, key: str, *, express: bool = False) -> Publisher:
-        """A publisher on any key of this run (e.g. Keys.tick)."""
+        """A publisher on any key of this run (e.g. Keys.tick): the control path's settings,
+        reliable and blocking, so that loss comes only from our network model."""
         pub = self.session.declare_publisher(
             key,
             reliability=zenoh.Reliability.RELIABLE,  # zenoh-python's default is best-effort
             congestion_control=zenoh.CongestionControl.BLOCK,
             express=express,
+        )
+        return Publisher(self._keep(pub), key)
+
+    def monitoring_publisher(self, key: str) -> Publisher:
+        """A publisher for watchers outside the control loop (Keys.watch): congestion DROP
+        and priority DATA_LOW. A router forwards a BLOCK sample to a subscriber that stopped
+        reading by waiting (measured here: the publisher and every other subscriber stalled
+        ~5 s until the router closed the stalled session); a DROP sample is dropped for
+        that subscriber alone, so no watcher can slow the run (README "Remote monitoring")."""
+        pub = self.session.declare_publisher(
+            key,
+            reliability=zenoh.Reliability.RELIABLE,
+            congestion_control=zenoh.CongestionControl.DROP,
+            priority=zenoh.Priority.DATA_LOW,
         )
         return Publisher(self._keep(pub), key)
 
@@ -278,11 +291,15 @@ class Bus:
         self._keep(self.session.declare_subscriber(key_expr, handler))
         return handler
 
-    def subscribe_callback(self, key_expr: str, callback: Callable[[str, bytes], None]) -> None:
-        """Raw bytes to a callback (recorders: store what arrived, decode later)."""
+    def subscribe_raw(self, key_expr: str, callback: Callable[[RawFrame], None]) -> None:
+        """Every sample on `key_expr`, undecoded, to a callback on Zenoh's thread (taps and
+        recorders: keep what crossed the wire). An exception from the callback is logged."""
 
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(str(sample.key_expr), sample.payload.to_bytes())
+            try:
+                callback(_plain(sample))
+            except Exception:  # noqa: BLE001 - one bad sample must not end the subscription
+                log.exception("raw subscriber failed on %s", sample.key_expr)
 
         self._keep(self.session.declare_subscriber(key_expr, on_sample))
 
@@ -292,9 +309,15 @@ class Bus:
 
     def watch_alive(self, inbox: Inbox, key_expr: str | None = None) -> None:
         """Liveliness events (with history: tokens already present are reported) into inbox."""
-        sub = self.session.liveliness().declare_subscriber(
-            key_expr or self.keys.all_alive, inbox._on_liveliness, history=True
-        )
+        self.on_alive(key_expr or self.keys.all_alive, inbox._q.put)
+
+    def on_alive(self, key_expr: str, callback: Callable[[Liveliness], None]) -> None:
+        """Liveliness events on `key_expr` to a callback on Zenoh's thread (with history)."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(Liveliness(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+        sub = self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True)
         self._keep(sub)
 
     def put_raw(self, key: str, data: bytes) -> None:
@@ -313,12 +336,42 @@ class Bus:
 
         self._keep(self.session.declare_queryable(key, on_query))
 
-    def query(self, selector: str, *, timeout_s: float) -> list[tuple[str, bytes]]:
-        """(key, payload) of every reply to a query on `selector` within timeout_s."""
+    def serve_frames(
+        self, key_expr: str, answer: Callable[[str, dict[str, str]], list[RawFrame]]
+    ) -> None:
+        """Answer queries on `key_expr` with frames: `answer(selector key, parameters)` gives
+        the (key, payload, attachment) of each reply (e.g. the newest frame of every stream)."""
+
+        def on_query(query: zenoh.Query) -> None:
+            try:
+                params = {str(k): str(v) for k, v in query.parameters}  # type: ignore[attr-defined]
+                for f in answer(str(query.key_expr), params):
+                    if f.attachment is None:
+                        query.reply(f.key, f.payload)
+                    else:
+                        query.reply(f.key, f.payload, attachment=f.attachment)
+            except Exception as exc:  # noqa: BLE001 - a callback must not die silently
+                log.warning("queryable %s could not answer: %s", key_expr, exc)
+
+        self._keep(self.session.declare_queryable(key_expr, on_query))
+
+    def query(self, selector: str, *, timeout_s: float) -> list[RawFrame]:
+        """Every reply to a query on `selector` within timeout_s, as raw frames.
+
+        Queries come from tools, never from the control loop: they go DROP / DATA_LOW (and
+        their replies with them), so a tool that stops reading cannot stall the answerer.
+        """
         out = []
-        for reply in self.session.get(selector, timeout=timeout_s):
+        replies = self.session.get(
+            selector,
+            timeout=timeout_s,
+            congestion_control=zenoh.CongestionControl.DROP,
+            priority=zenoh.Priority.DATA_LOW,
+            consolidation=zenoh.ConsolidationMode.NONE,
+        )
+        for reply in replies:
             if reply.ok is not None:
-                out.append((str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
+                out.append(_plain(reply.ok))
             else:
                 log.warning("query %s: error reply %s", selector, reply.err)
         return out

@@ -8,6 +8,17 @@ from dataclasses import dataclass
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack
+WATCH = "watch"  # .../watch/<service>/<stream>: the monitoring copy of every stream
+END = "end"  # .../watch/runtime/end: the clock's RunEnd
+LATEST = "latest"  # .../latest/<service>/<stream>: queryable newest frame of every stream
+
+
+def _prefix(run: str | None, vehicle: str | None) -> str:
+    """tidelink/<run>/<vehicle>, either left a wildcard when None."""
+    for what, v in (("run", run), ("vehicle", vehicle)):
+        if v is not None and not _ID.match(v):
+            raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
+    return f"tidelink/{run or '*'}/{vehicle or '*'}"
 
 
 @dataclass(frozen=True)
@@ -68,10 +79,55 @@ class Keys:
     @staticmethod
     def dataflow_selector(run: str | None = None, vehicle: str | None = None) -> str:
         """The dataflow queryables of one run and vehicle, or of any (None: a wildcard)."""
-        for what, v in (("run", run), ("vehicle", vehicle)):
-            if v is not None and not _ID.match(v):
-                raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
-        return f"tidelink/{run or '*'}/{vehicle or '*'}/dataflow"
+        return f"{_prefix(run, vehicle)}/dataflow"
+
+    # -- what tools outside the run see (common/bus/tap.py, README "Remote monitoring") -----
+    def watch(self, service: str, stream: str) -> str:
+        """The monitoring copy of a stream, republished by the run's watch tap (DROP)."""
+        return f"{self.root}/{WATCH}/{service}/{stream}"
+
+    @property
+    def all_watch(self) -> str:
+        return f"{self.root}/{WATCH}/**"
+
+    def latest(self, service: str, stream: str) -> str:
+        """The queryable answering with a stream's newest frame (late joiners, thin links)."""
+        return f"{self.root}/{LATEST}/{service}/{stream}"
+
+    @property
+    def all_latest(self) -> str:
+        return f"{self.root}/{LATEST}/**"
+
+    @property
+    def scenario(self) -> str:
+        """The queryable answering with the run's scenario (its static world included)."""
+        return f"{self.root}/scenario"
+
+    @property
+    def end(self) -> str:
+        """Where the clock announces the run's end (JSON: reason, t_end_s, ticks)."""
+        return self.watch(CLOCK, END)
+
+    @staticmethod
+    def any_alive(run: str | None = None, vehicle: str | None = None) -> str:
+        """The liveliness tokens of one run and vehicle, or of any (None: a wildcard)."""
+        return f"{_prefix(run, vehicle)}/alive/*"
+
+    @staticmethod
+    def parse_watch(key: str) -> tuple[str, str, str, str]:
+        """(run, vehicle, service, stream) of a watch or latest key; ValueError otherwise."""
+        parts = key.split("/")
+        if len(parts) != 6 or parts[0] != "tidelink" or parts[3] not in (WATCH, LATEST):
+            raise ValueError(f"{key!r} is not a tidelink watch or latest key")
+        return parts[1], parts[2], parts[4], parts[5]
+
+    @staticmethod
+    def parse_alive(key: str) -> tuple[str, str, str]:
+        """(run, vehicle, service) of a liveliness key; ValueError for any other key."""
+        parts = key.split("/")
+        if len(parts) != 5 or parts[0] != "tidelink" or parts[3] != "alive":
+            raise ValueError(f"{key!r} is not a tidelink liveliness key")
+        return parts[1], parts[2], parts[4]
 
     @property
     def everything(self) -> str:

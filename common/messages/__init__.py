@@ -1,7 +1,15 @@
 """The tidelink wire: typed frozen messages and the only codec entry points, encode/decode."""
 
 from common.messages.base import WIRE_VERSION, Message, WireError, WireRecord
-from common.messages.codec import decode, decode_routing, encode, encode_routing, replace
+from common.messages.codec import (
+    decode,
+    decode_routing,
+    decode_watch,
+    encode,
+    encode_routing,
+    encode_watch,
+    replace,
+)
 from common.messages.types import (
     MESSAGE_TYPES,
     Detection,
@@ -12,6 +20,7 @@ from common.messages.types import (
     ObstacleTracks,
     PathMsg,
     PathStatus,
+    RunEnd,
     StateEstimate,
     Tick,
     TickAck,
@@ -34,6 +43,7 @@ __all__ = [
     "ObstacleTracks",
     "PathMsg",
     "PathStatus",
+    "RunEnd",
     "StateEstimate",
     "Tick",
     "TickAck",
@@ -46,7 +56,9 @@ __all__ = [
     "WireRecord",
     "decode",
     "decode_routing",
+    "decode_watch",
     "encode",
     "encode_routing",
+    "encode_watch",
     "replace",
 ]

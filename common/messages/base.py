@@ -9,7 +9,7 @@ from typing import Any
 
 import msgspec
 
-WIRE_VERSION = 2
+WIRE_VERSION = 3
 
 
 class WireError(ValueError):

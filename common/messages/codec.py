@@ -22,8 +22,8 @@ _TYPE_NAMES = {cls.__name__ for cls in MESSAGE_TYPES}
 
 # One frame type for all: msgspec picks the class from the `type` tag in a single C call.
 _AnyMessage = Union[tuple(MESSAGE_TYPES)]  # type: ignore[valid-type]  # noqa: UP007
-_Frame = tuple[Literal[2], _AnyMessage]  # type: ignore[valid-type]
-assert WIRE_VERSION == 2, "update _Frame with the wire version"
+_Frame = tuple[Literal[3], _AnyMessage]  # type: ignore[valid-type]
+assert WIRE_VERSION == 3, "update _Frame with the wire version"
 
 
 class _Codec(threading.local):
@@ -33,6 +33,7 @@ class _Codec(threading.local):
         self.encode = msgspec.msgpack.Encoder().encode
         self.decode = msgspec.msgpack.Decoder(_Frame).decode
         self.decode_routing = msgspec.msgpack.Decoder(tuple[int, dict[str, tuple[int, ...]]]).decode
+        self.decode_watch = msgspec.msgpack.Decoder(tuple[float, int, bytes | None]).decode
 
 
 _CODEC = _Codec()
@@ -169,3 +170,21 @@ def decode_routing(data: bytes) -> tuple[int, dict[str, tuple[int, ...]]]:
             f"malformed routing attachment (expected [tick, {{service: [us, ...]}}]): {exc}"
         ) from None
     return tick, deliveries
+
+
+def encode_watch(wall: float, n: int, attachment: bytes | None) -> bytes:
+    """The attachment of a monitoring copy (Keys.watch, Keys.latest): when the run's tap got
+    the frame (Unix seconds), the tap's running count, and the frame's own attachment."""
+    data: bytes = _CODEC.encode((wall, n, attachment))
+    return data
+
+
+def decode_watch(data: bytes) -> tuple[float, int, bytes | None]:
+    """Parse a monitoring copy's attachment; WireError on anything malformed."""
+    try:
+        wall, n, att = _CODEC.decode_watch(data)
+    except Exception as exc:  # noqa: BLE001 - same contract as decode
+        raise WireError(
+            f"malformed watch attachment (expected [wall_s, count, attachment]): {exc}"
+        ) from None
+    return wall, n, att

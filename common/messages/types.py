@@ -163,6 +163,7 @@ class VehicleStatus(Message, frozen=True, kw_only=True):
     """The vehicle's mode (incl. FAILSAFE), the command it applies and its age."""
 
     mode: VehicleMode
+    mode_since: float = 0.0  # when the vehicle entered `mode` (the last mode change)
     v_applied: float
     w_applied: float
     command_age: float
@@ -214,6 +215,16 @@ class LinkStats(Message, frozen=True, kw_only=True):
     links: tuple[LinkCounters, ...]
 
 
+class RunEnd(Message, frozen=True, kw_only=True):
+    """The clock's announcement that the run ended at `stamp`: why, after how many ticks."""
+
+    reason: str
+    ticks: int
+
+    def validate(self) -> None:
+        check_range("ticks", self.ticks, 0)
+
+
 class Tick(Message, frozen=True, kw_only=True):
     """Lockstep clock: advance to virtual time `time_us`; watermarks of every stream so far."""
 
@@ -256,6 +267,7 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     VehicleStatus,
     TruthState,
     LinkStats,
+    RunEnd,
     Tick,
     TickAck,
 )

@@ -31,7 +31,7 @@ def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
         replies = bus.query(selector, timeout_s=a.timeout)
     if not replies:
         raise RuntimeError(f"no running mission answered on {selector} via {a.connect}")
-    return [(f"dataflow of live run {key}", json.loads(data)) for key, data in sorted(replies)]
+    return [(f"dataflow of live run {f.key}", json.loads(f.payload)) for f in sorted(replies)]
 
 
 def cmd_graph(a: argparse.Namespace) -> int:

@@ -141,7 +141,7 @@ def _run(
     view = MissionView(scenario)
     observer = ProgressObserver(view, display)
     cfg = BusConfig(mode="client", connect=(endpoint,))
-    with clock_bus(cfg, keys, mission.dataflow) as side:
+    with clock_bus(cfg, keys, mission.dataflow, json.loads(scenario_json.read_text())) as side:
         for name in local:
             argv = [name, "--scenario-json", str(scenario_json), "--connect", endpoint]
             # a restarted lockstep service would lose its state and the run its determinism
@@ -153,12 +153,15 @@ def _run(
         if kind == "lockstep":
             coord = Coordinator(ctx)
             try:
-                return _until_interrupted(coord, side, view)
+                result = _until_interrupted(coord, side, view)
+                side.announce_end(result)
+                return result
             finally:
                 side.bus.close()  # our clock token goes: lockstep services are released
                 sup.wait_exited(list(local), RELEASE_S)
         driver = RealtimeDriver(ctx)
         result = _until_interrupted(driver, side, view)
+        side.announce_end(result)
     # the services leave on the stop Tick: let them close their sessions before any signal
     sup.wait_exited(list(local), RELEASE_S)
     return result

@@ -61,6 +61,8 @@ class VehicleCore:
         self._clearance = clearance
         self.min_clearance_m = math.inf  # smallest clearance seen at any step
         self.collisions = 0  # steps at which the clearance was negative
+        self._mode = ""  # the mode last published, and since when (a late-joining monitor
+        self._mode_since = float(t0)  # learns the last mode change from any status)
         self.last_verdict: Verdict | None = None
 
     # -- ServiceCore -------------------------------------------------------------------------
@@ -93,6 +95,8 @@ class VehicleCore:
             self.collisions += int(collided)
         now = self.applied(t)
         wd = self._watchdog
+        if now.mode != self._mode:
+            self._mode, self._mode_since = now.mode, t
         return [
             Emit(
                 stream="truth",
@@ -105,6 +109,7 @@ class VehicleCore:
                 msg=VehicleStatus(
                     stamp=t,
                     mode=now.mode,
+                    mode_since=self._mode_since,
                     v_applied=now.v,
                     w_applied=now.w,
                     command_age=now.age_s,

@@ -100,7 +100,7 @@ def idle(bus: Bus, keys: Keys) -> int:
     inbox = Inbox()
     got: list[str] = []
     bus.subscribe(keys.stream(PARENT, "*"), inbox)
-    bus.subscribe_callback(keys.everything, lambda key, data: got.append(key))
+    bus.subscribe_raw(keys.everything, lambda f: got.append(f.key))
     bus.watch_alive(inbox)
     bus.declare_alive(PEER)
     print("ready", flush=True)

@@ -11,6 +11,7 @@ from common.messages import (
     ObstacleDetections,
     ObstacleTracks,
     PathMsg,
+    RunEnd,
     StateEstimate,
     Tick,
     TickAck,
@@ -126,6 +127,7 @@ def one_of_each() -> list[Message]:
             source=SOURCE,
             sent=SENT,
             mode="RUN",
+            mode_since=10.25,
             v_applied=1.5,
             w_applied=-0.25,
             command_age=0.125,
@@ -164,6 +166,7 @@ def one_of_each() -> list[Message]:
                 ),
             ),
         ),
+        RunEnd(stamp=12.5, seq=1, source=SOURCE, sent=SENT, reason="goal", ticks=250),
         Tick(
             stamp=12.5,
             seq=10,

@@ -2,9 +2,11 @@
 
 `clock_bus` is what every driver of a run needs on the bus (the launcher's, and the one
 `run_lockstep` / `run_realtime` start): a recording subscription to every stream of the run,
-liveliness of its services, a tick sender, its own clock token, and the declared dataflow
-served as a queryable (Keys.dataflow) for any tool that joins. `local_run` adds what
-`tidelink run` needs: this process is the Zenoh router, and the services are forked here.
+liveliness of its services, a tick sender, its own clock token, the declared dataflow
+served as a queryable (Keys.dataflow) for any tool that joins, and the watch tap (the
+monitoring copies, latest frames and scenario that watchers use, common/bus/tap.py).
+`local_run` adds what `tidelink run` needs: this process is the Zenoh router, and the
+services are forked here.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from common.bus import CLOCK, Bus, Inbox, Keys
+from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
 from common.runtime.distributed.observer import Driver, RunContext
@@ -44,6 +47,11 @@ class ClockSide:
     bus: Bus
     inbox: Inbox
     ticks: TickSender
+    tap: WatchTap
+
+    def announce_end(self, result: RunResult) -> None:
+        """Tell watchers how the run ended (before the bus closes and the tokens go)."""
+        self.tap.end(result.reason, result.t_end, result.ticks)
 
 
 def run_keys(scenario: Scenario) -> Keys:
@@ -51,7 +59,9 @@ def run_keys(scenario: Scenario) -> Keys:
 
 
 @contextmanager
-def clock_bus(cfg: BusConfig, keys: Keys, flow: Dataflow) -> Iterator[ClockSide]:
+def clock_bus(
+    cfg: BusConfig, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any]
+) -> Iterator[ClockSide]:
     """Open the driver's bus (see the module docstring); everything closes on exit."""
     described = json.dumps(flow.describe(), sort_keys=True).encode()
     with Bus(cfg, keys) as bus:
@@ -59,9 +69,10 @@ def clock_bus(cfg: BusConfig, keys: Keys, flow: Dataflow) -> Iterator[ClockSide]
         bus.subscribe(keys.all_streams, inbox)
         bus.watch_alive(inbox)
         bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
+        tap = WatchTap(bus, keys, scenario_raw)
         ticks = TickSender(bus, flow.names)
         bus.declare_alive(CLOCK)
-        yield ClockSide(bus, inbox, ticks)
+        yield ClockSide(bus, inbox, ticks, tap)
 
 
 def run_locally(
@@ -79,7 +90,9 @@ def run_locally(
         ctx = RunContext(scenario=scenario, mission=mission, keys=run_keys(scenario), sup=sup)
         driver = make_driver(ctx)
         driver.await_alive(side.inbox)
-        return driver.drive(side.inbox, side.ticks)
+        result = driver.drive(side.inbox, side.ticks)
+        side.announce_end(result)
+        return result
 
 
 @contextmanager
@@ -103,7 +116,7 @@ def local_run(
         raw_path = Path(tmp) / "scenario.json"
         raw_path.write_text(json.dumps(raw))
         try:
-            with clock_bus(cfg, run_keys(scenario), flow) as side:
+            with clock_bus(cfg, run_keys(scenario), flow, raw) as side:
                 for name in flow.names:
                     argv = [name, "--scenario-json", str(raw_path), "--connect", endpoint]
                     sup.start(name, ["-m", service_module, *argv])

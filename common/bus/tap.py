@@ -1,0 +1,132 @@
+"""The run's window for watchers: every stream copied to Keys.watch, the newest frame of each
+served on Keys.latest, the scenario served on Keys.scenario.
+
+The tap lives in the clock's process, which subscribes to every stream of the run anyway (it
+keeps the run's record). Watchers (monitors, Foxglove bridges, remote recorders) never
+subscribe to the control streams themselves: those are published BLOCK, and a router waits
+for a subscriber that stopped reading before it forwards the next BLOCK sample to anyone
+(measured here: ~5 s stalls). The tap's copies are published DROP at priority DATA_LOW, so a
+stalled or thin-linked watcher loses copies of its own and nothing else.
+
+Late join: state that is not re-sent often (the path in force, the obstacle tracks, the
+vehicle's mode, the scenario's static world) is answered by queryables, Zenoh's own way of
+asking "what is it now": a watcher that joins queries Keys.all_latest and Keys.scenario once.
+A thin-linked watcher polls Keys.all_latest with `?after=N` at its own rate instead of
+subscribing: the tap answers only with frames newer than its count N, so the decimation is
+done here, before the thin link.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import zenoh
+
+from common.bus.bus import Bus, Publisher, RawFrame
+from common.bus.keys import CLOCK, END, Keys
+from common.messages import RunEnd, encode, encode_watch
+
+log = logging.getLogger("tidelink.tap")
+
+SCENARIO_ENCODING = "application/json"
+
+
+class TappedFrame(NamedTuple):
+    """A frame of the run as the tap got it: the stream, the bytes that crossed the wire,
+    the tap's wall time (Unix seconds) and its running count."""
+
+    service: str
+    stream: str
+    payload: bytes
+    attachment: bytes | None
+    wall: float
+    n: int
+
+
+class WatchTap:
+    """Copies a run's streams for watchers and answers their late-join queries."""
+
+    def __init__(self, bus: Bus, keys: Keys, scenario_raw: dict[str, Any]) -> None:
+        self.bus = bus
+        self.keys = keys
+        self._lock = threading.Lock()
+        self._n = 0
+        self._latest: dict[str, RawFrame] = {}  # latest key -> frame as a query reply
+        self._latest_n: dict[str, int] = {}
+        self._pubs: dict[tuple[str, str], Publisher] = {}
+        self._sinks: list[Callable[[TappedFrame], None]] = []
+        self._closed = False
+        scenario = json.dumps(scenario_raw, sort_keys=True).encode()
+        bus.serve(keys.scenario, lambda: scenario, encoding=SCENARIO_ENCODING)
+        bus.serve_frames(keys.all_latest, self._answer)
+        bus.subscribe_raw(keys.all_streams, self._take)
+
+    def add_sink(self, sink: Callable[[TappedFrame], None]) -> None:
+        """Also hand every tapped frame to `sink`, on Zenoh's thread (an in-process recorder:
+        it must only enqueue)."""
+        with self._lock:
+            self._sinks.append(sink)
+
+    @property
+    def count(self) -> int:
+        """Frames tapped so far."""
+        return self._n
+
+    def _take(self, f: RawFrame) -> None:
+        service, stream = self.keys.split(f.key)
+        if service == CLOCK:
+            return  # the clock's own protocol (acks), not a stream of the mission
+        with self._lock:
+            if self._closed:
+                return
+            self._n += 1
+            n, wall = self._n, time.time()
+            att = encode_watch(wall, n, f.attachment)
+            latest = self.keys.latest(service, stream)
+            self._latest[latest] = RawFrame(latest, f.payload, att)
+            self._latest_n[latest] = n
+            pub = self._pubs.get((service, stream))
+            if pub is None:
+                pub = self._pubs[(service, stream)] = self.bus.monitoring_publisher(
+                    self.keys.watch(service, stream)
+                )
+            sinks = list(self._sinks)
+        pub.put_bytes(f.payload, att)
+        tapped = TappedFrame(service, stream, f.payload, f.attachment, wall, n)
+        for sink in sinks:
+            sink(tapped)
+
+    def _answer(self, key_expr: str, params: dict[str, str]) -> list[RawFrame]:
+        """The newest frame of every stream matching the query, newer than `?after=N`."""
+        try:
+            after = int(params.get("after", "0"))
+        except ValueError:
+            after = 0
+        asked = zenoh.KeyExpr(key_expr)
+        with self._lock:
+            return [
+                f
+                for k, f in self._latest.items()
+                if self._latest_n[k] > after and asked.intersects(zenoh.KeyExpr(k))
+            ]
+
+    def end(self, reason: str, t_end: float, ticks: int) -> None:
+        """Announce the run's end on Keys.end (a RunEnd message); stop tapping."""
+        data = encode(RunEnd(stamp=t_end, reason=reason, ticks=ticks, source=CLOCK, seq=1))
+        with self._lock:
+            self._closed = True
+            self._n += 1
+            n, wall = self._n, time.time()
+            att = encode_watch(wall, n, None)
+            sinks = list(self._sinks)
+        for sink in sinks:
+            sink(TappedFrame(CLOCK, END, data, None, wall, n))
+        try:
+            self.bus.monitoring_publisher(self.keys.end).put_bytes(data, att)
+        except Exception as exc:  # noqa: BLE001 - a closing bus must not hide the run's result
+            log.warning("could not announce the run's end: %s", exc)

@@ -1,0 +1,105 @@
+"""A watcher's end of the bus: which runs are on a router, their tapped frames, their latest
+state and scenario (the run's side is common/bus/tap.py).
+
+Monitors, Foxglove bridges and remote recorders all watch a run this way, and never
+subscribe to the control streams themselves (see tap.py for why).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import queue
+from typing import Any, NamedTuple
+
+from common.bus.bus import Bus, Liveliness, RawFrame
+from common.bus.keys import WATCH, Keys, _prefix
+from common.messages import WireError, decode_watch
+
+log = logging.getLogger("tidelink.watch")
+
+
+class WatchedFrame(NamedTuple):
+    """A frame of a watched run: which stream, the bytes that crossed the wire, and when the
+    run's tap got it (wall: Unix seconds; n: the tap's running count)."""
+
+    run: str
+    vehicle: str
+    service: str
+    stream: str
+    payload: bytes
+    attachment: bytes | None
+    wall: float
+    n: int
+
+
+def watched(f: RawFrame) -> WatchedFrame:
+    """A tapped frame (from Keys.watch or Keys.latest) with its key and stamp parsed;
+    ValueError (WireError) when the key or the tap's attachment is not one."""
+    run, vehicle, service, stream = Keys.parse_watch(f.key)
+    if f.attachment is None:
+        raise WireError(f"{f.key}: a watch frame without the tap's attachment")
+    wall, n, att = decode_watch(f.attachment)
+    return WatchedFrame(run, vehicle, service, stream, f.payload, att, wall, n)
+
+
+WatchEvent = WatchedFrame | Liveliness
+
+
+class Watcher:
+    """Watches the runs on a router (one run and vehicle, or every one when None).
+
+    Tapped frames and liveliness changes arrive on Zenoh's threads and queue up for `get`,
+    so a watcher's loop is single-threaded. The queue is unbounded in frames but a slow
+    watcher never slows the run: the tap publishes DROP, so the router drops for it.
+    """
+
+    def __init__(self, bus: Bus, run: str | None = None, vehicle: str | None = None) -> None:
+        self.bus = bus
+        self.run = run
+        self.vehicle = vehicle
+        self._q: queue.SimpleQueue[WatchEvent] = queue.SimpleQueue()
+        self.rejected = 0  # frames that were not tapped frames (counted, logged once)
+
+    def start(self, *, frames: bool = True) -> None:
+        """Hear liveliness (tokens already there included) and, if `frames`, every tapped
+        frame (a thin-linked watcher polls `latest` instead)."""
+        self.bus.on_alive(Keys.any_alive(self.run, self.vehicle), self._q.put)
+        if frames:
+            self.bus.subscribe_raw(f"{_prefix(self.run, self.vehicle)}/{WATCH}/**", self._on_frame)
+
+    def _on_frame(self, f: RawFrame) -> None:
+        try:
+            self._q.put(watched(f))
+        except (ValueError, WireError) as exc:
+            self.rejected += 1
+            if self.rejected == 1:
+                log.warning("ignoring a frame that is not a tapped frame: %s", exc)
+
+    def get(self, timeout: float | None) -> WatchEvent | None:
+        """The next event, or None after `timeout` seconds without one."""
+        try:
+            return self._q.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+    def latest(self, keys: Keys, *, after: int = 0, timeout_s: float = 1.0) -> list[WatchedFrame]:
+        """The newest frame of every stream of a run whose tap count is above `after`."""
+        out = []
+        for f in self.bus.query(f"{keys.all_latest}?after={after}", timeout_s=timeout_s):
+            try:
+                out.append(watched(f))
+            except (ValueError, WireError) as exc:
+                log.warning("ignoring a reply that is not a tapped frame: %s", exc)
+        return sorted(out, key=lambda w: w.n)
+
+    def scenario(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
+        """The run's scenario (the raw dict it was launched with), or None if none answered."""
+        for f in self.bus.query(keys.scenario, timeout_s=timeout_s):
+            try:
+                data = json.loads(f.payload)
+            except ValueError:
+                continue
+            if isinstance(data, dict):
+                return data
+        return None
