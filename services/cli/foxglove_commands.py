@@ -1,0 +1,40 @@
+"""`tidelink foxglove`: serve the runs on a router to the Foxglove app (remote monitoring)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+
+def cmd_foxglove(a: argparse.Namespace) -> int:
+    from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
+    from services.foxglove.serve import BridgeOptions, serve
+
+    if not a.verbose:
+        # what the bridge is doing (serving, waiting, which run) is this command's output
+        logging.getLogger("tidelink.foxglove").setLevel(logging.INFO)
+    install_shutdown_handlers()
+    opts = BridgeOptions(connect=a.connect, run=a.run, vehicle=a.vehicle, host=a.host, port=a.port)
+    try:
+        serve(opts)
+    except Shutdown as exc:
+        logging.getLogger("tidelink.foxglove").info("stopping on %s", exc)
+    return 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add foxglove to the tidelink parser."""
+    f = sub.add_parser(
+        "foxglove", help="serve the runs on a router to the Foxglove app (WebSocket)"
+    )
+    f.add_argument(
+        "--connect",
+        default="tcp/127.0.0.1:7447",
+        metavar="ENDPOINT",
+        help="the run's router (default tcp/127.0.0.1:7447; `tidelink launch --listen` sets it)",
+    )
+    f.add_argument("--run", default=None, help="show only this run (default: any, one at a time)")
+    f.add_argument("--vehicle", default=None, help="show only this vehicle (default: any)")
+    f.add_argument("--host", default="127.0.0.1", help="address to serve on (0.0.0.0: all)")
+    f.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
+    f.set_defaults(func=cmd_foxglove)

@@ -1,0 +1,83 @@
+"""`tidelink foxglove`'s process: a Foxglove WebSocket server fed by the bridge, across runs
+and the routers they bring (README "Remote monitoring")."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import foxglove
+from foxglove import StatusLevel
+from foxglove.websocket import WebSocketServer
+
+from common.bus import Bus, Keys
+from common.bus.watcher import Watcher
+from common.config.bus import BusConfig
+from services.foxglove.bridge import FoxgloveBridge
+from services.foxglove.channels import ViewChannels
+from services.launcher.router import wait_for_endpoint
+
+log = logging.getLogger("tidelink.foxglove")
+
+ROUTER_PROBE_S = 0.5  # between attempts to reach a router that is not there
+
+
+@dataclass(frozen=True)
+class BridgeOptions:
+    """Where the runs are (a router's endpoint), which to show, where to serve the app."""
+
+    connect: str = "tcp/127.0.0.1:7447"
+    run: str | None = None  # None: the first run that is on (then the next, and so on)
+    vehicle: str | None = None
+    host: str = "127.0.0.1"
+    port: int = 8765
+
+
+def start_server(opts: BridgeOptions, channels: ViewChannels) -> WebSocketServer:
+    """The WebSocket server of the channels; OSError naming the port if it cannot serve."""
+    try:
+        return foxglove.start_server(
+            name="tidelink",
+            host=opts.host,
+            port=opts.port,
+            server_listener=channels.listener,
+            context=channels.context,
+        )
+    except RuntimeError as exc:  # the SDK's FoxgloveError, e.g. "Address already in use"
+        raise OSError(
+            f"foxglove: cannot serve on {opts.host}:{opts.port}: {exc} "
+            "(another bridge on this port? choose one with --port)"
+        ) from None
+
+
+def serve(opts: BridgeOptions) -> None:
+    """Serve the runs on opts.connect to Foxglove clients on ws://host:port until a signal
+    (Shutdown or KeyboardInterrupt) ends it; the bus and the server close on the way out."""
+    # not the global context: a recorder in the same process keeps its own channels
+    channels = ViewChannels(foxglove.Context())
+    server = start_server(opts, channels)
+    try:
+        log.info("serving Foxglove on ws://%s:%d", opts.host, server.port)
+        while True:
+            _wait_for_router(opts.connect, server, channels)
+            cfg = BusConfig(mode="client", connect=(opts.connect,))
+            with Bus(cfg, Keys(opts.run or "any", opts.vehicle or "any")) as bus:
+                watcher = Watcher(bus, opts.run, opts.vehicle)
+                watcher.start()
+                bridge = FoxgloveBridge(watcher, server, channels, opts.connect)
+                bridge.run_while(lambda: wait_for_endpoint(opts.connect, 0.0))
+            log.info("the router at %s is gone", opts.connect)
+    finally:
+        channels.close()
+        server.stop()
+
+
+def _wait_for_router(endpoint: str, server: WebSocketServer, channels: ViewChannels) -> None:
+    """Return once the router accepts connections (at once if it does), saying so if not;
+    meanwhile a client that subscribes still gets the last run's newest messages."""
+    if wait_for_endpoint(endpoint, 0.0):
+        return
+    log.info("no router at %s yet; waiting for one", endpoint)
+    server.publish_status(f"waiting for the router at {endpoint}", StatusLevel.Info)
+    while not wait_for_endpoint(endpoint, 0.0):
+        channels.serve_subscriptions(ROUTER_PROBE_S)

@@ -1,0 +1,301 @@
+"""`tidelink foxglove`: the bridge's loop against fakes, and end to end with real runs, a real
+router and a Foxglove WebSocket client written from the protocol (helpers/foxglove_client.py).
+
+The end-to-end tests synchronise on the lines the bridge and the launcher print and on what
+the client receives, always with deadlines (helpers/launch_proc.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import socket
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import foxglove
+import pytest
+from helpers.foxglove_client import FoxgloveClient, schema_bytes
+from helpers.launch_proc import REPO, Tidelink, kill_recorded
+from helpers.protobuf_wire import Schemas
+
+from common.bus import Liveliness
+from common.bus.watcher import WatchedFrame
+from common.config.scenario import load_scenario
+from common.messages import Message, TruthState, encode
+from common.runtime.processes.children import free_port
+from services.foxglove.bridge import FoxgloveBridge
+from services.foxglove.channels import ViewChannels
+from services.foxglove.view import ViewMessage
+
+WAIT_S = 60.0  # upper bound on any one wait; the happy paths take seconds
+DEFAULT = REPO / "configs" / "default.toml"
+PROTOBUF_TOPICS = {
+    "/vehicle/pose_true": "foxglove.PoseInFrame",
+    "/vehicle/pose_est": "foxglove.PoseInFrame",
+    "/planner/path": "foxglove.SceneUpdate",
+    "/scene/static": "foxglove.SceneUpdate",
+    "/scene/tracks": "foxglove.SceneUpdate",
+}
+
+
+# -- the loop, against fakes -----------------------------------------------------------------
+class FakeWatcher:
+    """Scripted watcher events; scenarios and latest frames per run name."""
+
+    def __init__(self) -> None:
+        self.events: deque[Any] = deque()
+        self.scenarios: dict[str, dict[str, Any]] = {}
+        self.latest_frames: dict[str, list[WatchedFrame]] = {}
+
+    def get(self, timeout: float | None) -> Any:
+        return self.events.popleft() if self.events else None
+
+    def scenario(self, keys: Any, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
+        return self.scenarios.get(keys.run)
+
+    def latest(self, keys: Any, *, after: int = 0, timeout_s: float = 1.0) -> list[WatchedFrame]:
+        return self.latest_frames.get(keys.run, [])
+
+
+class FakeServer:
+    def __init__(self) -> None:
+        self.sessions: list[str] = []
+        self.statuses: list[str] = []
+
+    def clear_session(self, session_id: str | None = None) -> None:
+        self.sessions.append(str(session_id))
+
+    def publish_status(self, message: str, level: Any, id: str | None = None) -> None:
+        self.statuses.append(message)
+
+    def remove_status(self, ids: list[str]) -> None:
+        pass
+
+
+class FakeChannels(ViewChannels):
+    """ViewChannels with no server: what is logged and replayed is noted instead."""
+
+    def __init__(self) -> None:
+        super().__init__(foxglove.Context())
+        self.logged: list[ViewMessage] = []
+        self.replayed: list[str] = []
+
+    def log(self, vm: ViewMessage, log_time_ns: int) -> None:
+        self.logged.append(vm)
+
+    def replay(self, topic: str) -> None:
+        self.replayed.append(topic)
+
+    def forget(self) -> None:
+        pass
+
+    def topics(self) -> list[str]:
+        return [vm.topic for vm in self.logged]
+
+
+def _frame(run: str, n: int, msg: Message | None, service: str = "vehicle") -> WatchedFrame:
+    payload = b"\x93not a frame" if msg is None else encode(msg)
+    return WatchedFrame(run, "auv1", service, "truth", payload, None, 1.0e9 + n, n)
+
+
+def _clock(run: str, alive: bool) -> Liveliness:
+    return Liveliness(f"tidelink/{run}/auv1/alive/runtime", alive)
+
+
+def test_the_loop_joins_late_shows_each_frame_once_and_moves_to_the_next_run() -> None:
+    _, raw = load_scenario(DEFAULT)
+    watcher, server, channels = FakeWatcher(), FakeServer(), FakeChannels()
+    watcher.scenarios = {"r1": raw, "r2": {**raw, "run": {**raw["run"], "name": "r2"}}}
+    truth = [
+        TruthState(stamp=0.1 * n, x=5.0 + n, y=20.0, theta=0.0, v=1.0, w=0.0) for n in range(9)
+    ]
+    watcher.latest_frames = {"r1": [_frame("r1", 3, truth[3])]}
+    bridge = FoxgloveBridge(watcher, server, channels, "tcp/x:1")  # type: ignore[arg-type]
+    bridge.step(0.0)
+    assert channels.logged == [] and "no run on tcp/x:1 yet; waiting" in server.statuses
+    watcher.events.append(_clock("r1", True))
+    bridge.step(0.0)
+    assert len(server.sessions) == 1 and server.sessions[0].startswith("r1/auv1/")
+    topics = channels.topics()
+    assert topics[:2] == ["/scene/static", "/run/info"] and "/vehicle/pose_true" in topics
+    n_joined = len(channels.logged)
+    watcher.events.extend(
+        [
+            _frame("r1", 3, truth[3]),  # the late-join frame again, from the subscription
+            _frame("r9", 4, truth[4]),  # another run
+            _frame("r1", 5, None),  # undecodable
+            Liveliness("tidelink/r1/auv1/alive/planner", False),  # a service, not the run
+            _frame("r1", 6, truth[6]),
+        ]
+    )
+    for _ in range(5):
+        bridge.step(0.0)
+    poses = [vm for vm in channels.logged[n_joined:] if vm.topic == "/vehicle/pose_true"]
+    assert len(poses) == 1  # only frame 6 is new
+    assert bridge.attached is not None and bridge.attached.frames == 2  # frames 3 and 6
+    channels.listener.subscribed.put("/scene/static")
+    bridge.step(0.0)
+    assert channels.replayed == ["/scene/static"]
+    # r1's token goes before its last frame (it can overtake it): that frame is still shown
+    watcher.events.extend([_clock("r1", False), _frame("r1", 7, truth[7])])
+    bridge.step(0.0)
+    bridge.step(0.0)
+    assert bridge.attached is None and "run r1/auv1 is over; waiting for the next run" in (
+        server.statuses
+    )
+    assert [vm.topic for vm in channels.logged].count("/vehicle/pose_true") == 3  # 3, 6, 7
+    # the next run to come is shown (its own session and scenario); r1's frames no longer
+    watcher.events.extend([_clock("r2", True), _frame("r1", 8, truth[8])])
+    bridge.step(0.0)
+    bridge.step(0.0)
+    assert len(server.sessions) == 2 and server.sessions[1].startswith("r2/auv1/")
+    assert [vm.topic for vm in channels.logged].count("/vehicle/pose_true") == 3
+    info = [json.loads(vm.data) for vm in channels.logged if vm.topic == "/run/info"]
+    assert [i["name"] for i in info] == ["demo", "r2"]  # r1's raw scenario names it "demo"
+
+
+def test_a_port_in_use_is_a_clear_error() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with Tidelink("foxglove", "--port", str(port), "--connect", "tcp/127.0.0.1:9") as t:
+            assert t.wait(WAIT_S) == 1
+    assert f"cannot serve on 127.0.0.1:{port}" in t.stderr and "--port" in t.stderr, t.stderr
+
+
+# -- end to end ------------------------------------------------------------------------------
+def _decode(client: FoxgloveClient, topic: str, index: int = -1) -> dict[str, Any]:
+    """A received message decoded with the schema its channel advertised."""
+    ch = client.channel(topic)
+    return Schemas(schema_bytes(ch)).decode(f".{ch['schemaName']}", client.on(topic)[index].data)
+
+
+def _entities(update: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {e["id"]: e for e in update["entities"]}
+
+
+@pytest.fixture
+def out(tmp_path: Path) -> Any:
+    d = tmp_path / "run"
+    yield d
+    kill_recorded(d / "pids.json")
+
+
+@pytest.mark.slow
+def test_a_foxglove_client_gets_a_launched_run_it_joined_late(out: Path) -> None:
+    rp, wp = free_port(), free_port()
+    router = f"tcp/127.0.0.1:{rp}"
+    s, _ = load_scenario(DEFAULT)
+    launch_args = ("launch", str(DEFAULT), "--listen", router, "--out", str(out), "--no-plot")
+    launch_args += ("--time-scale", "3", "--set", "run.max_time_s=40.0")
+    with Tidelink(*launch_args) as launch:
+        launch.wait_for(r"launch: t=\s*\d", WAIT_S)  # the mission is under way: join late
+        with Tidelink("foxglove", "--connect", router, "--port", str(wp)) as bridge:
+            bridge.wait_for(f"serving Foxglove on ws://127.0.0.1:{wp}", WAIT_S)
+            with FoxgloveClient(f"ws://127.0.0.1:{wp}") as client:
+                assert client.subprotocol == "foxglove.sdk.v1"
+                joined = bridge.wait_for(r"watching run demo/auv1 \(joined with the newest "
+                                         r"frame of (\d+) streams\)", WAIT_S)  # fmt: skip
+                # truth, status, nav, obstacles, state, tracks, path, cmd (+ stats)
+                assert int(joined.group(1)) >= 8, bridge.stderr
+                client.wait_until(
+                    lambda: all(client.on(t) for t in PROTOBUF_TOPICS), WAIT_S, "scene messages"
+                )
+                assert client.server_infos[0]["name"] == "tidelink"
+                for topic, schema_name in PROTOBUF_TOPICS.items():
+                    ch = client.channel(topic)
+                    assert (ch["encoding"], ch["schemaName"]) == ("protobuf", schema_name)
+                pose = _decode(client, "/vehicle/pose_true")
+                p, q = pose["pose"]["position"], pose["pose"]["orientation"]
+                assert pose["frame_id"] == "world"
+                assert 0.0 <= p["x"] <= 100.0 and 0.0 <= p["y"] <= 40.0
+                assert q["x"] == q["y"] == 0.0 and math.hypot(q["z"], q["w"]) == pytest.approx(1.0)
+                assert pose["timestamp"]["seconds"] > 0  # mission time, past the start
+                # the path was planned before the bridge existed: it came by late join, and a
+                # NURBS path of this mission runs to the goal
+                path = _entities(_decode(client, "/planner/path"))["path"]
+                end = path["lines"][0]["points"][-1]
+                g = s.world.goal
+                assert math.hypot(end["x"] - g.x_m, end["y"] - g.y_m) < 1e-6
+                static = _entities(_decode(client, "/scene/static"))
+                ids = {f"obstacle/{c.id}" for c in s.world.circles}
+                ids |= {f"obstacle/{q.id}" for q in s.world.polygons}
+                assert ids <= set(static)
+                tracks = _entities(_decode(client, "/scene/tracks"))
+                assert all(k.startswith("track/") for k in tracks)
+                assert launch.wait(WAIT_S) == 0, launch.stderr
+                bridge.wait_for("run demo/auv1 is over", WAIT_S)
+                client.wait_until(lambda: bool(client.on("/run/end")), WAIT_S, "/run/end")
+                assert json.loads(client.on("/run/end")[-1].data)["reason"] == "max_time"
+                # the run is over, the bridge is not: the client stays connected
+                client.pump(0.5)
+                assert not client.closed and bridge.proc.poll() is None
+            bridge.signal(signal.SIGTERM)
+            assert bridge.wait(WAIT_S) == 0, bridge.stderr
+            assert "stopping on SIGTERM" in bridge.stderr
+
+
+def _run(name: str, router: str, out: Path, max_time_s: float) -> Tidelink:
+    """A realtime run at 4x whose own process is the router on `router`."""
+    return Tidelink(
+        "run", str(DEFAULT), "--runtime", "realtime", "--time-scale", "4",
+        "--out", str(out / name), "--set", f"run.name={name}",
+        "--set", f"run.max_time_s={max_time_s}", "--set", f'bus.listen=["{router}"]',
+    )  # fmt: skip
+
+
+def _run_segments(client: FoxgloveClient) -> list[list[float]]:
+    """The true pose stamps (mission s) of each run, split where a run's /run/info came."""
+    ch = client.channel("/vehicle/pose_true")
+    schemas = Schemas(schema_bytes(ch))
+    runs: list[list[float]] = []
+    for m in client.messages:
+        if m.topic == "/run/info":
+            runs.append([])
+        elif m.topic == "/vehicle/pose_true" and runs:
+            ts = schemas.decode(".foxglove.PoseInFrame", m.data)["timestamp"]
+            runs[-1].append(ts["seconds"] + 1e-9 * ts["nanos"])
+    return runs
+
+
+@pytest.mark.slow
+def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_another(
+    tmp_path: Path,
+) -> None:
+    rp, wp = free_port(), free_port()
+    router = f"tcp/127.0.0.1:{rp}"
+    with Tidelink("foxglove", "--connect", router, "--port", str(wp)) as bridge:
+        bridge.wait_for(f"no router at {router} yet; waiting", WAIT_S)
+        with FoxgloveClient(f"ws://127.0.0.1:{wp}") as client:
+            client.wait_until(lambda: bool(client.server_infos), WAIT_S, "serverInfo")
+            # each run is its own router: the second comes after the first one's has gone
+            for n, name in enumerate(("first", "second"), start=1):
+                start = len(bridge.err)
+                with _run(name, router, tmp_path, 30.0) as run:
+                    bridge.wait_for(f"watching run {name}/auv1", WAIT_S, start=start)
+                    while run.proc.poll() is None:
+                        client.pump(0.2)  # keep reading, as the app does
+                    assert run.wait(WAIT_S) == 0, run.stderr
+                bridge.wait_for(f"run {name}/auv1 is over", WAIT_S, start=start)
+
+                def infos(n: int = n) -> bool:
+                    return len(client.on("/run/info")) >= n
+
+                client.wait_until(infos, WAIT_S, f"{name}'s /run/info")
+            client.pump(0.5)
+            assert not client.closed
+        names = [json.loads(m.data)["name"] for m in client.on("/run/info")]
+        assert names == ["first", "second"]
+        sessions = [s["sessionId"] for s in client.server_infos]
+        assert [x.split("/")[0] for x in sessions[1:]] == ["first", "second"]
+        # both runs were shown from (about) their start, the second too: the bridge opened a
+        # new session as soon as its router listened, without waiting out Zenoh's back-off
+        for name, stamps in zip(names, _run_segments(client), strict=True):
+            assert stamps and min(stamps) < 4.0 and max(stamps) > 25.0, (name, stamps[:3])
+        bridge.signal(signal.SIGTERM)
+        assert bridge.wait(WAIT_S) == 0, bridge.stderr
+        assert "the router at" in bridge.stderr and "is gone" in bridge.stderr
