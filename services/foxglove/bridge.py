@@ -70,8 +70,8 @@ class FoxgloveBridge:
     def run_while(self, router_up: Callable[[], bool]) -> None:
         """Serve until interrupted (Shutdown, KeyboardInterrupt), or until `router_up` says
         the router is gone while no run is on: each `tidelink launch` brings its own router,
-        and the caller opens a new session when the next one listens (Zenoh's client
-        reconnects by itself too, but only after seconds of back-off: most of a short run)."""
+        and the caller opens a new session as soon as the next one listens (Zenoh's client
+        reconnects by itself too, after a back-off that took up to ~6 s here)."""
         next_check = time.monotonic() + ROUTER_CHECK_S
         while True:
             self.step(POLL_S)
