@@ -134,17 +134,17 @@ class RunState:
         if self.truth is None or msg.stamp >= self.truth.stamp:
             self.truth = msg
         self._truths.append(msg)
-        self._match_estimate()
+        if self.estimate is not None:
+            self._match_estimate(self.estimate)
 
     def _see_estimate(self, msg: StateEstimate) -> None:
         if self.estimate is None or msg.stamp >= self.estimate.stamp:
             self.estimate = msg
-        self._match_estimate()
+        self._match_estimate(msg)
 
-    def _match_estimate(self) -> None:
-        """The estimate's position error against the truth sample nearest its stamp."""
-        est = self.estimate
-        if est is None or not self._truths:
+    def _match_estimate(self, est: StateEstimate) -> None:
+        """An estimate's position error against the truth sample nearest its stamp."""
+        if not self._truths:
             return
         near = min(self._truths, key=lambda t: abs(t.stamp - est.stamp))
         # truth and estimate run at their own periods: only compare samples close in time

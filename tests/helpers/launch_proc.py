@@ -58,12 +58,15 @@ class Tidelink:
             self._open -= 1
             self._cond.notify_all()
 
-    def wait_for(self, pattern: str, timeout_s: float, *, start: int = 0) -> re.Match[str]:
-        """The first stderr line from index `start` on that matches `pattern` (re.search)."""
+    def wait_for(
+        self, pattern: str, timeout_s: float, *, start: int = 0, stdout: bool = False
+    ) -> re.Match[str]:
+        """The first stderr (or stdout) line from index `start` on that matches `pattern`."""
         rx = re.compile(pattern)
+        lines = self.out if stdout else self.err
 
         def found() -> re.Match[str] | None:
-            for line in self.err[start:]:
+            for line in lines[start:]:
                 if m := rx.search(line):
                     return m
             return None
