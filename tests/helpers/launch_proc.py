@@ -22,8 +22,8 @@ REPO = Path(__file__).resolve().parents[2]
 class Tidelink:
     """`python -m services.cli ARGS` (optionally inside a network namespace)."""
 
-    def __init__(self, *args: str, netns: str | None = None) -> None:
-        cmd = [sys.executable, "-m", "services.cli", *args]
+    def __init__(self, *args: str, netns: str | None = None, cli: bool = True) -> None:
+        cmd = [sys.executable, *(("-m", "services.cli") if cli else ()), *args]
         if netns is not None:
             cmd = ["ip", "netns", "exec", netns, *cmd]
         env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -47,6 +47,11 @@ class Tidelink:
         ]
         for t in self._threads:
             t.start()
+
+    @classmethod
+    def python(cls, *args: str) -> Tidelink:
+        """`python ARGS` with the same pipes and clean-up (a helper process of a test)."""
+        return cls(*args, cli=False)
 
     def _read(self, stream: IO[str] | None, lines: list[str]) -> None:
         assert stream is not None
