@@ -158,3 +158,16 @@ def test_a_watched_frame_needs_a_watch_key_and_the_taps_attachment() -> None:
         watched(RawFrame("tidelink/demo/auv1/watch/vehicle/truth", payload, None))
     with pytest.raises(WireError, match="malformed watch attachment"):
         watched(RawFrame("tidelink/demo/auv1/watch/vehicle/truth", payload, b"\xc1junk"))
+
+
+def test_a_monitor_without_a_router_fails_with_one_line_naming_the_endpoint(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from common.runtime.processes.children import free_port
+    from services.cli import main
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nobody listens there
+    assert main(["monitor", "--connect", endpoint, "--json", "--no-wait"]) == 1
+    err = capsys.readouterr().err
+    assert f"cannot reach the router at {endpoint}" in err
+    assert "Traceback" not in err
