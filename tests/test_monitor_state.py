@@ -15,6 +15,7 @@ from common.config.scenario import load_scenario
 from common.messages import (
     LinkCounters,
     LinkStats,
+    MeasuredDelay,
     PathMsg,
     RunEnd,
     StateEstimate,
@@ -124,6 +125,7 @@ def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_jso
         dropped_queue=0,
         duplicated=0,
         delay_p50=0.05,
+        delay_p95=0.08,
         delay_p99=0.09,
     )
     s.see("planner", "stats", LinkStats(stamp=1.0, links=(link,)), wall=1.0)
@@ -134,6 +136,13 @@ def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_jso
     snap = json.loads(out.getvalue())
     assert snap["type"] == "update"
     assert snap["links"]["planner/cmd->vehicle"]["lost"] == 3
+    assert snap["links"]["planner/cmd->vehicle"]["modelled_p95_s"] == 0.08
+    measured = MeasuredDelay(
+        link="planner/cmd->vehicle", delivered=7, delay_p50=0.06, delay_p95=0.1, delay_max=0.2
+    )
+    s.see("vehicle", "stats", LinkStats(stamp=1.0, links=(), measured=(measured,)), wall=1.0)
+    row = s.snapshot(now=2.0)["links"]["planner/cmd->vehicle"]
+    assert (row["sent"], row["measured_p50_s"], row["measured_p95_s"]) == (10, 0.06, 0.1)
     assert snap["end"] == {"reason": "goal", "t_end_s": 65.5, "ticks": 0}
     assert snap["est_error_m"] is None
     assert s.over

@@ -118,14 +118,22 @@ class RunState:
             if self.command is None or msg.stamp >= self.command.stamp:
                 self.command = msg
         elif isinstance(msg, LinkStats):
+            # a link's counters and modelled delays come from its sender, its measured
+            # delays from its receiver: two services' stats fill one row
             for c in msg.links:
-                self.links[c.link] = {
-                    "sent": c.sent,
-                    "delivered": c.delivered,
-                    "lost": c.dropped_loss + c.dropped_outage + c.dropped_queue,
-                    "delay_p50_s": c.delay_p50,
-                    "delay_p99_s": c.delay_p99,
-                }
+                self.links.setdefault(c.link, {}).update(
+                    {
+                        "sent": c.sent,
+                        "delivered": c.delivered,
+                        "lost": c.dropped_loss + c.dropped_outage + c.dropped_queue,
+                        "modelled_p50_s": c.delay_p50,
+                        "modelled_p95_s": c.delay_p95,
+                    }
+                )
+            for d in msg.measured:
+                self.links.setdefault(d.link, {}).update(
+                    {"measured_p50_s": d.delay_p50, "measured_p95_s": d.delay_p95}
+                )
         elif isinstance(msg, RunEnd):
             self.end = msg
             self._event(wall, "end", f"run ended at t={msg.stamp:.2f} s: {msg.reason}")

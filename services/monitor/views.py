@@ -96,6 +96,12 @@ def _num(v: float | None, fmt: str = ".2f", unit: str = "") -> str:
     return "-" if v is None else f"{v:{fmt}}{unit}"
 
 
+def _ms_pair(a: float | None, b: float | None) -> str:
+    if a is None or b is None:
+        return "-"
+    return f"{a * 1e3:.0f}/{b * 1e3:.0f} ms"
+
+
 def _panel(snap: dict[str, Any]) -> Any:
     """One run's panel: vehicle, services, streams, links and alarms."""
     from rich.console import Group
@@ -140,15 +146,15 @@ def _panel(snap: dict[str, Any]) -> Any:
     for key, st in snap["streams"].items():
         streams.add_row(key, f"{st['age_s']:.1f} s", str(st["count"]))
 
-    links = Table("link", "sent", "deliv.", "lost", "p50", "p99", box=None, pad_edge=False)
+    links = Table("link", "sent", "deliv.", "lost", "model p50/p95", "measured p50/p95", box=None)
     for name, ln in snap["links"].items():
         links.add_row(
             name,
-            str(ln["sent"]),
-            str(ln["delivered"]),
-            str(ln["lost"]),
-            f"{ln['delay_p50_s'] * 1e3:.0f} ms",
-            f"{ln['delay_p99_s'] * 1e3:.0f} ms",
+            str(ln.get("sent", "-")),
+            str(ln.get("delivered", "-")),
+            str(ln.get("lost", "-")),
+            _ms_pair(ln.get("modelled_p50_s"), ln.get("modelled_p95_s")),
+            _ms_pair(ln.get("measured_p50_s"), ln.get("measured_p95_s")),
         )
     alarms = snap["alarms"]
     alarm_text = "\n".join(f"[bold red]! {a}[/]" for a in alarms) or "[green]no alarms[/]"
