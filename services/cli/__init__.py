@@ -12,6 +12,7 @@ from services.cli import (
     foxglove_commands,
     graph_commands,
     launch_commands,
+    monitor_commands,
     sweep_commands,
 )
 
@@ -20,6 +21,7 @@ COMMAND_MODULES = (
     core_commands,
     graph_commands,
     launch_commands,
+    monitor_commands,
     sweep_commands,
     foxglove_commands,
 )
