@@ -15,6 +15,7 @@ from common.messages import (
     Detection,
     LinkCounters,
     LinkStats,
+    MeasuredDelay,
     ObstacleDetections,
     ObstacleTracks,
     PathMsg,
@@ -27,6 +28,7 @@ from common.messages import (
     VehicleStatus,
     VelocityCommand,
 )
+from common.messages import replace as replace_field
 from services.foxglove import view as v
 from services.foxglove.view import FoxgloveView, ViewMessage
 
@@ -251,23 +253,31 @@ def test_mode_changes_are_events_and_modes_are_plottable(scenario: Scenario) -> 
 def _counters(link: str, sent: int, lost: int) -> LinkCounters:
     return LinkCounters(
         link=link, sent=sent, delivered=sent - lost, dropped_loss=lost, dropped_outage=0,
-        dropped_queue=0, duplicated=0, delay_p50=0.05, delay_p99=0.09,
+        dropped_queue=0, duplicated=0, delay_p50=0.05, delay_p95=0.08, delay_p99=0.09,
     )  # fmt: skip
 
 
-def test_link_stats_of_every_service_in_one_table(scenario: Scenario) -> None:
+def test_link_stats_of_senders_and_receivers_in_one_table(scenario: Scenario) -> None:
     view = FoxgloveView(scenario)
-    down = LinkStats(stamp=1.0, links=(_counters("planner/cmd->vehicle", 20, 1),))
-    up = LinkStats(stamp=2.0, links=(_counters("estimator/state->planner", 40, 4),))
-    view.translate("vehicle", "stats", down)
-    msgs = view.translate("planner", "stats", up)
-    rows = _one(msgs, "/links")["links"]
-    assert [(r["service"], r["link"]) for r in rows] == [
-        ("planner", "estimator/state->planner"),
-        ("vehicle", "planner/cmd->vehicle"),
-    ]
-    assert rows[0]["loss_fraction"] == pytest.approx(0.1)
-    assert rows[1]["loss_fraction"] == pytest.approx(0.05)
+    # the planner sends cmd and receives state; the vehicle receives cmd
+    measured = MeasuredDelay(
+        link="planner/cmd->vehicle", delivered=19, delay_p50=0.06, delay_p95=0.1, delay_max=0.2
+    )
+    planner = LinkStats(
+        stamp=1.0,
+        links=(_counters("planner/cmd->vehicle", 20, 1),),
+        measured=(replace_field(measured, link="estimator/state->planner"),),
+    )
+    view.translate("planner", "stats", planner)
+    view.translate("vehicle", "stats", LinkStats(stamp=1.0, links=(), measured=(measured,)))
+    estimator = LinkStats(stamp=2.0, links=(_counters("estimator/state->planner", 40, 4),))
+    msgs = view.translate("estimator", "stats", estimator)
+    rows = {r["link"]: r for r in _one(msgs, "/links")["links"]}
+    assert list(rows) == ["estimator/state->planner", "planner/cmd->vehicle"]  # sorted
+    cmd, state = rows["planner/cmd->vehicle"], rows["estimator/state->planner"]
+    assert cmd["loss_fraction"] == pytest.approx(0.05) and cmd["measured_p95_s"] == 0.1
+    assert (cmd["sent"], cmd["delay_p95_s"], cmd["measured_max_s"]) == (20, 0.08, 0.2)
+    assert state["loss_fraction"] == pytest.approx(0.1) and state["measured_p50_s"] == 0.06
 
 
 def test_run_end_and_detections(scenario: Scenario) -> None:

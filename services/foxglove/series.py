@@ -17,7 +17,8 @@ STR = {"type": "string"}
 BOOL = {"type": "boolean"}
 
 LINK_FIELDS: dict[str, dict[str, Any]] = {
-    "service": STR,  # the service that published the counters (the link's receiver)
+    # a link's counters and modelled delays come from its sender's stats, its measured
+    # delays from its receiver's: two services' stats fill one row
     "link": STR,  # source/stream->receiver
     "sent": INT,
     "delivered": INT,
@@ -26,8 +27,12 @@ LINK_FIELDS: dict[str, dict[str, Any]] = {
     "dropped_queue": INT,
     "duplicated": INT,
     "loss_fraction": NUM,  # every drop over sent
-    "delay_p50_s": NUM,
+    "delay_p50_s": NUM,  # modelled (the link model's decision)
+    "delay_p95_s": NUM,
     "delay_p99_s": NUM,
+    "measured_p50_s": NUM,  # hand-over to the receiver's core minus sent
+    "measured_p95_s": NUM,
+    "measured_max_s": NUM,
 }
 
 

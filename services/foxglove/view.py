@@ -98,7 +98,7 @@ class FoxgloveView:
         self._trail_est = Trail(spacing_m=0.25, max_poses=4000, period_s=0.5)
         self._replans: deque[tuple[int, np.ndarray]] = deque(maxlen=MAX_REPLANS)
         self._n_paths = 0
-        self._links: dict[tuple[str, str], dict[str, Any]] = {}
+        self._links: dict[str, dict[str, Any]] = {}  # link name -> table row
         self._mode: str | None = None
         self._path_status: str | None = None
         self._n_detections = 0
@@ -273,21 +273,31 @@ class FoxgloveView:
 
     # -- the network and the run -------------------------------------------------------------
     def _link_stats(self, service: str, m: LinkStats) -> list[ViewMessage]:
+        # one row per link, filled by its sender's counters and its receiver's measurements
         for c in m.links:
             drops = c.dropped_loss + c.dropped_outage + c.dropped_queue
-            self._links[(service, c.link)] = {
-                "service": service,
-                "link": c.link,
-                "sent": c.sent,
-                "delivered": c.delivered,
-                "dropped_loss": c.dropped_loss,
-                "dropped_outage": c.dropped_outage,
-                "dropped_queue": c.dropped_queue,
-                "duplicated": c.duplicated,
-                "loss_fraction": drops / c.sent if c.sent else 0.0,
-                "delay_p50_s": c.delay_p50,
-                "delay_p99_s": c.delay_p99,
-            }
+            self._links.setdefault(c.link, {"link": c.link}).update(
+                {
+                    "sent": c.sent,
+                    "delivered": c.delivered,
+                    "dropped_loss": c.dropped_loss,
+                    "dropped_outage": c.dropped_outage,
+                    "dropped_queue": c.dropped_queue,
+                    "duplicated": c.duplicated,
+                    "loss_fraction": drops / c.sent if c.sent else 0.0,
+                    "delay_p50_s": c.delay_p50,
+                    "delay_p95_s": c.delay_p95,
+                    "delay_p99_s": c.delay_p99,
+                }
+            )
+        for d in m.measured:
+            self._links.setdefault(d.link, {"link": d.link}).update(
+                {
+                    "measured_p50_s": d.delay_p50,
+                    "measured_p95_s": d.delay_p95,
+                    "measured_max_s": d.delay_max,
+                }
+            )
         rows = [self._links[k] for k in sorted(self._links)]
         return [_json(series.LINKS, {"t": m.stamp, "links": rows})]
 
