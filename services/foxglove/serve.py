@@ -61,11 +61,17 @@ def serve(opts: BridgeOptions) -> None:
         while True:
             _wait_for_router(opts.connect, server, channels)
             cfg = BusConfig(mode="client", connect=(opts.connect,))
-            with Bus(cfg, Keys(opts.run or "any", opts.vehicle or "any")) as bus:
-                watcher = Watcher(bus, opts.run, opts.vehicle)
-                watcher.start()
-                bridge = FoxgloveBridge(watcher, server, channels, opts.connect)
-                bridge.run_while(lambda: wait_for_endpoint(opts.connect, 0.0))
+            try:
+                with Bus(cfg, Keys(opts.run or "any", opts.vehicle or "any")) as bus:
+                    watcher = Watcher(bus, opts.run, opts.vehicle)
+                    watcher.start()
+                    bridge = FoxgloveBridge(watcher, server, channels, opts.connect)
+                    bridge.run_while(lambda: wait_for_endpoint(opts.connect, 0.0))
+            except ConnectionError as exc:  # it went between our probe and Zenoh's connect,
+                # or what listens there is no Zenoh router: try again, without spinning
+                log.warning("%s; trying again", exc)
+                channels.serve_subscriptions(ROUTER_PROBE_S)
+                continue
             log.info("the router at %s is gone", opts.connect)
     finally:
         channels.close()
