@@ -24,6 +24,7 @@ from common.messages import (
     encode,
     encode_routing,
 )
+from services.cli import main
 from services.recording import layout
 from services.recording.gaps import SeqGaps
 from services.recording.layout import stream_types
@@ -271,6 +272,17 @@ def test_an_mcap_file_that_is_no_recording_is_refused_naming_it(tmp_path: Path) 
     _mcap_with_metadata(path, None)
     with pytest.raises(RecordingError, match=f"{path}: an MCAP file, but not a tidelink"):
         read_recording(path)
+
+
+def test_the_cli_reports_bad_input_naming_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "notes.mcap"
+    path.write_text("not a recording")
+    for command in ("metrics", "replay"):
+        assert main([command, str(path)]) == 1
+        err = capsys.readouterr().err
+        assert f"tidelink: error: {path}: not an MCAP file" in err
 
 
 def test_seq_gaps_count_what_a_watcher_lost() -> None:

@@ -7,10 +7,22 @@ import logging
 import sys
 
 from common.config.loader import ConfigError
-from services.cli import core_commands, graph_commands, launch_commands, sweep_commands
+from services.cli import (
+    core_commands,
+    graph_commands,
+    launch_commands,
+    record_commands,
+    sweep_commands,
+)
 
 # Each module exposes register(subparsers); add a tool's module here to give it a sub-command.
-COMMAND_MODULES = (core_commands, graph_commands, launch_commands, sweep_commands)
+COMMAND_MODULES = (
+    core_commands,
+    graph_commands,
+    launch_commands,
+    record_commands,
+    sweep_commands,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
