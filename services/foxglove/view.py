@@ -1,0 +1,344 @@
+"""The Foxglove view of a run: tidelink messages translated into Foxglove's typed messages.
+
+Pure translation, no I/O: the live bridge (bridge.py) and the MCAP recorder both feed it a
+run's frames in order and log what it returns. Scene topics are protobuf messages of
+foxglove-sdk (SceneUpdate, PoseInFrame, PosesInFrame, FrameTransform, Log), so the app draws
+them natively; plottable series are JSON with a JSON Schema (series.py). Every scene message
+is complete in itself (a SceneUpdate clears its topic before drawing), so the newest message
+of a topic is all a late subscriber needs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from foxglove.messages import (
+    FrameTransform,
+    Log,
+    LogLevel,
+    PoseInFrame,
+    PosesInFrame,
+    SceneEntity,
+    SceneEntityDeletion,
+    SceneEntityDeletionType,
+    SceneUpdate,
+    Vector3,
+)
+
+from common.config.scenario import Scenario
+from common.messages import (
+    LinkStats,
+    Message,
+    NavFix,
+    ObstacleDetections,
+    ObstacleTracks,
+    PathMsg,
+    RunEnd,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    VelocityCommand,
+)
+from common.world import World
+from services.foxglove import entities as draw
+from services.foxglove import series
+from services.foxglove.scene import WORLD, stamp, yaw_pose, yaw_quaternion
+from services.foxglove.scoring import EstimateScorer, Scored
+from services.foxglove.trail import Trail
+from services.mission.metrics import path_points
+
+# -- topics (series.py names the JSON ones) -------------------------------------------------
+SCENE_STATIC = "/scene/static"  # area, start, goal, static obstacles
+SCENE_MOVING = "/scene/moving"  # moving obstacles where they truly are, at each truth stamp
+SCENE_TRACKS = "/scene/tracks"  # the estimator's obstacle tracks, radius + 2 sigma
+SCENE_DETECTIONS = "/scene/detections"  # the latest obstacle scan
+SCENE_ESTIMATE = "/scene/estimate"  # the vehicle estimate's 2-sigma position ellipse
+PLANNER_PATH = "/planner/path"  # the NURBS path in force, its control polygon, earlier replans
+POSE_TRUE = "/vehicle/pose_true"
+POSE_EST = "/vehicle/pose_est"
+TRAIL_TRUE = "/vehicle/trail_true"
+TRAIL_EST = "/vehicle/trail_est"
+NAV_FIX = "/sensor/nav"  # the noisy navigation fix
+TF = "/tf"  # world -> auv (truth) and world -> auv_est, for a panel that follows the vehicle
+EVENTS = "/events"  # mode changes, path status changes, the run's end
+
+PATH_SAMPLES = 300  # points of the path in force: smooth at chart scale
+REPLAN_SAMPLES = 100  # points of each earlier replan, drawn faint
+MAX_REPLANS = 30  # earlier replans kept on the chart
+MODE_CODES = {"IDLE": 0, "RUN": 1, "HOLD": 2, "FAILSAFE": 3, "DONE": 4}
+
+
+@dataclass(frozen=True)
+class ViewMessage:
+    """One message of the view: its topic, schema and encoded bytes, ready for any sink."""
+
+    topic: str
+    schema_name: str
+    schema_encoding: str  # "protobuf" or "jsonschema"
+    schema: bytes
+    message_encoding: str  # "protobuf" or "json"
+    data: bytes
+
+
+class FoxgloveView:
+    """Translates one run's messages (in order) into view messages; holds what a chart needs
+    across messages (trails, earlier replans, the truth to score estimates against)."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.world = World(scenario.world)
+        self._has_moving = bool(scenario.world.moving)
+        self._scorer = EstimateScorer()
+        self._trail_true = Trail(spacing_m=0.25, max_poses=4000, period_s=0.5)
+        self._trail_est = Trail(spacing_m=0.25, max_poses=4000, period_s=0.5)
+        self._replans: deque[tuple[int, np.ndarray]] = deque(maxlen=MAX_REPLANS)
+        self._n_paths = 0
+        self._links: dict[tuple[str, str], dict[str, Any]] = {}
+        self._mode: str | None = None
+        self._path_status: str | None = None
+        self._n_detections = 0
+        self._by_type: dict[type, Callable[[str, Any], list[ViewMessage]]] = {
+            TruthState: self._truth_state,
+            StateEstimate: self._estimate,
+            ObstacleTracks: self._tracks,
+            ObstacleDetections: self._detections,
+            PathMsg: self._path,
+            VelocityCommand: self._command,
+            VehicleStatus: self._status,
+            NavFix: self._nav,
+            LinkStats: self._link_stats,
+            RunEnd: self._run_end,
+        }
+
+    def static(self) -> list[ViewMessage]:
+        """The chart (area, start, goal, static obstacles) and the run's identity."""
+        s, g = self.scenario, self.scenario.world.goal
+        info = {
+            "name": s.run.name,
+            "vehicle": s.run.vehicle,
+            "seed": s.run.seed,
+            "controller": s.controller.kind,
+            "runtime": s.runtime.kind,
+            "max_time_s": s.run.max_time_s,
+            "goal_x_m": g.x_m,
+            "goal_y_m": g.y_m,
+        }
+        return [
+            _replace_all(SCENE_STATIC, 0.0, draw.chart(s.world)),
+            _json(series.RUN_INFO, info),
+        ]
+
+    def translate(self, service: str, stream: str, msg: Message) -> list[ViewMessage]:
+        """The view messages one tidelink message gives ([] for a type the view does not show)."""
+        handler = self._by_type.get(type(msg))
+        return [] if handler is None else handler(service, msg)
+
+    # -- the vehicle -------------------------------------------------------------------------
+    def _truth_state(self, service: str, m: TruthState) -> list[ViewMessage]:
+        t, g = m.stamp, self.scenario.world.goal
+        values: dict[str, Any] = {
+            "t": t,
+            "x_m": m.x,
+            "y_m": m.y,
+            "theta_rad": m.theta,
+            "v_mps": m.v,
+            "w_radps": m.w,
+            "distance_to_goal_m": math.hypot(m.x - g.x_m, m.y - g.y_m),
+            "collided": m.collided,
+        }
+        clearance = self.world.clearance(m.x, m.y, self.scenario.vehicle.radius_m, t)
+        if math.isfinite(clearance):
+            values["clearance_m"] = clearance
+        out = [
+            _proto(POSE_TRUE, _pose(t, m.x, m.y, m.theta)),
+            _proto(TF, _transform("auv", t, m.x, m.y, m.theta)),
+            _json(series.TRUTH, values),
+        ]
+        if self._has_moving:
+            out.append(_replace_all(SCENE_MOVING, t, draw.moving(self.world.obstacles_at(t), t)))
+        out += _errors(self._scorer.truth(t, m.x, m.y, m.theta))
+        return out + _trail(TRAIL_TRUE, self._trail_true, t, m.x, m.y, m.theta)
+
+    def _estimate(self, service: str, m: StateEstimate) -> list[ViewMessage]:
+        t = m.stamp
+        cov = m.covariance  # 5x5 row-major: x, y, theta, v, w
+        values = {
+            "t": t,
+            "x_m": m.x,
+            "y_m": m.y,
+            "theta_rad": m.theta,
+            "v_mps": m.v,
+            "w_radps": m.w,
+            "std_x_m": math.sqrt(max(0.0, cov[0])),
+            "std_y_m": math.sqrt(max(0.0, cov[6])),
+            "std_theta_rad": math.sqrt(max(0.0, cov[12])),
+        }
+        out = [
+            _proto(POSE_EST, _pose(t, m.x, m.y, m.theta)),
+            _proto(TF, _transform("auv_est", t, m.x, m.y, m.theta)),
+            _replace_all(SCENE_ESTIMATE, t, [draw.estimate(m)]),
+            _json(series.ESTIMATE, values),
+        ]
+        out += _errors(self._scorer.estimate(t, m.x, m.y, m.theta))
+        return out + _trail(TRAIL_EST, self._trail_est, t, m.x, m.y, m.theta)
+
+    def _nav(self, service: str, m: NavFix) -> list[ViewMessage]:
+        return [_proto(NAV_FIX, _pose(m.stamp, m.x, m.y, m.heading))]
+
+    def _command(self, service: str, m: VelocityCommand) -> list[ViewMessage]:
+        values = {
+            "t": m.stamp,
+            "v_mps": m.v,
+            "w_radps": m.w,
+            "path_id": m.path_id,
+            "controller": m.controller,
+        }
+        return [_json(series.CMD, values)]
+
+    def _status(self, service: str, m: VehicleStatus) -> list[ViewMessage]:
+        values = {
+            "t": m.stamp,
+            "mode": m.mode,
+            "mode_code": MODE_CODES.get(m.mode, -1),
+            "mode_since_s": m.mode_since,
+            "v_applied_mps": m.v_applied,
+            "w_applied_radps": m.w_applied,
+            "command_age_s": m.command_age,
+            "commands_applied": m.commands_applied,
+            "commands_rejected": m.commands_rejected,
+            "commands_clamped": m.commands_clamped,
+        }
+        out = [_json(series.VEHICLE, values)]
+        if m.mode != self._mode:
+            level = LogLevel.Warning if m.mode in ("HOLD", "FAILSAFE") else LogLevel.Info
+            text = f"vehicle mode {self._mode or '-'} -> {m.mode} at t={m.mode_since:.2f} s"
+            out.append(_event(m.stamp, level, service, text))
+            self._mode = m.mode
+        return out
+
+    # -- obstacles ---------------------------------------------------------------------------
+    def _tracks(self, service: str, m: ObstacleTracks) -> list[ViewMessage]:
+        # covariance 6x6 row-major, x, y first: entries 0 and 7 are var(x) and var(y)
+        worst = max((max(k.covariance[0], k.covariance[7]) for k in m.tracks), default=0.0)
+        values = {
+            "t": m.stamp,
+            "n_tracks": len(m.tracks),
+            "max_std_xy_m": math.sqrt(max(0.0, worst)),
+            "n_detections": self._n_detections,
+        }
+        return [_replace_all(SCENE_TRACKS, m.stamp, draw.tracks(m)), _json(series.TRACKS, values)]
+
+    def _detections(self, service: str, m: ObstacleDetections) -> list[ViewMessage]:
+        self._n_detections = len(m.detections)
+        return [_replace_all(SCENE_DETECTIONS, m.stamp, draw.detections(m))]
+
+    # -- the plan ----------------------------------------------------------------------------
+    def _path(self, service: str, m: PathMsg) -> list[ViewMessage]:
+        t = m.stamp
+        self._n_paths += 1
+        values = {
+            "t": t,
+            "path_id": m.path_id,
+            "status": m.status,
+            "ok": int(m.status == "OK"),
+            "reason": m.reason,
+            "length_m": m.length,
+            "f_l": m.f_l,
+            "max_curvature_1pm": m.max_curvature,
+            "v_ref_mps": m.v_ref,
+            "replans": self._n_paths,
+        }
+        out = [_json(series.PATH, values)]
+        ents = []
+        if m.status == "OK":
+            curve = path_points(m, PATH_SAMPLES)
+            ctrl = np.asarray(m.control_points, dtype=np.float64).reshape(-1, 2)
+            ents.append(draw.path_in_force(t, curve, ctrl))
+            self._replans.append((m.path_id, curve[:: max(1, PATH_SAMPLES // REPLAN_SAMPLES)]))
+        # every path kept (this one too) drawn faint under the one in force; on NO_PATH the
+        # vehicle has none in force, and only these remain
+        ents += [draw.replan(t, pid, xy) for pid, xy in self._replans]
+        if m.status != self._path_status:
+            level = LogLevel.Info if m.status == "OK" else LogLevel.Warning
+            text = f"path {m.path_id}: {m.status}" + (f" ({m.reason})" if m.reason else "")
+            out.append(_event(t, level, service, text))
+            self._path_status = m.status
+        out.append(_replace_all(PLANNER_PATH, t, ents))
+        return out
+
+    # -- the network and the run -------------------------------------------------------------
+    def _link_stats(self, service: str, m: LinkStats) -> list[ViewMessage]:
+        for c in m.links:
+            drops = c.dropped_loss + c.dropped_outage + c.dropped_queue
+            self._links[(service, c.link)] = {
+                "service": service,
+                "link": c.link,
+                "sent": c.sent,
+                "delivered": c.delivered,
+                "dropped_loss": c.dropped_loss,
+                "dropped_outage": c.dropped_outage,
+                "dropped_queue": c.dropped_queue,
+                "duplicated": c.duplicated,
+                "loss_fraction": drops / c.sent if c.sent else 0.0,
+                "delay_p50_s": c.delay_p50,
+                "delay_p99_s": c.delay_p99,
+            }
+        rows = [self._links[k] for k in sorted(self._links)]
+        return [_json(series.LINKS, {"t": m.stamp, "links": rows})]
+
+    def _run_end(self, service: str, m: RunEnd) -> list[ViewMessage]:
+        text = f"run ended at t={m.stamp:.2f} s: {m.reason} ({m.ticks} ticks)"
+        return [
+            _json(series.RUN_END, {"t": m.stamp, "reason": m.reason, "ticks": m.ticks}),
+            _event(m.stamp, LogLevel.Info, service, text),
+        ]
+
+
+def _proto(topic: str, msg: Any) -> ViewMessage:
+    """A foxglove-sdk typed message (any class with get_schema and encode) as a ViewMessage."""
+    s = msg.get_schema()
+    return ViewMessage(topic, s.name, s.encoding, s.data, "protobuf", msg.encode())
+
+
+def _json(s: series.JsonSeries, values: dict[str, Any]) -> ViewMessage:
+    return ViewMessage(s.topic, s.title, "jsonschema", s.schema, "json", s.encode(values))
+
+
+def _replace_all(topic: str, t: float, entities: list[SceneEntity]) -> ViewMessage:
+    """A SceneUpdate that clears its topic and draws `entities`: complete in itself."""
+    clear = SceneEntityDeletion(timestamp=stamp(t), type=SceneEntityDeletionType.All)
+    return _proto(topic, SceneUpdate(deletions=[clear], entities=entities))
+
+
+def _pose(t: float, x: float, y: float, theta: float) -> PoseInFrame:
+    return PoseInFrame(timestamp=stamp(t), frame_id=WORLD, pose=yaw_pose(x, y, theta))
+
+
+def _transform(child: str, t: float, x: float, y: float, theta: float) -> FrameTransform:
+    return FrameTransform(
+        timestamp=stamp(t),
+        parent_frame_id=WORLD,
+        child_frame_id=child,
+        translation=Vector3(x=x, y=y, z=0.0),
+        rotation=yaw_quaternion(theta),
+    )
+
+
+def _trail(topic: str, trail: Trail, t: float, x: float, y: float, th: float) -> list[ViewMessage]:
+    """The whole trail, when this pose was kept and the trail is due to be sent again."""
+    if not (trail.add(x, y, th) and trail.due(t)):
+        return []
+    return [_proto(topic, PosesInFrame(timestamp=stamp(t), frame_id=WORLD, poses=trail.poses))]
+
+
+def _errors(scored: list[Scored]) -> list[ViewMessage]:
+    return [_json(series.ESTIMATE_ERROR, s._asdict()) for s in scored]
+
+
+def _event(t: float, level: LogLevel, name: str, text: str) -> ViewMessage:
+    return _proto(EVENTS, Log(timestamp=stamp(t), level=level, message=text, name=name))
