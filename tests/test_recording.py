@@ -31,6 +31,7 @@ from common.config.scenario import load_scenario
 from common.messages import RunEnd, decode
 from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.children import free_port
+from services.foxglove.view import PLANNER_PATH, POSE_TRUE, SCENE_STATIC
 from services.launcher.router import wait_for_endpoint
 from services.recording.metrics import rebuild_record
 from services.recording.reader import AliveEvent, Recording, read_recording
@@ -91,7 +92,9 @@ def test_a_recorded_lockstep_launch_reads_back_with_the_mcap_package(lockstep_ru
                 msg = decode(message.data)
                 assert schema.name == f"tidelink.{type(msg).__name__}"
                 assert message.sequence == msg.seq
-                got.setdefault(channel.topic, []).append(msg)
+                name = f"{channel.metadata['service']}/{channel.metadata['stream']}"
+                assert channel.topic == f"/wire/{name}"
+                got.setdefault(name, []).append(msg)
     assert meta.metadata["run"] == "small" and meta.metadata["vehicle"] == "auv1"
     assert json.loads(meta.metadata["scenario"]) == json.loads(
         (lockstep_run / "scenario.json").read_text()
@@ -110,6 +113,24 @@ def test_a_recorded_lockstep_launch_reads_back_with_the_mcap_package(lockstep_ru
         assert sorted(got[f"{service}/{stream}"], key=lambda m: m.seq) == ref.stream(
             service, stream
         )
+
+
+def test_a_recording_carries_the_foxglove_view_of_the_run(lockstep_run: Path) -> None:
+    with (lockstep_run / "run.mcap").open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None and summary.statistics is not None
+    counts = summary.statistics.channel_message_counts
+    view = {c.topic: c for c in summary.channels.values() if c.metadata["tidelink"] == "view"}
+    assert {SCENE_STATIC, POSE_TRUE, PLANNER_PATH} <= set(view)
+    for c in view.values():
+        schema = summary.schemas[c.schema_id]
+        assert (schema.encoding, c.message_encoding) in {
+            ("protobuf", "protobuf"),
+            ("jsonschema", "json"),
+        }
+    (truth,) = [c for c in summary.channels.values() if c.topic == "/wire/vehicle/truth"]
+    assert counts[view[POSE_TRUE].id] == counts[truth.id]  # a pose per true state
+    assert counts[view[SCENE_STATIC].id] == 1
 
 
 def test_metrics_recomputed_from_a_lockstep_recording_equal_the_runs(lockstep_run: Path) -> None:
@@ -163,22 +184,26 @@ class Seen:
 
 
 def _watch_until_gone(watcher: Watcher, keys: Keys) -> Seen:
-    """Everything the watcher hears until the run's clock token vanishes."""
+    """Everything the watcher hears until the run's clock token has vanished and its RunEnd
+    arrived (in either order: the RunEnd is a DATA_LOW copy, the token's end is not)."""
     seen = Seen([], [], None, [])
+    gone = ended = False
     deadline = time.monotonic() + WAIT_S
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline and not (gone and ended):
         ev = watcher.get(1.0)
         if isinstance(ev, Liveliness):
             seen.alive.append(ev)
             if ev.key == keys.alive("runtime"):
-                if not ev.alive:
-                    return seen
-                seen.scenario = watcher.scenario(keys)
+                gone = not ev.alive
+                if ev.alive:
+                    seen.scenario = watcher.scenario(keys)
         elif isinstance(ev, WatchedFrame):
             seen.frames.append(ev)
+            ended = ev.service == "runtime"
             if len(seen.frames) == 100:
                 seen.latest = watcher.latest(keys)  # while it plays
-    raise AssertionError(f"the replay's clock never left; heard {len(seen.frames)} frames")
+    assert gone, f"the replay's clock never left; heard {len(seen.frames)} frames"
+    return seen
 
 
 # -- a realtime launch, recorded in-process and by remote recorders ---------------------------
@@ -192,7 +217,7 @@ class RealtimeRun:
     mid_run: bool  # the launch still ran when the two were stopped
 
 
-KILL_AT_BYTES = 64 * 1024  # the killed recorder's file by then holds a few chunks
+KILL_AT_BYTES = 256 * 1024  # the killed recorder's file by then holds several chunks
 
 
 @pytest.fixture(scope="module")
@@ -279,7 +304,8 @@ def test_a_recorder_killed_mid_run_leaves_a_file_read_up_to_its_last_chunk(
         try:
             for _, channel, message in NonSeekingReader(fh).iter_messages(log_time_order=False):
                 if channel.metadata.get("tidelink") == "frame":
-                    got.append((channel.topic, message.data))
+                    meta = channel.metadata
+                    got.append((f"{meta['service']}/{meta['stream']}", message.data))
         except McapError:
             pass  # the unfinished chunk at the end
     assert len(got) >= 100
@@ -352,3 +378,39 @@ def test_metrics_of_a_recording_with_a_restarted_service_equal_the_runs(tmp_path
     record = rebuild_record(rec, ["ctrl", "filter", "plant", "sensor"])
     assert len(record.stream("filter", "state")) == len(state)
     assert _tidelink_metrics(out / "run.mcap") == _without_wall(_metrics(out / "metrics.json"))
+
+
+CRASHING = """
+[run]
+mission = "tests.helpers.testloop:TestLoop"
+max_time_s = 600.0
+[run.mission_params]
+crash_service = "filter"
+crash_at_s = 1.0
+"""
+
+
+def test_a_launch_that_fails_or_is_stopped_still_closes_its_recording(tmp_path: Path) -> None:
+    failing, stopped = tmp_path / "failing", tmp_path / "stopped"
+    (tmp_path / "crash.toml").write_text(CRASHING)
+    (tmp_path / "loop.toml").write_text(TESTLOOP)
+    try:
+        with Tidelink(
+            "launch", str(tmp_path / "crash.toml"), "--out", str(failing), "--record"
+        ) as t:
+            assert t.wait(WAIT_S) == 1  # the filter crashed: the run failed
+        with Tidelink(
+            "launch", str(tmp_path / "loop.toml"), "--out", str(stopped), "--record"
+        ) as t:
+            t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)
+            t.signal(signal.SIGINT)
+            assert t.wait(WAIT_S) == 130
+    finally:
+        kill_recorded(failing / "pids.json")
+        kill_recorded(stopped / "pids.json")
+    crashed = read_recording(failing / "run.mcap")
+    assert crashed.truncation is None and crashed.end is None  # closed; no end announced
+    assert crashed.frames
+    interrupted = read_recording(stopped / "run.mcap")
+    assert interrupted.truncation is None
+    assert interrupted.end is not None and interrupted.end.reason == "interrupted"

@@ -127,34 +127,34 @@ def test_the_mcap_package_reads_its_channels_schemas_and_metadata(tmp_path: Path
         assert summary is not None
         channels = {c.topic: c for c in summary.channels.values()}
         assert set(channels) == {
-            "sensor/nav",
-            "sensor/nav/routing",
-            "vehicle/truth",
-            "runtime/end",
-            "alive",
+            "/wire/sensor/nav",
+            "/wire/sensor/nav/routing",
+            "/wire/vehicle/truth",
+            "/wire/runtime/end",
+            "/alive",
         }
-        for topic in ("sensor/nav", "vehicle/truth", "runtime/end"):
+        for topic in ("/wire/sensor/nav", "/wire/vehicle/truth", "/wire/runtime/end"):
             assert channels[topic].message_encoding == "msgpack"
         names = {c.topic: summary.schemas[c.schema_id].name for c in channels.values()}
-        assert names["sensor/nav"] == "tidelink.NavFix"
-        assert names["vehicle/truth"] == "tidelink.TruthState"
-        assert names["runtime/end"] == "tidelink.RunEnd"
-        schema = summary.schemas[channels["sensor/nav"].schema_id]
+        assert names["/wire/sensor/nav"] == "tidelink.NavFix"
+        assert names["/wire/vehicle/truth"] == "tidelink.TruthState"
+        assert names["/wire/runtime/end"] == "tidelink.RunEnd"
+        schema = summary.schemas[channels["/wire/sensor/nav"].schema_id]
         assert schema.encoding == "jsonschema"
         doc = json.loads(schema.data)
         assert doc["prefixItems"][0] == {"const": WIRE_VERSION}
         fields = set(doc["$defs"]["NavFix"]["properties"])
         assert fields == {"type", *(f.name for f in msgspec.structs.fields(NavFix))}
         counts = summary.statistics.channel_message_counts  # type: ignore[union-attr]
-        assert counts[channels["sensor/nav"].id] == 30
-        assert counts[channels["sensor/nav/routing"].id] == 30
-        assert counts[channels["vehicle/truth"].id] == 30
+        assert counts[channels["/wire/sensor/nav"].id] == 30
+        assert counts[channels["/wire/sensor/nav/routing"].id] == 30
+        assert counts[channels["/wire/vehicle/truth"].id] == 30
         (meta,) = list(reader.iter_metadata())
         assert meta.name == "tidelink"
         assert meta.metadata["wire_version"] == str(WIRE_VERSION)
         assert (meta.metadata["run"], meta.metadata["vehicle"]) == ("small", "auv1")
         assert json.loads(meta.metadata["scenario"]) == load_scenario(SCENARIO)[1]
-        navs = list(reader.iter_messages(topics=["sensor/nav"]))
+        navs = list(reader.iter_messages(topics=["/wire/sensor/nav"]))
     # raw wire bytes, MCAP sequence = the message's seq, log time = the tap's wall time
     sent = [f for f in frames if f[1] == "nav"]
     assert [m.data for _, _, m in navs] == [f[2] for f in sent]
@@ -337,5 +337,5 @@ def test_layout_names_channels_and_types_every_stream() -> None:
     assert {k for k in types if k[1] == "stats"} == {
         (s, "stats") for s in ("estimator", "planner", "sensor", "vehicle")
     }
-    assert layout.frame_topic("sensor", "nav") == "sensor/nav"
-    assert layout.routing_topic("sensor", "nav") == "sensor/nav/routing"
+    assert layout.frame_topic("sensor", "nav") == "/wire/sensor/nav"
+    assert layout.routing_topic("sensor", "nav") == "/wire/sensor/nav/routing"

@@ -28,9 +28,11 @@ def _say(command: str) -> Callable[[str], None]:
     return say
 
 
-def foxglove_view(scenario: Scenario) -> View | None:
-    """The Foxglove view channels written beside the raw run (None: raw only)."""
-    return None
+def foxglove_view(scenario: Scenario) -> View:
+    """The Foxglove view written beside the raw run, so a recording opens in Foxglove."""
+    from services.foxglove.view import FoxgloveView
+
+    return FoxgloveView(scenario)
 
 
 def _read(path: Path) -> Recording:

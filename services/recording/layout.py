@@ -4,17 +4,19 @@ A recording holds what crossed the wire, byte for byte, so a run can be replayed
 metrics recomputed from the file alone:
 
 - metadata `tidelink`: format, wire_version, run, vehicle, recorder and the scenario (JSON);
-- channel `<service>/<stream>` per stream (message encoding `msgpack`): each MCAP message is
-  a frame as published, `[wire_version, message]`; schema `tidelink.<Type>` (JSON Schema of
-  that array); log_time = when the run's watch tap got it (Unix ns); sequence = the
-  message's seq (mod 2**32, MCAP's field is 32-bit); `runtime/end` carries the RunEnd;
-- channel `<service>/<stream>/routing`: a frame's attachment (the runtime's routing:
+- channel `/wire/<service>/<stream>` per stream (message encoding `msgpack`): each MCAP
+  message is a frame as published, `[wire_version, message]`; schema `tidelink.<Type>` (JSON
+  Schema of that array); log_time = when the run's watch tap got it (Unix ns); sequence =
+  the message's seq (mod 2**32, MCAP's field is 32-bit); `/wire/runtime/end` is the RunEnd;
+- channel `/wire/<service>/<stream>/routing`: a frame's attachment (the runtime's routing:
   `[tick, {receiver: [delivery us, ...]}]`), written right after its frame with the same
   log_time and sequence; frames without an attachment have none;
-- channel `alive` (JSON `{"service": name, "alive": bool}`): liveliness tokens appearing
+- channel `/alive` (JSON `{"service": name, "alive": bool}`): liveliness tokens appearing
   and vanishing, as the recorder saw them;
-- any other channel: the Foxglove view (scene, series) a FoxgloveView made of the frames,
-  so the file opens in Foxglove as it is. Readers of the raw run skip them.
+- any other channel: the Foxglove view (scene, series: services/foxglove/view.py) made of
+  the frames as they were written, so the file opens in Foxglove as it is (Foxglove does
+  not decode msgpack: the /wire channels are for tidelink's tools). Readers of the raw run
+  skip them.
 
 Each channel's metadata says which kind it is (key `tidelink`).
 """
@@ -42,19 +44,24 @@ METADATA = "tidelink"  # the name of the recording's metadata record
 KIND = "tidelink"  # channel metadata key naming the channel's kind:
 FRAME, ROUTING, ALIVE, VIEW = "frame", "routing", "alive", "view"
 RAW_ENCODING = "msgpack"
-ALIVE_TOPIC = "alive"
+ALIVE_TOPIC = "/alive"
 ALIVE_SCHEMA_NAME = "tidelink.Liveliness"
 ROUTING_SCHEMA_NAME = "tidelink.Routing"
 
 StreamTypes = Mapping[tuple[str, str], type[Message]]
 
 
-def frame_topic(service: str, stream: str) -> str:
+def stream_name(service: str, stream: str) -> str:
+    """How reports name a stream: 'sensor/nav'."""
     return f"{service}/{stream}"
 
 
+def frame_topic(service: str, stream: str) -> str:
+    return f"/wire/{service}/{stream}"
+
+
 def routing_topic(service: str, stream: str) -> str:
-    return f"{service}/{stream}/routing"
+    return f"/wire/{service}/{stream}/routing"
 
 
 def stream_types(scenario: Scenario) -> dict[tuple[str, str], type[Message]]:

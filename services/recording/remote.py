@@ -22,12 +22,12 @@ from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import RunEnd, WireError, decode
 from common.runtime.processes.signals import StopRequest
 from services.recording.gaps import SeqGaps
-from services.recording.layout import frame_topic, stream_types
+from services.recording.layout import stream_name, stream_types
 from services.recording.writer import RunInfo, RunWriter, View
 
 POLL_S = 0.2  # how often the loop looks at the stop request when nothing arrives
 SAY_WAITING_AFTER_S = 1.0  # say "no run yet" once nothing was heard for this long
-END_GRACE_S = 1.0  # after the clock's token vanished, for its RunEnd still in flight
+END_GRACE_S = 3.0  # after the clock's token vanished, for its RunEnd still in flight
 
 
 @dataclass
@@ -177,7 +177,7 @@ class RemoteRecorder:
         if count:
             seq = msg.seq if msg is not None else _seq(f.payload)
             if seq is not None:
-                out.gaps.see(frame_topic(f.service, f.stream), seq)
+                out.gaps.see(stream_name(f.service, f.stream), seq)
         if write and (f.service, f.stream) == (CLOCK, END) and isinstance(msg, RunEnd):
             return f"{msg.reason} at t={msg.stamp:.2f} s"
         return None

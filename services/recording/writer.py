@@ -13,7 +13,7 @@ import json
 import logging
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Protocol
@@ -49,20 +49,27 @@ def _compression() -> CompressionType:
 class ViewMessage(Protocol):
     """One message of the Foxglove view (services/foxglove/view.py's ViewMessage)."""
 
-    topic: str
-    schema_name: str
-    schema_encoding: str
-    schema: bytes
-    message_encoding: str
-    data: bytes
+    @property
+    def topic(self) -> str: ...
+    @property
+    def schema_name(self) -> str: ...
+    @property
+    def schema_encoding(self) -> str: ...
+    @property
+    def schema(self) -> bytes: ...
+    @property
+    def message_encoding(self) -> str: ...
+    @property
+    def data(self) -> bytes: ...
 
 
 class View(Protocol):
-    """Turns a run's messages into Foxglove's (services/foxglove/view.py's FoxgloveView)."""
+    """Turns a run's messages into Foxglove's (services/foxglove/view.py's FoxgloveView; the
+    CLI passes one in: the recorder does not depend on the Foxglove package)."""
 
-    def static(self) -> list[ViewMessage]: ...
+    def static(self) -> Sequence[ViewMessage]: ...
 
-    def translate(self, service: str, stream: str, msg: Message) -> list[ViewMessage]: ...
+    def translate(self, service: str, stream: str, msg: Message) -> Sequence[ViewMessage]: ...
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -175,7 +182,7 @@ class RunWriter:
                 {layout.KIND: layout.ROUTING, "service": service, "stream": stream},
             )
             self._w.add_message(rid, log_time=t, data=attachment, publish_time=t, sequence=seq)
-        self.counts[layout.frame_topic(service, stream)] += 1
+        self.counts[layout.stream_name(service, stream)] += 1
         if msg is not None and self._view is not None:
             try:
                 for vm in self._view.translate(service, stream, msg):
