@@ -72,6 +72,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
         return 130
     recorded = [
         f"recording: {r.path} ({r.writer.frames} frames, {r.path.stat().st_size / 1024:.1f} KiB)"
+        + ("" if r.error is None else f"; writing failed: {r.error}")
         for r in recorders
     ]
     if a.json:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,17 +30,17 @@ SAY_WAITING_AFTER_S = 1.0  # say "no run yet" once nothing was heard for this lo
 END_GRACE_S = 3.0  # after the clock's token vanished, for its RunEnd still in flight
 
 
-@dataclass
+@dataclass(frozen=True)
 class RecordOutcome:
     """What a remote recording got: per stream frames and losses, and how it ended."""
 
     path: Path
-    run: str = ""
-    vehicle: str = ""
-    counts: dict[str, int] = field(default_factory=dict)
-    gaps: SeqGaps = field(default_factory=SeqGaps)
-    ended: str = ""
-    size_bytes: int = 0
+    run: str
+    vehicle: str
+    counts: dict[str, int]  # frames written per 'service/stream'
+    gaps: SeqGaps
+    ended: str
+    size_bytes: int
 
 
 class RemoteRecorder:
@@ -65,6 +65,7 @@ class RemoteRecorder:
         self.watcher = Watcher(bus, run, vehicle)
         self.heard: list[WatchedFrame | Liveliness] = []  # before the writer is open
         self.gone_at: float | None = None  # when the run's clock token vanished
+        self.gaps = SeqGaps()
 
     def record(self) -> RecordOutcome | None:
         """Record the first run that shows up; None if stopped before one did."""
@@ -78,15 +79,20 @@ class RemoteRecorder:
         scenario = scenario_from_raw(raw, f"the scenario of run {keys.run}")
         info = RunInfo(run=keys.run, vehicle=keys.vehicle, scenario_raw=raw, recorder="record")
         writer = RunWriter(self.path, info, stream_types(scenario), view=self.view_for(scenario))
-        out = RecordOutcome(self.path, keys.run, keys.vehicle)
         self.say(f"recording run {keys.run}/{keys.vehicle} to {self.path}")
         try:
-            out.ended = self._write(keys, writer, out)
+            ended = self._write(keys, writer)
         finally:
             writer.close()
-            out.counts = dict(writer.counts)
-            out.size_bytes = self.path.stat().st_size
-        return out
+        return RecordOutcome(
+            path=self.path,
+            run=keys.run,
+            vehicle=keys.vehicle,
+            counts=dict(writer.counts),
+            gaps=self.gaps,
+            ended=ended,
+            size_bytes=self.path.stat().st_size,
+        )
 
     def _find_run(self) -> Keys | None:
         """The run of the first clock token or tapped frame heard (others are ignored)."""
@@ -119,7 +125,7 @@ class RemoteRecorder:
                 said = True
         return None
 
-    def _write(self, keys: Keys, writer: RunWriter, out: RecordOutcome) -> str:
+    def _write(self, keys: Keys, writer: RunWriter) -> str:
         """Write the newest frame of every stream (asked for: a late start still gets the path
         in force, the tracks, the vehicle's mode), then every copy heard, until the run ends;
         returns how it ended.
@@ -131,13 +137,13 @@ class RemoteRecorder:
         asked = self.watcher.latest(keys)
         from_query = {f.n for f in asked}
         for f in asked:
-            self._frame(f, keys, writer, out, write=True, count=False)
+            self._frame(f, keys, writer, write=True, count=False)
         while True:
             for ev in self.heard:
                 if isinstance(ev, Liveliness):
                     self._alive(ev, keys, writer)
                     continue
-                ended = self._frame(ev, keys, writer, out, write=ev.n not in from_query)
+                ended = self._frame(ev, keys, writer, write=ev.n not in from_query)
                 if ended is not None:
                     return ended
             self.heard = []
@@ -162,7 +168,6 @@ class RemoteRecorder:
         f: WatchedFrame,
         keys: Keys,
         writer: RunWriter,
-        out: RecordOutcome,
         *,
         write: bool,
         count: bool = True,
@@ -177,7 +182,7 @@ class RemoteRecorder:
         if count:
             seq = msg.seq if msg is not None else _seq(f.payload)
             if seq is not None:
-                out.gaps.see(stream_name(f.service, f.stream), seq)
+                self.gaps.see(stream_name(f.service, f.stream), seq)
         if write and (f.service, f.stream) == (CLOCK, END) and isinstance(msg, RunEnd):
             return f"{msg.reason} at t={msg.stamp:.2f} s"
         return None

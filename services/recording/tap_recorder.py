@@ -73,9 +73,7 @@ class TapRecorder:
                     w.alive(Keys.parse_alive(ev.key)[2], ev.alive, wall)
                 w.flush_if_due()
             except Exception as exc:  # noqa: BLE001 - a failing disk must not stop the run
-                if self.error is None:
-                    self.error = exc
-                    log.error("recording to %s failed: %s (the run goes on)", self.path, exc)
+                self._failed(exc)
 
     def __exit__(
         self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None
@@ -83,7 +81,16 @@ class TapRecorder:
         self.close()
 
     def close(self) -> None:
-        """Write what is queued, then finish the file."""
+        """Write what is queued, then finish the file (a failure is kept in `error`, never
+        raised: the run's own outputs come first)."""
         self._q.put(_STOP)
         self._thread.join()
-        self.writer.close()
+        try:
+            self.writer.close()
+        except Exception as exc:  # noqa: BLE001 - see the docstring
+            self._failed(exc)
+
+    def _failed(self, exc: BaseException) -> None:
+        if self.error is None:
+            self.error = exc
+            log.error("recording to %s failed: %s (the run goes on)", self.path, exc)
