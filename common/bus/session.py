@@ -28,5 +28,14 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
 
 
 def open_session(cfg: BusConfig) -> zenoh.Session:
-    """Open a session; the caller must close it (Bus does, deterministically)."""
-    return zenoh.open(zenoh_config(cfg))
+    """Open a session; the caller must close it (Bus does, deterministically).
+
+    ConnectionError (an OSError: the CLI prints it as one line) when a client cannot reach
+    its router, or the endpoints are refused, naming them."""
+    try:
+        return zenoh.open(zenoh_config(cfg))
+    except zenoh.ZError as exc:
+        where = ", ".join(cfg.connect or cfg.listen) or "(no endpoint)"
+        what = "reach the router at" if cfg.mode == "client" else "open a session on"
+        why = str(exc).split(" at /", 1)[0]  # drop the Rust source location
+        raise ConnectionError(f"cannot {what} {where}: {why}") from None

@@ -136,6 +136,9 @@ class WatchTap:
             n, wall = self._n, time.time()
             att = encode_watch(wall, n, None)
             sinks = list(self._sinks)
+            latest = self.keys.latest(CLOCK, END)
+            self._latest[latest] = RawFrame(latest, data, att)
+            self._latest_n[latest] = n
         for sink in sinks:
             sink(TappedFrame(CLOCK, END, data, None, wall, n))
         try:

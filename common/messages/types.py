@@ -198,21 +198,41 @@ class LinkCounters(WireRecord, frozen=True, kw_only=True):
     dropped_outage: int
     dropped_queue: int
     duplicated: int
-    delay_p50: float
+    delay_p50: float  # modelled delay (the link model's decision), first copy
+    delay_p95: float
     delay_p99: float
 
     def validate(self) -> None:
         for name in ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue"):
             check_range(f"link.{name}", getattr(self, name), 0)
         check_range("link.duplicated", self.duplicated, 0)
-        for name in ("delay_p50", "delay_p99"):
+        for name in ("delay_p50", "delay_p95", "delay_p99"):
             check_range(f"link.{name}", getattr(self, name), 0.0)
 
 
+class MeasuredDelay(WireRecord, frozen=True, kw_only=True):
+    """Delays a receiving service measured on one incoming link: the time each message was
+    handed to its core minus its `sent` stamp. Equal to the modelled delay in virtual time
+    (inproc, lockstep); in realtime it adds the bus's transit and any lateness."""
+
+    link: str
+    delivered: int
+    delay_p50: float
+    delay_p95: float
+    delay_max: float
+
+    def validate(self) -> None:
+        check_range("measured.delivered", self.delivered, 0)
+        for name in ("delay_p50", "delay_p95", "delay_max"):
+            check_range(f"measured.{name}", getattr(self, name), 0.0)
+
+
 class LinkStats(Message, frozen=True, kw_only=True):
-    """Per-link statistics a service publishes on `.../<service>/stats`."""
+    """Per-link statistics a service publishes on `.../<service>/stats`: counters of its
+    outgoing links, and the delays it measured on its incoming ones."""
 
     links: tuple[LinkCounters, ...]
+    measured: tuple[MeasuredDelay, ...] = ()
 
 
 class RunEnd(Message, frozen=True, kw_only=True):

@@ -24,6 +24,7 @@ class LinkStatsSnapshot:
     dropped_queue: int
     duplicated: int  # messages delivered twice
     delay_p50_s: float  # of the first copy; 0.0 until something is delivered
+    delay_p95_s: float
     delay_p99_s: float
     delay_mean_s: float  # exact mean
     delay_max_s: float  # exact maximum
@@ -101,6 +102,7 @@ class LinkStatsAccumulator:
             dropped_queue=self.dropped_queue,
             duplicated=self.duplicated,
             delay_p50_s=self.percentile(0.5),
+            delay_p95_s=self.percentile(0.95),
             delay_p99_s=self.percentile(0.99),
             delay_mean_s=self._sum_delay / self.delivered if self.delivered else 0.0,
             delay_max_s=self._max_delay,

@@ -11,6 +11,7 @@ from services.cli import (
     core_commands,
     graph_commands,
     launch_commands,
+    monitor_commands,
     record_commands,
     sweep_commands,
 )
@@ -20,6 +21,7 @@ COMMAND_MODULES = (
     core_commands,
     graph_commands,
     launch_commands,
+    monitor_commands,
     record_commands,
     sweep_commands,
 )

@@ -101,6 +101,11 @@ def launch(
                 cancelled=lambda: stop.requested,
             )
             display.event(f"router listening on {', '.join(opts.listen) or endpoint}")
+            display.event(
+                f"watch it live from another terminal: tidelink monitor --connect {endpoint} "
+                f"(or tidelink foxglove --connect {endpoint}; other hosts: --listen "
+                "tcp/0.0.0.0:PORT)"
+            )
             remote = [n for n in names if n not in local]
             if remote:
                 where = (opts.listen[0] if opts.listen else endpoint).replace(

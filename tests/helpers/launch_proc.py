@@ -22,8 +22,8 @@ REPO = Path(__file__).resolve().parents[2]
 class Tidelink:
     """`python -m services.cli ARGS` (optionally inside a network namespace)."""
 
-    def __init__(self, *args: str, netns: str | None = None) -> None:
-        cmd = [sys.executable, "-m", "services.cli", *args]
+    def __init__(self, *args: str, netns: str | None = None, cli: bool = True) -> None:
+        cmd = [sys.executable, *(("-m", "services.cli") if cli else ()), *args]
         if netns is not None:
             cmd = ["ip", "netns", "exec", netns, *cmd]
         env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -48,6 +48,11 @@ class Tidelink:
         for t in self._threads:
             t.start()
 
+    @classmethod
+    def python(cls, *args: str) -> Tidelink:
+        """`python ARGS` with the same pipes and clean-up (a helper process of a test)."""
+        return cls(*args, cli=False)
+
     def _read(self, stream: IO[str] | None, lines: list[str]) -> None:
         assert stream is not None
         for line in stream:
@@ -58,12 +63,15 @@ class Tidelink:
             self._open -= 1
             self._cond.notify_all()
 
-    def wait_for(self, pattern: str, timeout_s: float, *, start: int = 0) -> re.Match[str]:
-        """The first stderr line from index `start` on that matches `pattern` (re.search)."""
+    def wait_for(
+        self, pattern: str, timeout_s: float, *, start: int = 0, stdout: bool = False
+    ) -> re.Match[str]:
+        """The first stderr (or stdout) line from index `start` on that matches `pattern`."""
         rx = re.compile(pattern)
+        lines = self.out if stdout else self.err
 
         def found() -> re.Match[str] | None:
-            for line in self.err[start:]:
+            for line in lines[start:]:
                 if m := rx.search(line):
                     return m
             return None

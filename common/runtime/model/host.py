@@ -15,8 +15,10 @@ from __future__ import annotations
 import heapq
 from dataclasses import dataclass
 
-from common.messages import LinkCounters, LinkStats, Message, encode
+from common.config.network import link_name
+from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, encode
 from common.netmodel import NetworkModel
+from common.netmodel.stats import LinkStatsAccumulator
 from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
 from common.runtime.model.dataflow import Dataflow, Input
 
@@ -71,6 +73,8 @@ class Host:
         # (deliver_us, source, stream, seq, copy, sent_tick, msg)
         self._pending: list[tuple[int, str, str, int, int, int, Message]] = []
         self._ready: list[Delivery] = []
+        # delays measured on incoming links (hand-over time - sent), by link name
+        self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
 
@@ -112,9 +116,14 @@ class Host:
             if item[5] >= tick:  # sent in this tick: never delivered in the tick it was sent
                 later.append(item)
                 continue
-            d_us, src, stream, _seq, _copy, _tick, msg = item
+            d_us, src, stream, _seq, copy, _tick, msg = item
             d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
             self.delivered += 1
+            if copy == 0:
+                acc = self._measured.get((src, stream))
+                if acc is None:
+                    acc = self._measured[(src, stream)] = LinkStatsAccumulator()
+                acc.record(msg.sent, (d.t,), None)
             if self._inputs[(src, stream)].wake:
                 emits.extend(self.core.deliver(d))
             else:
@@ -213,8 +222,19 @@ class Host:
                 dropped_queue=s.dropped_queue,
                 duplicated=s.duplicated,
                 delay_p50=s.delay_p50_s,
+                delay_p95=s.delay_p95_s,
                 delay_p99=s.delay_p99_s,
             )
             for name, s in self.net.snapshots().items()
         )
-        return LinkStats(stamp=t, links=links)
+        measured = tuple(
+            MeasuredDelay(
+                link=link_name(src, stream, self.name),
+                delivered=m.delivered,
+                delay_p50=m.delay_p50_s,
+                delay_p95=m.delay_p95_s,
+                delay_max=m.delay_max_s,
+            )
+            for (src, stream), m in sorted((k, a.snapshot()) for k, a in self._measured.items())
+        )
+        return LinkStats(stamp=t, links=links, measured=measured)

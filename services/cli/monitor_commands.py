@@ -1,0 +1,69 @@
+"""`tidelink monitor`: watch live runs on a router, as a terminal dashboard or JSON lines."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+
+
+def cmd_monitor(a: argparse.Namespace) -> int:
+    from common.runtime.processes.signals import stop_on_signals
+    from services.monitor.monitor import Monitor, MonitorOptions, MonitorView
+    from services.monitor.views import DashboardView, JsonLinesView
+
+    opts = MonitorOptions(
+        connect=a.connect,
+        run=a.run,
+        vehicle=a.vehicle,
+        follow=a.follow,
+        rate_hz=a.rate,
+        update_s=a.every,
+        stale_s=a.stale,
+        no_wait=a.no_wait,
+    )
+    with stop_on_signals() as stop:
+        view: MonitorView = JsonLinesView(sys.stdout) if a.json else DashboardView()
+        return Monitor(opts, view, stop).run()
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add monitor to the tidelink parser."""
+    m = sub.add_parser(
+        "monitor",
+        help="watch live runs on a router: vehicle, services, streams, links, alarms",
+        description="Find the runs on a router by their liveliness tokens and watch them "
+        "(all runs unless --run is given, side by side). Exits 0 when the watched runs end, "
+        "unless --follow.",
+    )
+    m.add_argument(
+        "--connect",
+        default=DEFAULT_CONNECT,
+        metavar="ENDPOINT",
+        help=f"the run's router (default {DEFAULT_CONNECT}; `tidelink launch` prints its own)",
+    )
+    m.add_argument("--run", default=None, help="watch only this run id (default: every run)")
+    m.add_argument("--vehicle", default=None, help="watch only this vehicle id (default: every)")
+    m.add_argument("--json", action="store_true", help="one JSON object per event/update")
+    m.add_argument(
+        "--follow", action="store_true", help="keep watching across a run's end and new runs"
+    )
+    m.add_argument(
+        "--rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="thin links: poll each run's latest state HZ times a second (decimated at the run) "
+        "instead of receiving every message",
+    )
+    m.add_argument(
+        "--every", type=float, default=0.5, metavar="S", help="seconds between updates (0.5)"
+    )
+    m.add_argument(
+        "--stale", type=float, default=2.0, metavar="S", help="alarm when a stream is older (2)"
+    )
+    m.add_argument(
+        "--no-wait", action="store_true", help="exit 2 at once if there is no run to watch"
+    )
+    m.set_defaults(func=cmd_monitor)

@@ -1,0 +1,1 @@
+"""`tidelink monitor`: watch live runs from any machine (state, loop, views)."""

@@ -1,0 +1,208 @@
+"""`tidelink monitor`'s loop: find the runs on a router, join each (scenario and latest state),
+follow their tapped frames (or poll their latest state at a fixed rate over a thin link), and
+hand snapshots and events to a view (terminal dashboard or JSON lines)."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+from common.bus import Bus, Keys, Liveliness
+from common.bus.keys import CLOCK
+from common.bus.watcher import WatchedFrame, Watcher
+from common.config.bus import BusConfig
+from common.config.scenario import scenario_from_raw
+from common.messages import WireError, decode
+from common.runtime.processes.signals import StopRequest
+from services.monitor.state import Event, RunState
+
+log = logging.getLogger("tidelink.monitor")
+
+DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
+EXIT_NO_RUN = 2
+
+
+@dataclass(frozen=True, kw_only=True)
+class MonitorOptions:
+    """What to watch and how: `rate_hz` None follows every frame; a rate polls the run's
+    latest state that many times a second instead (decimated at the run, for thin links)."""
+
+    connect: str
+    run: str | None = None
+    vehicle: str | None = None
+    follow: bool = False
+    rate_hz: float | None = None
+    update_s: float = 0.5  # how often snapshots go to the view
+    stale_s: float = 2.0  # a stream older than this raises an alarm
+    no_wait: bool = False
+
+    def __post_init__(self) -> None:
+        if self.rate_hz is not None and not self.rate_hz > 0:
+            raise ValueError(f"--rate: {self.rate_hz!r} must be > 0 (Hz)")
+        if not self.update_s > 0:
+            raise ValueError(f"update period {self.update_s!r} must be > 0 (s)")
+        if not self.stale_s > 0:
+            raise ValueError(f"--stale: {self.stale_s!r} must be > 0 (s)")
+
+
+class MonitorView(Protocol):
+    """Where a monitor's output goes."""
+
+    def notice(self, text: str) -> None:
+        """A line about the monitor itself (waiting for a run, joined one)."""
+
+    def event(self, state: RunState, ev: Event) -> None: ...
+
+    def update(self, states: list[RunState], now: float) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class Monitor:
+    """Watches the runs on one router until they end (or forever with `follow`)."""
+
+    def __init__(self, opts: MonitorOptions, view: MonitorView, stop: StopRequest) -> None:
+        self.opts = opts
+        self.view = view
+        self.stop = stop
+        self.runs: dict[tuple[str, str], RunState] = {}
+        self._after: dict[tuple[str, str], int] = {}  # poll mode: the tap count seen so far
+        self._ended: set[tuple[str, str]] = set()  # --follow: runs shown to their end
+        self.watched_any = False
+
+    def run(self) -> int:
+        """Watch; returns the exit status (0: the watched runs ended; 2: none and --no-wait)."""
+        cfg = BusConfig(mode="client", connect=(self.opts.connect,))
+        with Bus(cfg, Keys("monitor", "monitor")) as bus:
+            watcher = Watcher(bus, self.opts.run, self.opts.vehicle)
+            watcher.start(frames=self.opts.rate_hz is None)
+            try:
+                return self._loop(watcher)
+            finally:
+                self.view.close()
+
+    def _loop(self, watcher: Watcher) -> int:
+        t0 = time.monotonic()
+        told_waiting = False
+        period = self.opts.update_s
+        if self.opts.rate_hz is not None:
+            period = min(period, 1.0 / self.opts.rate_hz)
+        next_update = time.monotonic()
+        while not self.stop.requested:
+            ev = watcher.get(timeout=max(0.0, next_update - time.monotonic()))
+            if ev is not None:
+                self._take(watcher, ev)
+                if time.monotonic() < next_update:
+                    continue
+            next_update = time.monotonic() + period
+            if self.opts.rate_hz is not None:
+                self._poll(watcher)
+            now = time.time()
+            live = list(self.runs.values())
+            for s in live:
+                s.alarms(now)  # raise and clear alarms before their events are drained
+                self._drain(s)
+            if live:
+                self.view.update(live, now)
+            if not self.runs:
+                if time.monotonic() - t0 >= DISCOVERY_S and not told_waiting:
+                    where = self._which()
+                    if self.opts.no_wait:
+                        self.view.notice(f"no run {where} on {self.opts.connect}")
+                        return EXIT_NO_RUN
+                    self.view.notice(f"no run {where} on {self.opts.connect} yet; waiting")
+                    told_waiting = True
+                continue
+            if all(s.over for s in self.runs.values()) and not self.opts.follow:
+                return 0
+            if self.opts.follow:
+                self._forget_ended()
+        return 0
+
+    def _which(self) -> str:
+        if self.opts.run is None:
+            return "at all" if self.opts.vehicle is None else f"with vehicle {self.opts.vehicle}"
+        return f"{self.opts.run}" + (f"/{self.opts.vehicle}" if self.opts.vehicle else "")
+
+    def _state(self, watcher: Watcher, run: str, vehicle: str) -> RunState:
+        """The state of a run, joining it (scenario + latest frames) when first heard of."""
+        key = (run, vehicle)
+        state = self.runs.get(key)
+        if state is not None:
+            return state
+        state = self.runs[key] = RunState(run, vehicle, stale_s=self.opts.stale_s)
+        self.watched_any = True
+        t_join = time.monotonic()
+        keys = Keys(run, vehicle)
+        raw = watcher.scenario(keys)
+        if raw is not None:
+            try:
+                state.scenario = scenario_from_raw(raw)
+            except Exception as exc:  # noqa: BLE001 - a bad scenario must not end the monitor
+                log.warning("run %s/%s: its scenario does not load here: %s", run, vehicle, exc)
+        latest = watcher.latest(keys)
+        for f in latest:
+            self._see(state, f)
+        self._after[key] = max((f.n for f in latest), default=0)
+        joined_in = time.monotonic() - t_join
+        state._event(
+            time.time(),
+            "joined",
+            f"joined {run}/{vehicle}: {len(latest)} latest frames in {joined_in * 1e3:.0f} ms",
+            {
+                "joined_in_s": round(joined_in, 4),
+                "latest_frames": len(latest),
+                "path_id": None if state.path is None else state.path.path_id,
+                "scenario": raw is not None,
+            },
+        )
+        return state
+
+    def _take(self, watcher: Watcher, ev: WatchedFrame | Liveliness) -> None:
+        if isinstance(ev, Liveliness):
+            try:
+                run, vehicle, service = Keys.parse_alive(ev.key)
+            except ValueError:
+                return
+            if service == CLOCK and ev.alive:
+                self._ended.discard((run, vehicle))  # a new run under the same name
+            if (run, vehicle) not in self.runs and (not ev.alive or (run, vehicle) in self._ended):
+                return  # a run is joined when a token of it appears (or its first frame)
+            self._state(watcher, run, vehicle).liveliness(service, ev.alive, time.time())
+            return
+        if (ev.run, ev.vehicle) not in self._ended:
+            self._see(self._state(watcher, ev.run, ev.vehicle), ev)
+
+    def _see(self, state: RunState, f: WatchedFrame) -> None:
+        try:
+            msg = decode(f.payload)
+        except WireError as exc:
+            state.rejected += 1
+            if state.rejected == 1:
+                log.warning("%s/%s: undecodable frame: %s", f.service, f.stream, exc)
+            return
+        state.see(f.service, f.stream, msg, f.wall)
+
+    def _poll(self, watcher: Watcher) -> None:
+        """Thin-link mode: the frames each run's tap got since the last poll, newest only."""
+        for (run, vehicle), state in self.runs.items():
+            if state.over:
+                continue
+            frames = watcher.latest(Keys(run, vehicle), after=self._after.get((run, vehicle), 0))
+            for f in frames:
+                self._see(state, f)
+            if frames:
+                self._after[(run, vehicle)] = max(f.n for f in frames)
+
+    def _drain(self, state: RunState) -> None:
+        for ev in state.take_events():
+            self.view.event(state, ev)
+
+    def _forget_ended(self) -> None:
+        """--follow: a run that ended leaves the dashboard once its end was shown."""
+        for key in [k for k, s in self.runs.items() if s.over]:
+            del self.runs[key]
+            self._after.pop(key, None)
+            self._ended.add(key)

@@ -1,0 +1,312 @@
+"""What a monitor knows of one watched run and vehicle, built from its tapped frames: the
+dashboard's numbers, its alarms, and the events worth a line."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from common.bus.keys import CLOCK, END
+from common.config.scenario import Scenario
+from common.messages import (
+    LinkStats,
+    Message,
+    PathMsg,
+    RunEnd,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    VelocityCommand,
+)
+
+TRUTH_KEEP = 256  # truth samples kept to match estimates by stamp (~25 s at 10 Hz)
+
+
+@dataclass
+class ServiceLife:
+    """A service's liveliness as seen by the monitor: up or gone, since when, restarts."""
+
+    up: bool
+    since: float  # wall time (Unix s) of the last change
+    restarts: int = 0
+
+    @property
+    def state(self) -> str:
+        if not self.up:
+            return "gone"
+        return "restarted" if self.restarts else "up"
+
+
+@dataclass
+class StreamSeen:
+    """The newest frame of one stream: when the run's tap got it, how many so far."""
+
+    wall: float
+    stamp: float
+    count: int = 1
+    first_wall: float = 0.0
+
+    def stale(self, now: float, stale_s: float) -> bool:
+        """Older than stale_s and than 3 of its own mean intervals. A stream seen fewer than
+        3 times is sent on events (a path on each replan), not periodically: never stale."""
+        if self.count < 3:
+            return False
+        mean_gap = (self.wall - self.first_wall) / (self.count - 1)
+        return now - self.wall > max(stale_s, 3 * mean_gap)
+
+
+@dataclass
+class Event:
+    """Something worth a line: a mode change, a service gone, an alarm, the run's end."""
+
+    wall: float
+    kind: str
+    text: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+class RunState:
+    """A monitor's picture of one run and vehicle; `see` and `liveliness` feed it, `snapshot`
+    and `alarms` read it, `take_events` drains what happened since the last call."""
+
+    def __init__(self, run: str, vehicle: str, *, stale_s: float = 2.0) -> None:
+        self.run = run
+        self.vehicle = vehicle
+        self.stale_s = stale_s
+        self.scenario: Scenario | None = None
+        self.t_mission = 0.0
+        self.truth: TruthState | None = None
+        self.estimate: StateEstimate | None = None
+        self.status: VehicleStatus | None = None
+        self.command: VelocityCommand | None = None
+        self.path: PathMsg | None = None
+        self.paths_seen: set[int] = set()
+        self.est_error_m: float | None = None
+        self.streams: dict[str, StreamSeen] = {}
+        self.services: dict[str, ServiceLife] = {}
+        self.links: dict[str, dict[str, Any]] = {}
+        self.end: RunEnd | None = None
+        self.rejected = 0  # frames that did not decode
+        self._truths: deque[TruthState] = deque(maxlen=TRUTH_KEEP)
+        self._events: list[Event] = []
+        self._alarms: set[str] = set()
+
+    # -- input -------------------------------------------------------------------------------
+    def see(self, service: str, stream: str, msg: Message, wall: float) -> None:
+        """Take one decoded frame the run's tap got at `wall` (Unix seconds)."""
+        key = f"{service}/{stream}"
+        seen = self.streams.get(key)
+        if seen is None:
+            self.streams[key] = StreamSeen(wall, msg.stamp, first_wall=wall)
+        else:
+            seen.count += 1
+            if wall >= seen.wall:
+                seen.wall, seen.stamp = wall, msg.stamp
+        if not isinstance(msg, RunEnd):
+            self.t_mission = max(self.t_mission, msg.stamp)
+        if isinstance(msg, TruthState):
+            self._see_truth(msg)
+        elif isinstance(msg, StateEstimate):
+            self._see_estimate(msg)
+        elif isinstance(msg, VehicleStatus):
+            self._see_status(msg, wall)
+        elif isinstance(msg, PathMsg):
+            self._see_path(msg, wall)
+        elif isinstance(msg, VelocityCommand):
+            if self.command is None or msg.stamp >= self.command.stamp:
+                self.command = msg
+        elif isinstance(msg, LinkStats):
+            # a link's counters and modelled delays come from its sender, its measured
+            # delays from its receiver: two services' stats fill one row
+            for c in msg.links:
+                self.links.setdefault(c.link, {}).update(
+                    {
+                        "sent": c.sent,
+                        "delivered": c.delivered,
+                        "lost": c.dropped_loss + c.dropped_outage + c.dropped_queue,
+                        "modelled_p50_s": c.delay_p50,
+                        "modelled_p95_s": c.delay_p95,
+                    }
+                )
+            for d in msg.measured:
+                self.links.setdefault(d.link, {}).update(
+                    {"measured_p50_s": d.delay_p50, "measured_p95_s": d.delay_p95}
+                )
+        elif isinstance(msg, RunEnd):
+            self.end = msg
+            self._event(wall, "end", f"run ended at t={msg.stamp:.2f} s: {msg.reason}")
+
+    def _see_truth(self, msg: TruthState) -> None:
+        if self.truth is None or msg.stamp >= self.truth.stamp:
+            self.truth = msg
+        self._truths.append(msg)
+        if self.estimate is not None:
+            self._match_estimate(self.estimate)
+
+    def _see_estimate(self, msg: StateEstimate) -> None:
+        if self.estimate is None or msg.stamp >= self.estimate.stamp:
+            self.estimate = msg
+        self._match_estimate(msg)
+
+    def _match_estimate(self, est: StateEstimate) -> None:
+        """An estimate's position error against the truth sample nearest its stamp."""
+        if not self._truths:
+            return
+        near = min(self._truths, key=lambda t: abs(t.stamp - est.stamp))
+        # truth and estimate run at their own periods: only compare samples close in time
+        if abs(near.stamp - est.stamp) <= 0.2:
+            self.est_error_m = math.hypot(near.x - est.x, near.y - est.y)
+
+    def _see_status(self, msg: VehicleStatus, wall: float) -> None:
+        old = self.status
+        if old is not None and msg.stamp < old.stamp:
+            return
+        self.status = msg
+        if old is None:
+            # a late joiner learns the last mode change from the status itself
+            self._event(
+                wall,
+                "mode",
+                f"mode {msg.mode} since t={msg.mode_since:.2f} s",
+                {"mode": msg.mode, "since": msg.mode_since},
+            )
+        elif old.mode != msg.mode:
+            self._event(
+                wall,
+                "mode",
+                f"mode {old.mode} -> {msg.mode} at t={msg.mode_since:.2f} s",
+                {"mode": msg.mode, "from": old.mode, "since": msg.mode_since},
+            )
+
+    def _see_path(self, msg: PathMsg, wall: float) -> None:
+        if msg.path_id in self.paths_seen:
+            return
+        self.paths_seen.add(msg.path_id)
+        old = self.path
+        if old is not None and msg.path_id < old.path_id:
+            return  # an older path arriving late: the one in force stays
+        self.path = msg
+        text = f"path {msg.path_id} {msg.status}"
+        if msg.status == "OK":
+            text += f" ({msg.length:.1f} m)"
+        else:
+            text += f" ({msg.reason})"
+        self._event(
+            wall,
+            "path",
+            text,
+            {"path_id": msg.path_id, "status": msg.status, "reason": msg.reason},
+        )
+
+    def liveliness(self, service: str, alive: bool, wall: float) -> None:
+        """A service's token appeared or vanished."""
+        life = self.services.get(service)
+        if life is None:
+            self.services[service] = ServiceLife(alive, wall)
+            self._event(wall, "service", f"{service} {'up' if alive else 'gone'}")
+            return
+        if life.up == alive:
+            return
+        life.up, life.since = alive, wall
+        if alive:
+            life.restarts += 1
+            self._event(wall, "service", f"{service} restarted (restart {life.restarts})")
+        else:
+            self._event(wall, "service", f"{service} gone")
+
+    @property
+    def over(self) -> bool:
+        """The run ended: its RunEnd arrived or its clock's token vanished."""
+        clock = self.services.get(CLOCK)
+        return self.end is not None or (clock is not None and not clock.up)
+
+    # -- output ------------------------------------------------------------------------------
+    def to_goal_m(self) -> float | None:
+        if self.truth is None or self.scenario is None:
+            return None
+        g = self.scenario.world.goal
+        return math.hypot(self.truth.x - g.x_m, self.truth.y - g.y_m)
+
+    def alarms(self, now: float) -> list[str]:
+        """What needs a person's attention now (sorted); raising or clearing one is an event."""
+        out = []
+        for name, life in self.services.items():
+            if not life.up and not self.over:
+                out.append(f"service {name} gone")
+        if not self.over:
+            for key, seen in self.streams.items():
+                if key != f"{CLOCK}/{END}" and seen.stale(now, self.stale_s):
+                    out.append(f"stream {key} stale")
+        if self.status is not None and self.status.mode == "FAILSAFE":
+            out.append("vehicle FAILSAFE")
+        if self.path is not None and self.path.status == "NO_PATH":
+            out.append(f"NO_PATH: {self.path.reason}")
+        now_set = set(out)
+        for a in sorted(now_set - self._alarms):
+            self._event(now, "alarm", a, {"raised": True})
+        for a in sorted(self._alarms - now_set):
+            self._event(now, "alarm", f"cleared: {a}", {"raised": False})
+        self._alarms = now_set
+        return sorted(out)
+
+    def _event(self, wall: float, kind: str, text: str, data: dict[str, Any] | None = None) -> None:
+        self._events.append(Event(wall, kind, text, data or {}))
+
+    def take_events(self) -> list[Event]:
+        out, self._events = self._events, []
+        return out
+
+    def snapshot(self, now: float) -> dict[str, Any]:
+        """Everything the dashboard shows, as JSON-able data (`tidelink monitor --json`)."""
+        pose = None
+        if self.truth is not None:
+            t = self.truth
+            pose = {"x": t.x, "y": t.y, "theta": t.theta, "stamp": t.stamp}
+        est = None
+        if self.estimate is not None:
+            e = self.estimate
+            est = {"x": e.x, "y": e.y, "theta": e.theta, "stamp": e.stamp}
+        path = None
+        if self.path is not None:
+            p = self.path
+            path = {
+                "path_id": p.path_id,
+                "status": p.status,
+                "reason": p.reason,
+                "length_m": p.length,
+                "replans": max(0, len(self.paths_seen) - 1),
+            }
+        status = self.status
+        return {
+            "run": self.run,
+            "vehicle": self.vehicle,
+            "t_mission": self.t_mission,
+            "mode": None if status is None else status.mode,
+            "mode_since": None if status is None else status.mode_since,
+            "pose": pose,
+            "estimate": est,
+            "speed_mps": None if self.truth is None else self.truth.v,
+            "to_goal_m": self.to_goal_m(),
+            "est_error_m": self.est_error_m,
+            "command": None
+            if self.command is None
+            else {"v": self.command.v, "w": self.command.w, "stamp": self.command.stamp},
+            "command_age_s": None if status is None else status.command_age,
+            "path": path,
+            "streams": {
+                k: {"age_s": round(now - s.wall, 3), "count": s.count, "stamp": s.stamp}
+                for k, s in sorted(self.streams.items())
+            },
+            "services": {
+                k: {"state": life.state, "since": life.since, "restarts": life.restarts}
+                for k, life in sorted(self.services.items())
+            },
+            "links": dict(sorted(self.links.items())),
+            "alarms": self.alarms(now),
+            "end": None
+            if self.end is None
+            else {"reason": self.end.reason, "t_end_s": self.end.stamp, "ticks": self.end.ticks},
+            "rejected": self.rejected,
+        }

@@ -1,0 +1,162 @@
+"""How `tidelink monitor` shows what it watches: JSON lines for scripts, a rich dashboard for
+people (one panel per run and vehicle, side by side)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from typing import IO, Any
+
+from services.monitor.state import Event, RunState
+
+
+class JsonLinesView:
+    """One JSON object per line on `out`: {"type": "event"|"update"|"notice", ...}."""
+
+    def __init__(self, out: IO[str]) -> None:
+        self.out = out
+
+    def _write(self, obj: dict[str, Any]) -> None:
+        # NaN/inf are not JSON: a value a script cannot parse is worse than null
+        self.out.write(json.dumps(_finite(obj), allow_nan=False) + "\n")
+        self.out.flush()
+
+    def notice(self, text: str) -> None:
+        self._write({"type": "notice", "wall": time.time(), "text": text})
+
+    def event(self, state: RunState, ev: Event) -> None:
+        self._write(
+            {
+                "type": "event",
+                "wall": ev.wall,
+                "run": state.run,
+                "vehicle": state.vehicle,
+                "event": ev.kind,
+                "text": ev.text,
+                **ev.data,
+            }
+        )
+
+    def update(self, states: list[RunState], now: float) -> None:
+        for s in states:
+            self._write({"type": "update", "wall": now, **s.snapshot(now)})
+
+    def close(self) -> None:
+        self.out.flush()
+
+
+def _finite(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_finite(x) for x in v]
+    return v
+
+
+class DashboardView:
+    """A live terminal dashboard (rich): a panel per run, events scrolling above."""
+
+    MAX_EVENTS = 8
+
+    def __init__(self, out: IO[str] | None = None) -> None:
+        from rich.console import Console
+        from rich.live import Live
+
+        self.console = Console(file=out or sys.stdout)
+        self.live = Live(console=self.console, refresh_per_second=4, transient=False)
+        self.events: list[str] = []
+        self.live.start()
+
+    def notice(self, text: str) -> None:
+        self.console.print(f"[dim]{time.strftime('%H:%M:%S')}[/] {text}", highlight=False)
+
+    def event(self, state: RunState, ev: Event) -> None:
+        stamp = time.strftime("%H:%M:%S", time.localtime(ev.wall))
+        line = f"{stamp} {state.run}/{state.vehicle}: {ev.text}"
+        self.events = (self.events + [line])[-self.MAX_EVENTS :]
+
+    def update(self, states: list[RunState], now: float) -> None:
+        from rich.columns import Columns
+        from rich.console import Group
+        from rich.text import Text
+
+        panels = [_panel(s.snapshot(now)) for s in states]
+        log = Text("\n".join(self.events) or "(no events yet)", style="dim")
+        self.live.update(Group(Columns(panels, equal=True, expand=True), log))
+
+    def close(self) -> None:
+        self.live.stop()
+
+
+def _num(v: float | None, fmt: str = ".2f", unit: str = "") -> str:
+    return "-" if v is None else f"{v:{fmt}}{unit}"
+
+
+def _ms_pair(a: float | None, b: float | None) -> str:
+    if a is None or b is None:
+        return "-"
+    return f"{a * 1e3:.0f}/{b * 1e3:.0f} ms"
+
+
+def _panel(snap: dict[str, Any]) -> Any:
+    """One run's panel: vehicle, services, streams, links and alarms."""
+    from rich.console import Group
+    from rich.panel import Panel
+    from rich.table import Table
+
+    head = Table.grid(padding=(0, 2))
+    head.add_column(style="bold")
+    head.add_column()
+    mode = snap["mode"] or "-"
+    style = {"RUN": "green", "HOLD": "yellow", "FAILSAFE": "bold red"}.get(mode, "")
+    head.add_row("mode", f"[{style}]{mode}[/]" if style else mode)
+    pose = snap["pose"]
+    head.add_row(
+        "pose",
+        "-"
+        if pose is None
+        else f"x {pose['x']:.1f} m  y {pose['y']:.1f} m  hdg {math.degrees(pose['theta']):.0f}°",
+    )
+    head.add_row("speed", _num(snap["speed_mps"], ".2f", " m/s"))
+    head.add_row("to goal", _num(snap["to_goal_m"], ".1f", " m"))
+    path = snap["path"]
+    head.add_row(
+        "path",
+        "-"
+        if path is None
+        else f"{path['status']} #{path['path_id']}  {path['replans']} replans"
+        + (f"  ({path['reason']})" if path["reason"] else ""),
+    )
+    head.add_row("estimate error", _num(snap["est_error_m"], ".2f", " m"))
+    head.add_row("mission time", _num(snap["t_mission"], ".1f", " s"))
+    if snap["end"] is not None:
+        head.add_row("ended", f"{snap['end']['reason']} at t={snap['end']['t_end_s']:.1f} s")
+
+    services = Table("service", "state", "since", "restarts", box=None, pad_edge=False)
+    for name, sv in snap["services"].items():
+        color = {"up": "green", "gone": "red", "restarted": "yellow"}[sv["state"]]
+        since = time.strftime("%H:%M:%S", time.localtime(sv["since"]))
+        services.add_row(name, f"[{color}]{sv['state']}[/]", since, str(sv["restarts"]))
+
+    streams = Table("stream", "age", "count", box=None, pad_edge=False)
+    for key, st in snap["streams"].items():
+        streams.add_row(key, f"{st['age_s']:.1f} s", str(st["count"]))
+
+    links = Table("link", "sent", "deliv.", "lost", "model p50/p95", "measured p50/p95", box=None)
+    for name, ln in snap["links"].items():
+        links.add_row(
+            name,
+            str(ln.get("sent", "-")),
+            str(ln.get("delivered", "-")),
+            str(ln.get("lost", "-")),
+            _ms_pair(ln.get("modelled_p50_s"), ln.get("modelled_p95_s")),
+            _ms_pair(ln.get("measured_p50_s"), ln.get("measured_p95_s")),
+        )
+    alarms = snap["alarms"]
+    alarm_text = "\n".join(f"[bold red]! {a}[/]" for a in alarms) or "[green]no alarms[/]"
+    body = Group(head, "", services, "", streams, "", links, "", alarm_text)
+    return Panel(body, title=f"{snap['run']}/{snap['vehicle']}", border_style="blue")

@@ -1,0 +1,125 @@
+"""`tidelink monitor` against real launches: late join, the end of a run, no run, and a
+monitor that stops reading (SIGSTOP) leaving the mission's outcome unchanged.
+
+Everything is real: the launcher, its router and four service processes over Zenoh, and the
+monitor as its own process. Waits are on lines the processes print, with timeouts.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers.launch_proc import Tidelink, kill_recorded
+
+from common.config.scenario import load_scenario
+from common.runtime.model.inproc import run_inproc
+from common.runtime.processes.children import free_port
+
+pytestmark = pytest.mark.slow
+
+WAIT_S = 60.0
+DEFAULT = "configs/default.toml"
+
+
+def _lines(t: Tidelink) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in t.stdout.splitlines() if line.startswith("{")]
+
+
+def _metrics(out: Path) -> dict[str, Any]:
+    return dict(json.loads((out / "metrics.json").read_text()))
+
+
+@pytest.fixture
+def out(tmp_path: Path) -> Any:
+    d = tmp_path / "run"
+    yield d
+    kill_recorded(d / "pids.json")
+
+
+def test_a_monitor_joining_mid_run_gets_the_path_in_force_at_once_and_exits_at_the_end(
+    out: Path,
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "4", "--out", str(out)]
+    with Tidelink(*launch) as run:
+        run.wait_for(r"mission clock started", WAIT_S)
+        run.wait_for(r"t=\s*\d*[3-9]\.\d+ s of", WAIT_S)  # mid-run: the path was planned at t=0
+        with Tidelink("monitor", "--connect", endpoint, "--json", "--every", "0.25") as mon:
+            m = mon.wait_for(r'"event": "joined"', 15.0, stdout=True)
+            joined = json.loads(m.string)
+            # the path is not re-sent until a replan: only the late-join query can give it
+            assert joined["path_id"] is not None, joined
+            assert joined["scenario"] is True
+            assert joined["joined_in_s"] < 1.0, joined
+            assert mon.wait(WAIT_S) == 0, mon.stderr  # exits by itself when the run ends
+        assert run.wait(WAIT_S) == 0, run.stderr
+    lines = _lines(mon)
+    updates = [x for x in lines if x["type"] == "update"]
+    assert updates and updates[0]["path"]["path_id"] >= 1
+    assert updates[0]["mode"] in ("RUN", "HOLD")  # from the latest status, at join
+    assert updates[0]["to_goal_m"] is not None
+    assert {"sensor", "estimator", "planner", "vehicle", "runtime"} <= set(updates[0]["services"])
+    assert updates[-1]["end"]["reason"] == _metrics(out)["end_reason"]
+    ends = [x for x in lines if x["type"] == "event" and x["event"] == "end"]
+    assert len(ends) == 1
+
+
+def test_a_monitor_without_a_run_says_so_and_waits_or_exits_2(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with Tidelink("router", "--listen", endpoint) as router:
+        router.wait_for(r"listening", WAIT_S, stdout=True)
+        with Tidelink("monitor", "--connect", endpoint, "--json", "--no-wait") as mon:
+            assert mon.wait(WAIT_S) == 2
+        (notice,) = [x for x in _lines(mon) if x["type"] == "notice"]
+        assert "no run" in notice["text"] and endpoint in notice["text"]
+        with Tidelink("monitor", "--connect", endpoint, "--json", "--run", "nosuch") as mon:
+            mon.wait_for(r"no run nosuch .* yet; waiting", 15.0, stdout=True)
+            mon.signal(signal.SIGTERM)
+            assert mon.wait(15.0) == 0  # a clean stop on SIGTERM
+        router.signal(signal.SIGINT)
+        router.wait(15.0)
+
+
+def _with_a_stopped_monitor(launch: list[str], endpoint: str) -> tuple[int, str]:
+    """Run a launch while a monitor that joined is SIGSTOPped; (launch exit code, stderr)."""
+    with Tidelink(*launch) as run:
+        run.wait_for(r"router listening", WAIT_S)
+        with Tidelink("monitor", "--connect", endpoint, "--json", "--every", "0.1") as mon:
+            mon.wait_for(r'"event": "joined"', WAIT_S, stdout=True)
+            mon.signal(signal.SIGSTOP)  # it stops reading: its socket fills, the tap drops
+            try:
+                code = run.wait(WAIT_S * 2)
+            finally:
+                mon.signal(signal.SIGCONT)
+        return code, run.stderr
+
+
+def test_a_sigstopped_monitor_leaves_a_lockstep_trajectory_bit_identical(
+    tmp_path: Path, out: Path
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    # a slower lockstep run (the coordinator waits for a monitor-free wall pace anyway)
+    launch = ["launch", DEFAULT, "--runtime", "lockstep", "--listen", endpoint, "--out", str(out)]
+    code, err = _with_a_stopped_monitor(launch, endpoint)
+    assert code == 0, err
+    s, _ = load_scenario(DEFAULT)
+    expected = run_inproc(s).metrics["trajectory_sha256"]
+    assert _metrics(out)["trajectory_sha256"] == expected
+
+
+def test_a_sigstopped_monitor_leaves_a_realtime_outcome_unchanged(
+    tmp_path: Path, out: Path
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "4", "--out", str(out)]
+    code, err = _with_a_stopped_monitor(launch, endpoint)
+    assert code == 0, err
+    m = _metrics(out)
+    s, _ = load_scenario(DEFAULT)
+    expected = run_inproc(s).metrics
+    assert m["end_reason"] == "goal" and m["reached_goal"] is expected["reached_goal"] is True
+    assert m["collisions"] == expected["collisions"] == 0

@@ -1,0 +1,182 @@
+"""RunState, the monitor's picture of a run: events, alarms, late-join facts, JSON output."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+
+import pytest
+from helpers.samples import one_of_each
+
+from common.bus import RawFrame
+from common.bus.watcher import watched
+from common.config.scenario import load_scenario
+from common.messages import (
+    LinkCounters,
+    LinkStats,
+    MeasuredDelay,
+    PathMsg,
+    RunEnd,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    WireError,
+    encode_watch,
+    replace,
+)
+from services.monitor.state import RunState
+from services.monitor.views import JsonLinesView
+
+SAMPLES = {type(m).__name__: m for m in one_of_each()}
+
+
+def _state() -> RunState:
+    s = RunState("demo", "auv1", stale_s=1.0)
+    s.scenario, _ = load_scenario("configs/default.toml")
+    return s
+
+
+def _status(t: float, mode: str, since: float) -> VehicleStatus:
+    base = SAMPLES["VehicleStatus"]
+    assert isinstance(base, VehicleStatus)
+    return replace(base, stamp=t, mode=mode, mode_since=since)  # type: ignore[return-value]
+
+
+def test_a_late_joiner_learns_the_mode_and_when_it_last_changed_from_one_status() -> None:
+    s = _state()
+    s.see("vehicle", "status", _status(30.0, "HOLD", 27.5), wall=100.0)
+    (ev,) = s.take_events()
+    assert ev.kind == "mode" and ev.data == {"mode": "HOLD", "since": 27.5}
+    s.see("vehicle", "status", _status(30.1, "HOLD", 27.5), wall=100.1)
+    assert s.take_events() == []  # no change, no event
+    s.see("vehicle", "status", _status(30.2, "FAILSAFE", 30.2), wall=100.2)
+    (ev,) = s.take_events()
+    assert ev.data["from"] == "HOLD" and ev.data["mode"] == "FAILSAFE"
+    assert "vehicle FAILSAFE" in s.alarms(now=100.2)
+
+
+def test_the_path_in_force_is_the_newest_id_and_replans_are_counted_once() -> None:
+    s = _state()
+    p = SAMPLES["PathMsg"]
+    assert isinstance(p, PathMsg)
+    s.see("planner", "path", replace(p, path_id=3), wall=10.0)
+    s.see("planner", "path", replace(p, path_id=2), wall=10.1)  # older, arriving late
+    s.see("planner", "path", replace(p, path_id=3), wall=10.2)  # the same one again (latest)
+    snap = s.snapshot(now=10.3)
+    assert snap["path"]["path_id"] == 3
+    assert snap["path"]["replans"] == 1  # two distinct paths seen
+    no_path = replace(p, path_id=4, status="NO_PATH", reason="blocked")
+    s.see("planner", "path", no_path, wall=11.0)
+    assert "NO_PATH: blocked" in s.alarms(now=11.0)
+
+
+def test_estimate_error_compares_samples_close_in_time_only() -> None:
+    s = _state()
+    est = SAMPLES["StateEstimate"]
+    assert isinstance(est, StateEstimate)
+    truth = TruthState(stamp=5.0, x=10.0, y=0.0, theta=0.0, v=1.0, w=0.0)
+    s.see("vehicle", "truth", truth, wall=1.0)
+    s.see("estimator", "state", replace(est, stamp=9.0, x=13.0, y=4.0), wall=1.1)
+    assert s.est_error_m is None  # 4 s apart: not comparable
+    s.see("estimator", "state", replace(est, stamp=5.05, x=13.0, y=4.0), wall=1.2)
+    assert s.est_error_m == pytest.approx(5.0)
+    assert s.to_goal_m() is not None
+
+
+def test_a_periodic_stream_goes_stale_but_an_event_stream_never_does() -> None:
+    s = _state()
+    truth = TruthState(stamp=0.0, x=0.0, y=0.0, theta=0.0, v=0.0, w=0.0)
+    for i in range(5):
+        s.see("vehicle", "truth", replace(truth, stamp=i * 0.1), wall=100.0 + i * 0.1)
+    s.see("planner", "path", SAMPLES["PathMsg"], wall=100.0)
+    assert s.alarms(now=100.5) == []
+    assert s.alarms(now=102.0) == ["stream vehicle/truth stale"]
+    raised = [e for e in s.take_events() if e.kind == "alarm"]
+    assert [e.data["raised"] for e in raised] == [True]
+    s.see("vehicle", "truth", replace(truth, stamp=2.0), wall=102.0)
+    assert s.alarms(now=102.0) == []
+    cleared = [e for e in s.take_events() if e.kind == "alarm"]
+    assert cleared and cleared[-1].data == {"raised": False}
+
+
+def test_liveliness_tells_up_gone_and_restarted_and_the_clock_ends_the_run() -> None:
+    s = _state()
+    s.liveliness("runtime", True, 1.0)
+    s.liveliness("planner", True, 1.0)
+    s.liveliness("planner", False, 2.0)
+    assert "service planner gone" in s.alarms(now=2.0)
+    s.liveliness("planner", True, 3.0)
+    snap = s.snapshot(now=3.0)
+    assert snap["services"]["planner"] == {"state": "restarted", "since": 3.0, "restarts": 1}
+    assert not s.over
+    s.liveliness("runtime", False, 4.0)
+    assert s.over
+
+
+def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_json() -> None:
+    s = _state()
+    link = LinkCounters(
+        link="planner/cmd->vehicle",
+        sent=10,
+        delivered=7,
+        dropped_loss=2,
+        dropped_outage=1,
+        dropped_queue=0,
+        duplicated=0,
+        delay_p50=0.05,
+        delay_p95=0.08,
+        delay_p99=0.09,
+    )
+    s.see("planner", "stats", LinkStats(stamp=1.0, links=(link,)), wall=1.0)
+    s.see("runtime", "end", RunEnd(stamp=65.5, reason="goal", ticks=0), wall=2.0)
+    s.est_error_m = math.nan  # what a diverged filter could leave: must not break JSON
+    out = io.StringIO()
+    JsonLinesView(out).update([s], now=2.0)
+    snap = json.loads(out.getvalue())
+    assert snap["type"] == "update"
+    assert snap["links"]["planner/cmd->vehicle"]["lost"] == 3
+    assert snap["links"]["planner/cmd->vehicle"]["modelled_p95_s"] == 0.08
+    measured = MeasuredDelay(
+        link="planner/cmd->vehicle", delivered=7, delay_p50=0.06, delay_p95=0.1, delay_max=0.2
+    )
+    s.see("vehicle", "stats", LinkStats(stamp=1.0, links=(), measured=(measured,)), wall=1.0)
+    row = s.snapshot(now=2.0)["links"]["planner/cmd->vehicle"]
+    assert (row["sent"], row["measured_p50_s"], row["measured_p95_s"]) == (10, 0.06, 0.1)
+    assert snap["end"] == {"reason": "goal", "t_end_s": 65.5, "ticks": 0}
+    assert snap["est_error_m"] is None
+    assert s.over
+
+
+def test_a_watched_frame_needs_a_watch_key_and_the_taps_attachment() -> None:
+    payload = b"\x92\x03\x80"
+    att = encode_watch(12.5, 7, b"routing")
+    f = watched(RawFrame("tidelink/demo/auv1/watch/vehicle/truth", payload, att))
+    assert (f.run, f.vehicle, f.service, f.stream, f.wall, f.n) == (
+        "demo",
+        "auv1",
+        "vehicle",
+        "truth",
+        12.5,
+        7,
+    )
+    assert f.attachment == b"routing"
+    with pytest.raises(ValueError, match="not a tidelink watch"):
+        watched(RawFrame("tidelink/demo/auv1/vehicle/truth", payload, att))
+    with pytest.raises(WireError, match="without the tap's attachment"):
+        watched(RawFrame("tidelink/demo/auv1/watch/vehicle/truth", payload, None))
+    with pytest.raises(WireError, match="malformed watch attachment"):
+        watched(RawFrame("tidelink/demo/auv1/watch/vehicle/truth", payload, b"\xc1junk"))
+
+
+def test_a_monitor_without_a_router_fails_with_one_line_naming_the_endpoint(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from common.runtime.processes.children import free_port
+    from services.cli import main
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nobody listens there
+    assert main(["monitor", "--connect", endpoint, "--json", "--no-wait"]) == 1
+    err = capsys.readouterr().err
+    assert f"cannot reach the router at {endpoint}" in err
+    assert "Traceback" not in err
