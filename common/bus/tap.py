@@ -55,6 +55,7 @@ class WatchTap:
         self.bus = bus
         self.keys = keys
         self._lock = threading.Lock()
+        self._taken = threading.Condition(self._lock)  # notified per frame (see caught_up)
         self._n = 0
         self._latest: dict[str, RawFrame] = {}  # latest key -> frame as a query reply
         self._latest_n: dict[str, int] = {}
@@ -77,6 +78,16 @@ class WatchTap:
         """Frames tapped so far."""
         return self._n
 
+    def caught_up(self, count: int, *, timeout_s: float) -> bool:
+        """Wait until `count` frames have been tapped (False after `timeout_s` without).
+
+        The tap's subscription and the driver's are served by different Zenoh callbacks:
+        when the driver has recorded its last frame, the tap may not have seen it yet. Ending
+        the tap then would leave that frame out of every watcher's and recorder's view.
+        """
+        with self._taken:
+            return self._taken.wait_for(lambda: self._n >= count, timeout_s)
+
     def _take(self, f: RawFrame) -> None:
         service, stream = self.keys.split(f.key)
         if service == CLOCK:
@@ -85,6 +96,7 @@ class WatchTap:
             if self._closed:
                 return
             self._n += 1
+            self._taken.notify_all()
             n, wall = self._n, time.time()
             att = encode_watch(wall, n, f.attachment)
             latest = self.keys.latest(service, stream)

@@ -9,6 +9,7 @@ from typing import Any
 
 from common.config.scenario import Scenario
 from common.runtime.model.inproc import run_inproc
+from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
 
 
@@ -41,11 +42,9 @@ def _clean(v: Any) -> Any:
     return v
 
 
-def write_outputs(
-    result: RunResult, scenario: Scenario, out: Path, *, wall_s: float
-) -> dict[str, Any]:
-    """Write out/metrics.json (atomically) and return the metrics with the run's facts added."""
-    out.mkdir(parents=True, exist_ok=True)
+def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) -> dict[str, Any]:
+    """The mission's metrics with the run's facts added (JSON-safe); `wall_s` None leaves the
+    wall-clock duration out (a recording's metrics: it is not in the recording)."""
     metrics = dict(result.metrics)
     metrics.update(
         {
@@ -54,26 +53,36 @@ def write_outputs(
             "ticks": result.ticks,
             "runtime": scenario.runtime.kind,
             "seed": scenario.run.seed,
-            "wall_s": round(wall_s, 3),
-            "link_stats": link_stats(result),
+            "link_stats": link_stats(result.record),
         }
     )
-    metrics = _clean(metrics)
+    if wall_s is not None:
+        metrics["wall_s"] = round(wall_s, 3)
+    cleaned: dict[str, Any] = _clean(metrics)
+    return cleaned
+
+
+def write_outputs(
+    result: RunResult, scenario: Scenario, out: Path, *, wall_s: float
+) -> dict[str, Any]:
+    """Write out/metrics.json (atomically) and return the metrics with the run's facts added."""
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = run_metrics(result, scenario, wall_s=wall_s)
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
     tmp.replace(out / "metrics.json")
     return metrics
 
 
-def link_stats(result: RunResult) -> dict[str, dict[str, Any]]:
+def link_stats(record: Record) -> dict[str, dict[str, Any]]:
     """The last LinkStats of every service, by link name."""
     from common.messages import LinkStats
 
     out: dict[str, dict[str, Any]] = {}
-    for service, stream in result.record.keys():
+    for service, stream in record.keys():
         if stream != "stats":
             continue
-        msgs = [m for m in result.record.stream(service, stream) if isinstance(m, LinkStats)]
+        msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
         if msgs:
             for c in msgs[-1].links:
                 out[c.link] = {

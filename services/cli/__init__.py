@@ -13,6 +13,7 @@ from services.cli import (
     graph_commands,
     launch_commands,
     monitor_commands,
+    record_commands,
     sweep_commands,
 )
 
@@ -22,6 +23,7 @@ COMMAND_MODULES = (
     graph_commands,
     launch_commands,
     monitor_commands,
+    record_commands,
     sweep_commands,
     foxglove_commands,
 )

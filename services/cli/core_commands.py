@@ -74,6 +74,12 @@ def _json_default(v: Any) -> Any:
 
 def print_metrics(metrics: dict[str, Any], out: Path) -> None:
     """A readable table of the scalar metrics (the JSON file has everything)."""
+    print_metrics_table(metrics)
+    print(f"metrics: {out / 'metrics.json'}")
+
+
+def print_metrics_table(metrics: dict[str, Any]) -> None:
+    """The scalar metrics, one per line, sorted by name."""
     width = max(len(k) for k in metrics)
     for k, v in sorted(metrics.items()):
         if isinstance(v, dict | list):
@@ -81,7 +87,6 @@ def print_metrics(metrics: dict[str, Any], out: Path) -> None:
         if isinstance(v, float):
             v = f"{v:.4g}" if math.isfinite(v) else str(v)
         print(f"  {k:<{width}}  {v}")
-    print(f"metrics: {out / 'metrics.json'}")
 
 
 def cmd_router(a: argparse.Namespace) -> int:

@@ -8,8 +8,13 @@ import json
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from services.cli.core_commands import print_metrics, scenario_args
+
+if TYPE_CHECKING:
+    from common.runtime.distributed.bringup import ClockSide
+    from services.recording.tap_recorder import TapRecorder
 
 RESTART_HELP = (
     "restart policy [NAME=]MODE[:MAX], MODE one of never, on-failure, always (default never); "
@@ -43,25 +48,44 @@ def cmd_launch(a: argparse.Namespace) -> int:
         )
     default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
     only = None if a.only is None else tuple(n for n in a.only.split(",") if n.strip())
+    out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
+    recorders: list[TapRecorder] = []
+
+    def record(side: ClockSide) -> TapRecorder:
+        from services.cli.record_commands import foxglove_view
+        from services.recording.tap_recorder import TapRecorder
+
+        recorders.append(TapRecorder(side, out / "run.mcap", raw, view=foxglove_view(scenario)))
+        return recorders[-1]
+
     opts = LaunchOptions(
         only=only,
         listen=tuple(a.listen),
         plot=not a.no_plot,
         policies=policies_for(names, a.restart, default),
+        attach=(record,) if a.record else (),
     )
-    out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
     try:
         outcome = launch(scenario, raw, out, opts, make_display(sys.stderr))
     except Interrupted:
         print("tidelink: interrupted before the mission started", file=sys.stderr)
         return 130
+    recorded = [
+        f"recording: {r.path} ({r.writer.frames} frames, {r.path.stat().st_size / 1024:.1f} KiB)"
+        + ("" if r.error is None else f"; writing failed: {r.error}")
+        for r in recorders
+    ]
     if a.json:
         print(json.dumps(outcome.metrics, sort_keys=True, allow_nan=False))
+        for line in recorded:
+            print(line, file=sys.stderr)
     else:
         print_metrics(outcome.metrics, out)
         if outcome.plot is not None:
             print(f"plot: {outcome.plot}")
         print(f"logs: {out / 'logs'}")
+        for line in recorded:
+            print(line)
     return 130 if outcome.result.reason == "interrupted" else 0
 
 
@@ -140,6 +164,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="seconds before the first restart, doubled for each further one",
     )
     la.add_argument("--no-plot", action="store_true", help="do not write run.png")
+    la.add_argument(
+        "--record",
+        action="store_true",
+        help="record the run, every frame, to DIR/run.mcap (MCAP; `tidelink replay`, "
+        "`tidelink metrics`, Foxglove)",
+    )
     la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     la.set_defaults(func=cmd_launch)
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,15 +41,22 @@ SERVICE_MODULES = {
 }
 
 
+# An in-process watcher of the run (e.g. services/recording's TapRecorder): entered with the
+# clock's bus, before any service starts, so it misses nothing; left before launch returns.
+Attach = Callable[[ClockSide], AbstractContextManager[object]]
+
+
 @dataclass(frozen=True, kw_only=True)
 class LaunchOptions:
-    """How to launch: which services here, where the router listens, restart policies."""
+    """How to launch: which services here, where the router listens, restart policies, and
+    what to attach to the clock's side of the bus."""
 
     only: tuple[str, ...] | None = None  # services started here (None: all of them)
     listen: tuple[str, ...] = ()  # router endpoints (default: a free loopback port)
     policies: dict[str, RestartPolicy] = field(default_factory=dict)  # default: never
     plot: bool = True
     grace_s: float = 3.0  # per stop signal (SIGINT, then SIGTERM) before the next one
+    attach: tuple[Attach, ...] = ()
 
 
 @dataclass
@@ -146,7 +155,10 @@ def _run(
     view = MissionView(scenario)
     observer = ProgressObserver(view, display)
     cfg = BusConfig(mode="client", connect=(endpoint,))
-    with clock_bus(cfg, keys, mission.dataflow, json.loads(scenario_json.read_text())) as side:
+    raw = json.loads(scenario_json.read_text())
+    with clock_bus(cfg, keys, mission.dataflow, raw) as side, ExitStack() as attached:
+        for hook in opts.attach:
+            attached.enter_context(hook(side))
         for name in local:
             argv = [name, "--scenario-json", str(scenario_json), "--connect", endpoint]
             # a restarted lockstep service would lose its state and the run its determinism

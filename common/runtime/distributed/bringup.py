@@ -38,6 +38,7 @@ log = logging.getLogger("tidelink.run")
 
 DATAFLOW_ENCODING = "application/json"
 RELEASE_S = 10.0  # for services to leave by themselves at the end, before any signal
+CATCH_UP_S = 2.0  # at most, for the watch tap to see the last frames the driver recorded
 
 
 @dataclass
@@ -50,7 +51,14 @@ class ClockSide:
     tap: WatchTap
 
     def announce_end(self, result: RunResult) -> None:
-        """Tell watchers how the run ended (before the bus closes and the tokens go)."""
+        """Tell watchers how the run ended (before the bus closes and the tokens go), once the
+        tap has seen as many frames as the driver recorded (recorders get every frame)."""
+        if not self.tap.caught_up(result.record.count, timeout_s=CATCH_UP_S):
+            log.warning(
+                "the watch tap saw %d frames, the run recorded %d; announcing the end anyway",
+                self.tap.count,
+                result.record.count,
+            )
         self.tap.end(result.reason, result.t_end, result.ticks)
 
 
@@ -63,16 +71,22 @@ def clock_bus(
     cfg: BusConfig, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any]
 ) -> Iterator[ClockSide]:
     """Open the driver's bus (see the module docstring); everything closes on exit."""
-    described = json.dumps(flow.describe(), sort_keys=True).encode()
     with Bus(cfg, keys) as bus:
         inbox = Inbox()
         bus.subscribe(keys.all_streams, inbox)
         bus.watch_alive(inbox)
-        bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
-        tap = WatchTap(bus, keys, scenario_raw)
+        tap = serve_watchers(bus, keys, flow, scenario_raw)
         ticks = TickSender(bus, flow.names)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks, tap)
+
+
+def serve_watchers(bus: Bus, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any]) -> WatchTap:
+    """What tools joining a run ask it for: its declared dataflow (a queryable) and the watch
+    tap (copies, latest frames, scenario). A run's clock serves them, and so does a replay."""
+    described = json.dumps(flow.describe(), sort_keys=True).encode()
+    bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
+    return WatchTap(bus, keys, scenario_raw)
 
 
 def run_locally(

@@ -13,12 +13,12 @@ from typing import Any
 
 from common.bus import Event, Inbox, Liveliness
 from common.config.scenario import Scenario
-from common.messages import Tick, TickAck, replace
+from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.clock import MissionClock
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
-from common.runtime.model.record import Record
+from common.runtime.model.record import Record, Renumbering
 from common.runtime.model.result import RunResult
 from common.runtime.processes.supervisor import (
     Exited,
@@ -52,8 +52,7 @@ class RealtimeDriver:
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()
         self.gone_since: dict[str, float] = {}
-        # a restarted service numbers its messages from 1 again: keep them apart in the record
-        self.seq_offset: dict[tuple[str, str], int] = {}
+        self.renumbering = Renumbering(self.record)  # a restarted service's seqs start over
         self.clock: MissionClock | None = None
         self.ending = False
 
@@ -87,10 +86,7 @@ class RealtimeDriver:
             service, stream = self.keys.split(ev.key)
         except ValueError:
             return
-        offset = self.seq_offset.get((service, stream), 0)
-        if offset:
-            msg = replace(msg, seq=msg.seq + offset)
-        self.record.add(service, stream, msg)
+        msg = self.renumbering.add(service, stream, msg)
         self.observer.message(service, stream, msg)
 
     def _liveliness(self, service: str, alive: bool) -> None:
@@ -108,9 +104,7 @@ class RealtimeDriver:
         self.alive.add(service)
         self.gone_since.pop(service, None)
         if service in self.ever_alive and self.clock is not None:
-            for s, stream in self.record.keys():
-                if s == service:
-                    self.seq_offset[(s, stream)] = self.record.last_seq(s, stream)
+            self.renumbering.rejoined(service)
             t_us = self.clock.tell()  # its clock starts from this Tick
             self.observer.event(f"service {service!r} rejoined at t={t_us / 1e6:.2f} s")
         self.ever_alive.add(service)

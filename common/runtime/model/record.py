@@ -7,7 +7,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from common.messages import Message, TruthState
+from common.messages import Message, TruthState, replace
 
 
 class Record:
@@ -51,6 +51,34 @@ class Record:
 
     def keys(self) -> list[tuple[str, str]]:
         return sorted(self._streams)
+
+
+class Renumbering:
+    """Keeps the lives of a restarted service apart in a record.
+
+    A restarted service numbers its messages from 1 again, and Record.add dedupes by seq: its
+    new messages would be taken for repeats. From the moment it rejoins, each of its streams
+    is offset by the highest seq recorded there so far. The realtime driver records a run
+    this way, and a recording is replayed into a Record the same way (services/recording).
+    """
+
+    def __init__(self, record: Record) -> None:
+        self.record = record
+        self.offset: dict[tuple[str, str], int] = {}
+
+    def rejoined(self, service: str) -> None:
+        """`service` came back (its liveliness token reappeared): renumber what follows."""
+        for s, stream in self.record.keys():
+            if s == service:
+                self.offset[(s, stream)] = self.record.last_seq(s, stream)
+
+    def add(self, service: str, stream: str, msg: Message) -> Message:
+        """Record `msg` with its seq offset; returns it as recorded."""
+        offset = self.offset.get((service, stream), 0)
+        if offset:
+            msg = replace(msg, seq=msg.seq + offset)
+        self.record.add(service, stream, msg)
+        return msg
 
 
 def trajectory_sha256(truth: Iterable[TruthState]) -> str:

@@ -1,0 +1,176 @@
+"""The recording sub-commands: record (remote), replay and metrics of an MCAP recording."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from services.cli.core_commands import print_metrics_table
+
+if TYPE_CHECKING:
+    from common.config.scenario import Scenario
+    from services.recording.reader import Recording
+    from services.recording.remote import RecordOutcome
+    from services.recording.writer import View
+
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+ROUTER_WAIT_S = 10.0  # replay --connect: how long to wait for the router to accept
+
+
+def _say(command: str) -> Callable[[str], None]:
+    def say(text: str) -> None:
+        print(f"tidelink {command}: {text}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def foxglove_view(scenario: Scenario) -> View:
+    """The Foxglove view written beside the raw run, so a recording opens in Foxglove."""
+    from services.foxglove.view import FoxgloveView
+
+    return FoxgloveView(scenario)
+
+
+def _read(path: Path) -> Recording:
+    from services.recording.reader import read_recording
+
+    return read_recording(path)  # a cut-short file is logged as a warning, naming it
+
+
+def cmd_record(a: argparse.Namespace) -> int:
+    from common.bus import Bus, Keys
+    from common.config.bus import BusConfig
+    from common.runtime.processes.signals import stop_on_signals
+    from services.launcher.router import wait_for_endpoint
+    from services.recording.remote import RemoteRecorder
+
+    say = _say("record")
+    with stop_on_signals() as stop:
+        if not wait_for_endpoint(a.connect, 0.0):
+            say(f"no router at {a.connect} yet; waiting for one (Ctrl-C to stop)")
+            while not wait_for_endpoint(a.connect, 0.5):
+                if stop.requested:
+                    return 130
+        cfg = BusConfig(mode="client", connect=(a.connect,))
+        with Bus(cfg, Keys("record", "record")) as bus:
+            recorder = RemoteRecorder(
+                bus,
+                a.out,
+                run=a.run,
+                vehicle=a.vehicle,
+                stop=stop,
+                say=say,
+                view_for=foxglove_view,
+            )
+            outcome = recorder.record()
+    if outcome is None:
+        say("stopped before any run showed up; nothing recorded")
+        return 130
+    _report(outcome)
+    return 130 if outcome.ended.startswith("stopped") else 0
+
+
+def _report(o: RecordOutcome) -> None:
+    total = sum(o.counts.values())
+    print(
+        f"recorded run {o.run}/{o.vehicle} to {o.path}: {total} frames, "
+        f"{o.size_bytes / 1024:.1f} KiB; the run: {o.ended}"
+    )
+    width = max((len(k) for k in o.counts), default=0)
+    for stream, n in sorted(o.counts.items()):
+        lost = o.gaps.lost.get(stream, 0)
+        print(f"  {stream:<{width}}  {n:>7}" + (f"  ({lost} lost)" if lost else ""))
+    if o.gaps.total:
+        print(
+            f"lost {o.gaps.total} frames (gaps in their seqs): the run's watch copies are "
+            "sent DROP, and this recorder or its link could not keep up"
+        )
+    else:
+        print("lost: none (every stream's seqs are contiguous)")
+
+
+def cmd_replay(a: argparse.Namespace) -> int:
+    from common.bus import Bus, Keys
+    from common.config.bus import BusConfig
+    from common.runtime.processes.children import connectable, free_port
+    from common.runtime.processes.signals import stop_on_signals
+    from services.launcher.router import wait_for_endpoint
+    from services.recording.replay import replay
+
+    say = _say("replay")
+    rec = _read(a.file)
+    if a.connect is not None:
+        if not wait_for_endpoint(a.connect, ROUTER_WAIT_S):
+            raise TimeoutError(f"no router at {a.connect} after {ROUTER_WAIT_S:g} s")
+        cfg = BusConfig(mode="client", connect=(a.connect,))
+    else:
+        listen = a.listen or f"tcp/127.0.0.1:{free_port()}"
+        cfg = BusConfig(mode="router", listen=(listen,))
+        say(f"listening on {listen}: watch with --connect {connectable(listen)}")
+    with stop_on_signals() as stop, Bus(cfg, Keys(a.as_run or rec.run, rec.vehicle)) as bus:
+        outcome = replay(rec, bus, speed=a.speed, stop=stop, lead_s=a.lead, say=say)
+    say(f"published {outcome.published} frames as run {outcome.keys.run}; end: {outcome.reason}")
+    return 130 if outcome.reason == "interrupted" else 0
+
+
+def cmd_metrics(a: argparse.Namespace) -> int:
+    from services.recording.metrics import NOT_RECOMPUTED, recording_metrics
+
+    metrics = recording_metrics(_read(a.file))
+    if a.json:
+        print(json.dumps(metrics, sort_keys=True, allow_nan=False))
+    else:
+        print_metrics_table(metrics)
+        print(
+            f"recomputed from {a.file} (not {', '.join(NOT_RECOMPUTED)}: the launcher's wall "
+            "clock, which no recording holds)"
+        )
+    return 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add record, replay and metrics to the tidelink parser."""
+    r = sub.add_parser("record", help="record a run on a router to an MCAP file (remotely)")
+    r.add_argument(
+        "--connect",
+        default=DEFAULT_CONNECT,
+        metavar="ENDPOINT",
+        help=f"the run's router (default {DEFAULT_CONNECT})",
+    )
+    r.add_argument("--run", default=None, help="the run id (default: the first run seen)")
+    r.add_argument("--vehicle", default=None, help="the vehicle id (default: any)")
+    r.add_argument("-o", "--out", type=Path, required=True, help="the MCAP file to write")
+    r.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("replay", help="publish a recorded run again, as a live run")
+    p.add_argument("file", type=Path, help="an MCAP recording (launch --record, record)")
+    p.add_argument("--speed", type=float, default=1.0, help="time scale (default 1: as recorded)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--connect", default=None, metavar="ENDPOINT", help="publish through this router"
+    )
+    where.add_argument(
+        "--listen",
+        default=None,
+        metavar="ENDPOINT",
+        help="be the router, listening here (default: a free port on 127.0.0.1)",
+    )
+    p.add_argument(
+        "--as", dest="as_run", default=None, metavar="RUN", help="replay under this run id"
+    )
+    p.add_argument(
+        "--lead",
+        type=float,
+        default=1.0,
+        help="seconds between declaring the run and its first frame (default 1)",
+    )
+    p.set_defaults(func=cmd_replay)
+
+    m = sub.add_parser("metrics", help="recompute a run's metrics from its MCAP recording")
+    m.add_argument("file", type=Path, help="an MCAP recording (launch --record, record)")
+    m.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    m.set_defaults(func=cmd_metrics)

@@ -1,0 +1,234 @@
+"""RunWriter: one run's frames, routing, liveliness and Foxglove view, written to MCAP.
+
+The file is chunked (CHUNK_BYTES, compressed with zstd or lz4 when importable) and flushed
+every FLUSH_EVERY_S at most: a recorder killed with SIGKILL leaves a file whose every chunk
+written so far reads back (services/recording/reader.py says how much was lost). The
+metadata goes first and is flushed at once, so even a file cut short says what run it is.
+The layout is described in services/recording/layout.py.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any, Protocol
+
+from mcap.writer import CompressionType, Writer
+
+from common.messages import WIRE_VERSION, Message, WireError, decode
+from services.recording import layout
+
+log = logging.getLogger("tidelink.recording")
+
+CHUNK_BYTES = 64 * 1024  # small chunks: a killed recorder loses at most one
+FLUSH_EVERY_S = 0.5  # and at most this much of the run
+
+
+def _compression() -> CompressionType:
+    """zstd, else lz4, else none: whichever this Python can write (the mcap package's
+    optional dependencies)."""
+    try:
+        import zstandard  # noqa: F401
+
+        return CompressionType.ZSTD
+    except ImportError:
+        pass
+    try:
+        import lz4.frame  # noqa: F401
+
+        return CompressionType.LZ4
+    except ImportError:
+        return CompressionType.NONE
+
+
+class ViewMessage(Protocol):
+    """One message of the Foxglove view (services/foxglove/view.py's ViewMessage)."""
+
+    @property
+    def topic(self) -> str: ...
+    @property
+    def schema_name(self) -> str: ...
+    @property
+    def schema_encoding(self) -> str: ...
+    @property
+    def schema(self) -> bytes: ...
+    @property
+    def message_encoding(self) -> str: ...
+    @property
+    def data(self) -> bytes: ...
+
+
+class View(Protocol):
+    """Turns a run's messages into Foxglove's (services/foxglove/view.py's FoxgloveView; the
+    CLI passes one in: the recorder does not depend on the Foxglove package)."""
+
+    def static(self) -> Sequence[ViewMessage]: ...
+
+    def translate(self, service: str, stream: str, msg: Message) -> Sequence[ViewMessage]: ...
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunInfo:
+    """What a recording says about itself (its `tidelink` metadata record)."""
+
+    run: str
+    vehicle: str
+    scenario_raw: dict[str, Any]
+    recorder: str  # "launch" (in-process, lossless) or "record" (remote, through a watcher)
+
+    def metadata(self) -> dict[str, str]:
+        return {
+            "format": str(layout.FORMAT_VERSION),
+            "wire_version": str(WIRE_VERSION),
+            "run": self.run,
+            "vehicle": self.vehicle,
+            "recorder": self.recorder,
+            "scenario": json.dumps(self.scenario_raw, sort_keys=True),
+        }
+
+
+def _ns(wall: float) -> int:
+    return round(wall * 1e9)
+
+
+class RunWriter:
+    """Writes one run to an MCAP file; `close` finishes it (summary, indexes, footer)."""
+
+    def __init__(
+        self,
+        path: Path,
+        info: RunInfo,
+        types: layout.StreamTypes,
+        *,
+        view: View | None = None,
+        flush_every_s: float = FLUSH_EVERY_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.path = path
+        self.info = info
+        self._types = types
+        self._view = view
+        self._flush_every_s = flush_every_s
+        self._clock = clock
+        self._fh: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._w = Writer(self._fh, chunk_size=CHUNK_BYTES, compression=_compression())
+        self._w.start(profile=layout.PROFILE, library=f"tidelink (wire {WIRE_VERSION})")
+        self._w.add_metadata(layout.METADATA, info.metadata())
+        self._schemas: dict[tuple[str, str, bytes], int] = {}
+        self._channels: dict[str, int] = {}
+        self.counts: Counter[str] = Counter()  # frames per "service/stream"
+        self.undecodable = 0  # frames that are no tidelink message (kept, with no schema)
+        self.view_errors = 0
+        self._closed = False
+        if view is not None:
+            for vm in view.static():
+                self._view_message(vm, time.time())
+        self._w.flush()
+        self._next_flush = clock() + flush_every_s
+
+    # -- channels ------------------------------------------------------------------------------
+    def _schema(self, name: str, encoding: str, data: bytes) -> int:
+        key = (name, encoding, data)
+        sid = self._schemas.get(key)
+        if sid is None:
+            sid = self._schemas[key] = self._w.register_schema(name, encoding, data)
+        return sid
+
+    def _channel(self, topic: str, encoding: str, schema_id: int, meta: dict[str, str]) -> int:
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self._channels[topic] = self._w.register_channel(topic, encoding, schema_id, meta)
+        return cid
+
+    def _frame_channel(self, service: str, stream: str, msg: Message | None) -> int:
+        topic = layout.frame_topic(service, stream)
+        cid = self._channels.get(topic)
+        if cid is not None:
+            return cid
+        # the declared type; a stream the dataflow does not declare: its first message's
+        cls = self._types.get((service, stream)) or (type(msg) if msg is not None else None)
+        sid = 0
+        if cls is not None:
+            name, schema = layout.frame_schema(cls)
+            sid = self._schema(name, "jsonschema", schema)
+        meta = {layout.KIND: layout.FRAME, "service": service, "stream": stream}
+        return self._channel(topic, layout.RAW_ENCODING, sid, meta)
+
+    # -- content -------------------------------------------------------------------------------
+    def frame(
+        self, service: str, stream: str, payload: bytes, attachment: bytes | None, wall: float
+    ) -> Message | None:
+        """Write one frame as it crossed the wire (and its attachment, and its view); returns
+        the decoded message, or None if it is none (still written, byte for byte)."""
+        try:
+            msg: Message | None = decode(payload)
+        except WireError:
+            msg = None
+            self.undecodable += 1
+        cid = self._frame_channel(service, stream, msg)
+        t = _ns(wall)
+        seq = (msg.seq if msg is not None else 0) & 0xFFFFFFFF
+        self._w.add_message(cid, log_time=t, data=payload, publish_time=t, sequence=seq)
+        if attachment is not None:
+            rid = self._channel(
+                layout.routing_topic(service, stream),
+                layout.RAW_ENCODING,
+                self._schema(layout.ROUTING_SCHEMA_NAME, "jsonschema", layout.ROUTING_SCHEMA),
+                {layout.KIND: layout.ROUTING, "service": service, "stream": stream},
+            )
+            self._w.add_message(rid, log_time=t, data=attachment, publish_time=t, sequence=seq)
+        self.counts[layout.stream_name(service, stream)] += 1
+        if msg is not None and self._view is not None:
+            try:
+                for vm in self._view.translate(service, stream, msg):
+                    self._view_message(vm, wall)
+            except Exception as exc:  # noqa: BLE001 - a view bug must not lose the raw run
+                self.view_errors += 1
+                if self.view_errors == 1:
+                    log.warning("Foxglove view of %s/%s failed: %s", service, stream, exc)
+        return msg
+
+    def alive(self, service: str, alive: bool, wall: float) -> None:
+        """Write a liveliness change of `service`."""
+        cid = self._channel(
+            layout.ALIVE_TOPIC,
+            "json",
+            self._schema(layout.ALIVE_SCHEMA_NAME, "jsonschema", layout.ALIVE_SCHEMA),
+            {layout.KIND: layout.ALIVE},
+        )
+        data = json.dumps({"service": service, "alive": alive}).encode()
+        t = _ns(wall)
+        self._w.add_message(cid, log_time=t, data=data, publish_time=t)
+
+    def _view_message(self, vm: ViewMessage, wall: float) -> None:
+        sid = self._schema(vm.schema_name, vm.schema_encoding, vm.schema) if vm.schema_name else 0
+        cid = self._channel(vm.topic, vm.message_encoding, sid, {layout.KIND: layout.VIEW})
+        t = _ns(wall)
+        self._w.add_message(cid, log_time=t, data=vm.data, publish_time=t)
+
+    # -- on disk -------------------------------------------------------------------------------
+    def flush_if_due(self) -> None:
+        """Write the chunk in progress if FLUSH_EVERY_S has passed since the last flush."""
+        now = self._clock()
+        if now >= self._next_flush:
+            self._w.flush()
+            self._next_flush = now + self._flush_every_s
+
+    @property
+    def frames(self) -> int:
+        return sum(self.counts.values())
+
+    def close(self) -> None:
+        """Finish the file (summary, indexes, footer) and close it; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._w.finish()
+        finally:
+            self._fh.close()

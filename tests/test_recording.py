@@ -1,0 +1,416 @@
+"""Recording runs end to end: `launch --record`, remote `tidelink record` (to the end, and
+killed or stopped mid-run), `tidelink metrics` against the run's own metrics.json, and
+`tidelink replay` seen by a Watcher as a live run.
+
+Every process is the real CLI in its own session (helpers/launch_proc.py); the tests wait on
+the lines they print, on files and on exits, always with deadlines.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from collections import Counter
+from collections.abc import Iterator
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers.launch_proc import Tidelink, kill_recorded
+from mcap.exceptions import McapError
+from mcap.reader import NonSeekingReader, make_reader
+
+from common.bus import Bus, Keys, Liveliness
+from common.bus.watcher import WatchedFrame, Watcher
+from common.config.bus import BusConfig
+from common.config.scenario import load_scenario
+from common.messages import RunEnd, decode
+from common.runtime.model.inproc import run_inproc
+from common.runtime.processes.children import free_port
+from services.foxglove.view import PLANNER_PATH, POSE_TRUE, SCENE_STATIC
+from services.launcher.router import wait_for_endpoint
+from services.recording.metrics import rebuild_record
+from services.recording.reader import AliveEvent, Recording, read_recording
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
+WAIT_S = 90.0  # upper bound on any one wait; a run here takes a few seconds
+SERVICES = {"estimator", "planner", "sensor", "vehicle"}
+
+
+def _metrics(path: Path) -> dict[str, Any]:
+    return dict(json.loads(path.read_text()))
+
+
+def _tidelink_metrics(mcap: Path) -> dict[str, Any]:
+    with Tidelink("metrics", str(mcap), "--json") as t:
+        assert t.wait(WAIT_S) == 0, t.stderr
+        return dict(json.loads(t.stdout))
+
+
+def _without_wall(m: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in m.items() if k != "wall_s"}
+
+
+def _frames(rec: Recording) -> Counter[tuple[str, str, bytes, bytes | None]]:
+    return Counter((f.service, f.stream, f.payload, f.attachment) for f in rec.frames)
+
+
+# -- a lockstep launch, recorded in-process ---------------------------------------------------
+@pytest.fixture(scope="module")
+def lockstep_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    out = tmp_path_factory.mktemp("lockstep") / "run"
+    args = ("launch", str(SCENARIO), "--runtime", "lockstep", "--out", str(out), "--no-plot")
+    try:
+        with Tidelink(*args, "--record") as t:
+            assert t.wait(WAIT_S) == 0, t.stderr
+            assert f"recording: {out / 'run.mcap'}" in t.stdout
+        yield out
+    finally:
+        kill_recorded(out / "pids.json")
+
+
+def test_a_recorded_lockstep_launch_reads_back_with_the_mcap_package(lockstep_run: Path) -> None:
+    scenario, _ = load_scenario(SCENARIO, ['runtime.kind="lockstep"'])
+    ref = run_inproc(scenario).record  # lockstep reproduces inproc message for message
+    with (lockstep_run / "run.mcap").open("rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None
+        (meta,) = list(reader.iter_metadata())
+        got: dict[str, list[Any]] = {}
+        for schema, channel, message in reader.iter_messages():
+            if channel.metadata.get("tidelink") == "frame":
+                assert channel.message_encoding == "msgpack"
+                assert schema is not None and schema.encoding == "jsonschema"
+                msg = decode(message.data)
+                assert schema.name == f"tidelink.{type(msg).__name__}"
+                assert message.sequence == msg.seq
+                name = f"{channel.metadata['service']}/{channel.metadata['stream']}"
+                assert channel.topic == f"/wire/{name}"
+                got.setdefault(name, []).append(msg)
+    assert meta.metadata["run"] == "small" and meta.metadata["vehicle"] == "auv1"
+    assert json.loads(meta.metadata["scenario"]) == json.loads(
+        (lockstep_run / "scenario.json").read_text()
+    )
+    (end,) = got.pop("runtime/end")
+    run_metrics = _metrics(lockstep_run / "metrics.json")
+    assert isinstance(end, RunEnd)
+    assert (end.reason, end.stamp, end.ticks) == (
+        run_metrics["end_reason"],
+        run_metrics["t_end_s"],
+        run_metrics["ticks"],
+    )
+    assert set(got) == {f"{s}/{st}" for s, st in ref.keys()}
+    for service, stream in ref.keys():
+        # every message, in seq order, as the run recorded it (stats included)
+        assert sorted(got[f"{service}/{stream}"], key=lambda m: m.seq) == ref.stream(
+            service, stream
+        )
+
+
+def test_a_recording_carries_the_foxglove_view_of_the_run(lockstep_run: Path) -> None:
+    with (lockstep_run / "run.mcap").open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None and summary.statistics is not None
+    counts = summary.statistics.channel_message_counts
+    view = {c.topic: c for c in summary.channels.values() if c.metadata["tidelink"] == "view"}
+    assert {SCENE_STATIC, POSE_TRUE, PLANNER_PATH} <= set(view)
+    for c in view.values():
+        schema = summary.schemas[c.schema_id]
+        assert (schema.encoding, c.message_encoding) in {
+            ("protobuf", "protobuf"),
+            ("jsonschema", "json"),
+        }
+    (truth,) = [c for c in summary.channels.values() if c.topic == "/wire/vehicle/truth"]
+    assert counts[view[POSE_TRUE].id] == counts[truth.id]  # a pose per true state
+    assert counts[view[SCENE_STATIC].id] == 1
+
+
+def test_metrics_recomputed_from_a_lockstep_recording_equal_the_runs(lockstep_run: Path) -> None:
+    recomputed = _tidelink_metrics(lockstep_run / "run.mcap")
+    own = _metrics(lockstep_run / "metrics.json")
+    assert "wall_s" in own and "wall_s" not in recomputed
+    assert recomputed["trajectory_sha256"] == own["trajectory_sha256"]
+    assert recomputed == _without_wall(own)
+
+
+def test_a_replay_is_a_live_run_to_a_watcher_in_another_process(
+    lockstep_run: Path,
+) -> None:
+    rec = read_recording(lockstep_run / "run.mcap")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with Tidelink("router", "--listen", endpoint):
+        assert wait_for_endpoint(endpoint, WAIT_S), "the router did not listen"
+        keys = Keys("again", rec.vehicle)
+        with Bus(BusConfig(mode="client", connect=(endpoint,)), Keys("w", "w")) as bus:
+            watcher = Watcher(bus, "again", rec.vehicle)
+            watcher.start()
+            with Tidelink(
+                "replay", str(lockstep_run / "run.mcap"), "--connect", endpoint,
+                "--speed", "2", "--as", "again",
+            ) as replay:  # fmt: skip
+                seen = _watch_until_gone(watcher, keys)
+                assert replay.wait(WAIT_S) == 0, replay.stderr
+    alive = {ev.key.rsplit("/", 1)[-1] for ev in seen.alive if ev.alive}
+    assert alive == SERVICES | {"runtime"}
+    assert seen.scenario == {
+        **rec.scenario_raw,
+        "run": {**rec.scenario_raw["run"], "name": "again"},
+    }
+    frames = [f for f in seen.frames if f.service != "runtime"]
+    want = _frames(rec)
+    (end_frame,) = [k for k in want if k[0] == "runtime"]
+    del want[end_frame]
+    assert Counter((f.service, f.stream, f.payload, f.attachment) for f in frames) == want
+    assert [decode(f.payload) for f in seen.frames if f.service == "runtime"] == [rec.end]
+    # asked mid-run, the newest frame of each stream so far: each one a recorded frame
+    assert seen.latest
+    assert all((f.service, f.stream, f.payload, f.attachment) in want for f in seen.latest)
+
+
+@dataclass
+class Seen:
+    alive: list[Liveliness]
+    frames: list[WatchedFrame]
+    scenario: dict[str, Any] | None
+    latest: list[WatchedFrame]
+
+
+def _watch_until_gone(watcher: Watcher, keys: Keys) -> Seen:
+    """Everything the watcher hears until the run's clock token has vanished and its RunEnd
+    arrived (in either order: the RunEnd is a DATA_LOW copy, the token's end is not)."""
+    seen = Seen([], [], None, [])
+    gone = ended = False
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline and not (gone and ended):
+        ev = watcher.get(1.0)
+        if isinstance(ev, Liveliness):
+            seen.alive.append(ev)
+            if ev.key == keys.alive("runtime"):
+                gone = not ev.alive
+                if ev.alive:
+                    seen.scenario = watcher.scenario(keys)
+        elif isinstance(ev, WatchedFrame):
+            seen.frames.append(ev)
+            ended = ev.service == "runtime"
+            if len(seen.frames) == 100:
+                seen.latest = watcher.latest(keys)  # while it plays
+    assert gone, f"the replay's clock never left; heard {len(seen.frames)} frames"
+    return seen
+
+
+# -- a realtime launch, recorded in-process and by remote recorders ---------------------------
+@dataclass
+class RealtimeRun:
+    out: Path  # the launch's folder: metrics.json, run.mcap (in-process)
+    full: Tidelink  # a remote recorder to the end
+    killed: Tidelink  # SIGKILLed mid-run
+    stopped: Tidelink  # SIGTERMed mid-run
+    files: dict[str, Path]
+    mid_run: bool  # the launch still ran when the two were stopped
+
+
+KILL_AT_BYTES = 256 * 1024  # the killed recorder's file by then holds several chunks
+
+
+@pytest.fixture(scope="module")
+def realtime_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealtimeRun]:
+    d = tmp_path_factory.mktemp("realtime")
+    out, endpoint = d / "run", f"tcp/127.0.0.1:{free_port()}"
+    scale = ("--time-scale", "4")
+    files = {name: d / f"{name}.mcap" for name in ("full", "killed", "stopped")}
+    with ExitStack() as stack:
+        stack.callback(kill_recorded, out / "pids.json")
+        # the vehicle joins from "another host" once the recorders listen: they see it all
+        launch = stack.enter_context(
+            Tidelink(
+                "launch", str(SCENARIO), "--out", str(out), "--no-plot", "--record",
+                "--listen", endpoint, "--only", "estimator,planner,sensor", *scale,
+            )
+        )  # fmt: skip
+        rec = {
+            name: stack.enter_context(Tidelink("record", "--connect", endpoint, "-o", str(f)))
+            for name, f in files.items()
+        }
+        for r in rec.values():
+            r.wait_for(r"recording run small/auv1", WAIT_S)
+        vehicle = stack.enter_context(
+            Tidelink("service", "vehicle", str(SCENARIO), "--connect", endpoint, *scale)
+        )
+        deadline = time.monotonic() + WAIT_S
+        while not files["killed"].exists() or files["killed"].stat().st_size < KILL_AT_BYTES:
+            assert time.monotonic() < deadline, rec["killed"].stderr
+            assert launch.proc.poll() is None, launch.stderr
+            time.sleep(0.05)  # polling a file another process writes
+        mid_run = launch.proc.poll() is None
+        os.killpg(rec["killed"].proc.pid, signal.SIGKILL)
+        rec["stopped"].signal(signal.SIGTERM)
+        assert launch.wait(WAIT_S) == 0, launch.stderr
+        for p in (rec["full"], rec["killed"], rec["stopped"], vehicle):
+            p.wait(WAIT_S)
+        yield RealtimeRun(out, rec["full"], rec["killed"], rec["stopped"], files, mid_run)
+
+
+def test_a_remote_recording_holds_every_frame_of_the_run(realtime_run: RealtimeRun) -> None:
+    r = realtime_run
+    assert r.full.proc.returncode == 0, r.full.stderr
+    assert "lost: none" in r.full.stdout
+    assert "the run: goal at t=" in r.full.stdout
+    remote, local = read_recording(r.files["full"]), read_recording(r.out / "run.mcap")
+    assert remote.truncation is None and local.truncation is None
+    assert (remote.recorder, local.recorder) == ("record", "launch")
+    assert len(local.frames) > 1000
+    assert _frames(remote) == _frames(local)  # byte for byte, attachments included
+    assert remote.end == local.end is not None
+
+
+def test_metrics_recomputed_from_realtime_recordings_equal_the_runs(
+    realtime_run: RealtimeRun,
+) -> None:
+    own = _without_wall(_metrics(realtime_run.out / "metrics.json"))
+    assert own["runtime"] == "realtime" and own["end_reason"] == "goal"
+    assert _tidelink_metrics(realtime_run.out / "run.mcap") == own
+    assert _tidelink_metrics(realtime_run.files["full"]) == own
+
+
+def _by_stream(frames: list[Any]) -> dict[str, list[bytes]]:
+    out: dict[str, list[bytes]] = {}
+    for f in frames:
+        out.setdefault(f"{f.service}/{f.stream}", []).append(f.payload)
+    return out
+
+
+def _is_prefix(part: dict[str, list[bytes]], whole: dict[str, list[bytes]]) -> bool:
+    return all(whole[k][: len(v)] == v for k, v in part.items())
+
+
+def test_a_recorder_killed_mid_run_leaves_a_file_read_up_to_its_last_chunk(
+    realtime_run: RealtimeRun,
+) -> None:
+    r = realtime_run
+    assert r.mid_run
+    assert r.killed.proc.returncode == -signal.SIGKILL
+    path = r.files["killed"]
+    # the mcap package's own reader, front to back, up to where the file stops
+    got: list[tuple[str, bytes]] = []
+    with path.open("rb") as fh:
+        try:
+            for _, channel, message in NonSeekingReader(fh).iter_messages(log_time_order=False):
+                if channel.metadata.get("tidelink") == "frame":
+                    meta = channel.metadata
+                    got.append((f"{meta['service']}/{meta['stream']}", message.data))
+        except McapError:
+            pass  # the unfinished chunk at the end
+    assert len(got) >= 100
+    rec = read_recording(path)
+    assert rec.truncation is not None and rec.end is None
+    assert [(f"{f.service}/{f.stream}", f.payload) for f in rec.frames] == got
+    # each stream's frames are the first ones of the full recording: nothing torn or skipped
+    full = read_recording(r.files["full"])
+    assert _is_prefix(_by_stream(rec.frames), _by_stream(full.frames))
+    assert len(rec.frames) < len(full.frames)
+
+
+def test_a_recorder_stopped_by_sigterm_closes_its_file(realtime_run: RealtimeRun) -> None:
+    r = realtime_run
+    assert r.mid_run
+    assert r.stopped.proc.returncode == 130, r.stopped.stderr
+    assert "the run: stopped by SIGTERM" in r.stopped.stdout
+    with r.files["stopped"].open("rb") as fh:
+        assert make_reader(fh).get_summary() is not None  # closed: summary and footer
+    rec = read_recording(r.files["stopped"])
+    assert rec.truncation is None
+    full = read_recording(r.files["full"])
+    assert _is_prefix(_by_stream(rec.frames), _by_stream(full.frames))
+    assert 0 < len(rec.frames) < len(full.frames)
+
+
+def test_a_recorder_without_a_run_says_so_and_waits(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "none.mcap"
+    with Tidelink("router", "--listen", endpoint):
+        assert wait_for_endpoint(endpoint, WAIT_S), "the router did not listen"
+        with Tidelink("record", "--connect", endpoint, "-o", str(out)) as rec:
+            rec.wait_for(r"no run yet; waiting for one", WAIT_S)
+            assert rec.proc.poll() is None  # still waiting
+            rec.signal(signal.SIGINT)
+            assert rec.wait(WAIT_S) == 130
+    assert "nothing recorded" in rec.stderr
+    assert not out.exists()
+
+
+TESTLOOP = """
+[run]
+mission = "tests.helpers.testloop:TestLoop"
+max_time_s = 16.0
+[runtime]
+time_scale = 2.0
+"""
+
+
+def test_metrics_of_a_recording_with_a_restarted_service_equal_the_runs(tmp_path: Path) -> None:
+    scenario, out = tmp_path / "loop.toml", tmp_path / "run"
+    scenario.write_text(TESTLOOP)
+    args = ("launch", str(scenario), "--out", str(out), "--no-plot", "--record")
+    try:
+        with Tidelink(*args, "--restart", "filter=on-failure", "--backoff", "0.2") as t:
+            t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)  # the loop runs
+            (first,) = json.loads((out / "pids.json").read_text())["processes"]["filter"]
+            os.kill(first, signal.SIGKILL)
+            t.wait_for(r"service 'filter' rejoined at t=", WAIT_S)
+            assert t.wait(WAIT_S) == 0, t.stderr
+    finally:
+        kill_recorded(out / "pids.json")
+    rec = read_recording(out / "run.mcap")
+    lives = [e.alive for e in rec.events if isinstance(e, AliveEvent) and e.service == "filter"]
+    assert lives[:3] == [True, False, True]  # the recording saw it go and come back
+    state = [f for f in rec.frames if (f.service, f.stream) == ("filter", "state")]
+    seqs = [decode(f.payload).seq for f in state]
+    assert any(b < a for a, b in zip(seqs, seqs[1:], strict=False))  # it numbered from 1 again
+    # both lives kept apart, as the realtime driver keeps them (none taken for a repeat)
+    record = rebuild_record(rec, ["ctrl", "filter", "plant", "sensor"])
+    assert len(record.stream("filter", "state")) == len(state)
+    assert _tidelink_metrics(out / "run.mcap") == _without_wall(_metrics(out / "metrics.json"))
+
+
+CRASHING = """
+[run]
+mission = "tests.helpers.testloop:TestLoop"
+max_time_s = 600.0
+[run.mission_params]
+crash_service = "filter"
+crash_at_s = 1.0
+"""
+
+
+def test_a_launch_that_fails_or_is_stopped_still_closes_its_recording(tmp_path: Path) -> None:
+    failing, stopped = tmp_path / "failing", tmp_path / "stopped"
+    (tmp_path / "crash.toml").write_text(CRASHING)
+    (tmp_path / "loop.toml").write_text(TESTLOOP)
+    try:
+        with Tidelink(
+            "launch", str(tmp_path / "crash.toml"), "--out", str(failing), "--record"
+        ) as t:
+            assert t.wait(WAIT_S) == 1  # the filter crashed: the run failed
+        with Tidelink(
+            "launch", str(tmp_path / "loop.toml"), "--out", str(stopped), "--record"
+        ) as t:
+            t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)
+            t.signal(signal.SIGINT)
+            assert t.wait(WAIT_S) == 130
+    finally:
+        kill_recorded(failing / "pids.json")
+        kill_recorded(stopped / "pids.json")
+    crashed = read_recording(failing / "run.mcap")
+    assert crashed.truncation is None and crashed.end is None  # closed; no end announced
+    assert crashed.frames
+    interrupted = read_recording(stopped / "run.mcap")
+    assert interrupted.truncation is None
+    assert interrupted.end is not None and interrupted.end.reason == "interrupted"
