@@ -75,7 +75,8 @@ def write_outputs(
 
 
 def link_stats(record: Record) -> dict[str, dict[str, Any]]:
-    """The last LinkStats of every service, by link name."""
+    """The last LinkStats of every service, by link name: the sender's counters and modelled
+    delays, and the delays the receiver measured (`measured_*`)."""
     from common.messages import LinkStats
 
     out: dict[str, dict[str, Any]] = {}
@@ -85,14 +86,25 @@ def link_stats(record: Record) -> dict[str, dict[str, Any]]:
         msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
         if msgs:
             for c in msgs[-1].links:
-                out[c.link] = {
-                    "sent": c.sent,
-                    "delivered": c.delivered,
-                    "dropped_loss": c.dropped_loss,
-                    "dropped_outage": c.dropped_outage,
-                    "dropped_queue": c.dropped_queue,
-                    "duplicated": c.duplicated,
-                    "delay_p50_s": c.delay_p50,
-                    "delay_p99_s": c.delay_p99,
-                }
+                out.setdefault(c.link, {}).update(
+                    {
+                        "sent": c.sent,
+                        "delivered": c.delivered,
+                        "dropped_loss": c.dropped_loss,
+                        "dropped_outage": c.dropped_outage,
+                        "dropped_queue": c.dropped_queue,
+                        "duplicated": c.duplicated,
+                        "delay_p50_s": c.delay_p50,
+                        "delay_p95_s": c.delay_p95,
+                        "delay_p99_s": c.delay_p99,
+                    }
+                )
+            for d in msgs[-1].measured:
+                out.setdefault(d.link, {}).update(
+                    {
+                        "measured_delay_p50_s": d.delay_p50,
+                        "measured_delay_p95_s": d.delay_p95,
+                        "measured_delay_max_s": d.delay_max,
+                    }
+                )
     return out
