@@ -184,3 +184,18 @@ def test_inproc_counts_link_drops(testloop_toml: Path) -> None:
     assert (
         link.sent == link.delivered + link.dropped_loss + link.dropped_outage + link.dropped_queue
     )
+
+
+def test_in_virtual_time_the_delay_a_receiver_measures_is_the_modelled_one() -> None:
+    from common.config.scenario import load_scenario
+    from common.runtime.model.inproc import run_inproc
+    from common.runtime.run import link_stats
+
+    s, _ = load_scenario("configs/experiments/scenarios/small.toml")
+    links = link_stats(run_inproc(s).record)
+    lossy = [v for v in links.values() if v["delay_p50_s"] > 0]
+    assert lossy, links  # the scenario models delay somewhere
+    for name, v in links.items():
+        for q in ("p50", "p95"):
+            # one histogram bin (1 %) apart at most: delivery times are whole microseconds
+            assert v[f"measured_delay_{q}_s"] == pytest.approx(v[f"delay_{q}_s"], rel=0.011), name
