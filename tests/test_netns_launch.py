@@ -11,15 +11,13 @@ with the reason where a namespace cannot be created.
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import subprocess
 from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
 from helpers.launch_proc import REPO, Tidelink, alive, kill_recorded
+from helpers.netns import NetnsLab, Veth, ip, lab_or_skip, link_bytes
 
 pytestmark = [pytest.mark.slow, pytest.mark.netns]
 
@@ -42,81 +40,31 @@ SETS = (
 )
 
 
-def _ip(*args: str) -> str:
-    res = subprocess.run(["ip", *args], capture_output=True, text=True, timeout=15, check=False)
-    if res.returncode != 0:
-        raise RuntimeError(f"ip {' '.join(args)}: {res.stderr.strip()}")
-    return res.stdout
-
-
 class Hosts:
     """The router namespace and one namespace per service, each pair joined by a veth link."""
 
-    def __init__(self, tag: str) -> None:
-        self.router = f"tl{tag}r"
-        self.ns = {s: f"tl{tag}n{i}" for i, s in enumerate(SERVICES, 1)}
-        self.dev = {s: f"tl{tag}s{i}" for i, s in enumerate(SERVICES, 1)}  # service side
-        self.peer = {s: f"tl{tag}r{i}" for i, s in enumerate(SERVICES, 1)}  # router side
-        self.router_ip = {s: f"10.201.{i}.1" for i, s in enumerate(SERVICES, 1)}
-        self.created: list[str] = []
-
-    def create(self) -> None:
-        """Everything but the router's namespace, which the fixture adds first."""
-        for ns in (self.router, *self.ns.values()):
-            if ns not in self.created:
-                _ip("netns", "add", ns)
-                self.created.append(ns)
-            _ip("-n", ns, "link", "set", "lo", "up")
+    def __init__(self, lab: NetnsLab) -> None:
+        self.router = lab.namespace("r")
+        self.links: dict[str, Veth] = {}
         for i, s in enumerate(SERVICES, 1):
-            # both ends are created directly inside their namespaces
-            _ip(
-                "link",
-                "add",
-                self.peer[s],
-                "netns",
-                self.router,
-                "type",
-                "veth",
-                "peer",
-                "name",
-                self.dev[s],
-                "netns",
-                self.ns[s],
-            )
-            _ip("-n", self.router, "addr", "add", f"10.201.{i}.1/30", "dev", self.peer[s])
-            _ip("-n", self.ns[s], "addr", "add", f"10.201.{i}.2/30", "dev", self.dev[s])
-            _ip("-n", self.router, "link", "set", self.peer[s], "up")
-            _ip("-n", self.ns[s], "link", "set", self.dev[s], "up")
+            # the router's side is a, the service's b: 10.201.<i>.1 and .2
+            self.links[s] = lab.veth(self.router, lab.namespace(f"n{i}"), f"10.201.{i}", f"s{i}")
+        self.ns = {s: link.ns_b for s, link in self.links.items()}
+        self.router_ip = {s: link.ip_a for s, link in self.links.items()}
 
     def link(self, service: str, state: str) -> None:
-        _ip("-n", self.ns[service], "link", "set", self.dev[service], state)
+        veth = self.links[service]
+        ip("-n", veth.ns_b, "link", "set", veth.dev_b, state)
 
     def tx_bytes(self, service: str) -> int:
-        (info,) = json.loads(
-            _ip("-n", self.ns[service], "-j", "-s", "link", "show", self.dev[service])
-        )
-        return int(info["stats64"]["tx"]["bytes"])
-
-    def delete(self) -> None:
-        for ns in reversed(self.created):  # deleting a namespace deletes its veth ends
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=15, check=False)
+        veth = self.links[service]
+        return link_bytes(veth.ns_b, veth.dev_b)[0]
 
 
 @pytest.fixture
 def hosts() -> Iterator[Hosts]:
-    if shutil.which("ip") is None:
-        pytest.skip("no `ip` command (iproute2): cannot create network namespaces")
-    h = Hosts(f"{os.getpid() % 0xFFFF:04x}")
-    try:
-        _ip("netns", "add", h.router)
-    except RuntimeError as exc:
-        pytest.skip(f"cannot create a network namespace here (needs root): {exc}")
-    h.created.append(h.router)
-    try:
-        h.create()
-        yield h
-    finally:
-        h.delete()
+    with lab_or_skip() as lab:
+        yield Hosts(lab)
 
 
 def test_a_launch_across_namespaces_survives_a_link_outage(hosts: Hosts, tmp_path: Path) -> None:
