@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import queue
+from collections.abc import Iterable
 from typing import Any, NamedTuple
 
 from common.bus.bus import Bus, Liveliness, RawFrame
@@ -83,10 +84,21 @@ class Watcher:
         except queue.Empty:
             return None
 
-    def latest(self, keys: Keys, *, after: int = 0, timeout_s: float = 1.0) -> list[WatchedFrame]:
-        """The newest frame of every stream of a run whose tap count is above `after`."""
+    def latest(
+        self,
+        keys: Keys,
+        *,
+        after: int = 0,
+        streams: Iterable[str] = (),
+        timeout_s: float = 1.0,
+    ) -> list[WatchedFrame]:
+        """The newest frame of every stream of a run whose tap count is above `after` (of the
+        `streams` named "<service>/<stream>" only, when any are)."""
         out = []
-        for f in self.bus.query(f"{keys.all_latest}?after={after}", timeout_s=timeout_s):
+        selector = f"{keys.all_latest}?after={after}"
+        if names := "|".join(streams):
+            selector += f";streams={names}"
+        for f in self.bus.query(selector, timeout_s=timeout_s):
             try:
                 out.append(watched(f))
             except (ValueError, WireError) as exc:

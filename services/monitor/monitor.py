@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 from common.bus import Bus, Keys, Liveliness
@@ -14,7 +14,17 @@ from common.bus.keys import CLOCK
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
-from common.messages import WireError, decode
+from common.messages import (
+    Message,
+    PathMsg,
+    RunEnd,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    VelocityCommand,
+    WireError,
+    decode,
+)
 from common.runtime.processes.signals import StopRequest
 from services.monitor.state import Event, RunState
 
@@ -22,12 +32,18 @@ log = logging.getLogger("tidelink.monitor")
 
 DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
 EXIT_NO_RUN = 2
+# --rate: the streams of these types (the vehicle's state) at the rate, every stream every
+# FULL_POLL_S. On the default mission a reply with every stream is ~4.7 kB on the wire, so
+# polling them all at 2 Hz wanted ~75 kbit/s: more than a 64 kbit/s link carries
+STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, VelocityCommand, PathMsg, RunEnd)
+FULL_POLL_S = 2.0
 
 
 @dataclass(frozen=True, kw_only=True)
 class MonitorOptions:
     """What to watch and how: `rate_hz` None follows every frame; a rate polls the run's
-    latest state that many times a second instead (decimated at the run, for thin links)."""
+    latest state that many times a second instead (decimated at the run, for thin links):
+    the vehicle's state at that rate, every other stream every FULL_POLL_S."""
 
     connect: str
     run: str | None = None
@@ -45,6 +61,25 @@ class MonitorOptions:
             raise ValueError(f"update period {self.update_s!r} must be > 0 (s)")
         if not self.stale_s > 0:
             raise ValueError(f"--stale: {self.stale_s!r} must be > 0 (s)")
+
+
+@dataclass
+class PollMarks:
+    """--rate bookkeeping of one run: the tap counts polled up to, which streams are state."""
+
+    after_state: int = 0  # the tap count the last poll (of either kind) reached
+    after_all: int = 0  # the tap count the last poll of every stream reached
+    next_full: float = 0.0  # monotonic time of the next poll of every stream
+    state_streams: set[str] = field(default_factory=set)  # "<service>/<stream>"
+    newest: dict[str, int] = field(default_factory=dict)  # stream -> tap count shown
+
+    def take(self, f: WatchedFrame) -> bool:
+        """True for a frame newer than the newest shown of its stream (polls overlap)."""
+        name = f"{f.service}/{f.stream}"
+        if f.n <= self.newest.get(name, 0):
+            return False
+        self.newest[name] = f.n
+        return True
 
 
 class MonitorView(Protocol):
@@ -68,7 +103,7 @@ class Monitor:
         self.view = view
         self.stop = stop
         self.runs: dict[tuple[str, str], RunState] = {}
-        self._after: dict[tuple[str, str], int] = {}  # poll mode: the tap count seen so far
+        self._polls: dict[tuple[str, str], PollMarks] = {}  # --rate: per run
         self._ended: set[tuple[str, str]] = set()  # --follow: runs shown to their end
         self.watched_any = False
 
@@ -143,9 +178,10 @@ class Monitor:
             except Exception as exc:  # noqa: BLE001 - a bad scenario must not end the monitor
                 log.warning("run %s/%s: its scenario does not load here: %s", run, vehicle, exc)
         latest = watcher.latest(keys)
+        marks = self._polls[key] = PollMarks(next_full=time.monotonic() + FULL_POLL_S)
         for f in latest:
-            self._see(state, f)
-        self._after[key] = max((f.n for f in latest), default=0)
+            self._polled(state, marks, f)
+        marks.after_state = marks.after_all = max((f.n for f in latest), default=0)
         joined_in = time.monotonic() - t_join
         state._event(
             time.time(),
@@ -175,26 +211,43 @@ class Monitor:
         if (ev.run, ev.vehicle) not in self._ended:
             self._see(self._state(watcher, ev.run, ev.vehicle), ev)
 
-    def _see(self, state: RunState, f: WatchedFrame) -> None:
+    def _see(self, state: RunState, f: WatchedFrame) -> Message | None:
         try:
             msg = decode(f.payload)
         except WireError as exc:
             state.rejected += 1
             if state.rejected == 1:
                 log.warning("%s/%s: undecodable frame: %s", f.service, f.stream, exc)
-            return
+            return None
         state.see(f.service, f.stream, msg, f.wall)
+        return msg
+
+    def _polled(self, state: RunState, marks: PollMarks, f: WatchedFrame) -> None:
+        if marks.take(f) and isinstance(self._see(state, f), STATE_TYPES):
+            marks.state_streams.add(f"{f.service}/{f.stream}")
 
     def _poll(self, watcher: Watcher) -> None:
-        """Thin-link mode: the frames each run's tap got since the last poll, newest only."""
-        for (run, vehicle), state in self.runs.items():
+        """Thin-link mode: the frames each run's tap got since the last poll, newest only: of
+        the vehicle's state streams, and of every stream once every FULL_POLL_S."""
+        for key, state in self.runs.items():
             if state.over:
                 continue
-            frames = watcher.latest(Keys(run, vehicle), after=self._after.get((run, vehicle), 0))
+            marks = self._polls[key]
+            now = time.monotonic()
+            full = now >= marks.next_full or not marks.state_streams
+            if full:
+                marks.next_full = now + FULL_POLL_S
+                frames = watcher.latest(Keys(*key), after=marks.after_all)
+            else:
+                state_streams = sorted(marks.state_streams)
+                frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
             for f in frames:
-                self._see(state, f)
+                self._polled(state, marks, f)
             if frames:
-                self._after[(run, vehicle)] = max(f.n for f in frames)
+                n = max(f.n for f in frames)
+                marks.after_state = max(marks.after_state, n)
+                if full:
+                    marks.after_all = n
 
     def _drain(self, state: RunState) -> None:
         for ev in state.take_events():
@@ -204,5 +257,5 @@ class Monitor:
         """--follow: a run that ended leaves the dashboard once its end was shown."""
         for key in [k for k, s in self.runs.items() if s.over]:
             del self.runs[key]
-            self._after.pop(key, None)
+            self._polls.pop(key, None)
             self._ended.add(key)
