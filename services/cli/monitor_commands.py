@@ -54,8 +54,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=float,
         default=None,
         metavar="HZ",
-        help="thin links: poll each run's latest state HZ times a second (decimated at the run) "
-        "instead of receiving every message",
+        help="thin links: poll each run's latest state (decimated at the run) instead of "
+        "receiving every message: the vehicle's state HZ times a second, every stream every 2 s",
     )
     m.add_argument(
         "--every", type=float, default=0.5, metavar="S", help="seconds between updates (0.5)"
