@@ -1,0 +1,40 @@
+"""Smoke test of scripts/bench_monitor.py: a short self-test loop launch with one monitor that
+leaves by itself, and one that joined and was SIGSTOPped (killed at the end)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "bench_monitor", ROOT / "scripts" / "bench_monitor.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = bench  # its dataclasses look their module up there
+    spec.loader.exec_module(bench)
+    return bench
+
+
+@pytest.mark.parametrize("stopped", [False, True])
+def test_bench_monitor_measures_the_loop_with_a_monitor(tmp_path: Path, stopped: bool) -> None:
+    bench = _bench()
+    case = bench.Case("one", 1, stopped=stopped)
+    run = bench.run_case(bench.loop_scenario(4.0, tmp_path), [], case, "plant/status")
+    # a smoke test of the script: it measures; how fast is for the benchmark to say
+    assert len(run.ages_s) >= 20 and all(a >= 0.0 for a in run.ages_s)
+    assert run.metrics["end_reason"] == "max_time"
+    assert run.joined == 1
+    # a monitor that was not stopped saw the run to its end and left by itself
+    assert run.codes == ([None] if stopped else [0])
+    assert stopped or run.updates[0] >= 4
