@@ -55,3 +55,6 @@ def test_a_poll_gets_the_named_streams_newer_than_its_mark() -> None:
             assert [(f.service, f.stream, f.n) for f in newer] == [("vehicle", "truth", 4)]
             assert w.latest(keys, after=4) == []
             assert w.latest(keys, streams=["vehicle/nothing"]) == []
+            tap.end("goal", 12.5, 0)  # the run's end is a stream a poll can name too
+            (end,) = w.latest(keys, after=4, streams=["runtime/end"])
+            assert (end.service, end.stream, end.n) == ("runtime", "end", 5)

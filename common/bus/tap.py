@@ -147,6 +147,7 @@ class WatchTap:
             latest = self.keys.latest(CLOCK, END)
             self._latest[latest] = RawFrame(latest, data, att)
             self._latest_n[latest] = n
+            self._latest_name[latest] = f"{CLOCK}/{END}"
         for sink in sinks:
             sink(TappedFrame(CLOCK, END, data, None, wall, n))
         try:
