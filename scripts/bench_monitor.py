@@ -17,6 +17,11 @@ are to 0 monitors (goal: <= 1.05 at p50). Every monitor shares this machine's co
 run, as a monitor on the vehicle's own computer would; the p50 of each round is printed too,
 and the load average before each case: on a machine that others use, their spread says how
 far a ratio can be trusted.
+
+Then the recorder: the default mission recorded by a lockstep launch (--record) is replayed
+faster and faster (`tidelink replay`, which serves watchers as a run's clock does) with a
+remote `tidelink record` attached: frames offered per second (from the recorded log times),
+recorded and lost, against the run's own rate.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import statistics
 import subprocess
@@ -227,11 +233,87 @@ def med(values: list[float]) -> float:
     return statistics.median(values)
 
 
-def recorder_note() -> str:
+def has_command(name: str) -> bool:
+    """Whether `tidelink NAME` exists (as argparse's usage line lists the sub-commands)."""
     usage = build_parser().format_usage()
-    if "record" in usage.split("{", 1)[-1].split("}", 1)[0].split(","):
-        return "`tidelink record` exists but this benchmark does not measure it yet"
-    return "recorder: `tidelink record` is not on this branch; its sustained rate is not measured"
+    return name in usage.split("{", 1)[-1].split("}", 1)[0].split(",")
+
+
+def tidelink(*args: str, timeout_s: float = 300.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+        check=True,
+    )
+
+
+@dataclass
+class Recorded:
+    """One replay at `speed` recorded remotely: frames offered per second, recorded, lost."""
+
+    speed: float
+    offered_per_s: float
+    recorded: int
+    lost: int
+
+
+def bench_recorder(speeds: tuple[float, ...]) -> tuple[int, float, list[Recorded]]:
+    """The default mission recorded in a lockstep launch (--record), then replayed faster and
+    faster (`tidelink replay`, which serves watchers as a run's clock does) with a remote
+    `tidelink record` attached; returns (frames, the mission's seconds, one row per speed)."""
+    from services.recording.reader import read_recording
+
+    with tempfile.TemporaryDirectory(prefix="tidelink-bench-record-") as tmp:
+        src = Path(tmp) / "src"
+        launched = tidelink(
+            "launch",
+            str(ROOT / "configs" / "default.toml"),
+            "--runtime",
+            "lockstep",
+            "--record",
+            "--no-plot",
+            "--json",
+            "--out",
+            str(src),
+        )
+        t_end = float(json.loads(launched.stdout)["t_end_s"])
+        frames = len(read_recording(src / "run.mcap").frames)
+        rows: list[Recorded] = []
+        for speed in speeds:
+            endpoint = f"tcp/127.0.0.1:{free_port()}"
+            run = f"rec{len(rows)}"
+            out = Path(tmp) / f"{run}.mcap"
+            rec = subprocess.Popen(
+                [sys.executable, "-m", "services.cli", "record", "--connect", endpoint]
+                + ["--run", run, "-o", str(out)],
+                cwd=ROOT,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                text=True,
+            )
+            # --lead 3: the recorder (polling for the router every 0.5 s) joins before frame 1
+            tidelink(
+                "replay",
+                str(src / "run.mcap"),
+                "--listen",
+                endpoint,
+                "--speed",
+                f"{speed:g}",
+                "--as",
+                run,
+                "--lead",
+                "3",
+            )
+            stdout, _ = rec.communicate(timeout=120)
+            got = read_recording(out).frames
+            walls = [f.wall for f in got]
+            span = max(walls) - min(walls) if walls else float("nan")
+            m = re.search(r"lost (\d+) frames", stdout)
+            rows.append(Recorded(speed, frames / span, len(got), int(m[1]) if m else 0))
+    return frames, t_end, rows
 
 
 def main() -> None:
@@ -239,7 +321,36 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=2, help="interleaved repetitions (2)")
     p.add_argument("--loop-s", type=float, default=20.0, help="self-test loop seconds (20)")
     p.add_argument("--time-scale", type=float, default=4.0, help="default mission speed-up (4)")
+    p.add_argument(
+        "--replay-speeds",
+        type=float,
+        nargs="+",
+        default=[1.0, 4.0, 16.0, 64.0, 128.0],
+        help="recorder: replay speeds of the lockstep recording (1 4 16 64 128)",
+    )
+    p.add_argument("--only-recorder", action="store_true", help="skip the monitor cases")
     a = p.parse_args()
+    if not a.only_recorder:
+        bench_monitors(a)
+    if not has_command("record"):
+        print("recorder: `tidelink record` is not on this branch; not measured")
+        return
+    frames, t_end, rows = bench_recorder(tuple(a.replay_speeds))
+    print(
+        f"recorder (remote `tidelink record` of the default mission replayed faster and faster;"
+        f" the run: {frames} frames in {t_end:.1f} s = {frames / t_end:.0f} frames/s at x1, "
+        f"{a.time_scale * frames / t_end:.0f} at x{a.time_scale:g}):"
+    )
+    print("  replay speed  offered frames/s  x run's rate at x1  recorded  lost")
+    for r in rows:
+        print(
+            f"  {r.speed:12g}  {r.offered_per_s:16.0f}  {r.offered_per_s * t_end / frames:18.1f}"
+            f"  {r.recorded:8d}  {r.lost:4d}"
+        )
+
+
+def bench_monitors(a: argparse.Namespace) -> None:
+    """Every case, interleaved over the rounds; prints the two tables."""
     cases = CASES
     loop_toml = loop_scenario(a.loop_s, Path(tempfile.mkdtemp(prefix="tidelink-bench-")))
     default = ROOT / "configs" / "default.toml"
@@ -299,7 +410,6 @@ def main() -> None:
                 f"{m.get('commands_rejected_stale', 0):10d}  {pct(x.ages_s, 50) * 1e3:10.1f}  "
                 f"{pct(x.ages_s, 95) * 1e3:10.1f}  {x.joined:2d} of {c.monitors}"
             )
-    print(recorder_note())
 
 
 if __name__ == "__main__":
