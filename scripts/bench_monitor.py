@@ -1,6 +1,7 @@
 """Benchmark what watching a run costs its control loop: 0, 1 and 10 `tidelink monitor --json`
-processes attached to realtime launches (and 10 polling with --rate 2, for comparison), and one
-monitor that joined and was then SIGSTOPped (at mission time STOP_AT_S, killed at the end).
+processes attached to realtime launches (default: polling, plus the event streams; and 10
+with --all, every message, for comparison), and one monitor that joined and was then
+SIGSTOPped (at mission time STOP_AT_S, killed at the end).
 
 Each case runs two launches (router, clock and four services as processes; the launcher is
 this process, as `tidelink launch` is its own), each with its own fresh monitors:
@@ -79,7 +80,7 @@ CASES = (
     Case("0 monitors", 0),
     Case("1 monitor", 1),
     Case("10 monitors", 10),
-    Case("10 at --rate 2", 10, args=("--rate", "2")),  # polling, for comparison
+    Case("10 with --all", 10, args=("--all",)),  # every message, for comparison
     Case("1 SIGSTOPped", 1, stopped=True),
 )
 

@@ -66,6 +66,9 @@ def test_a_monitor_joining_mid_run_gets_the_path_in_force_at_once_and_exits_at_t
     assert updates[-1]["end"]["reason"] == _metrics(out)["end_reason"]
     ends = [x for x in lines if x["type"] == "event" and x["event"] == "end"]
     assert len(ends) == 1
+    # polling by default, it still hears every event stream: no replan falls between polls
+    paths = {x["path_id"] for x in lines if x["type"] == "event" and x["event"] == "path"}
+    assert len(paths) == _metrics(out)["replans"], paths  # (the count of paths planned)
 
 
 def test_a_monitor_without_a_run_says_so_and_waits_or_exits_2(tmp_path: Path) -> None:

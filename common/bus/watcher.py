@@ -69,6 +69,11 @@ class Watcher:
         if frames:
             self.bus.subscribe_raw(f"{_prefix(self.run, self.vehicle)}/{WATCH}/**", self._on_frame)
 
+    def follow(self, key_expr: str) -> None:
+        """Also hear every tapped frame on `key_expr` (some streams of a run, e.g. the ones
+        that carry events, when the rest is polled)."""
+        self.bus.subscribe_raw(key_expr, self._on_frame)
+
     def _on_frame(self, f: RawFrame) -> None:
         try:
             self._q.put(watched(f))

@@ -19,6 +19,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         vehicle=a.vehicle,
         follow=a.follow,
         rate_hz=a.rate,
+        every_frame=a.all,
         update_s=a.every,
         stale_s=a.stale,
         no_wait=a.no_wait,
@@ -54,8 +55,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=float,
         default=None,
         metavar="HZ",
-        help="thin links: poll each run's latest state (decimated at the run) instead of "
-        "receiving every message: the vehicle's state HZ times a second, every stream every 2 s",
+        help="thin links: poll only, HZ times a second (default: once per update, plus every "
+        "message of the event streams: status, path, end); the vehicle's state each poll, "
+        "every stream every 2 s",
+    )
+    m.add_argument(
+        "--all",
+        action="store_true",
+        help="receive every message of every stream instead of polling (scripts that want "
+        "them all; costs the monitor's host CPU in proportion)",
     )
     m.add_argument(
         "--every", type=float, default=0.5, metavar="S", help="seconds between updates (0.5)"

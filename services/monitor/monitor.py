@@ -1,6 +1,6 @@
 """`tidelink monitor`'s loop: find the runs on a router, join each (scenario and latest state),
-follow their tapped frames (or poll their latest state at a fixed rate over a thin link), and
-hand snapshots and events to a view (terminal dashboard or JSON lines)."""
+poll their latest state at the view's rate (or follow every tapped frame), and hand snapshots
+and events to a view (terminal dashboard or JSON lines)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from common.bus import Bus, Keys, Liveliness
-from common.bus.keys import CLOCK
+from common.bus.keys import CLOCK, END
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.bus import BusConfig
 from common.config.scenario import scenario_from_raw
@@ -37,19 +37,25 @@ EXIT_NO_RUN = 2
 # polling them all at 2 Hz wanted ~75 kbit/s: more than a 64 kbit/s link carries
 STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, VelocityCommand, PathMsg, RunEnd)
 FULL_POLL_S = 2.0
+# Polling by default, the monitor still hears every frame of these: a mode change, a replan
+# or the run's end between two polls must not be missed (a few messages a second)
+EVENT_TYPES = (VehicleStatus, PathMsg, RunEnd)
 
 
 @dataclass(frozen=True, kw_only=True)
 class MonitorOptions:
-    """What to watch and how: `rate_hz` None follows every frame; a rate polls the run's
-    latest state that many times a second instead (decimated at the run, for thin links):
-    the vehicle's state at that rate, every other stream every FULL_POLL_S."""
+    """What to watch and how. By default the monitor polls each run's latest state once per
+    update (decimated at the run: the vehicle's state streams each time, every stream every
+    FULL_POLL_S) and hears every frame of the streams that carry events (EVENT_TYPES);
+    `rate_hz` sets the poll rate and drops those subscriptions too (thin links: nothing but
+    the polls crosses the link); `every_frame` receives every tapped frame instead."""
 
     connect: str
     run: str | None = None
     vehicle: str | None = None
     follow: bool = False
     rate_hz: float | None = None
+    every_frame: bool = False
     update_s: float = 0.5  # how often snapshots go to the view
     stale_s: float = 2.0  # a stream older than this raises an alarm
     no_wait: bool = False
@@ -57,6 +63,8 @@ class MonitorOptions:
     def __post_init__(self) -> None:
         if self.rate_hz is not None and not self.rate_hz > 0:
             raise ValueError(f"--rate: {self.rate_hz!r} must be > 0 (Hz)")
+        if self.rate_hz is not None and self.every_frame:
+            raise ValueError("--rate and --all exclude each other (poll, or every frame)")
         if not self.update_s > 0:
             raise ValueError(f"update period {self.update_s!r} must be > 0 (s)")
         if not self.stale_s > 0:
@@ -71,6 +79,7 @@ class PollMarks:
     after_all: int = 0  # the tap count the last poll of every stream reached
     next_full: float = 0.0  # monotonic time of the next poll of every stream
     state_streams: set[str] = field(default_factory=set)  # "<service>/<stream>"
+    followed: set[str] = field(default_factory=set)  # event streams subscribed to
     newest: dict[str, int] = field(default_factory=dict)  # stream -> tap count shown
 
     def take(self, f: WatchedFrame) -> bool:
@@ -112,7 +121,7 @@ class Monitor:
         cfg = BusConfig(mode="client", connect=(self.opts.connect,))
         with Bus(cfg, Keys("monitor", "monitor")) as bus:
             watcher = Watcher(bus, self.opts.run, self.opts.vehicle)
-            watcher.start(frames=self.opts.rate_hz is None)
+            watcher.start(frames=self.opts.every_frame)
             try:
                 return self._loop(watcher)
             finally:
@@ -123,7 +132,7 @@ class Monitor:
         told_waiting = False
         period = self.opts.update_s
         if self.opts.rate_hz is not None:
-            period = min(period, 1.0 / self.opts.rate_hz)
+            period = 1.0 / self.opts.rate_hz
         next_update = time.monotonic()
         while not self.stop.requested:
             ev = watcher.get(timeout=max(0.0, next_update - time.monotonic()))
@@ -132,7 +141,7 @@ class Monitor:
                 if time.monotonic() < next_update:
                     continue
             next_update = time.monotonic() + period
-            if self.opts.rate_hz is not None:
+            if not self.opts.every_frame:
                 self._poll(watcher)
             now = time.time()
             live = list(self.runs.values())
@@ -177,10 +186,12 @@ class Monitor:
                 state.scenario = scenario_from_raw(raw)
             except Exception as exc:  # noqa: BLE001 - a bad scenario must not end the monitor
                 log.warning("run %s/%s: its scenario does not load here: %s", run, vehicle, exc)
-        latest = watcher.latest(keys)
         marks = self._polls[key] = PollMarks(next_full=time.monotonic() + FULL_POLL_S)
+        if self._follow_events:
+            self._follow(watcher, marks, keys, CLOCK, END)  # before asking: nothing falls between
+        latest = watcher.latest(keys)
         for f in latest:
-            self._polled(state, marks, f)
+            self._polled(watcher, state, marks, f)
         marks.after_state = marks.after_all = max((f.n for f in latest), default=0)
         joined_in = time.monotonic() - t_join
         state._event(
@@ -222,12 +233,29 @@ class Monitor:
         state.see(f.service, f.stream, msg, f.wall)
         return msg
 
-    def _polled(self, state: RunState, marks: PollMarks, f: WatchedFrame) -> None:
-        if marks.take(f) and isinstance(self._see(state, f), STATE_TYPES):
+    @property
+    def _follow_events(self) -> bool:
+        return not self.opts.every_frame and self.opts.rate_hz is None
+
+    def _follow(
+        self, watcher: Watcher, marks: PollMarks, keys: Keys, service: str, stream: str
+    ) -> None:
+        name = f"{service}/{stream}"
+        if name not in marks.followed:
+            marks.followed.add(name)
+            watcher.follow(keys.watch(service, stream))
+
+    def _polled(self, watcher: Watcher, state: RunState, marks: PollMarks, f: WatchedFrame) -> None:
+        if not marks.take(f):
+            return
+        msg = self._see(state, f)
+        if isinstance(msg, STATE_TYPES):
             marks.state_streams.add(f"{f.service}/{f.stream}")
+        if isinstance(msg, EVENT_TYPES) and self._follow_events:
+            self._follow(watcher, marks, Keys(f.run, f.vehicle), f.service, f.stream)
 
     def _poll(self, watcher: Watcher) -> None:
-        """Thin-link mode: the frames each run's tap got since the last poll, newest only: of
+        """One poll: the frames each run's tap got since the last poll, newest only: of
         the vehicle's state streams, and of every stream once every FULL_POLL_S."""
         for key, state in self.runs.items():
             if state.over:
@@ -242,7 +270,7 @@ class Monitor:
                 state_streams = sorted(marks.state_streams)
                 frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
             for f in frames:
-                self._polled(state, marks, f)
+                self._polled(watcher, state, marks, f)
             if frames:
                 n = max(f.n for f in frames)
                 marks.after_state = max(marks.after_state, n)
