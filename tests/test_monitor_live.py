@@ -126,3 +126,26 @@ def test_a_sigstopped_monitor_leaves_a_realtime_outcome_unchanged(
     expected = run_inproc(s).metrics
     assert m["end_reason"] == "goal" and m["reached_goal"] is expected["reached_goal"] is True
     assert m["collisions"] == expected["collisions"] == 0
+
+
+def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_another(
+    tmp_path: Path,
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    small = "configs/experiments/scenarios/small.toml"
+    with Tidelink("monitor", "--connect", endpoint, "--json", "--follow") as mon:
+        mon.wait_for(r"no router at .* yet; waiting", 15.0, stdout=True)  # none listens yet
+        for seed in ("1", "2"):  # each launch brings its own router on the same endpoint
+            out = tmp_path / f"run{seed}"
+            launch = ["launch", small, "--runtime", "lockstep", "--listen", endpoint]
+            with Tidelink(*launch, "--seed", seed, "--out", str(out), "--no-plot") as run:
+                assert run.wait(WAIT_S) == 0, run.stderr
+        first = mon.wait_for(r'"event": "end"', WAIT_S, stdout=True).string
+        second = mon.wait_for(
+            r'"event": "end"', WAIT_S, start=mon.out.index(first) + 1, stdout=True
+        )
+        ends = [json.loads(first), json.loads(second.string)]
+        assert [e["text"].endswith("goal") for e in ends] == [True, True]
+        assert mon.proc.poll() is None  # --follow: still watching
+        mon.signal(signal.SIGINT)
+        assert mon.wait(15.0) == 0

@@ -26,10 +26,13 @@ from common.messages import (
     decode,
 )
 from common.runtime.processes.signals import StopRequest
+from services.launcher.router import wait_for_endpoint
 from services.monitor.state import Event, RunState
 
 log = logging.getLogger("tidelink.monitor")
 
+ROUTER_PROBE_S = 0.5  # a router that is not there is probed this often
+ROUTER_CHECK_S = 1.0  # while no run is on, whether the router is still there
 DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
 EXIT_NO_RUN = 2
 # --rate: the streams of these types (the vehicle's state) at the rate, every stream every
@@ -117,23 +120,49 @@ class Monitor:
         self.watched_any = False
 
     def run(self) -> int:
-        """Watch; returns the exit status (0: the watched runs ended; 2: none and --no-wait)."""
-        cfg = BusConfig(mode="client", connect=(self.opts.connect,))
-        with Bus(cfg, Keys("monitor", "monitor")) as bus:
-            watcher = Watcher(bus, self.opts.run, self.opts.vehicle)
-            watcher.start(frames=self.opts.every_frame)
-            try:
-                return self._loop(watcher)
-            finally:
-                self.view.close()
+        """Watch; returns the exit status (0: the watched runs ended; 2: none and --no-wait).
 
-    def _loop(self, watcher: Watcher) -> int:
+        Each `tidelink launch` brings its own router: without one the monitor waits for it
+        (with --no-wait it fails at once, naming the endpoint), and with --follow it opens a
+        new session when the router it watched goes and the next one listens."""
+        try:
+            while not self.stop.requested:
+                if not self.opts.no_wait and not self._router_up():
+                    self.view.notice(f"no router at {self.opts.connect} yet; waiting")
+                    while not self._router_up():
+                        if self.stop.requested:
+                            return 0
+                cfg = BusConfig(mode="client", connect=(self.opts.connect,))
+                try:
+                    with Bus(cfg, Keys("monitor", "monitor")) as bus:
+                        watcher = Watcher(bus, self.opts.run, self.opts.vehicle)
+                        watcher.start(frames=self.opts.every_frame)
+                        code = self._loop(watcher)
+                except ConnectionError as exc:
+                    if self.opts.no_wait:
+                        raise
+                    # gone between the probe and Zenoh's connect: probe again
+                    log.info("%s; trying again", exc)
+                    continue
+                if code is not None:
+                    return code
+                self.view.notice(f"the router at {self.opts.connect} is gone; waiting for the next")
+            return 0
+        finally:
+            self.view.close()
+
+    def _router_up(self) -> bool:
+        """Whether the router accepts connections, probing for up to ROUTER_PROBE_S."""
+        return wait_for_endpoint(self.opts.connect, ROUTER_PROBE_S)
+
+    def _loop(self, watcher: Watcher) -> int | None:
+        """Watch on one session; the exit status, or None when the router went (--follow)."""
         t0 = time.monotonic()
         told_waiting = False
         period = self.opts.update_s
         if self.opts.rate_hz is not None:
             period = 1.0 / self.opts.rate_hz
-        next_update = time.monotonic()
+        next_update = next_probe = time.monotonic()
         while not self.stop.requested:
             ev = watcher.get(timeout=max(0.0, next_update - time.monotonic()))
             if ev is not None:
@@ -150,19 +179,23 @@ class Monitor:
                 self._drain(s)
             if live:
                 self.view.update(live, now)
-            if not self.runs:
-                if time.monotonic() - t0 >= DISCOVERY_S and not told_waiting:
-                    where = self._which()
-                    if self.opts.no_wait:
-                        self.view.notice(f"no run {where} on {self.opts.connect}")
-                        return EXIT_NO_RUN
-                    self.view.notice(f"no run {where} on {self.opts.connect} yet; waiting")
-                    told_waiting = True
-                continue
-            if all(s.over for s in self.runs.values()) and not self.opts.follow:
-                return 0
             if self.opts.follow:
                 self._forget_ended()
+            elif self.runs and all(s.over for s in self.runs.values()):
+                return 0
+            if self.runs:
+                continue
+            if time.monotonic() - t0 >= DISCOVERY_S and not told_waiting:
+                where = self._which()
+                if self.opts.no_wait:
+                    self.view.notice(f"no run {where} on {self.opts.connect}")
+                    return EXIT_NO_RUN
+                self.view.notice(f"no run {where} on {self.opts.connect} yet; waiting")
+                told_waiting = True
+            if time.monotonic() >= next_probe:  # no run on: is the router still there?
+                next_probe = time.monotonic() + ROUTER_CHECK_S
+                if not wait_for_endpoint(self.opts.connect, 0.0):
+                    return None
         return 0
 
     def _which(self) -> str:
