@@ -175,7 +175,12 @@ def test_stop_escalates_to_sigkill_for_the_whole_group(tmp_path: Path) -> None:
 @pytest.mark.slow  # real child processes (no Zenoh), ~1 s in all
 def test_a_child_leads_its_own_process_group(tmp_path: Path) -> None:
     sup = Supervisor(tmp_path)
-    child = sup.start("quiet", ["-c", "import signal; signal.pause()"])
+    # Python's own SIGINT handler, set explicitly: a suite started in the background by a
+    # shell inherits SIGINT ignored, and so would this child (then SIGTERM ends it)
+    quiet = (
+        "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); signal.pause()"
+    )
+    child = sup.start("quiet", ["-c", quiet])
     try:
         assert os.getpgid(child.proc.pid) == child.proc.pid != os.getpgid(0)
     finally:
