@@ -72,6 +72,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
         "commands_applied": COUNT,
         "commands_rejected": COUNT,
         "commands_clamped": COUNT,
+        "rejected_by_reason": st.dictionaries(TEXT, COUNT, max_size=5),
     },
     LinkCounters: {
         **{

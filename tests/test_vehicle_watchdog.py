@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from common.config.vehicle import VehicleConfig, WatchdogConfig
-from common.messages import VehicleStatus, VelocityCommand
+from common.messages import VehicleStatus, VelocityCommand, replace
 from common.runtime.model.core import Delivery
 from services.vehicle.core import VehicleCore
 from services.vehicle.watchdog import Watchdog
@@ -129,3 +129,51 @@ def test_watchdog_config_validation() -> None:
         WatchdogConfig(hold_after_s=2.0, failsafe_after_s=2.0)
     with pytest.raises(ValueError, match="hold_after_s"):
         WatchdogConfig(max_command_age_s=3.0, hold_after_s=2.0)
+
+
+def test_one_command_from_the_far_future_cannot_lock_out_the_later_ones() -> None:
+    wd = Watchdog(CFG, v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5, commander="planner")
+    assert wd.offer(1.0, 1.0, 1.0, 0.0, "planner") == "applied"
+    # a glitching clock or a hostile client: stamped now + 10^6 s
+    assert wd.offer(1.1, 1.0e6, 2.0, 0.5, "planner") == "future"
+    assert wd.offer(1.2, 1.2 + CFG.max_future_s / 2, 1.1, 0.0, "planner") == "applied"
+    for k in range(1, 20):  # every later planner command still goes through
+        assert wd.offer(1.5 + k * 0.1, 1.5 + k * 0.1, 1.0, 0.0, "planner") == "applied"
+    assert wd.command(3.5).mode == "RUN"
+
+
+def test_only_the_commanders_commands_count_and_every_rejection_is_counted_by_reason() -> None:
+    wd = Watchdog(CFG, v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5, commander="planner")
+    assert wd.offer(1.0, 1.0, 1.0, 0.0, "rogue") == "wrong_source"
+    assert wd.offer(1.0, 1.0, 1.0, 0.0, "") == "wrong_source"
+    assert wd.command(1.5).mode == "IDLE"  # nothing applied
+    assert wd.offer(1.0, 1.0, 1.0, 0.0, "planner") == "applied"
+    assert wd.offer(1.1, 0.5, 1.0, 0.0, "planner") == "out_of_order"
+    assert wd.offer(1.1, 9.0, 1.0, 0.0, "planner") == "future"
+    assert wd.offer(5.0, 3.0, 1.0, 0.0, "planner") == "stale"
+    assert wd.offer(5.0, math.nan, 1.0, 0.0, "planner") == "non_finite"
+    assert wd.rejections == {
+        "non_finite": 1,
+        "wrong_source": 2,
+        "future": 1,
+        "out_of_order": 1,
+        "stale": 1,
+    }
+    assert wd.rejected == 6
+
+
+def test_the_vehicle_reports_rejections_by_reason_and_logs_each_reason_once_a_second(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    core = VehicleCore(
+        VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0), commander="planner"
+    )
+    rogue = VelocityCommand(stamp=0.0, v=2.0, w=0.5, path_id=1, source="monitor")
+    with caplog.at_level("WARNING", logger="tidelink.vehicle"):
+        for t in [0.01 * k for k in range(50)] + [1.1]:  # 100 Hz for 0.5 s, then once more
+            core.deliver(Delivery("planner", "cmd", replace(rogue, stamp=t), t))
+    assert len([r for r in caplog.records if "wrong_source" in r.getMessage()]) == 2
+    status = [e.msg for e in core.step(1.2) if isinstance(e.msg, VehicleStatus)][0]
+    assert status.commands_applied == 0 and status.mode == "IDLE"
+    assert status.rejected_by_reason["wrong_source"] == 51
+    assert status.commands_rejected == 51

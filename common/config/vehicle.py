@@ -48,12 +48,17 @@ class WatchdogConfig:
     """Command watchdog: reject stale/out-of-order commands, HOLD then FAILSAFE on silence."""
 
     max_command_age_s: float = 1.0  # reject a command whose age (t_now - stamp) exceeds this
+    # reject a command stamped further ahead of the vehicle's clock than this (clock skew
+    # between processes is milliseconds; one command from the far future must not lock the
+    # out-of-order check against every later command)
+    max_future_s: float = 0.5
     hold_after_s: float = 2.0  # applied command older than this: ramp to zero speed, w = 0
     failsafe_after_s: float = 5.0  # older than this: report FAILSAFE until a fresh command
     hold_decel_mps2: float = 0.2  # speed ramp-down rate of the commanded speed in HOLD
 
     def __post_init__(self) -> None:
         positive("max_command_age_s", self.max_command_age_s)
+        positive("max_future_s", self.max_future_s)
         positive("hold_after_s", self.hold_after_s)
         positive("failsafe_after_s", self.failsafe_after_s)
         positive("hold_decel_mps2", self.hold_decel_mps2)

@@ -170,11 +170,14 @@ class VehicleStatus(Message, frozen=True, kw_only=True):
     commands_applied: int
     commands_rejected: int
     commands_clamped: int
+    rejected_by_reason: dict[str, int] = msgspec.field(default_factory=dict)
 
     def validate(self) -> None:
         check_range("command_age", self.command_age, 0.0)
         for name in ("commands_applied", "commands_rejected", "commands_clamped"):
             check_range(name, getattr(self, name), 0)
+        for reason, n in self.rejected_by_reason.items():
+            check_range(f"rejected_by_reason[{reason!r}]", n, 0)
 
 
 class TruthState(Message, frozen=True, kw_only=True):

@@ -32,6 +32,7 @@ from services.sensor.core import SensorCore
 from services.vehicle.core import VehicleCore
 
 NEWEST = QueuePolicy.NEWEST
+COMMANDER = "planner"  # the one service whose commands the vehicle applies
 
 
 def auv_dataflow(s: Scenario) -> Dataflow:
@@ -78,7 +79,7 @@ def auv_dataflow(s: Scenario) -> Dataflow:
             name="vehicle",
             factory=make_vehicle,
             period_s=s.vehicle.period_s,
-            inputs=(Input(source="planner", stream="cmd", msg_type=VelocityCommand),),
+            inputs=(Input(source=COMMANDER, stream="cmd", msg_type=VelocityCommand),),
             outputs=(
                 Output(stream="truth", msg_type=TruthState),
                 Output(stream="status", msg_type=VehicleStatus),
@@ -114,5 +115,9 @@ def make_vehicle(ctx: CoreContext) -> VehicleCore:
     s = ctx.scenario
     world, r = World(s.world), s.vehicle.radius_m
     return VehicleCore(
-        s.vehicle, _start(s), ctx.rng, clearance=lambda x, y, t: world.clearance(x, y, r, t)
+        s.vehicle,
+        _start(s),
+        ctx.rng,
+        clearance=lambda x, y, t: world.clearance(x, y, r, t),
+        commander=COMMANDER,  # defence in depth: whatever the bus lets through
     )

@@ -11,6 +11,7 @@ on a scratch copy. Everything depends only on the sequence of (deliver, step) ca
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 
@@ -23,6 +24,8 @@ from common.scalar import wrap_angle
 from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
 from services.vehicle.watchdog import Applied, Schedule, Verdict, Watchdog
+
+log = logging.getLogger("tidelink.vehicle")
 
 Clearance = Callable[[float, float, float], float]  # (x, y, t) -> signed clearance (eq. 12), m
 
@@ -43,6 +46,7 @@ class VehicleCore:
         clearance: Clearance | None = None,
         *,
         t0: float = 0.0,
+        commander: str | None = None,
     ) -> None:
         self._cfg = cfg
         self._p = PlantParams.from_config(cfg)
@@ -57,7 +61,9 @@ class VehicleCore:
             v_max=cfg.v_max_mps,
             w_min=cfg.w_min_rps,
             w_max=cfg.w_max_rps,
+            commander=commander,
         )
+        self._rejection_logged: dict[str, float] = {}  # reason -> mission time last logged
         self._clearance = clearance
         self.min_clearance_m = math.inf  # smallest clearance seen at any step
         self.collisions = 0  # steps at which the clearance was negative
@@ -74,7 +80,9 @@ class VehicleCore:
             return []
         self._commit(d.t)
         before = self._watchdog.schedule
-        self.last_verdict = self._watchdog.offer(d.t, msg.stamp, msg.v, msg.w)
+        self.last_verdict = verdict = self._watchdog.offer(d.t, msg.stamp, msg.v, msg.w, msg.source)
+        if verdict != "applied":
+            self._log_rejection(verdict, d.t, msg)
         after = self._watchdog.schedule
         if after is not before:
             start = max(d.t, self._t)  # a delivery in the plant's past takes effect now
@@ -83,6 +91,24 @@ class VehicleCore:
             else:
                 self._pieces.append((start, after))
         return []
+
+    def _log_rejection(self, reason: str, t: float, msg: VelocityCommand) -> None:
+        """Say why a command was rejected: once per reason per mission second (a flood of
+        hostile commands must not flood the log; the counts are in every status)."""
+        last = self._rejection_logged.get(reason)
+        if last is not None and t - last < 1.0:
+            return
+        self._rejection_logged[reason] = t
+        count = self._watchdog.rejections[reason]
+        log.warning(
+            "t=%.2f s: rejected a command (%s): from %r, stamp %.3f s, seq %d (%d so far)",
+            t,
+            reason,
+            msg.source,
+            msg.stamp,
+            msg.seq,
+            count,
+        )
 
     def step(self, t: float) -> list[Emit]:
         """Integrate to t and publish the true state and the vehicle status."""
@@ -116,6 +142,7 @@ class VehicleCore:
                     commands_applied=wd.applied,
                     commands_rejected=wd.rejected,
                     commands_clamped=wd.clamped,
+                    rejected_by_reason=wd.rejections,
                 ),
             ),
         ]

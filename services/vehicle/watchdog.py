@@ -1,9 +1,12 @@
 """Command watchdog of a networked loop: reject stale or reordered commands, HOLD, FAILSAFE.
 
 Rules (times on the runtime clock, `stamp` = the command's validity time):
-- a command with a non-finite field, with stamp < the last applied stamp (overtaken on the
-  network), or with age t_now - stamp > max_command_age_s is rejected and counted; a
-  duplicate (stamp equal to the last applied one) is idempotent and re-applied;
+- a command with a non-finite field, from another source than the vehicle's commander (the
+  envelope's `source`, when a commander is set), stamped more than max_future_s ahead of
+  t_now, with stamp < the last applied stamp (overtaken on the network), or with age
+  t_now - stamp > max_command_age_s is rejected and counted by reason; a duplicate (stamp
+  equal to the last applied one) is idempotent and re-applied. The future check comes
+  before the order check, so no single command can lock out every later one;
 - an accepted command is clamped to the eq. (11) bounds (counted in `clamped` when it had to
   be), never applied raw;
 - once the applied command is hold_after_s old, the commanded speed ramps down to the floor
@@ -20,7 +23,8 @@ from typing import Literal
 from common.config.vehicle import WatchdogConfig
 from common.messages import VehicleMode
 
-Verdict = Literal["applied", "non_finite", "out_of_order", "stale"]
+Verdict = Literal["applied", "non_finite", "wrong_source", "future", "out_of_order", "stale"]
+REJECTIONS: tuple[Verdict, ...] = ("non_finite", "wrong_source", "future", "out_of_order", "stale")
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -72,9 +76,17 @@ class Watchdog:
     """Pure, stateful command filter; no clock of its own (every call passes the time)."""
 
     def __init__(
-        self, cfg: WatchdogConfig, *, v_min: float, v_max: float, w_min: float, w_max: float
+        self,
+        cfg: WatchdogConfig,
+        *,
+        v_min: float,
+        v_max: float,
+        w_min: float,
+        w_max: float,
+        commander: str | None = None,
     ) -> None:
         self._cfg = cfg
+        self._commander = commander  # the only source whose commands count (None: any)
         self._v_bounds = (v_min, v_max)
         self._w_bounds = (w_min, w_max)
         self.schedule = Schedule()
@@ -83,17 +95,31 @@ class Watchdog:
         self.rejected_stale = 0
         self.rejected_out_of_order = 0
         self.rejected_non_finite = 0
+        self.rejected_wrong_source = 0
+        self.rejected_future = 0
 
     @property
     def rejected(self) -> int:
         """All rejected commands, whatever the reason."""
-        return self.rejected_stale + self.rejected_out_of_order + self.rejected_non_finite
+        return sum(self.rejections.values())
 
-    def offer(self, t_now: float, stamp: float, v: float, w: float) -> Verdict:
-        """Judge a command delivered at t_now; apply it (clamped) unless it is rejected."""
+    @property
+    def rejections(self) -> dict[str, int]:
+        """Rejected commands by reason (every reason, zeros included)."""
+        return {r: getattr(self, f"rejected_{r}") for r in REJECTIONS}
+
+    def offer(self, t_now: float, stamp: float, v: float, w: float, source: str = "") -> Verdict:
+        """Judge a command from `source` delivered at t_now; apply it (clamped) unless it is
+        rejected (the verdict says why)."""
         if not (math.isfinite(stamp) and math.isfinite(v) and math.isfinite(w)):
             self.rejected_non_finite += 1
             return "non_finite"
+        if self._commander is not None and source != self._commander:
+            self.rejected_wrong_source += 1
+            return "wrong_source"
+        if stamp - t_now > self._cfg.max_future_s:
+            self.rejected_future += 1
+            return "future"
         last = self.schedule.stamp
         if last is not None and stamp < last:
             self.rejected_out_of_order += 1

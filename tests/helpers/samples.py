@@ -135,6 +135,7 @@ def one_of_each() -> list[Message]:
             commands_applied=120,
             commands_rejected=1,
             commands_clamped=3,
+            rejected_by_reason={"stale": 1},
         ),
         TruthState(
             stamp=12.5,
