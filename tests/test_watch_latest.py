@@ -4,8 +4,6 @@ Real Zenoh: the tap on a router session, the watcher on a client session."""
 
 from __future__ import annotations
 
-import time
-
 from helpers.samples import one_of_each
 
 from common.bus import Bus, Keys
@@ -24,10 +22,7 @@ STREAMS = {
 
 
 def _wait_for(tap: WatchTap, count: int, timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while tap.count < count:
-        assert time.monotonic() < deadline, f"the tap got {tap.count} of {count} frames"
-        time.sleep(0.01)  # polling a condition with a deadline
+    assert tap.caught_up(count, timeout_s=timeout_s), f"the tap got {tap.count} of {count} frames"
 
 
 def test_a_poll_gets_the_named_streams_newer_than_its_mark() -> None:
