@@ -14,6 +14,22 @@ from typing import Any
 log = logging.getLogger("tidelink")
 
 
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
+
+
+def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
+    """--connect, --run and --vehicle of the tools that watch live runs (monitor, foxglove,
+    record): the run's router, and which run and vehicle to watch."""
+    p.add_argument(
+        "--connect",
+        default=DEFAULT_CONNECT,
+        metavar="ENDPOINT",
+        help=f"the run's router (default {DEFAULT_CONNECT}; `tidelink launch` prints its own)",
+    )
+    p.add_argument("--run", default=None, help=run_help)
+    p.add_argument("--vehicle", default=None, help=vehicle_help)
+
+
 def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
     p.add_argument(
         "scenario",

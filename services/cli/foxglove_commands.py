@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import logging
 
+from services.cli.core_commands import watcher_args
+
 
 def cmd_foxglove(a: argparse.Namespace) -> int:
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
@@ -27,14 +29,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     f = sub.add_parser(
         "foxglove", help="serve the runs on a router to the Foxglove app (WebSocket)"
     )
-    f.add_argument(
-        "--connect",
-        default="tcp/127.0.0.1:7447",
-        metavar="ENDPOINT",
-        help="the run's router (default tcp/127.0.0.1:7447; `tidelink launch --listen` sets it)",
+    watcher_args(
+        f,
+        run_help="show only this run (default: any, one at a time)",
+        vehicle_help="show only this vehicle (default: any)",
     )
-    f.add_argument("--run", default=None, help="show only this run (default: any, one at a time)")
-    f.add_argument("--vehicle", default=None, help="show only this vehicle (default: any)")
     f.add_argument("--host", default="127.0.0.1", help="address to serve on (0.0.0.0: all)")
     f.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
     f.set_defaults(func=cmd_foxglove)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+from services.cli.core_commands import watcher_args
 
 
 def cmd_monitor(a: argparse.Namespace) -> int:
@@ -38,14 +38,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "(all runs unless --run is given, side by side). Exits 0 when the watched runs end, "
         "unless --follow.",
     )
-    m.add_argument(
-        "--connect",
-        default=DEFAULT_CONNECT,
-        metavar="ENDPOINT",
-        help=f"the run's router (default {DEFAULT_CONNECT}; `tidelink launch` prints its own)",
+    watcher_args(
+        m,
+        run_help="watch only this run id (default: every run)",
+        vehicle_help="watch only this vehicle id (default: every)",
     )
-    m.add_argument("--run", default=None, help="watch only this run id (default: every run)")
-    m.add_argument("--vehicle", default=None, help="watch only this vehicle id (default: every)")
     m.add_argument("--json", action="store_true", help="one JSON object per event/update")
     m.add_argument(
         "--follow", action="store_true", help="keep watching across a run's end and new runs"

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from services.cli.core_commands import print_metrics_table
+from services.cli.core_commands import print_metrics_table, watcher_args
 
 if TYPE_CHECKING:
     from common.config.scenario import Scenario
@@ -17,7 +17,6 @@ if TYPE_CHECKING:
     from services.recording.remote import RecordOutcome
     from services.recording.writer import View
 
-DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
 ROUTER_WAIT_S = 10.0  # replay --connect: how long to wait for the router to accept
 
 
@@ -135,14 +134,11 @@ def cmd_metrics(a: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add record, replay and metrics to the tidelink parser."""
     r = sub.add_parser("record", help="record a run on a router to an MCAP file (remotely)")
-    r.add_argument(
-        "--connect",
-        default=DEFAULT_CONNECT,
-        metavar="ENDPOINT",
-        help=f"the run's router (default {DEFAULT_CONNECT})",
+    watcher_args(
+        r,
+        run_help="the run id (default: the first run seen)",
+        vehicle_help="the vehicle id (default: any)",
     )
-    r.add_argument("--run", default=None, help="the run id (default: the first run seen)")
-    r.add_argument("--vehicle", default=None, help="the vehicle id (default: any)")
     r.add_argument("-o", "--out", type=Path, required=True, help="the MCAP file to write")
     r.set_defaults(func=cmd_record)
 
