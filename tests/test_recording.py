@@ -175,6 +175,25 @@ def test_a_replay_is_a_live_run_to_a_watcher_in_another_process(
     assert all((f.service, f.stream, f.payload, f.attachment) in want for f in seen.latest)
 
 
+def test_a_replay_feeds_tidelink_monitor_as_a_live_run(lockstep_run: Path) -> None:
+    rec = read_recording(lockstep_run / "run.mcap")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    replay_args = ["--listen", endpoint, "--speed", "4", "--as", "shown", "--lead", "2"]
+    with Tidelink("replay", str(lockstep_run / "run.mcap"), *replay_args) as replay:
+        replay.wait_for(r"listening on", WAIT_S)
+        with Tidelink("monitor", "--connect", endpoint, "--json", "--run", "shown") as mon:
+            assert mon.wait(WAIT_S) == 0, mon.stderr  # it ends with the replayed run
+        assert replay.wait(WAIT_S) == 0, replay.stderr
+    lines = [json.loads(x) for x in mon.stdout.splitlines() if x.startswith("{")]
+    events = [x for x in lines if x["type"] == "event"]
+    assert any(e["event"] == "joined" and e["scenario"] for e in events), events
+    (end,) = [e for e in events if e["event"] == "end"]
+    assert rec.end is not None and end["text"].endswith(rec.end.reason)
+    last = [x for x in lines if x["type"] == "update"][-1]
+    assert last["run"] == "shown" and last["path"] is not None and last["pose"] is not None
+    assert set(last["services"]) == SERVICES | {"runtime"}
+
+
 @dataclass
 class Seen:
     alive: list[Liveliness]
