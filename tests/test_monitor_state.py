@@ -10,7 +10,7 @@ import pytest
 from helpers.samples import one_of_each
 
 from common.bus import RawFrame
-from common.bus.watcher import watched
+from common.bus.watcher import END_GRACE_S, watched
 from common.config.scenario import load_scenario
 from common.messages import (
     LinkCounters,
@@ -109,9 +109,11 @@ def test_liveliness_tells_up_gone_and_restarted_and_the_clock_ends_the_run() -> 
     s.liveliness("planner", True, 3.0)
     snap = s.snapshot(now=3.0)
     assert snap["services"]["planner"] == {"state": "restarted", "since": 3.0, "restarts": 1}
-    assert not s.over
+    assert not s.over(now=3.0)
     s.liveliness("runtime", False, 4.0)
-    assert s.over
+    # the clock is gone; its RunEnd may still be in flight: over after the grace only
+    assert not s.over(now=4.0 + END_GRACE_S / 2)
+    assert s.over(now=4.0 + END_GRACE_S + 0.1)
 
 
 def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_json() -> None:
@@ -145,7 +147,7 @@ def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_jso
     assert (row["sent"], row["measured_p50_s"], row["measured_p95_s"]) == (10, 0.06, 0.1)
     assert snap["end"] == {"reason": "goal", "t_end_s": 65.5, "ticks": 0}
     assert snap["est_error_m"] is None
-    assert s.over
+    assert s.over(now=2.0)  # the RunEnd itself ends the run at once
 
 
 def test_a_watched_frame_needs_a_watch_key_and_the_taps_attachment() -> None:

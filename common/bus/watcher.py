@@ -19,6 +19,10 @@ from common.messages import WireError, decode_watch
 
 log = logging.getLogger("tidelink.watch")
 
+# After a run's clock token vanished, how long a watcher still waits for its RunEnd: the
+# RunEnd is a DROP/DATA_LOW copy and can arrive after the token's end (seen under load)
+END_GRACE_S = 3.0
+
 
 class WatchedFrame(NamedTuple):
     """A frame of a watched run: which stream, the bytes that crossed the wire, and when the
@@ -112,7 +116,14 @@ class Watcher:
 
     def scenario(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
         """The run's scenario (the raw dict it was launched with), or None if none answered."""
-        for f in self.bus.query(keys.scenario, timeout_s=timeout_s):
+        return self._json(keys.scenario, timeout_s)
+
+    def dataflow(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
+        """The run's declared dataflow (Dataflow.describe()), or None if none answered."""
+        return self._json(keys.dataflow, timeout_s)
+
+    def _json(self, key: str, timeout_s: float) -> dict[str, Any] | None:
+        for f in self.bus.query(key, timeout_s=timeout_s):
             try:
                 data = json.loads(f.payload)
             except ValueError:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 from common.bus import Bus, Keys, Liveliness
 from common.bus.keys import CLOCK, END
@@ -92,6 +92,18 @@ class PollMarks:
             return False
         self.newest[name] = f.n
         return True
+
+
+def _event_streams(described: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """(service, stream) of every output the run declares with an event type (EVENT_TYPES);
+    none if the run did not answer (then they are followed once a poll shows them)."""
+    names = {t.__name__ for t in EVENT_TYPES}
+    return [
+        (svc["name"], out["stream"])
+        for svc in (described or {}).get("services", [])
+        for out in svc.get("outputs", [])
+        if out.get("type") in names
+    ]
 
 
 class MonitorView(Protocol):
@@ -181,7 +193,7 @@ class Monitor:
                 self.view.update(live, now)
             if self.opts.follow:
                 self._forget_ended()
-            elif self.runs and all(s.over for s in self.runs.values()):
+            elif self.runs and all(s.over(now) for s in self.runs.values()):
                 return 0
             if self.runs:
                 continue
@@ -221,7 +233,9 @@ class Monitor:
                 log.warning("run %s/%s: its scenario does not load here: %s", run, vehicle, exc)
         marks = self._polls[key] = PollMarks(next_full=time.monotonic() + FULL_POLL_S)
         if self._follow_events:
-            self._follow(watcher, marks, keys, CLOCK, END)  # before asking: nothing falls between
+            # subscribe before asking for the latest frames: nothing falls in between
+            for service, stream in [(CLOCK, END), *_event_streams(watcher.dataflow(keys))]:
+                self._follow(watcher, marks, keys, service, stream)
         latest = watcher.latest(keys)
         for f in latest:
             self._polled(watcher, state, marks, f)
@@ -291,7 +305,7 @@ class Monitor:
         """One poll: the frames each run's tap got since the last poll, newest only: of
         the vehicle's state streams, and of every stream once every FULL_POLL_S."""
         for key, state in self.runs.items():
-            if state.over:
+            if state.over(time.time()):
                 continue
             marks = self._polls[key]
             now = time.monotonic()
@@ -316,7 +330,8 @@ class Monitor:
 
     def _forget_ended(self) -> None:
         """--follow: a run that ended leaves the dashboard once its end was shown."""
-        for key in [k for k, s in self.runs.items() if s.over]:
+        now = time.time()
+        for key in [k for k, s in self.runs.items() if s.over(now)]:
             del self.runs[key]
             self._polls.pop(key, None)
             self._ended.add(key)

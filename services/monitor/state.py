@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from common.bus.keys import CLOCK, END
+from common.bus.watcher import END_GRACE_S
 from common.config.scenario import Scenario
 from common.messages import (
     LinkStats,
@@ -216,11 +217,13 @@ class RunState:
         else:
             self._event(wall, "service", f"{service} gone")
 
-    @property
-    def over(self) -> bool:
-        """The run ended: its RunEnd arrived or its clock's token vanished."""
+    def over(self, now: float) -> bool:
+        """The run ended: its RunEnd arrived, or its clock's token vanished more than
+        END_GRACE_S before `now` (the RunEnd can arrive after the token's end)."""
         clock = self.services.get(CLOCK)
-        return self.end is not None or (clock is not None and not clock.up)
+        if self.end is not None:
+            return True
+        return clock is not None and not clock.up and now - clock.since > END_GRACE_S
 
     # -- output ------------------------------------------------------------------------------
     def to_goal_m(self) -> float | None:
@@ -233,9 +236,9 @@ class RunState:
         """What needs a person's attention now (sorted); raising or clearing one is an event."""
         out = []
         for name, life in self.services.items():
-            if not life.up and not self.over:
+            if not life.up and not self.over(now):
                 out.append(f"service {name} gone")
-        if not self.over:
+        if not self.over(now):
             for key, seen in self.streams.items():
                 if key != f"{CLOCK}/{END}" and seen.stale(now, self.stale_s):
                     out.append(f"stream {key} stale")

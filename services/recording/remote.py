@@ -17,7 +17,7 @@ from typing import Any
 
 from common.bus import CLOCK, Bus, Keys, Liveliness
 from common.bus.keys import END
-from common.bus.watcher import WatchedFrame, Watcher
+from common.bus.watcher import END_GRACE_S, WatchedFrame, Watcher
 from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import RunEnd, WireError, decode
 from common.runtime.processes.signals import StopRequest
@@ -27,7 +27,6 @@ from services.recording.writer import RunInfo, RunWriter, View
 
 POLL_S = 0.2  # how often the loop looks at the stop request when nothing arrives
 SAY_WAITING_AFTER_S = 1.0  # say "no run yet" once nothing was heard for this long
-END_GRACE_S = 3.0  # after the clock's token vanished, for its RunEnd still in flight
 
 
 @dataclass(frozen=True)
