@@ -178,7 +178,7 @@ def test_a_replay_is_a_live_run_to_a_watcher_in_another_process(
 def test_a_replay_feeds_tidelink_monitor_as_a_live_run(lockstep_run: Path) -> None:
     rec = read_recording(lockstep_run / "run.mcap")
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    replay_args = ["--listen", endpoint, "--speed", "4", "--as", "shown", "--lead", "2"]
+    replay_args = ["--listen", endpoint, "--as", "shown", "--lead", "2"]
     with Tidelink("replay", str(lockstep_run / "run.mcap"), *replay_args) as replay:
         replay.wait_for(r"listening on", WAIT_S)
         with Tidelink("monitor", "--connect", endpoint, "--json", "--run", "shown") as mon:

@@ -266,8 +266,15 @@ class Monitor:
                 return  # a run is joined when a token of it appears (or its first frame)
             self._state(watcher, run, vehicle).liveliness(service, ev.alive, time.time())
             return
-        if (ev.run, ev.vehicle) not in self._ended:
-            self._see(self._state(watcher, ev.run, ev.vehicle), ev)
+        key = (ev.run, ev.vehicle)
+        if key in self._ended:
+            return
+        state = self._state(watcher, *key)
+        self._see(state, ev)
+        if (ev.service, ev.stream) == (CLOCK, END) and not self.opts.every_frame:
+            # the run's last word: its tap still answers, so take the final state now (a run
+            # faster than the poll rate would otherwise end between two polls)
+            self._poll_run(watcher, key, state, full=True)
 
     def _see(self, state: RunState, f: WatchedFrame) -> Message | None:
         try:
@@ -302,27 +309,33 @@ class Monitor:
             self._follow(watcher, marks, Keys(f.run, f.vehicle), f.service, f.stream)
 
     def _poll(self, watcher: Watcher) -> None:
-        """One poll: the frames each run's tap got since the last poll, newest only: of
-        the vehicle's state streams, and of every stream once every FULL_POLL_S."""
+        """One poll of each run that is on (see _poll_run)."""
+        now = time.time()
         for key, state in self.runs.items():
-            if state.over(time.time()):
-                continue
-            marks = self._polls[key]
-            now = time.monotonic()
-            full = now >= marks.next_full or not marks.state_streams
+            if not state.over(now):
+                self._poll_run(watcher, key, state)
+
+    def _poll_run(
+        self, watcher: Watcher, key: tuple[str, str], state: RunState, *, full: bool = False
+    ) -> None:
+        """The frames the run's tap got since the last poll, newest only: of the vehicle's
+        state streams, and of every stream once every FULL_POLL_S (or when `full`)."""
+        marks = self._polls[key]
+        now = time.monotonic()
+        full = full or now >= marks.next_full or not marks.state_streams
+        if full:
+            marks.next_full = now + FULL_POLL_S
+            frames = watcher.latest(Keys(*key), after=marks.after_all)
+        else:
+            state_streams = sorted(marks.state_streams)
+            frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
+        for f in frames:
+            self._polled(watcher, state, marks, f)
+        if frames:
+            n = max(f.n for f in frames)
+            marks.after_state = max(marks.after_state, n)
             if full:
-                marks.next_full = now + FULL_POLL_S
-                frames = watcher.latest(Keys(*key), after=marks.after_all)
-            else:
-                state_streams = sorted(marks.state_streams)
-                frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
-            for f in frames:
-                self._polled(watcher, state, marks, f)
-            if frames:
-                n = max(f.n for f in frames)
-                marks.after_state = max(marks.after_state, n)
-                if full:
-                    marks.after_all = n
+                marks.after_all = n
 
     def _drain(self, state: RunState) -> None:
         for ev in state.take_events():
