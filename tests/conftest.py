@@ -46,3 +46,26 @@ def testloop_toml(tmp_path: Path) -> Path:
     p = tmp_path / "testloop.toml"
     p.write_text(LOSSY_TESTLOOP.format(max_time=10.0))
     return p
+
+
+@pytest.fixture(scope="session")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A certificates directory of every default identity (`tidelink certs`), shared by the
+    session's tests: its CA signs them all; router certificates also name the netns hosts'
+    router addresses (10.201.<i>.1, tests/test_netns_launch.py)."""
+    from common.bus.certs import DEFAULT_IDENTITIES, create_certs, default_hosts
+
+    directory = tmp_path_factory.mktemp("certs")
+    hosts = [*default_hosts(), *(f"10.201.{i}.1" for i in range(1, 5))]
+    create_certs(directory, DEFAULT_IDENTITIES, hosts=hosts)
+    return directory
+
+
+@pytest.fixture(scope="session")
+def other_certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Certificates of the same names from another CA (a stranger's)."""
+    from common.bus.certs import DEFAULT_IDENTITIES, create_certs
+
+    directory = tmp_path_factory.mktemp("other-certs")
+    create_certs(directory, DEFAULT_IDENTITIES)
+    return directory

@@ -116,6 +116,7 @@ def test_a_polling_monitor_shows_the_vehicle_within_1_s_over_64_kbit(
                     str(REPO / "configs" / "default.toml"),
                     "--listen",
                     f"tcp/0.0.0.0:{PORT}",
+                    "--insecure",  # the namespaces are this test's own network
                     "--time-scale",
                     "1",
                     "--out",

@@ -67,10 +67,19 @@ def hosts() -> Iterator[Hosts]:
         yield Hosts(lab)
 
 
-def test_a_launch_across_namespaces_survives_a_link_outage(hosts: Hosts, tmp_path: Path) -> None:
+@pytest.mark.parametrize("security", ["insecure", "mtls"])
+def test_a_launch_across_namespaces_survives_a_link_outage(
+    hosts: Hosts, tmp_path: Path, certs: Path, security: str
+) -> None:
+    """Plain TCP (--insecure: the namespaces are this test's own network), then the same
+    deployment secured: mutual TLS to the router's addresses (its certificate names them),
+    the run's access control enforced."""
     out = tmp_path / "run"
     scenario = str(REPO / "configs" / "default.toml")
     sets = [a for s in SETS for a in ("--set", s)]
+    # services never listen: they need no --insecure, only the certificates when secured
+    joined = [] if security == "insecure" else ["--certs", str(certs)]
+    secure = joined or ["--insecure"]
     try:
         with ExitStack() as stack:
             launcher = stack.enter_context(
@@ -86,6 +95,7 @@ def test_a_launch_across_namespaces_survives_a_link_outage(hosts: Hosts, tmp_pat
                     "--out",
                     str(out),
                     *sets,
+                    *secure,
                     netns=hosts.router,
                 )
             )
@@ -101,6 +111,7 @@ def test_a_launch_across_namespaces_survives_a_link_outage(hosts: Hosts, tmp_pat
                         "--time-scale",
                         SCALE,
                         *sets,
+                        *joined,
                         netns=hosts.ns[s],
                     )
                 )

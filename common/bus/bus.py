@@ -6,7 +6,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from types import TracebackType
 from typing import Any, NamedTuple
 
@@ -193,9 +193,21 @@ class Publisher:
 class Bus:
     """A Zenoh session plus every declaration made through it, closed together on exit."""
 
-    def __init__(self, cfg: BusConfig, keys: Keys, *, low_latency: bool = False) -> None:
+    def __init__(
+        self,
+        cfg: BusConfig,
+        keys: Keys,
+        *,
+        low_latency: bool = False,
+        identity: str | None = None,
+        access_control: Mapping[str, Any] | None = None,
+    ) -> None:
         self.cfg = cfg
         self.keys = keys
+        # under mTLS: whose certificate this session presents; a router may also enforce an
+        # access control (README "Security")
+        self.identity = identity
+        self.access_control = access_control
         # low_latency: subscription callbacks run on Zenoh's network thread instead of being
         # handed to a Python thread first; one thread switch less per message (lockstep
         # ticks ~25 % faster) but throughput suffers when messages come back to back
@@ -206,7 +218,9 @@ class Bus:
         self._lock = threading.Lock()
 
     def __enter__(self) -> Bus:
-        self._session = open_session(self.cfg)
+        self._session = open_session(
+            self.cfg, identity=self.identity, access_control=self.access_control
+        )
         return self
 
     def __exit__(

@@ -114,6 +114,21 @@ class Keys:
         return f"{_prefix(run, vehicle)}/alive/*"
 
     @staticmethod
+    def any_watch(run: str | None = None, vehicle: str | None = None) -> str:
+        """The watch copies of one run and vehicle, or of any (None: a wildcard)."""
+        return f"{_prefix(run, vehicle)}/{WATCH}/**"
+
+    @staticmethod
+    def any_latest(run: str | None = None, vehicle: str | None = None) -> str:
+        """The latest-frame queryables of one run and vehicle, or of any (None: a wildcard)."""
+        return f"{_prefix(run, vehicle)}/{LATEST}/**"
+
+    @staticmethod
+    def any_scenario(run: str | None = None, vehicle: str | None = None) -> str:
+        """The scenario queryables of one run and vehicle, or of any (None: a wildcard)."""
+        return f"{_prefix(run, vehicle)}/scenario"
+
+    @staticmethod
     def parse_watch(key: str) -> tuple[str, str, str, str]:
         """(run, vehicle, service, stream) of a watch or latest key; ValueError otherwise."""
         parts = key.split("/")

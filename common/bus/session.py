@@ -3,18 +3,33 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
 from common.config.bus import BusConfig
 
+if TYPE_CHECKING:
+    from common.bus.certs import Credentials
 
-def zenoh_config(cfg: BusConfig) -> zenoh.Config:
-    """Translate our BusConfig into a zenoh.Config (multicast scouting off unless asked)."""
+
+def zenoh_config(
+    cfg: BusConfig,
+    *,
+    identity: str | None = None,
+    access_control: Mapping[str, Any] | None = None,
+) -> zenoh.Config:
+    """Translate our BusConfig into a zenoh.Config (multicast scouting off unless asked).
+
+    Under mTLS the session presents `identity`'s certificate (validated first:
+    CredentialsError names a missing, mismatched, foreign or expired file); a router may
+    enforce `access_control` (Zenoh's ACL object, common/runtime/distributed/acl.py)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(cfg.mode))
-    conf.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
-    conf.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    conf.insert_json5("listen/endpoints", json.dumps([cfg.endpoint(e) for e in cfg.listen]))
+    conf.insert_json5("connect/endpoints", json.dumps([cfg.endpoint(e) for e in cfg.connect]))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
     if not cfg.multicast_scouting:
         # nothing to scout for: without this, opening a router session waits out the default
@@ -24,18 +39,49 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
         # peers/routers: retry connecting so start order between processes does not matter
         conf.insert_json5("connect/timeout_ms", json.dumps(-1))
     conf.insert_json5("connect/exit_on_failure", json.dumps(False))
+    if cfg.secured:
+        from common.bus.certs import tls_settings
+
+        tls = tls_settings(_credentials(cfg, identity), listen=bool(cfg.listen))
+        conf.insert_json5("transport/link/tls", json.dumps(tls))
+    if access_control is not None:
+        conf.insert_json5("access_control", json.dumps(dict(access_control)))
     return conf
 
 
-def open_session(cfg: BusConfig) -> zenoh.Session:
+def open_session(
+    cfg: BusConfig,
+    *,
+    identity: str | None = None,
+    access_control: Mapping[str, Any] | None = None,
+) -> zenoh.Session:
     """Open a session; the caller must close it (Bus does, deterministically).
 
     ConnectionError (an OSError: the CLI prints it as one line) when a client cannot reach
     its router, or the endpoints are refused, naming them."""
+    conf = zenoh_config(cfg, identity=identity, access_control=access_control)
     try:
-        return zenoh.open(zenoh_config(cfg))
+        return zenoh.open(conf)
     except zenoh.ZError as exc:
-        where = ", ".join(cfg.connect or cfg.listen) or "(no endpoint)"
+        endpoints = [cfg.endpoint(e) for e in cfg.connect or cfg.listen]
         what = "reach the router at" if cfg.mode == "client" else "open a session on"
-        why = str(exc).split(" at /", 1)[0]  # drop the Rust source location
-        raise ConnectionError(f"cannot {what} {where}: {why}") from None
+        why = str(exc).split(" at /", 1)[0].strip()  # drop the Rust source location
+        if cfg.mode == "client" and endpoints:
+            # Zenoh does not say why; one handshake of our own tells the causes apart
+            from common.bus.diagnose import why_unreachable
+
+            creds = _credentials(cfg, identity) if cfg.secured else None
+            because = why_unreachable(endpoints[0], creds)
+            why = f"{because} ({why})" if because else why
+        raise ConnectionError(
+            f"cannot {what} {', '.join(endpoints) or '(no endpoint)'}: {why}"
+        ) from None
+
+
+def _credentials(cfg: BusConfig, identity: str | None) -> Credentials:
+    """The validated certificate files of `identity` (CredentialsError names a bad one)."""
+    from common.bus.certs import load_credentials
+
+    if identity is None:
+        raise ValueError("an mTLS session needs an identity (whose certificate to present)")
+    return load_credentials(Path(cfg.certs), identity)

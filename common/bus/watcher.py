@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from typing import Any, NamedTuple
 
 from common.bus.bus import Bus, Liveliness, RawFrame
-from common.bus.keys import WATCH, Keys, _prefix
+from common.bus.keys import Keys
 from common.messages import WireError, decode_watch
 
 log = logging.getLogger("tidelink.watch")
@@ -71,7 +71,7 @@ class Watcher:
         frame (a thin-linked watcher polls `latest` instead)."""
         self.bus.on_alive(Keys.any_alive(self.run, self.vehicle), self._q.put)
         if frames:
-            self.bus.subscribe_raw(f"{_prefix(self.run, self.vehicle)}/{WATCH}/**", self._on_frame)
+            self.bus.subscribe_raw(Keys.any_watch(self.run, self.vehicle), self._on_frame)
 
     def follow(self, key_expr: str) -> None:
         """Also hear every tapped frame on `key_expr` (some streams of a run, e.g. the ones

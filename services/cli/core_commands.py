@@ -7,6 +7,7 @@ import json
 import logging
 import math
 import signal
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -18,8 +19,8 @@ DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this mach
 
 
 def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
-    """--connect, --run and --vehicle of the tools that watch live runs (monitor, foxglove,
-    record): the run's router, and which run and vehicle to watch."""
+    """--connect, --run, --vehicle and the credentials of the tools that watch live runs
+    (monitor, foxglove, record): the run's router, and which run and vehicle to watch."""
     p.add_argument(
         "--connect",
         default=DEFAULT_CONNECT,
@@ -28,6 +29,71 @@ def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str
     )
     p.add_argument("--run", default=None, help=run_help)
     p.add_argument("--vehicle", default=None, help=vehicle_help)
+    certs_args(p, identity="monitor")
+
+
+def certs_args(p: argparse.ArgumentParser, *, identity: str | None) -> None:
+    """--certs DIR (mutual TLS with the certificates `tidelink certs` made) and, for tools
+    that are not a service of the run, --identity: whose certificate to present."""
+    p.add_argument(
+        "--certs",
+        type=_certs_dir,
+        default=None,
+        metavar="DIR",
+        help="secure the bus: mutual TLS with the certificates in DIR (`tidelink certs`); "
+        "tcp/ endpoints are then served as tls/ on the same address",
+    )
+    if identity is not None:
+        p.add_argument(
+            "--identity",
+            default=identity,
+            metavar="NAME",
+            help=f"with --certs: whose certificate to present (default {identity})",
+        )
+
+
+def _certs_dir(text: str) -> str:
+    """An absolute path: child processes and other working directories see the same DIR."""
+    return str(Path(text).expanduser().resolve())
+
+
+def certs_overrides(certs: str | None) -> list[str]:
+    """The scenario overrides --certs stands for, so every process of the run gets them."""
+    if certs is None:
+        return []
+    return ['bus.security="mtls"', f"bus.certs={json.dumps(certs)}"]
+
+
+def check_exposure(listen: list[str] | tuple[str, ...], secured: bool, insecure: bool) -> None:
+    """Refuse to listen beyond this machine without mTLS unless --insecure says so (then
+    warn): an open router lets anyone who reaches it command the vehicle."""
+    from common.config.bus import is_loopback
+    from common.config.errors import ConfigError
+
+    exposed = [ep for ep in listen if not is_loopback(ep)]
+    if not exposed or secured:
+        return
+    if not insecure:
+        raise ConfigError(
+            "",
+            "--listen",
+            f"{', '.join(exposed)} is reachable from other machines: give --certs DIR "
+            "(mutual TLS and access control; `tidelink certs DIR` makes them) or, on a "
+            "network you trust, --insecure",
+        )
+    print(
+        f"tidelink: WARNING: listening on {', '.join(exposed)} without TLS or access control "
+        "(--insecure): anyone who reaches it can command the vehicle",
+        file=sys.stderr,
+    )
+
+
+def insecure_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a --listen endpoint beyond loopback without --certs (prints a warning)",
+    )
 
 
 def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
@@ -65,12 +131,14 @@ def cmd_run(a: argparse.Namespace) -> int:
     from common.runtime.run import run_scenario, write_outputs
     from common.world.check import check_scenario
 
-    overrides = list(a.overrides)
+    overrides = list(a.overrides) + certs_overrides(a.certs)
     if a.runtime:
         overrides.append(f'runtime.kind="{a.runtime}"')
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
     scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=check_scenario)
+    if scenario.runtime.kind != "inproc":  # the process is the run's router
+        check_exposure(scenario.bus.listen, scenario.bus.secured, a.insecure)
     out = (
         a.out or Path("runs") / f"{scenario.run.name}-{scenario.runtime.kind}-s{scenario.run.seed}"
     )
@@ -108,17 +176,41 @@ def print_metrics_table(metrics: dict[str, Any]) -> None:
 def cmd_router(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import BusConfig
+    from common.config.errors import ConfigError
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
+    check_exposure(a.listen, a.certs is not None, a.insecure)
+    acl = None if a.acl is None else _read_acl(a.acl)
+    if acl is not None and a.certs is None:
+        raise ConfigError(str(a.acl), "", "--acl needs --certs (rules name certificate identities)")
+    cfg = BusConfig(
+        mode="router",
+        listen=tuple(a.listen),
+        security="mtls" if a.certs else "none",
+        certs=a.certs or "",
+    )
     install_shutdown_handlers()
-    cfg = BusConfig(mode="router", listen=tuple(a.listen))
     try:
-        with Bus(cfg, Keys("router", "router")):
-            print(f"zenoh router listening on {', '.join(a.listen)}; Ctrl-C to stop", flush=True)
+        with Bus(cfg, Keys("router", "router"), identity=a.identity, access_control=acl):
+            where = ", ".join(cfg.endpoint(e) for e in a.listen)
+            print(f"zenoh router listening on {where}; Ctrl-C to stop", flush=True)
             while True:
                 signal.pause()  # the router works on Zenoh's threads; we only wait for a signal
     except Shutdown:
         return 0
+
+
+def _read_acl(path: Path) -> dict[str, Any]:
+    """An access_control object (`tidelink acl SCENARIO --json`); ConfigError naming the file."""
+    from common.config.errors import ConfigError
+
+    try:
+        acl = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(str(path), "", f"cannot read an access control: {exc}") from None
+    if not isinstance(acl, dict) or "rules" not in acl:
+        raise ConfigError(str(path), "", "not an access_control object (`tidelink acl --json`)")
+    return acl
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -138,6 +230,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    certs_args(r, identity=None)
+    insecure_arg(r)
     r.set_defaults(func=cmd_run)
 
     z = sub.add_parser("router", help="run a Zenoh router (no zenohd is installable here)")
@@ -148,4 +242,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         metavar="ENDPOINT",
         help="e.g. tcp/127.0.0.1:7447 (repeatable)",
     )
+    certs_args(z, identity="router")
+    z.add_argument(
+        "--acl",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="with --certs: enforce this access control (`tidelink acl SCENARIO --json`)",
+    )
+    insecure_arg(z)
     z.set_defaults(func=cmd_router)

@@ -16,7 +16,15 @@ def cmd_foxglove(a: argparse.Namespace) -> int:
         # what the bridge is doing (serving, waiting, which run) is this command's output
         logging.getLogger("tidelink.foxglove").setLevel(logging.INFO)
     install_shutdown_handlers()
-    opts = BridgeOptions(connect=a.connect, run=a.run, vehicle=a.vehicle, host=a.host, port=a.port)
+    opts = BridgeOptions(
+        connect=a.connect,
+        run=a.run,
+        vehicle=a.vehicle,
+        host=a.host,
+        port=a.port,
+        certs=a.certs,
+        identity=a.identity,
+    )
     try:
         serve(opts)
     except Shutdown as exc:

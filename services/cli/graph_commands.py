@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from services.cli.core_commands import scenario_args
+from services.cli.core_commands import certs_args, scenario_args
 from services.cli.graph_render import to_dot, to_png, to_text
 
 
@@ -23,11 +23,11 @@ def _from_scenario(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
 
 def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
     from common.bus import Bus, Keys
-    from common.config.bus import BusConfig
+    from common.config.bus import client_config
 
     selector = Keys.dataflow_selector(a.run, a.vehicle)
-    cfg = BusConfig(mode="client", connect=(a.connect,))
-    with Bus(cfg, Keys(a.run or "any", a.vehicle or "any")) as bus:
+    cfg = client_config(a.connect, a.certs)
+    with Bus(cfg, Keys(a.run or "any", a.vehicle or "any"), identity=a.identity) as bus:
         replies = bus.query(selector, timeout_s=a.timeout)
     if not replies:
         raise RuntimeError(f"no running mission answered on {selector} via {a.connect}")
@@ -62,6 +62,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     g.add_argument("--run", default=None, help="with --connect: the run id (default: any)")
     g.add_argument("--vehicle", default=None, help="with --connect: the vehicle id (default: any)")
     g.add_argument("--timeout", type=float, default=3.0, help="with --connect: seconds to wait")
+    certs_args(g, identity="monitor")
     g.add_argument("--dot", type=Path, default=None, help="also write Graphviz DOT to this file")
     g.add_argument("--png", type=Path, default=None, help="also draw the graph to this PNG")
     g.add_argument("--json", action="store_true", help="print the declaration as JSON")

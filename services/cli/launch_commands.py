@@ -10,9 +10,17 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from services.cli.core_commands import print_metrics, scenario_args
+from services.cli.core_commands import (
+    certs_args,
+    certs_overrides,
+    check_exposure,
+    insecure_arg,
+    print_metrics,
+    scenario_args,
+)
 
 if TYPE_CHECKING:
+    from common.config.bus import BusConfig
     from common.runtime.distributed.bringup import ClockSide
     from services.recording.tap_recorder import TapRecorder
 
@@ -23,7 +31,7 @@ RESTART_HELP = (
 
 
 def _runtime_overrides(a: argparse.Namespace) -> list[str]:
-    overrides = list(a.overrides)
+    overrides = list(a.overrides) + certs_overrides(a.certs)
     overrides.append(f'runtime.kind="{a.runtime}"')
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
@@ -32,6 +40,7 @@ def _runtime_overrides(a: argparse.Namespace) -> list[str]:
 
 def cmd_launch(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
+    from common.runtime.distributed.acl import LAUNCHER, ROUTER
     from common.runtime.model.mission import load_mission
     from common.runtime.processes.policy import RestartPolicy, policies_for
     from common.runtime.processes.signals import Interrupted
@@ -41,6 +50,10 @@ def cmd_launch(a: argparse.Namespace) -> int:
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed, check=check_scenario)
     names = load_mission(scenario).dataflow.names
+    check_exposure(a.listen, scenario.bus.secured, a.insecure)
+    if scenario.bus.secured:  # every identity this host presents, before any process starts
+        here = names if a.only is None else a.only.split(",")
+        check_credentials(scenario.bus, [ROUTER, LAUNCHER, *here])
     if a.restart and scenario.runtime.kind == "lockstep":
         raise ValueError(
             "--restart: lockstep runs cannot restart a service (it would lose its "
@@ -98,6 +111,8 @@ def cmd_service(a: argparse.Namespace) -> int:
     from services.launcher.router import wait_for_endpoint
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    if scenario.bus.secured:
+        check_credentials(scenario.bus, [a.name])
     root = logging.getLogger()
     for h in root.handlers:
         h.setFormatter(logging.Formatter(f"%(asctime)s {a.name} %(levelname)s %(message)s"))
@@ -118,6 +133,15 @@ def cmd_service(a: argparse.Namespace) -> int:
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0
+
+
+def check_credentials(bus: BusConfig, identities: list[str]) -> None:
+    """Validate each identity's certificate files (CredentialsError names the file: the CLI
+    exits 2) before any process starts, rather than in a child's log."""
+    from common.bus.certs import load_credentials
+
+    for name in dict.fromkeys(n.strip() for n in identities if n.strip()):
+        load_credentials(Path(bus.certs), name)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -171,6 +195,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "`tidelink metrics`, Foxglove)",
     )
     la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    certs_args(la, identity=None)
+    insecure_arg(la)
     la.set_defaults(func=cmd_launch)
 
     sv = sub.add_parser("service", help="run one service of a launched mission (any host)")
@@ -194,4 +220,5 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=None,
         help="as the launch was started (default: the scenario's)",
     )
+    certs_args(sv, identity=None)
     sv.set_defaults(func=cmd_service)

@@ -15,6 +15,8 @@ def cmd_monitor(a: argparse.Namespace) -> int:
 
     opts = MonitorOptions(
         connect=a.connect,
+        certs=a.certs,
+        identity=a.identity,
         run=a.run,
         vehicle=a.vehicle,
         follow=a.follow,

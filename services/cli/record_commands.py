@@ -9,7 +9,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from services.cli.core_commands import print_metrics_table, watcher_args
+from services.cli.core_commands import (
+    certs_args,
+    check_exposure,
+    insecure_arg,
+    print_metrics_table,
+    watcher_args,
+)
 
 if TYPE_CHECKING:
     from common.config.scenario import Scenario
@@ -42,7 +48,7 @@ def _read(path: Path) -> Recording:
 
 def cmd_record(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
-    from common.config.bus import BusConfig
+    from common.config.bus import client_config
     from common.runtime.processes.signals import stop_on_signals
     from services.launcher.router import wait_for_endpoint
     from services.recording.remote import RemoteRecorder
@@ -54,8 +60,8 @@ def cmd_record(a: argparse.Namespace) -> int:
             while not wait_for_endpoint(a.connect, 0.5):
                 if stop.requested:
                     return 130
-        cfg = BusConfig(mode="client", connect=(a.connect,))
-        with Bus(cfg, Keys("record", "record")) as bus:
+        cfg = client_config(a.connect, a.certs)
+        with Bus(cfg, Keys("record", "record"), identity=a.identity) as bus:
             recorder = RemoteRecorder(
                 bus,
                 a.out,
@@ -94,7 +100,7 @@ def _report(o: RecordOutcome) -> None:
 
 def cmd_replay(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
-    from common.config.bus import BusConfig
+    from common.config.bus import client_config
     from common.runtime.processes.children import connectable, free_port
     from common.runtime.processes.signals import stop_on_signals
     from services.launcher.router import wait_for_endpoint
@@ -105,12 +111,18 @@ def cmd_replay(a: argparse.Namespace) -> int:
     if a.connect is not None:
         if not wait_for_endpoint(a.connect, ROUTER_WAIT_S):
             raise TimeoutError(f"no router at {a.connect} after {ROUTER_WAIT_S:g} s")
-        cfg = BusConfig(mode="client", connect=(a.connect,))
+        cfg = client_config(a.connect, a.certs)
     else:
         listen = a.listen or f"tcp/127.0.0.1:{free_port()}"
-        cfg = BusConfig(mode="router", listen=(listen,))
-        say(f"listening on {listen}: watch with --connect {connectable(listen)}")
-    with stop_on_signals() as stop, Bus(cfg, Keys(a.as_run or rec.run, rec.vehicle)) as bus:
+        check_exposure([listen], a.certs is not None, a.insecure)
+        cfg = client_config(listen, a.certs).router_on((listen,))
+        certs = f" --certs {a.certs}" if a.certs else ""
+        say(
+            f"listening on {cfg.endpoint(listen)}: watch with --connect "
+            f"{cfg.endpoint(connectable(listen))}{certs}"
+        )
+    keys = Keys(a.as_run or rec.run, rec.vehicle)
+    with stop_on_signals() as stop, Bus(cfg, keys, identity=a.identity) as bus:
         outcome = replay(rec, bus, speed=a.speed, stop=stop, lead_s=a.lead, say=say)
     say(f"published {outcome.published} frames as run {outcome.keys.run}; end: {outcome.reason}")
     return 130 if outcome.reason == "interrupted" else 0
@@ -164,6 +176,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=1.0,
         help="seconds between declaring the run and its first frame (default 1)",
     )
+    certs_args(p, identity="launcher")
+    insecure_arg(p)
     p.set_defaults(func=cmd_replay)
 
     m = sub.add_parser("metrics", help="recompute a run's metrics from its MCAP recording")

@@ -12,7 +12,7 @@ from foxglove.websocket import WebSocketServer
 
 from common.bus import Bus, Keys
 from common.bus.watcher import Watcher
-from common.config.bus import BusConfig
+from common.config.bus import client_config
 from services.foxglove.bridge import FoxgloveBridge
 from services.foxglove.channels import ViewChannels
 from services.launcher.router import wait_for_endpoint
@@ -27,6 +27,8 @@ class BridgeOptions:
     """Where the runs are (a router's endpoint), which to show, where to serve the app."""
 
     connect: str = "tcp/127.0.0.1:7447"
+    certs: str | None = None  # mTLS with these certificates (README "Security")
+    identity: str = "monitor"  # whose certificate to present
     run: str | None = None  # None: the first run that is on (then the next, and so on)
     vehicle: str | None = None
     host: str = "127.0.0.1"
@@ -60,9 +62,11 @@ def serve(opts: BridgeOptions) -> None:
         log.info("serving Foxglove on ws://%s:%d", opts.host, server.port)
         while True:
             _wait_for_router(opts.connect, server, channels)
-            cfg = BusConfig(mode="client", connect=(opts.connect,))
+            cfg = client_config(opts.connect, opts.certs)
             try:
-                with Bus(cfg, Keys(opts.run or "any", opts.vehicle or "any")) as bus:
+                with Bus(
+                    cfg, Keys(opts.run or "any", opts.vehicle or "any"), identity=opts.identity
+                ) as bus:
                     watcher = Watcher(bus, opts.run, opts.vehicle)
                     watcher.start()
                     bridge = FoxgloveBridge(watcher, server, channels, opts.connect)

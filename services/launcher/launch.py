@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from common.config.bus import BusConfig
 from common.config.scenario import Scenario
 from common.runtime.distributed import lockstep, realtime_driver
+from common.runtime.distributed.acl import access_control, run_grants
 from common.runtime.distributed.bringup import RELEASE_S, ClockSide, clock_bus, run_keys
 from common.runtime.distributed.lockstep import Coordinator
 from common.runtime.distributed.observer import Driver, RunContext
@@ -91,6 +91,13 @@ def launch(
     scenario_json.write_text(json.dumps(raw, indent=1))
     display = LoggedDisplay(display, out / "logs" / "launch.log")
     sup = Supervisor(out / "logs", pid_file=out / "pids.json")
+    bus = scenario.bus
+    acl_file = None
+    if bus.secured:
+        acl_file = out / "acl.json"  # kept beside the logs, for review
+        acl_file.write_text(
+            json.dumps(access_control(run_grants(mission.dataflow, run_keys(scenario))), indent=1)
+        )
     wall0 = time.monotonic()
     with stop_on_signals() as stop:
         try:
@@ -99,12 +106,19 @@ def launch(
                 opts.listen,
                 timeout_s=scenario.runtime.start_timeout_s,
                 cancelled=lambda: stop.requested,
+                certs=bus.certs if bus.secured else None,
+                acl=acl_file,
             )
-            display.event(f"router listening on {', '.join(opts.listen) or endpoint}")
+            shown = bus.endpoint(endpoint)
+            listening = ", ".join(bus.endpoint(e) for e in opts.listen) or shown
+            certs = f" --certs {bus.certs}" if bus.secured else ""
             display.event(
-                f"watch it live from another terminal: tidelink monitor --connect {endpoint} "
-                f"(or tidelink foxglove --connect {endpoint}; other hosts: --listen "
-                "tcp/0.0.0.0:PORT)"
+                f"router listening on {listening}"
+                + (" (mutual TLS, access control from the dataflow)" if bus.secured else "")
+            )
+            display.event(
+                f"watch it live from another terminal: tidelink monitor --connect {shown}"
+                f"{certs} (or tidelink foxglove; other hosts: --listen tcp/0.0.0.0:PORT)"
             )
             remote = [n for n in names if n not in local]
             if remote:
@@ -114,8 +128,8 @@ def launch(
                 lockstep = " --runtime lockstep" if kind == "lockstep" else ""
                 display.event(
                     f"waiting for {', '.join(remote)} to join: on their hosts run `tidelink "
-                    f"service NAME SCENARIO --connect {where}{lockstep}` with the same --set, "
-                    "--seed and --time-scale"
+                    f"service NAME SCENARIO --connect {where}{lockstep}{certs}` with the same "
+                    "--set, --seed and --time-scale"
                 )
             result = _run(
                 scenario, mission, local, endpoint, scenario_json, opts, sup, display, stop
@@ -154,7 +168,7 @@ def _run(
     keys = run_keys(scenario)
     view = MissionView(scenario)
     observer = ProgressObserver(view, display)
-    cfg = BusConfig(mode="client", connect=(endpoint,))
+    cfg = scenario.bus.client_of(endpoint)
     raw = json.loads(scenario_json.read_text())
     with clock_bus(cfg, keys, mission.dataflow, raw) as side, ExitStack() as attached:
         for hook in opts.attach:

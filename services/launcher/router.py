@@ -5,6 +5,7 @@ from __future__ import annotations
 import socket
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 from common.runtime.processes.children import connectable, free_port
 from common.runtime.processes.signals import Interrupted
@@ -20,14 +21,23 @@ def start_router(
     *,
     timeout_s: float = 30.0,
     cancelled: Callable[[], bool] = lambda: False,
+    certs: str | None = None,
+    acl: Path | None = None,
 ) -> str:
     """Start the router listening on `listen` (default: a free loopback port) and wait until it
-    says it listens; returns the endpoint local processes connect to."""
+    says it listens; returns the endpoint local processes connect to. With `certs` it listens
+    on TLS only, as the router identity, enforcing the access control in the `acl` file."""
     if not listen:
         listen = (f"tcp/127.0.0.1:{free_port()}",)
     args = ["-m", "services.cli", "router"]
     for ep in listen:
         args += ["--listen", ep]
+    if certs is not None:
+        args += ["--certs", certs]
+        if acl is not None:
+            args += ["--acl", str(acl)]
+    # the launch checked exposure already (it holds --insecure); do not refuse twice
+    args.append("--insecure")
     child = sup.start(ROUTER, args)
     deadline = time.monotonic() + timeout_s
     while READY_LINE not in child.tail(50):
@@ -48,11 +58,12 @@ def start_router(
 
 
 def wait_for_endpoint(endpoint: str, timeout_s: float) -> bool:
-    """Wait until a tcp/HOST:PORT endpoint accepts connections (a service started before its
-    router); True when it does, False on timeout. Other protocols are not probed: True."""
+    """Wait until a tcp/ or tls/HOST:PORT endpoint accepts TCP connections (a service started
+    before its router); True when it does, False on timeout. Other protocols are not probed:
+    True."""
     proto, _, addr = endpoint.partition("/")
     host, _, port = addr.rpartition(":")
-    if proto != "tcp" or not port.isdigit():
+    if proto not in ("tcp", "tls") or not port.isdigit():
         return True
     host = host.strip("[]")
     deadline = time.monotonic() + timeout_s

@@ -12,7 +12,7 @@ from typing import Any, Protocol
 from common.bus import Bus, Keys, Liveliness
 from common.bus.keys import CLOCK, END
 from common.bus.watcher import WatchedFrame, Watcher
-from common.config.bus import BusConfig
+from common.config.bus import client_config
 from common.config.scenario import scenario_from_raw
 from common.messages import (
     Message,
@@ -54,6 +54,8 @@ class MonitorOptions:
     the polls crosses the link); `every_frame` receives every tapped frame instead."""
 
     connect: str
+    certs: str | None = None  # mTLS with these certificates (README "Security")
+    identity: str = "monitor"  # whose certificate to present
     run: str | None = None
     vehicle: str | None = None
     follow: bool = False
@@ -144,9 +146,9 @@ class Monitor:
                     while not self._router_up():
                         if self.stop.requested:
                             return 0
-                cfg = BusConfig(mode="client", connect=(self.opts.connect,))
+                cfg = client_config(self.opts.connect, self.opts.certs)
                 try:
-                    with Bus(cfg, Keys("monitor", "monitor")) as bus:
+                    with Bus(cfg, Keys("monitor", "monitor"), identity=self.opts.identity) as bus:
                         watcher = Watcher(bus, self.opts.run, self.opts.vehicle)
                         watcher.start(frames=self.opts.every_frame)
                         code = self._loop(watcher)

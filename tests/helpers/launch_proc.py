@@ -27,6 +27,9 @@ class Tidelink:
         if netns is not None:
             cmd = ["ip", "netns", "exec", netns, *cmd]
         env = dict(os.environ, PYTHONUNBUFFERED="1")
+        # the tests directory too: `Tidelink.python("-m", "helpers.X")` runs a test helper
+        paths = [str(REPO), str(REPO / "tests"), env.get("PYTHONPATH")]
+        env["PYTHONPATH"] = os.pathsep.join(p for p in paths if p)
         self.proc = subprocess.Popen(
             cmd,
             cwd=REPO,

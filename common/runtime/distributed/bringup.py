@@ -25,6 +25,7 @@ from common.bus import CLOCK, Bus, Inbox, Keys
 from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
+from common.runtime.distributed.acl import LAUNCHER, access_control, run_grants
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.dataflow import Dataflow
@@ -68,10 +69,16 @@ def run_keys(scenario: Scenario) -> Keys:
 
 @contextmanager
 def clock_bus(
-    cfg: BusConfig, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any]
+    cfg: BusConfig,
+    keys: Keys,
+    flow: Dataflow,
+    scenario_raw: dict[str, Any],
+    *,
+    access_control: dict[str, Any] | None = None,
 ) -> Iterator[ClockSide]:
-    """Open the driver's bus (see the module docstring); everything closes on exit."""
-    with Bus(cfg, keys) as bus:
+    """Open the driver's bus (see the module docstring) as the launcher identity (mTLS);
+    a router clock may enforce the run's access control. Everything closes on exit."""
+    with Bus(cfg, keys, identity=LAUNCHER, access_control=access_control) as bus:
         inbox = Inbox()
         bus.subscribe(keys.all_streams, inbox)
         bus.watch_alive(inbox)
@@ -123,14 +130,16 @@ def local_run(
     listen = scenario.bus.listen or (f"tcp/127.0.0.1:{free_port()}",)
     endpoint = connectable(listen[0])
     sup = Supervisor(log_dir, forked=True)
-    cfg = BusConfig(
-        mode="router", listen=listen, multicast_scouting=scenario.bus.multicast_scouting
-    )
+    cfg = scenario.bus.router_on(listen)
+    keys = run_keys(scenario)
+    # this process is the router: it enforces the run's access control (remote sessions only;
+    # its own session, the clock, is the launcher identity and is not filtered)
+    acl = access_control(run_grants(flow, keys)) if cfg.secured else None
     with tempfile.TemporaryDirectory(prefix="tidelink-") as tmp:
         raw_path = Path(tmp) / "scenario.json"
         raw_path.write_text(json.dumps(raw))
         try:
-            with clock_bus(cfg, run_keys(scenario), flow, raw) as side:
+            with clock_bus(cfg, keys, flow, raw, access_control=acl) as side:
                 for name in flow.names:
                     argv = [name, "--scenario-json", str(raw_path), "--connect", endpoint]
                     sup.start(name, ["-m", service_module, *argv])

@@ -35,7 +35,7 @@ class LockstepService:
         # callbacks handed to a Python thread (the Bus defaults) gave a tick loop ~10 % faster
         # than express publishers and callbacks on Zenoh's network thread. Zenoh sends a batch
         # as soon as its link is free, so nothing waits for a batch to fill.
-        with Bus(self.bus_cfg, self.keys) as bus:
+        with Bus(self.bus_cfg, self.keys, identity=self.name) as bus:
             inbox = Inbox()
             pubs = wire(bus, self.host, self.keys, inbox, express=False)
             ack_pub = bus.publisher(CLOCK, "ack")

@@ -46,7 +46,7 @@ class RealtimeService:
         return to_us((time.monotonic() - self.t0) * self.scale)
 
     def run(self) -> int:
-        with Bus(self.bus_cfg, self.keys, low_latency=True) as bus:
+        with Bus(self.bus_cfg, self.keys, low_latency=True, identity=self.name) as bus:
             inbox = Inbox()
             pubs = wire(bus, self.host, self.keys, inbox, express=False)
             bus.declare_alive(self.name)

@@ -41,7 +41,7 @@ class ServiceSetup:
             scenario=scenario,
             host=host_for(scenario, name),
             keys=Keys(scenario.run.name, scenario.run.vehicle),
-            bus_cfg=BusConfig(mode="client", connect=(connect,)),
+            bus_cfg=scenario.bus.client_of(connect),  # the run's security (mTLS) included
         )
 
 
