@@ -8,6 +8,8 @@ import os
 import shutil
 import socket
 import stat
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -38,6 +40,8 @@ from common.bus.certs import (
 )
 from common.config.errors import ConfigError
 from common.runtime.processes.children import free_port
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def _cert(path: Path) -> x509.Certificate:
@@ -388,3 +392,49 @@ def test_mtls_refuses_clients_without_a_good_certificate(
         print(f"{case}: refused in {elapsed * 1000:.0f} ms: {said}")
         assert elapsed < 5.0, case
     assert not got.is_set()
+
+
+# --- the CLI -------------------------------------------------------------------------------
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", "certs", *args],
+        cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+def test_cli_creates_then_keeps(tmp_path: Path) -> None:
+    d = tmp_path / "certs"
+    res = _cli(str(d))
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert lines[0].split() == ["created", str(d / "ca.pem")]
+    assert len(lines) == 2 + 2 * len(DEFAULT_IDENTITIES) + 1
+    assert lines[-1].startswith(f"give --certs {d} to launch/service/router/monitor")
+    for name in DEFAULT_IDENTITIES:
+        load_credentials(d, name)
+    res = _cli(str(d), "--names", "planner, monitor", "--days", "30", "--hosts", "auv1,10.0.0.5")
+    assert res.returncode == 0, res.stderr
+    assert [line.split()[0] for line in res.stdout.splitlines()[:-1]] == ["reused", "reused"] + [
+        "kept"
+    ] * 4
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--days", "0"], "days: must be >= 1, got 0"),
+        (["--names", "planner,bad name"], "names: 'bad name' must be letters, digits, '_' or '-'"),
+    ],
+)
+def test_cli_bad_input_exits_2(tmp_path: Path, args: list[str], message: str) -> None:
+    res = _cli(str(tmp_path / "certs"), *args)
+    assert res.returncode == 2
+    assert res.stderr.strip() == f"tidelink: config error: {tmp_path / 'certs'}: {message}"
+    assert not (tmp_path / "certs").exists()
