@@ -14,6 +14,7 @@ from services.cli import (
     launch_commands,
     monitor_commands,
     record_commands,
+    security_commands,
     sweep_commands,
 )
 
@@ -26,6 +27,7 @@ COMMAND_MODULES = (
     record_commands,
     sweep_commands,
     foxglove_commands,
+    security_commands,
 )
 
 

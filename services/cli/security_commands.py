@@ -1,0 +1,59 @@
+"""The security sub-commands: certs."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def _csv(text: str) -> list[str]:
+    """'a, b,,c' -> ['a', 'b', 'c']: a comma-separated list, spaces and empty items ignored."""
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+def cmd_certs(a: argparse.Namespace) -> int:
+    # imported here: cryptography costs ~50 ms, which the other commands need not pay
+    from common.bus.certs import DEFAULT_IDENTITIES, create_certs
+
+    names = DEFAULT_IDENTITIES if a.names is None else _csv(a.names)
+    hosts = None if a.hosts is None else _csv(a.hosts)
+    for path, what in create_certs(a.dir, names, days=a.days, hosts=hosts, renew=a.renew):
+        print(f"{what:<9}  {path}")
+    print(
+        f"give --certs {a.dir} to launch/service/router/monitor/... "
+        "(each process loads the identity it runs as)"
+    )
+    return 0
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add certs to the tidelink parser."""
+    c = sub.add_parser(
+        "certs",
+        help="create a CA and a key + certificate per identity for mutual TLS",
+        description="Create (or reuse) a certificate authority in DIR and a key + certificate "
+        "per identity, for Zenoh's mutual TLS. An existing CA is never overwritten; existing "
+        "identities are kept unless --renew. Files are mode 0600, DIR 0700 when created.",
+    )
+    c.add_argument("dir", type=Path, metavar="DIR", help="the certificate directory")
+    c.add_argument(
+        "--names",
+        default=None,
+        metavar="A,B,...",
+        help="identities to issue (default: every identity of a run: router, launcher, "
+        "and each service and tool)",
+    )
+    c.add_argument(
+        "--days", type=int, default=365, help="validity of the issued certificates (default 365)"
+    )
+    c.add_argument(
+        "--hosts",
+        default=None,
+        metavar="H1,H2,...",
+        help="names and addresses a listener is reached by, put in every certificate "
+        "(default: localhost, 127.0.0.1, ::1 and this host's name)",
+    )
+    c.add_argument(
+        "--renew", action="store_true", help="re-issue existing identities from the same CA"
+    )
+    c.set_defaults(func=cmd_certs)
