@@ -179,3 +179,16 @@ def test_a_plain_tcp_client_is_refused(probe: Probe) -> None:
     conf.insert_json5("scouting/multicast/enabled", "false")
     with pytest.raises(zenoh.ZError):
         zenoh.open(conf).close()
+
+
+def test_tidelink_acl_prints_the_rules_and_the_exact_zenoh_object(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from services.cli import main
+
+    assert main(["acl", str(REPO / "configs" / "default.toml")]) == 0
+    text = capsys.readouterr().out
+    assert "planner:\n" in text and "tidelink/demo/auv1/planner/cmd" in text
+    assert main(["acl", str(REPO / "configs" / "default.toml"), "--json"]) == 0
+    flow, keys = default_flow()
+    assert json.loads(capsys.readouterr().out) == access_control(run_grants(flow, keys))

@@ -194,6 +194,7 @@ def test_load_gives_absolute_paths_and_tls_settings(certs: Path, monkeypatch) ->
         "root_ca_certificate": str(certs / "ca.pem"),
         "enable_mtls": True,
         "verify_name_on_connect": True,
+        "close_link_on_expiration": True,
         "connect_private_key": str(certs / "planner.key"),
         "connect_certificate": str(certs / "planner.pem"),
     }

@@ -177,6 +177,8 @@ def tls_settings(creds: Credentials, *, listen: bool) -> dict[str, object]:
         "root_ca_certificate": str(creds.ca),
         "enable_mtls": True,
         "verify_name_on_connect": True,
+        # an expired certificate ends its links too, not only new connections
+        "close_link_on_expiration": True,
     }
     if listen:
         settings |= {"listen_private_key": str(creds.key), "listen_certificate": str(creds.cert)}

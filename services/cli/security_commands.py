@@ -1,9 +1,12 @@
-"""The security sub-commands: certs."""
+"""The security sub-commands: certs and acl."""
 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
+
+from services.cli.core_commands import scenario_args
 
 
 def _csv(text: str) -> list[str]:
@@ -26,8 +29,27 @@ def cmd_certs(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_acl(a: argparse.Namespace) -> int:
+    from common.config.scenario import load_scenario
+    from common.runtime.distributed.acl import access_control, describe, run_grants
+    from common.runtime.distributed.bringup import run_keys
+    from common.runtime.model.mission import load_mission
+
+    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed)
+    grants = run_grants(load_mission(scenario).dataflow, run_keys(scenario))
+    if a.json:
+        print(json.dumps(access_control(grants), indent=2))
+    else:
+        print(describe(grants))
+        print(
+            "(everything else is denied; --json prints the Zenoh access_control object "
+            "for `tidelink router --acl FILE`)"
+        )
+    return 0
+
+
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add certs to the tidelink parser."""
+    """Add certs and acl to the tidelink parser."""
     c = sub.add_parser(
         "certs",
         help="create a CA and a key + certificate per identity for mutual TLS",
@@ -57,3 +79,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--renew", action="store_true", help="re-issue existing identities from the same CA"
     )
     c.set_defaults(func=cmd_certs)
+
+    acl = sub.add_parser(
+        "acl",
+        help="print the access control a secured run enforces (generated from its dataflow)",
+    )
+    scenario_args(acl)
+    acl.add_argument(
+        "--json", action="store_true", help="the Zenoh access_control object, for --acl FILE"
+    )
+    acl.set_defaults(func=cmd_acl)
