@@ -94,6 +94,15 @@ def test_mtls_without_a_certs_directory_is_a_config_error() -> None:
     assert "bus.certs" in r.stderr and "tidelink certs" in r.stderr
 
 
+def test_a_tls_endpoint_without_certs_is_a_config_error(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    r = cli("launch", DEFAULT, "--listen", "tls/127.0.0.1:7447", "--out", str(out))
+    assert r.returncode == 2 and "TLS endpoint" in r.stderr and "--certs" in r.stderr
+    assert not out.exists()
+    r = cli("monitor", "--connect", "tls/127.0.0.1:7447", "--no-wait")
+    assert r.returncode == 2 and "TLS endpoint" in r.stderr
+
+
 def test_bad_certificate_files_exit_2_naming_the_file(certs: Path, tmp_path: Path) -> None:
     broken = tmp_path / "certs"
     shutil.copytree(certs, broken)

@@ -6,6 +6,7 @@ import argparse
 import logging
 import sys
 
+from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
 from services.cli import (
     core_commands,
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return int(a.func(a))
-    except ConfigError as exc:
+    except (ConfigError, ConfigValueError) as exc:  # a file's, or a flag's value
         print(f"tidelink: config error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

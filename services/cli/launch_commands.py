@@ -51,6 +51,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed, check=check_scenario)
     names = load_mission(scenario).dataflow.names
     check_exposure(a.listen, scenario.bus.secured, a.insecure)
+    scenario.bus.router_on(tuple(a.listen))  # e.g. a tls/ endpoint without --certs: say so now
     if scenario.bus.secured:  # every identity this host presents, before any process starts
         here = names if a.only is None else a.only.split(",")
         check_credentials(scenario.bus, [ROUTER, LAUNCHER, *here])
