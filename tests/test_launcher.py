@@ -14,7 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from helpers.launch_proc import REPO, Tidelink, alive, kill_recorded, processes_mentioning
+from helpers.launch_proc import (
+    REPO,
+    Tidelink,
+    alive,
+    kill_recorded,
+    processes_mentioning,
+    wait_dead,
+)
 
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
@@ -105,7 +112,12 @@ def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
     with Tidelink("launch", str(scenario), "--out", str(out)) as t:
         assert t.wait(WAIT_S) == 1
     assert "service 'filter' exited with code 3 (restart policy 'never')" in t.stderr
-    assert not (out / "metrics.json").exists()
+    # what the run measured until the crash is written, the failure named
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["end_reason"] == "service_failed", m
+    assert m["failure"].startswith("service 'filter' exited with code 3"), m
+    assert 0.0 < m["t_end_s"] < 600.0
+    assert "mission failed at t=" in (out / "logs" / "launch.log").read_text()
     assert not [p for pids in _pids(out).values() for p in pids if alive(p)]
 
 
@@ -146,6 +158,32 @@ def test_no_process_outlives_an_interrupted_launch(tmp_path: Path, out: Path, wh
     assert processes_mentioning(str(out)) == []
     if when == "running":
         assert _metrics(out)["end_reason"] == "interrupted"
+
+
+def test_no_process_outlives_a_sigkilled_launcher(tmp_path: Path, out: Path) -> None:
+    """SIGKILL gives the launcher no chance to stop anything: its children go by themselves
+    (the kernel's parent-death signal; the router used to listen on for good)."""
+    scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
+    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+        t.wait_for(r"mission clock started", WAIT_S)
+        t.signal(signal.SIGKILL)
+        assert t.wait(WAIT_S) == -signal.SIGKILL
+    pids = [p for ps in _pids(out).values() for p in ps]
+    assert len(pids) == 5  # the router and four services
+    assert wait_dead(pids, WAIT_S) == [], "still running after the launcher was killed"
+
+
+def test_a_killed_router_fails_the_run_saying_it_is_never_restarted(
+    tmp_path: Path, out: Path
+) -> None:
+    scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
+    with Tidelink("launch", str(scenario), "--out", str(out), "--restart", "on-failure") as t:
+        t.wait_for(r"mission clock started", WAIT_S)
+        os.kill(_pids(out)["router"][0], signal.SIGKILL)
+        assert t.wait(WAIT_S) == 1, t.stderr
+    assert "the router is never restarted" in t.stderr
+    m = _metrics(out)
+    assert m["end_reason"] == "service_failed" and m["failure"], m
 
 
 def test_lockstep_launch_reproduces_inproc(testloop_toml: Path, tmp_path: Path, out: Path) -> None:

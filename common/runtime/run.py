@@ -49,6 +49,7 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
     metrics.update(
         {
             "end_reason": result.reason,
+            "failure": result.failure.split("\n", 1)[0],  # the first line; logs have the rest
             "t_end_s": result.t_end,
             "ticks": result.ticks,
             "runtime": scenario.runtime.kind,

@@ -100,6 +100,10 @@ def cmd_launch(a: argparse.Namespace) -> int:
         print(f"logs: {out / 'logs'}")
         for line in recorded:
             print(line)
+    if outcome.result.failure:
+        # the metrics of the run until then are written; the failure is the exit status
+        print(f"tidelink: error: {outcome.result.failure}", file=sys.stderr)
+        return 1
     return 130 if outcome.result.reason == "interrupted" else 0
 
 

@@ -29,7 +29,7 @@ from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.result import RunResult
 from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
-from common.runtime.processes.supervisor import Supervisor
+from common.runtime.processes.supervisor import ServiceFailed, Supervisor
 from common.runtime.run import write_outputs
 from services.launcher.plot import plot_run
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
@@ -207,3 +207,8 @@ def _until_interrupted(driver: Driver, side: ClockSide, view: MissionView) -> Ru
         driver.observer.event(f"mission ended at t={view.t_sim:.2f} s: interrupted")
         metrics = driver.mission.metrics(driver.record)
         return RunResult("interrupted", view.t_sim, 0, driver.record, metrics)
+    except ServiceFailed as exc:
+        # what the run measured until then is still its result: metrics.json is written
+        driver.observer.event(f"mission failed at t={view.t_sim:.2f} s: {exc}")
+        metrics = driver.mission.metrics(driver.record)
+        return RunResult("service_failed", view.t_sim, 0, driver.record, metrics, failure=str(exc))

@@ -38,7 +38,11 @@ def start_router(
             args += ["--acl", str(acl)]
     # the launch checked exposure already (it holds --insecure); do not refuse twice
     args.append("--insecure")
-    child = sup.start(ROUTER, args)
+    # a restarted router would not bring the run back: every session's state (subscriptions,
+    # liveliness tokens, the services' view of the clock) goes with the old one
+    child = sup.start(
+        ROUTER, args, never_because="the router is never restarted: the run's sessions go with it"
+    )
     deadline = time.monotonic() + timeout_s
     while READY_LINE not in child.tail(50):
         code = child.proc.poll()

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import os
 import re
+import select
 import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from types import TracebackType
 from typing import IO
@@ -126,6 +128,25 @@ def alive(pid: int) -> bool:
             return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
     except FileNotFoundError:
         return False
+
+
+def wait_dead(pids: list[int], timeout_s: float) -> list[int]:
+    """Wait until these processes (children of anyone) have ended, on their pidfds (readable
+    once a process exits); the ones still running after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    left = []
+    for pid in pids:
+        try:
+            fd = os.pidfd_open(pid)
+        except ProcessLookupError:
+            continue
+        try:
+            ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+            if not ready and alive(pid):
+                left.append(pid)
+        finally:
+            os.close(fd)
+    return left
 
 
 def processes_mentioning(text: str) -> list[int]:

@@ -10,10 +10,12 @@ from common.runtime.model.record import Record
 
 @dataclass
 class RunResult:
-    """Why a run ended, at what virtual time, after how many ticks, its record and metrics."""
+    """Why a run ended, at what virtual time, after how many ticks, its record and metrics;
+    `failure` says what failed when a process did (reason "service_failed")."""
 
     reason: str
     t_end: float
     ticks: int
     record: Record
     metrics: dict[str, Any]
+    failure: str = ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import signal
@@ -11,6 +12,7 @@ import subprocess
 import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -89,6 +91,28 @@ class Child:
         return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
 
 
+# Linux's prctl, looked up once here: the child between fork and exec must not load anything
+_PRCTL: Callable[..., int] | None = None
+if sys.platform.startswith("linux"):
+    _PRCTL = ctypes.CDLL(None, use_errno=True).prctl
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with(parent: int) -> Callable[[], None]:
+    """What the child runs before exec: SIGTERM it when its parent dies, however it dies (a
+    SIGKILLed launcher left its router listening for good). SIGTERM, not SIGKILL: the child
+    still closes its Zenoh session and its own children in order. Linux ties this to the
+    thread that started the child: ours start from the thread that supervises them."""
+
+    def arm() -> None:
+        if _PRCTL is not None:
+            _PRCTL(PR_SET_PDEATHSIG, signal.SIGTERM)
+            if os.getppid() != parent:  # the parent died before the line above
+                os._exit(1)
+
+    return arm
+
+
 def spawn(
     name: str,
     args: list[str],
@@ -117,6 +141,7 @@ def spawn(
         stdin=subprocess.DEVNULL,
         env=full_env,
         start_new_session=group,
+        preexec_fn=_die_with(os.getpid()),
     )
     return Child(name, proc, log_path, fh, group)
 

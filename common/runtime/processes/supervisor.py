@@ -81,6 +81,7 @@ class _Entry:
     restart_at: float | None = None  # monotonic time of a scheduled restart
     reported: bool = False  # this incarnation's exit has been seen
     pids: list[int] = field(default_factory=list)
+    never_because: str = ""  # why this process is never restarted, whatever the policies
 
 
 class Supervisor:
@@ -121,16 +122,29 @@ class Supervisor:
         """Every pid this name has had, first to last."""
         return list(self._entries[name].pids)
 
-    def start(self, name: str, args: list[str], policy: RestartPolicy | None = None) -> Child:
+    def start(
+        self,
+        name: str,
+        args: list[str],
+        policy: RestartPolicy | None = None,
+        *,
+        never_because: str = "",
+    ) -> Child:
         """Start `python <args>` as `name`, logging to log_dir/<name>.log (forked: the args
-        must be `-m MODULE ...`, whose `main(argv)` runs in the forked process)."""
+        must be `-m MODULE ...`, whose `main(argv)` runs in the forked process).
+        `never_because`: this process is never restarted, and its exit says why."""
         if name in self._entries:
             raise ValueError(f"{name!r} is already supervised")
         if self.forked and args[:1] != ["-m"]:
             raise ValueError(f"{name}: a forked process runs a module: expected -m MODULE ...")
         child = self._launch(name, args, append=False)
         self._entries[name] = _Entry(
-            name, args, policy or RestartPolicy(), child, pids=[child.proc.pid]
+            name,
+            args,
+            policy or RestartPolicy(),
+            child,
+            pids=[child.proc.pid],
+            never_because=never_because,
         )
         self._write_pids()
         return child
@@ -169,7 +183,9 @@ class Supervisor:
                     delay_s=delay,
                 ),
             ]
-        if e.policy.mode == "never":
+        if e.never_because:
+            why = e.never_because
+        elif e.policy.mode == "never":
             why = "restart policy 'never'"
         elif e.policy.mode == "on-failure" and code == 0:
             why = "restart policy 'on-failure' does not restart exit code 0"
