@@ -186,6 +186,29 @@ def test_a_killed_router_fails_the_run_saying_it_is_never_restarted(
     assert m["end_reason"] == "service_failed" and m["failure"], m
 
 
+def test_a_frozen_service_raises_an_alarm_and_counts_in_the_metrics(
+    tmp_path: Path, out: Path
+) -> None:
+    """A SIGSTOPped service keeps its token and its connection; the launcher notices the
+    silence (3 periods of nothing), says so, says when it speaks again, and the metrics
+    hold how long it was overdue."""
+    scenario = _scenario(tmp_path, max_time=16.0, scale=2.0)
+    with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
+        t.wait_for(r"mission clock started", WAIT_S)
+        ctrl = _pids(out)["ctrl"][0]
+        os.kill(ctrl, signal.SIGSTOP)
+        try:
+            t.wait_for(r"ALARM: ctrl unresponsive since t=", WAIT_S)
+        finally:
+            os.kill(ctrl, signal.SIGCONT)
+        t.wait_for(r"ctrl responsive again at t=.* \(silent", WAIT_S)
+        assert t.wait(WAIT_S) == 0, t.stderr
+    m = _metrics(out)
+    assert m["unresponsive_s"]["ctrl"] > 0.0, m["unresponsive_s"]
+    assert m["unresponsive_s"]["plant"] == 0.0, m["unresponsive_s"]
+    assert "ALARM: ctrl unresponsive" in (out / "logs" / "launch.log").read_text()
+
+
 def test_lockstep_launch_reproduces_inproc(testloop_toml: Path, tmp_path: Path, out: Path) -> None:
     ref = run_inproc(load_scenario(testloop_toml)[0])
     with Tidelink(

@@ -9,8 +9,10 @@ from typing import Any
 
 from common.config.scenario import Scenario
 from common.runtime.model.inproc import run_inproc
+from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
+from common.runtime.model.silence import thresholds, unresponsive_s
 
 
 def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunResult:
@@ -55,6 +57,11 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
             "runtime": scenario.runtime.kind,
             "seed": scenario.run.seed,
             "link_stats": link_stats(result.record),
+            "unresponsive_s": unresponsive_s(
+                result.record,
+                thresholds(load_mission(scenario).dataflow, scenario.runtime.stats_period_s),
+                result.t_end,
+            ),
         }
     )
     if wall_s is not None:

@@ -27,6 +27,7 @@ from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
 from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.result import RunResult
+from common.runtime.model.silence import thresholds
 from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
@@ -167,7 +168,8 @@ def _run(
     kind = scenario.runtime.kind
     keys = run_keys(scenario)
     view = MissionView(scenario)
-    observer = ProgressObserver(view, display)
+    limits = thresholds(mission.dataflow, scenario.runtime.stats_period_s)
+    observer = ProgressObserver(view, display, limits)
     cfg = scenario.bus.client_of(endpoint)
     raw = json.loads(scenario_json.read_text())
     with clock_bus(cfg, keys, mission.dataflow, raw) as side, ExitStack() as attached:

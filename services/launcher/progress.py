@@ -10,6 +10,7 @@ from typing import IO, Protocol
 
 from common.config.scenario import Scenario
 from common.messages import Message, PathMsg, TruthState, VehicleStatus
+from common.runtime.model.silence import SilenceWatch
 
 # the vehicle's true pose in any mission that has a vehicle (DESIGN.md: .../vehicle/truth);
 # without it, progress is the mission time used
@@ -166,19 +167,24 @@ class LoggedDisplay:
 
 class ProgressObserver:
     """The launcher's RunObserver: messages feed the MissionView, which with events and the
-    mission time drives the display."""
+    mission time drives the display; a service that falls silent raises an alarm."""
 
-    def __init__(self, view: MissionView, display: Display) -> None:
+    def __init__(
+        self, view: MissionView, display: Display, silence_limits: dict[str, float] | None = None
+    ) -> None:
         self.view = view
         self.display = display
+        self.silence = SilenceWatch(silence_limits or {})
 
     def event(self, text: str) -> None:
         self.display.event(text)
 
     def message(self, service: str, stream: str, msg: Message) -> None:
-        line = self.view.see(service, stream, msg)
-        if line:
-            self.display.event(line)
+        for line in (self.view.see(service, stream, msg), self.silence.heard(service, msg)):
+            if line:
+                self.display.event(line)
 
     def progress(self, t_s: float) -> None:
+        for line in self.silence.check(t_s):
+            self.display.event(line)
         self.display.update(self.view, t_s)
