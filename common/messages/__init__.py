@@ -8,6 +8,8 @@ from common.messages.codec import (
     encode,
     encode_routing,
     encode_watch,
+    fields_of,
+    forge_frame,
     replace,
 )
 from common.messages.types import (
@@ -62,5 +64,7 @@ __all__ = [
     "encode",
     "encode_routing",
     "encode_watch",
+    "fields_of",
+    "forge_frame",
     "replace",
 ]

@@ -69,6 +69,20 @@ def encode(
 _CLASSES = frozenset(MESSAGE_TYPES)
 
 
+def fields_of(msg: Message) -> dict[str, Any]:
+    """A message's fields by name, envelope included (what forge_frame takes back)."""
+    return {f: getattr(msg, f) for f in msg.__struct_fields__}
+
+
+def forge_frame(type_name: str, fields: dict[str, Any]) -> bytes:
+    """A frame as a buggy or hostile peer could send it: the wire layout with no checks at
+    all (NaN, a stamp in Unix time, a seq of 2**62...). For fault injection only
+    (services/chaos); every receiver must survive what this makes."""
+    frame = (WIRE_VERSION, {"type": type_name, **fields})
+    data: bytes = _CODEC.encode(frame)
+    return data
+
+
 def replace(msg: Message, **changes: Any) -> Message:
     """A copy of `msg` with some fields changed (checked like a newly built message)."""
     try:

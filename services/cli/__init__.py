@@ -9,6 +9,7 @@ import sys
 from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
 from services.cli import (
+    chaos_commands,
     core_commands,
     foxglove_commands,
     graph_commands,
@@ -29,6 +30,7 @@ COMMAND_MODULES = (
     sweep_commands,
     foxglove_commands,
     security_commands,
+    chaos_commands,
 )
 
 

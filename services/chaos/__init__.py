@@ -1,0 +1,1 @@
+"""The standing fault matrix (`tidelink chaos`): real launches, one fault each, judged."""
