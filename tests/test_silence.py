@@ -31,3 +31,23 @@ def test_the_watch_says_once_when_silent_and_once_when_back() -> None:
     back = watch.heard("planner", stats(9.0, 2))
     assert back is not None and "silent 8.0 s" in back
     assert watch.heard("estimator", stats(9.0, 1)) is None  # not judged
+
+
+def test_a_lasting_no_path_raises_one_alarm_and_a_path_clears_it() -> None:
+    from helpers.samples import one_of_each
+
+    from common.config.scenario import Scenario
+    from common.messages import PathMsg, replace
+    from services.launcher.progress import NO_PATH_ALARM_S, MissionView
+
+    ok = next(m for m in one_of_each() if isinstance(m, PathMsg) and m.status == "OK")
+    no = replace(ok, status="NO_PATH", reason="start in contact")
+    view = MissionView(Scenario())
+    view.see("planner", "path", replace(ok, stamp=1.0))
+    view.see("planner", "path", replace(no, stamp=2.0))
+    assert view.alarm(2.0 + NO_PATH_ALARM_S - 0.1) is None
+    line = view.alarm(2.0 + NO_PATH_ALARM_S + 0.1)
+    assert line is not None and "NO_PATH since t=2.00 s" in line and "start in contact" in line
+    assert view.alarm(30.0) is None  # once
+    view.see("planner", "path", replace(ok, stamp=31.0))
+    assert view.no_path_since is None and view.alarm(40.0) is None

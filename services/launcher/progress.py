@@ -12,6 +12,8 @@ from common.config.scenario import Scenario
 from common.messages import Message, PathMsg, TruthState, VehicleStatus
 from common.runtime.model.silence import SilenceWatch
 
+NO_PATH = "NO_PATH"  # PathMsg.status when the planner found no path
+NO_PATH_ALARM_S = 5.0  # a NO_PATH lasting this long (mission s) is an alarm, not a hiccup
 # the vehicle's true pose in any mission that has a vehicle (DESIGN.md: .../vehicle/truth);
 # without it, progress is the mission time used
 TRUTH = ("vehicle", "truth")
@@ -28,6 +30,9 @@ class MissionView:
         self.d0: float | None = None  # distance to the goal at the first truth
         self.mode = ""
         self.path_status = ""
+        self.no_path_since: float | None = None  # a NO_PATH that has not been lifted since
+        self.no_path_reason = ""
+        self.no_path_alarmed = False
 
     @property
     def to_goal_m(self) -> float | None:
@@ -55,11 +60,26 @@ class MissionView:
                 return f"{service}: mode {old} -> {msg.mode} at t={msg.stamp:.2f} s"
         elif isinstance(msg, PathMsg) and msg.status != self.path_status:
             old, self.path_status = self.path_status, msg.status
+            if msg.status == NO_PATH:
+                self.no_path_since, self.no_path_reason = msg.stamp, msg.reason
+            else:
+                self.no_path_since, self.no_path_alarmed = None, False
             if old:
                 return (
                     f"{service}: path {old} -> {msg.status} at t={msg.stamp:.2f} s ({msg.reason})"
                 )
         return None
+
+    def alarm(self, t_sim: float) -> str | None:
+        """A line once a NO_PATH has lasted NO_PATH_ALARM_S (the vehicle is not moving on)."""
+        since = self.no_path_since
+        if since is None or self.no_path_alarmed or t_sim - since < NO_PATH_ALARM_S:
+            return None
+        self.no_path_alarmed = True
+        return (
+            f"ALARM: planner NO_PATH since t={since:.2f} s ({t_sim - since:.1f} s; "
+            f"{self.no_path_reason})"
+        )
 
     def summary(self, t_sim: float) -> str:
         d = self.to_goal_m
@@ -185,6 +205,7 @@ class ProgressObserver:
                 self.display.event(line)
 
     def progress(self, t_s: float) -> None:
-        for line in self.silence.check(t_s):
-            self.display.event(line)
+        for line in [*self.silence.check(t_s), self.view.alarm(t_s)]:
+            if line:
+                self.display.event(line)
         self.display.update(self.view, t_s)
