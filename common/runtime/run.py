@@ -54,6 +54,8 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
             "runtime": scenario.runtime.kind,
             "seed": scenario.run.seed,
             "link_stats": link_stats(result.record),
+            # messages the run's record refused, by reason (common/runtime/model/record.py)
+            "record_rejected": dict(result.record.rejected),
         }
     )
     if wall_s is not None:

@@ -12,6 +12,7 @@ from common.config.scenario import Scenario
 from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
+from services.mission.continuity import follows, reach_mps
 from services.planner.nurbs_curve import NurbsCurve
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -46,15 +47,15 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
     g, st = s.world.goal, s.world.start
     dist_goal = np.hypot(x - g.x_m, y - g.y_m)
-    at_goal = np.flatnonzero(dist_goal <= s.world.goal_tolerance_m)
-    end = int(at_goal[0]) if len(at_goal) else len(t) - 1
+    arrival = _arrival(truth, dist_goal <= s.world.goal_tolerance_m, reach_mps(s.vehicle))
+    end = len(t) - 1 if arrival is None else arrival
     seg = np.hypot(np.diff(x[: end + 1]), np.diff(y[: end + 1]))
     length = float(seg.sum())
     straight = math.hypot(g.x_m - st.x_m, g.y_m - st.y_m)
     travel = float(t[end] - t[0])
     m.update(
         {
-            "reached_goal": bool(len(at_goal)),
+            "reached_goal": arrival is not None,
             "travel_time_s": travel,  # eq. (21): Rtime = Rdist / Rspace (= length / mean speed)
             "mean_speed_mps": length / travel if travel > 0 else 0.0,
             "path_length_m": length,
@@ -89,6 +90,15 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
             }
         )
     return m
+
+
+def _arrival(truth: list[TruthState], near: np.ndarray, speed_mps: float) -> int | None:
+    """Index of the first state within the goal tolerance that follows its predecessor (a
+    forged state at the goal does not count, services/mission/continuity.py); None if none."""
+    for i in np.flatnonzero(near):
+        if i > 0 and follows(truth[i - 1], truth[i], speed_mps):
+            return int(i)
+    return None
 
 
 def _path_metrics(
