@@ -67,7 +67,7 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
         kill_recorded(out / "pids.json")
     assert rounds == LAST // EVERY
     m = json.loads((out / "metrics.json").read_text())
-    assert m["end_reason"] == "goal" and m["reached_goal"] is True and m["collisions"] == 0, m
+    assert m["end_reason"] == "goal" and m["success"] is True, m
     assert m["record_rejected"] == {
         "wrong_source": 2 * rounds,
         "seq_jump": rounds,

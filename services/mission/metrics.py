@@ -42,7 +42,7 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
         "controller": s.controller.kind,
     }
     if not truth:
-        return m | {"reached_goal": False}
+        return m | {"reached_goal": False, "success": False}
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
     t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
     g, st = s.world.goal, s.world.start
@@ -67,6 +67,10 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     collided = clear < 0.0
     m["min_clearance_m"] = float(clear.min())
     m["collisions"] = int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0]))
+    if m["collisions"]:
+        m["first_contact_t_s"] = float(t[np.argmax(collided)])
+    # a run with any contact is no success, whatever else it achieved
+    m["success"] = arrival is not None and m["collisions"] == 0 and m["min_clearance_m"] >= 0.0
     moving = v > MIN_SPEED_FOR_CURVATURE
     m["max_executed_curvature"] = (
         float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
@@ -87,6 +91,7 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
                 "commands_clamped": last.commands_clamped,
                 "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),
                 "failsafe_time_s": dt * sum(1 for q in statuses if q.mode == "FAILSAFE"),
+                "hold_distance_max_m": _hold_distance_max(statuses, t, x, y),
             }
         )
     return m
@@ -99,6 +104,20 @@ def _arrival(truth: list[TruthState], near: np.ndarray, speed_mps: float) -> int
         if i > 0 and follows(truth[i - 1], truth[i], speed_mps):
             return int(i)
     return None
+
+
+def _hold_distance_max(
+    statuses: list[VehicleStatus], t: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> float:
+    """The longest distance the vehicle travelled in one spell of HOLD/FAILSAFE (without a
+    command: blind), from the truth states published with those statuses (same stamps)."""
+    blind = {q.stamp for q in statuses if q.mode in ("HOLD", "FAILSAFE")}
+    seg = np.hypot(np.diff(x), np.diff(y))
+    best = run = 0.0
+    for i, stamp in enumerate(t[1:]):
+        run = run + float(seg[i]) if stamp in blind else 0.0
+        best = max(best, run)
+    return best
 
 
 def _path_metrics(
