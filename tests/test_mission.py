@@ -23,6 +23,8 @@ def test_every_controller_reaches_the_goal_without_collision(controller: str) ->
     assert m["reached_goal"] is True
     assert m["collisions"] == 0
     assert m["min_clearance_m"] > 0.5  # hull to obstacle surface, against truth (eq. 12)
+    assert m["success"] is True and "first_contact_t_s" not in m
+    assert m["hold_time_s"] == 0.0 and m["hold_distance_max_m"] == 0.0  # never blind
     assert m["travel_time_s"] < 120.0  # 90 m at ~1.5 m/s, with detours
     # the network in the loop really was lossy
     cmd = r.record.stream("planner", "stats")[-1]

@@ -1,4 +1,5 @@
-"""Command watchdog: stale / reordered rejection, clamping, HOLD, FAILSAFE and recovery."""
+"""Command watchdog: stale / reordered rejection, clamping, HOLD (its ramp, its braking
+distance), FAILSAFE and recovery."""
 
 from __future__ import annotations
 
@@ -6,14 +7,19 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 
 from common.config.vehicle import VehicleConfig, WatchdogConfig
 from common.messages import VehicleStatus, VelocityCommand, replace
 from common.runtime.model.core import Delivery
 from services.vehicle.core import VehicleCore
+from services.vehicle.dynamics import PlantParams, drag_n
 from services.vehicle.watchdog import Watchdog
 
-CFG = WatchdogConfig(max_command_age_s=1.0, hold_after_s=2.0, failsafe_after_s=5.0)
+# a finite HOLD ramp (0.2 m/s^2, the former default), so the ramp's times can be checked
+CFG = WatchdogConfig(
+    max_command_age_s=1.0, hold_after_s=2.0, failsafe_after_s=5.0, hold_decel_mps2=0.2
+)
 
 
 def _wd() -> Watchdog:
@@ -129,6 +135,64 @@ def test_watchdog_config_validation() -> None:
         WatchdogConfig(hold_after_s=2.0, failsafe_after_s=2.0)
     with pytest.raises(ValueError, match="hold_after_s"):
         WatchdogConfig(max_command_age_s=3.0, hold_after_s=2.0)
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="hold_decel_mps2"):
+            WatchdogConfig(hold_decel_mps2=bad)
+    assert WatchdogConfig().hold_decel_mps2 == 0.0  # the default: brake at once
+
+
+def test_hold_drops_the_speed_command_at_once_by_default() -> None:
+    wd = Watchdog(WatchdogConfig(), v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5)
+    wd.offer(1.0, 1.0, 1.5, 0.3)
+    assert (wd.command(2.999).v, wd.command(2.999).w) == (1.5, 0.3)
+    a = wd.command(3.0)  # hold_after_s = 2 s after the stamp
+    assert (a.mode, a.v, a.w) == ("HOLD", 0.0, 0.0)
+    # with a speed floor (v_min > 0) HOLD keeps that speed: the floor, not zero
+    wd = Watchdog(WatchdogConfig(), v_min=0.3, v_max=2.0, w_min=-0.5, w_max=0.5)
+    wd.offer(1.0, 1.0, 1.5, 0.3)
+    assert (wd.command(3.0).v, wd.command(9.0).mode) == (0.3, "FAILSAFE")
+
+
+def _blind_run(cfg: VehicleConfig, v0: float) -> tuple[float, float]:
+    """Cruise at v0 with commands every 0.1 s up to t = 40 s, then silence: the distance run
+    on the last command before HOLD, and the distance from HOLD to standstill."""
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    for k in range(401):
+        _send(core, 0.1 * k, 0.1 * k, v0, 0.0)
+        core.step(0.1 * k)
+    x_last = core.pose[0]
+    t = 40.0 + cfg.watchdog.hold_after_s
+    assert _status(core, t).mode == "HOLD"
+    x_hold = core.pose[0]
+    while core.pose[3] > 1e-4:
+        t += cfg.period_s
+        assert t < 80.0, "the vehicle never stopped"
+        core.step(t)
+    return x_hold - x_last, core.pose[0] - x_hold
+
+
+def _braking_distance(cfg: VehicleConfig, v0: float) -> float:
+    """Oracle: the distance to stop from v0 at the hull's limit, int_0^v0 v / a(v) dv with
+    a(v) = min(accel_max, (|T_min| + R(v)) / m_eff): full reverse thrust plus eq. (14) drag."""
+    p = PlantParams.from_config(cfg)
+
+    def decel(v: float) -> float:
+        return min(p.accel_max, (-p.thrust_min_n + drag_n(v, p)) / p.mass_eff_kg)
+
+    return float(quad(lambda v: v / decel(v), 0.0, v0)[0])
+
+
+@pytest.mark.parametrize("v0", [1.0, 1.5, 2.0])
+def test_hold_stops_within_the_hulls_braking_distance(v0: float) -> None:
+    # Defaults: HOLD brakes at the hull's limit (the speed loop at full reverse thrust); the
+    # oracle leaves out the speed loop's lag and its unsaturated tail below ~0.14 m/s
+    # (measured: 6-7 cm). Measured from 1.5 m/s: 5.42 m, where the 0.2 m/s^2 ramp took 7.28 m.
+    cfg = VehicleConfig()
+    before, brake = _blind_run(cfg, v0)
+    assert before == pytest.approx(v0 * cfg.watchdog.hold_after_s, abs=0.01)
+    assert _braking_distance(cfg, v0) <= brake <= _braking_distance(cfg, v0) + 0.1
+    _, ramp_brake = _blind_run(VehicleConfig(watchdog=CFG), v0)
+    assert brake < 0.8 * ramp_brake
 
 
 def test_one_command_from_the_far_future_cannot_lock_out_the_later_ones() -> None:

@@ -52,16 +52,23 @@ class WatchdogConfig:
     # between processes is milliseconds; one command from the far future must not lock the
     # out-of-order check against every later command)
     max_future_s: float = 0.5
-    hold_after_s: float = 2.0  # applied command older than this: ramp to zero speed, w = 0
+    hold_after_s: float = 2.0  # applied command older than this: HOLD (brake, w = 0)
     failsafe_after_s: float = 5.0  # older than this: report FAILSAFE until a fresh command
-    hold_decel_mps2: float = 0.2  # speed ramp-down rate of the commanded speed in HOLD
+    # HOLD brakes. 0 (the default): the speed command drops to the floor (max(0, v_min_mps))
+    # at once, so the speed loop brakes at the hull's limit (full reverse thrust plus drag,
+    # at most accel_max_mps2); > 0: it falls at this rate (m/s^2), a gentler, longer stop.
+    # The vehicle is blind from its last command: it runs hold_after_s on that command, then
+    # brakes with the heading held. With the defaults, from 1.5 m/s: 3.0 m + 5.4 m (stopped
+    # 10.5 s into HOLD); from 2.0 m/s: 4.0 m + 8.4 m. The former ramp, 0.2 m/s^2, braked
+    # over 7.3 m from 1.5 m/s and 12.1 m from 2.0 m/s.
+    hold_decel_mps2: float = 0.0
 
     def __post_init__(self) -> None:
         positive("max_command_age_s", self.max_command_age_s)
         positive("max_future_s", self.max_future_s)
         positive("hold_after_s", self.hold_after_s)
         positive("failsafe_after_s", self.failsafe_after_s)
-        positive("hold_decel_mps2", self.hold_decel_mps2)
+        nonneg("hold_decel_mps2", self.hold_decel_mps2)
         if self.hold_after_s < self.max_command_age_s:
             raise ConfigValueError(
                 "hold_after_s",

@@ -62,6 +62,8 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
                 thresholds(load_mission(scenario).dataflow, scenario.runtime.stats_period_s),
                 result.t_end,
             ),
+            # messages the run's record refused, by reason (common/runtime/model/record.py)
+            "record_rejected": dict(result.record.rejected),
         }
     )
     if wall_s is not None:

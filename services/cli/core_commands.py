@@ -16,6 +16,9 @@ log = logging.getLogger("tidelink")
 
 
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
+# `run` and `launch`: the mission ran to its end (metrics written) without success: contact
+# with an obstacle, or the goal not reached. Distinct from 1 (a service or the run failed).
+EXIT_MISSION_FAILED = 3
 
 
 def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
@@ -149,7 +152,36 @@ def cmd_run(a: argparse.Namespace) -> int:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:
         print_metrics(metrics, out)
-    return 0
+    return report_outcome(metrics, json_output=a.json)
+
+
+def mission_failure(metrics: dict[str, Any]) -> str | None:
+    """Why a run that ended is no success ("mission failed: ..."), or None: it succeeded, it
+    was interrupted (not a judgment), or its mission does not judge success (no `success`)."""
+    if metrics.get("success", True) or metrics.get("end_reason") == "interrupted":
+        return None
+    why = []
+    if metrics.get("first_contact_t_s") is not None:
+        why.append(
+            f"contact at t={metrics['first_contact_t_s']:.2f} s "
+            f"(min clearance {metrics['min_clearance_m']:.3g} m)"
+        )
+    if not metrics.get("reached_goal"):
+        where = metrics.get("final_distance_to_goal_m")
+        far = "" if where is None else f", {where:.1f} m from the goal"
+        t_end = metrics.get("t_end_s") or 0.0
+        why.append(f"goal not reached ({metrics.get('end_reason')} at t={t_end:.2f} s{far})")
+    return "mission failed: " + ("; ".join(why) or "no success")
+
+
+def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
+    """Say why a mission failed (in the summary on stdout; on stderr when stdout is JSON) and
+    return the exit code: EXIT_MISSION_FAILED then, else 0."""
+    failure = mission_failure(metrics)
+    if failure is None:
+        return 0
+    print(failure, file=sys.stderr if json_output else sys.stdout, flush=True)
+    return EXIT_MISSION_FAILED
 
 
 def _json_default(v: Any) -> Any:

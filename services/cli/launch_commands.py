@@ -16,6 +16,7 @@ from services.cli.core_commands import (
     check_exposure,
     insecure_arg,
     print_metrics,
+    report_outcome,
     scenario_args,
 )
 
@@ -104,7 +105,9 @@ def cmd_launch(a: argparse.Namespace) -> int:
         # the metrics of the run until then are written; the failure is the exit status
         print(f"tidelink: error: {outcome.result.failure}", file=sys.stderr)
         return 1
-    return 130 if outcome.result.reason == "interrupted" else 0
+    if outcome.result.reason == "interrupted":
+        return 130
+    return report_outcome(outcome.metrics, json_output=a.json)
 
 
 def cmd_service(a: argparse.Namespace) -> int:

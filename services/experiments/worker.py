@@ -118,8 +118,13 @@ def row_of(spec: RunSpec, outcome: RunOutcome, runtime: str, finished_at: str) -
     )
     m = outcome.metrics
     if outcome.status == "ok":
-        # paper §4 success: reached the goal without touching an obstacle
-        row["success"] = bool(m.get("reached_goal")) and m.get("collisions", 1) == 0
+        # paper §4 success: reached the goal without touching an obstacle; the mission's own
+        # judgment when it makes one (services/mission/metrics.py), a run that failed it is
+        # still data (status "ok")
+        if "success" in m:
+            row["success"] = bool(m["success"])
+        else:
+            row["success"] = bool(m.get("reached_goal")) and m.get("collisions", 1) == 0
         acts, on = m.get("control_actions"), m.get("control_actions_on_path")
         if isinstance(acts, int) and isinstance(on, int) and acts > 0:
             row["on_path_fraction"] = on / acts

@@ -12,6 +12,7 @@ from common.config.scenario import Scenario
 from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
+from services.mission.continuity import follows, reach_mps
 from services.planner.nurbs_curve import NurbsCurve
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -41,20 +42,20 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
         "controller": s.controller.kind,
     }
     if not truth:
-        return m | {"reached_goal": False}
+        return m | {"reached_goal": False, "success": False}
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
     t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
     g, st = s.world.goal, s.world.start
     dist_goal = np.hypot(x - g.x_m, y - g.y_m)
-    at_goal = np.flatnonzero(dist_goal <= s.world.goal_tolerance_m)
-    end = int(at_goal[0]) if len(at_goal) else len(t) - 1
+    arrival = _arrival(truth, dist_goal <= s.world.goal_tolerance_m, reach_mps(s.vehicle))
+    end = len(t) - 1 if arrival is None else arrival
     seg = np.hypot(np.diff(x[: end + 1]), np.diff(y[: end + 1]))
     length = float(seg.sum())
     straight = math.hypot(g.x_m - st.x_m, g.y_m - st.y_m)
     travel = float(t[end] - t[0])
     m.update(
         {
-            "reached_goal": bool(len(at_goal)),
+            "reached_goal": arrival is not None,
             "travel_time_s": travel,  # eq. (21): Rtime = Rdist / Rspace (= length / mean speed)
             "mean_speed_mps": length / travel if travel > 0 else 0.0,
             "path_length_m": length,
@@ -66,6 +67,10 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     collided = clear < 0.0
     m["min_clearance_m"] = float(clear.min())
     m["collisions"] = int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0]))
+    if m["collisions"]:
+        m["first_contact_t_s"] = float(t[np.argmax(collided)])
+    # a run with any contact is no success, whatever else it achieved
+    m["success"] = arrival is not None and m["collisions"] == 0 and m["min_clearance_m"] >= 0.0
     moving = v > MIN_SPEED_FOR_CURVATURE
     m["max_executed_curvature"] = (
         float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
@@ -86,9 +91,33 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
                 "commands_clamped": last.commands_clamped,
                 "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),
                 "failsafe_time_s": dt * sum(1 for q in statuses if q.mode == "FAILSAFE"),
+                "hold_distance_max_m": _hold_distance_max(statuses, t, x, y),
             }
         )
     return m
+
+
+def _arrival(truth: list[TruthState], near: np.ndarray, speed_mps: float) -> int | None:
+    """Index of the first state within the goal tolerance that follows its predecessor (a
+    forged state at the goal does not count, services/mission/continuity.py); None if none."""
+    for i in np.flatnonzero(near):
+        if i > 0 and follows(truth[i - 1], truth[i], speed_mps):
+            return int(i)
+    return None
+
+
+def _hold_distance_max(
+    statuses: list[VehicleStatus], t: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> float:
+    """The longest distance the vehicle travelled in one spell of HOLD/FAILSAFE (without a
+    command: blind), from the truth states published with those statuses (same stamps)."""
+    blind = {q.stamp for q in statuses if q.mode in ("HOLD", "FAILSAFE")}
+    seg = np.hypot(np.diff(x), np.diff(y))
+    best = run = 0.0
+    for i, stamp in enumerate(t[1:]):
+        run = run + float(seg[i]) if stamp in blind else 0.0
+        best = max(best, run)
+    return best
 
 
 def _path_metrics(

@@ -20,15 +20,19 @@ from common.messages import Tick, TickAck, WireError, decode
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record, Renumbering
 from common.runtime.model.result import RunResult
+from common.runtime.model.seqwindow import DEFAULT_MAX_GAP, max_seq_gap
 from common.runtime.run import run_metrics
 from services.recording.reader import AliveEvent, Recording, RecordingError
 
 NOT_RECOMPUTED = ("wall_s",)  # run facts a recording cannot give back
 
 
-def rebuild_record(rec: Recording, services: Collection[str]) -> Record:
-    """The run's Record from the recorded frames (the clock's own frames left out)."""
-    record = Record()
+def rebuild_record(
+    rec: Recording, services: Collection[str], max_seq_gap: int = DEFAULT_MAX_GAP
+) -> Record:
+    """The run's Record from the recorded frames (the clock's own frames left out), refusing
+    what the run's own record refused (give the run's `max_seq_gap`, see mission_record)."""
+    record = Record(max_seq_gap)
     renumbering = Renumbering(record)
     ever_alive: set[str] = set()
     for e in rec.events:
@@ -58,7 +62,9 @@ def recording_metrics(rec: Recording) -> dict[str, Any]:
     recording (cut short), end_reason is "unknown" and t_end_s and ticks are None."""
     scenario = scenario_from_raw(rec.scenario_raw, f"{rec.path} (its scenario)")
     mission = load_mission(scenario)
-    record = rebuild_record(rec, mission.dataflow.names)
+    record = rebuild_record(
+        rec, mission.dataflow.names, max_seq_gap(mission.dataflow, mission.max_time_s)
+    )
     end = rec.end
     result = RunResult(
         end.reason if end is not None else "unknown",

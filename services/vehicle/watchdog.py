@@ -9,8 +9,11 @@ Rules (times on the runtime clock, `stamp` = the command's validity time):
   before the order check, so no single command can lock out every later one;
 - an accepted command is clamped to the eq. (11) bounds (counted in `clamped` when it had to
   be), never applied raw;
-- once the applied command is hold_after_s old, the commanded speed ramps down to the floor
-  (max(0, v_min)) at hold_decel_mps2 and the yaw rate is zero (heading hold): mode HOLD;
+- once the applied command is hold_after_s old, the commanded speed falls to the floor
+  (max(0, v_min)) at hold_decel_mps2 and the yaw rate is zero (heading hold): mode HOLD. By
+  default (hold_decel_mps2 = 0) the speed command drops at once and the speed loop brakes at
+  the hull's limit, the shortest stop the plant allows (a blind vehicle should cover as
+  little ground as it can; with v_min = 0 the distance is bounded, see WatchdogConfig);
 - once it is failsafe_after_s old, the mode is FAILSAFE (same motion) until a fresh command.
 """
 
@@ -41,9 +44,10 @@ class Applied:
 class Schedule:
     """The command as a function of time until the next accepted command (immutable).
 
-    Before any command: IDLE, (0, 0). Then RUN with (v, w) until t_hold, then the HOLD ramp
-    (FAILSAFE from t_fail). The plant integrator keeps these per time window, so a command's
-    effect does not depend on when the plant happens to be integrated.
+    Before any command: IDLE, (0, 0). Then RUN with (v, w) until t_hold, then HOLD: the speed
+    command falls to v_floor at `decel` (inf: at once), w = 0 (FAILSAFE from t_fail). The
+    plant integrator keeps these per time window, so a command's effect does not depend on
+    when the plant happens to be integrated.
     """
 
     stamp: float | None = None
@@ -61,8 +65,10 @@ class Schedule:
         age = max(0.0, t - self.stamp)  # a stamp from the future (clock skew) counts as fresh
         if t < self.t_hold:
             return Applied(mode="RUN", v=self.v, w=self.w, age_s=age)
-        # HOLD / FAILSAFE: ramp the commanded speed down, hold the heading (w = 0)
-        v = min(self.v, max(self.v_floor, self.v - self.decel * (t - self.t_hold)))
+        # HOLD / FAILSAFE: lower the commanded speed, hold the heading (w = 0); an infinite
+        # rate drops it at once (inf * 0 would be NaN at t_hold itself)
+        drop = math.inf if math.isinf(self.decel) else self.decel * (t - self.t_hold)
+        v = min(self.v, max(self.v_floor, self.v - drop))
         mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
         return Applied(mode=mode, v=v, w=0.0, age_s=age)
 
@@ -139,7 +145,7 @@ class Watchdog:
             w=wc,
             t_hold=stamp + self._cfg.hold_after_s,
             t_fail=stamp + self._cfg.failsafe_after_s,
-            decel=self._cfg.hold_decel_mps2,
+            decel=self._cfg.hold_decel_mps2 or math.inf,  # 0: at once
             v_floor=max(0.0, self._v_bounds[0]),
         )
         return "applied"

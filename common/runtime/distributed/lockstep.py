@@ -24,7 +24,7 @@ from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.host import NEVER
-from common.runtime.model.record import Record
+from common.runtime.model.mission import mission_record
 from common.runtime.model.result import RunResult
 from common.runtime.processes.supervisor import ServiceFailed
 
@@ -44,7 +44,7 @@ class Coordinator:
         self.sup = ctx.sup
         self.observer = ctx.observer
         self.stop = ctx.stop
-        self.record = Record()
+        self.record = mission_record(ctx.mission)
         self.acks: dict[str, TickAck] = {}
         self.alive: set[str] = set()
         self.finished: set[str] = set()  # services that acknowledged the stop tick
@@ -115,8 +115,8 @@ class Coordinator:
         if isinstance(ev.msg, Tick):
             return
         service, stream = self.keys.split(ev.key)
-        self.record.add(service, stream, ev.msg)
-        self.observer.message(service, stream, ev.msg)
+        if self.record.add(service, stream, ev.msg) is None:  # not shown if refused
+            self.observer.message(service, stream, ev.msg)
 
     def _tick(
         self,

@@ -14,6 +14,7 @@ from common.runtime.distributed.service_process import (
     service_main,
     wire,
 )
+from common.runtime.model.seqwindow import SeqWindow, max_seq_gap
 
 log = logging.getLogger("tidelink.lockstep")
 
@@ -27,7 +28,11 @@ class LockstepService:
         self.host = setup.host
         self.keys = setup.keys
         self.bus_cfg = setup.bus_cfg
-        self.received: dict[str, int] = {f"{i.source}/{i.stream}": 0 for i in self.host.inputs}
+        # which seqs of each input arrived: a tick's data are here when the complete prefix
+        # reaches its watermark (counting messages instead, one forged message on an input
+        # key would make the service step before the real one arrives)
+        gap = max_seq_gap(self.host.flow, self.scenario.run.max_time_s)
+        self.received = {f"{i.source}/{i.stream}": SeqWindow(gap) for i in self.host.inputs}
         self.timeout_s = self.scenario.runtime.tick_timeout_s
 
     def run(self) -> int:
@@ -86,8 +91,9 @@ class LockstepService:
         if isinstance(ev.msg, Tick):
             return ev.msg
         service, stream = self.keys.split(ev.key)
-        key = f"{service}/{stream}"
-        self.received[key] = self.received.get(key, 0) + 1
+        window = self.received.get(f"{service}/{stream}")
+        if window is not None and ev.msg.source == service and window.plausible(ev.msg.seq):
+            window.take(ev.msg.seq)
         routed = routing_for(ev, self.name)
         if routed is not None and routed[1]:
             self.host.accept(ev.msg, service, stream, routed[1], routed[0])
@@ -102,7 +108,7 @@ class LockstepService:
     def _wait_for(self, inbox: Inbox, watermarks: dict[str, int]) -> None:
         deadline = time.monotonic() + self.timeout_s
         for key, seq in watermarks.items():
-            while key in self.received and self.received[key] < seq:
+            while key in self.received and self.received[key].prefix < seq:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise TimeoutError(f"{self.name}: {key} seq {seq} never arrived")

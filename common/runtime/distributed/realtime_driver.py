@@ -18,7 +18,8 @@ from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.clock import MissionClock
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
-from common.runtime.model.record import Record, Renumbering
+from common.runtime.model.mission import mission_record
+from common.runtime.model.record import Renumbering
 from common.runtime.model.result import RunResult
 from common.runtime.processes.supervisor import (
     Exited,
@@ -48,7 +49,7 @@ class RealtimeDriver:
         self.observer = ctx.observer
         self.stop = ctx.stop
         self.timeout_s = scenario.runtime.start_timeout_s
-        self.record = Record()
+        self.record = mission_record(ctx.mission)
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()
         self.gone_since: dict[str, float] = {}
@@ -86,8 +87,9 @@ class RealtimeDriver:
             service, stream = self.keys.split(ev.key)
         except ValueError:
             return
-        msg = self.renumbering.add(service, stream, msg)
-        self.observer.message(service, stream, msg)
+        recorded = self.renumbering.add(service, stream, msg)
+        if recorded is not None:  # a refused message is not shown either
+            self.observer.message(service, stream, recorded)
 
     def _liveliness(self, service: str, alive: bool) -> None:
         if service not in self.names:
@@ -186,11 +188,9 @@ class RealtimeDriver:
     def _collect_final(self, inbox: Inbox) -> None:
         """Take the final statistics each service sends as it stops, until all have left."""
         deadline = time.monotonic() + FINAL_STATS_S
-        local = self.sup.children
-        while time.monotonic() < deadline and not self.stop.hurry:
-            staying = [n for n in self.alive if n not in local or local[n].proc.poll() is None]
-            if not staying:
-                break
+        # until a service's token has gone its final statistics may still be on their way,
+        # even from a process that has exited (its session sends them before the token goes)
+        while self.alive and time.monotonic() < deadline and not self.stop.hurry:
             self.take(inbox.get(timeout=0.05))
         while (ev := inbox.get(timeout=0.0)) is not None:
             self.take(ev)

@@ -58,8 +58,13 @@ class RealtimeService:
                 ev = inbox.get(timeout=timeout)
                 if ev is not None and self._handle(ev):
                     if self.t0 is not None:
-                        final = self.host.link_stats(self.now_us() / 1e6)
-                        pubs[STATS_STREAM].put(final)
+                        # the final statistics, with source and seq like every message (a
+                        # run's record refuses one without: anyone could have put it)
+                        self.ticks += 1
+                        final = self.host.publish_stats(self.ticks, self.now_us())
+                        pubs[STATS_STREAM].put_bytes(
+                            final.data, encode_routing(self.ticks, final.schedule)
+                        )
                     if self.skipped:
                         log.info(
                             "%s: skipped %d periods in all (fell behind)", self.name, self.skipped

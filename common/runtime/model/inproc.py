@@ -9,7 +9,7 @@ from common.messages import decode
 from common.netmodel import NetworkModel
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.model.host import NEVER, Host, Outgoing
-from common.runtime.model.mission import load_mission
+from common.runtime.model.mission import load_mission, mission_record
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
 
@@ -46,7 +46,7 @@ def run_inproc(scenario: Scenario) -> RunResult:
     mission = load_mission(scenario)
     flow = mission.dataflow
     hosts = {name: build_host(scenario, flow, name) for name in flow.names}
-    record = Record()
+    record = mission_record(mission)
     max_us = round(mission.max_time_s * 1e6)
     tick, t_us, reason = 0, 0, "max_time"
     while True:

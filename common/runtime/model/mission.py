@@ -8,6 +8,7 @@ from typing import Any, Protocol
 from common.config.scenario import Scenario
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.model.record import Record
+from common.runtime.model.seqwindow import max_seq_gap
 
 
 class Mission(Protocol):
@@ -20,6 +21,12 @@ class Mission(Protocol):
         """Called after each tick with everything published so far: an end reason, or None."""
 
     def metrics(self, record: Record) -> dict[str, Any]: ...
+
+
+def mission_record(mission: Mission) -> Record:
+    """An empty Record for a run of `mission`: its seq window sized to what the mission's
+    streams can publish (common/runtime/model/seqwindow.py)."""
+    return Record(max_seq_gap(mission.dataflow, mission.max_time_s))
 
 
 def load_mission(scenario: Scenario) -> Mission:

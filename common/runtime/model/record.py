@@ -3,49 +3,105 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 from collections.abc import Iterable
+from typing import Literal
 
 import numpy as np
 
 from common.messages import Message, TruthState, replace
+from common.runtime.model.seqwindow import DEFAULT_MAX_GAP, SeqWindow
+
+log = logging.getLogger("tidelink.record")
+
+Refusal = Literal["wrong_source", "seq_jump", "conflict"]
+REFUSALS: tuple[Refusal, ...] = ("wrong_source", "seq_jump", "conflict")
+SEQ_LIMIT = 2**63  # the wire's bound on a seq (common/messages)
 
 
 class Record:
-    """Messages of a run by (service, stream), each list in seq order whatever arrival order."""
+    """Messages of a run by (service, stream), each list in seq order whatever arrival order.
 
-    def __init__(self) -> None:
+    Anyone on the bus can put a message on any key, so a message is recorded only when it can
+    be the stream's publisher's (refused and counted by reason in `rejected` otherwise):
+    - wrong_source: its envelope `source` is not the service whose key it came on;
+    - seq_jump: its seq is outside the stream's plausible window (SeqWindow): 0, or further
+      ahead of the highest seq than the stream could publish in the whole mission;
+    - conflict: a different message with a seq already recorded (the first one stays).
+    So one forged message can neither become a stream's `last` from far ahead nor make a
+    lockstep run believe it holds a tick's data (`missing` counts the complete prefix).
+    """
+
+    def __init__(self, max_seq_gap: int = DEFAULT_MAX_GAP) -> None:
         self._streams: dict[tuple[str, str], dict[int, Message]] = {}
+        self._windows: dict[tuple[str, str], SeqWindow] = {}
         self._last: dict[tuple[str, str], Message] = {}
+        self._max_seq_gap = max_seq_gap
         self.count = 0
+        self.rejected: dict[str, int] = dict.fromkeys(REFUSALS, 0)
 
-    def add(self, service: str, stream: str, msg: Message) -> None:
-        bucket = self._streams.setdefault((service, stream), {})
-        if msg.seq not in bucket:
-            bucket[msg.seq] = msg
-            self.count += 1
-            last = self._last.get((service, stream))
-            if last is None or msg.seq > last.seq:
-                self._last[(service, stream)] = msg
+    def add(self, service: str, stream: str, msg: Message) -> Refusal | None:
+        """Record `msg`, seen on `service`'s `stream`; returns why it was refused, or None
+        (recorded, or an exact repeat of a message already recorded)."""
+        key = (service, stream)
+        if msg.source != service:
+            return self._refuse("wrong_source", key, msg)
+        window = self._windows.get(key)
+        if window is None:
+            window = self._windows[key] = SeqWindow(self._max_seq_gap)
+        if not window.plausible(msg.seq):
+            return self._refuse("seq_jump", key, msg)
+        bucket = self._streams.setdefault(key, {})
+        old = bucket.get(msg.seq)
+        if old is not None:
+            return None if old == msg else self._refuse("conflict", key, msg)
+        bucket[msg.seq] = msg
+        window.take(msg.seq)
+        self.count += 1
+        last = self._last.get(key)
+        if last is None or msg.seq > last.seq:
+            self._last[key] = msg
+        return None
+
+    def _refuse(self, reason: Refusal, key: tuple[str, str], msg: Message) -> Refusal:
+        self.rejected[reason] += 1
+        n = self.rejected[reason]
+        if n == 10 ** (len(str(n)) - 1):  # the 1st, 10th, 100th...: a flood logs a few lines
+            log.warning(
+                "refused a message on %s/%s (%s): %s from %r, seq %d (%d so far)",
+                *key,
+                reason,
+                type(msg).__name__,
+                msg.source,
+                msg.seq,
+                n,
+            )
+        return reason
 
     def last(self, service: str, stream: str) -> Message | None:
         """The message with the highest seq on a stream so far (None if none)."""
         return self._last.get((service, stream))
+
+    def message(self, service: str, stream: str, seq: int) -> Message | None:
+        """The message recorded with `seq` on a stream (None if none)."""
+        return self._streams.get((service, stream), {}).get(seq)
 
     def stream(self, service: str, stream: str) -> list[Message]:
         bucket = self._streams.get((service, stream), {})
         return [bucket[k] for k in sorted(bucket)]
 
     def last_seq(self, service: str, stream: str) -> int:
-        """Highest seq seen on a stream (0 if none)."""
-        bucket = self._streams.get((service, stream))
-        return max(bucket) if bucket else 0
+        """Highest seq recorded on a stream (0 if none)."""
+        last = self._last.get((service, stream))
+        return 0 if last is None else last.seq
 
     def missing(self, watermarks: dict[str, int]) -> list[str]:
         """The 'service/stream' keys whose messages up to the watermark are not all here."""
         out = []
         for key, seq in watermarks.items():
             service, _, stream = key.partition("/")
-            if seq and len(self._streams.get((service, stream), ())) < seq:
+            window = self._windows.get((service, stream))
+            if seq and (window is None or window.prefix < seq):
                 out.append(key)
         return out
 
@@ -72,13 +128,14 @@ class Renumbering:
             if s == service:
                 self.offset[(s, stream)] = self.record.last_seq(s, stream)
 
-    def add(self, service: str, stream: str, msg: Message) -> Message:
-        """Record `msg` with its seq offset; returns it as recorded."""
+    def add(self, service: str, stream: str, msg: Message) -> Message | None:
+        """Record `msg` with its seq offset; returns it as recorded, or None if refused."""
         offset = self.offset.get((service, stream), 0)
-        if offset:
+        # a seq the offset would push past the wire's limit is left as it is: far beyond
+        # any plausible seq, the record refuses it (as seq_jump)
+        if offset and msg.seq < SEQ_LIMIT - offset:
             msg = replace(msg, seq=msg.seq + offset)
-        self.record.add(service, stream, msg)
-        return msg
+        return None if self.record.add(service, stream, msg) else msg
 
 
 def trajectory_sha256(truth: Iterable[TruthState]) -> str:

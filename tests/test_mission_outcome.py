@@ -1,0 +1,124 @@
+"""A run with any contact is no success: `success` false in the metrics, `tidelink run` exits 3
+and says why (contact, or the goal not reached), the metrics still written; a sweep keeps
+such a run as a row of data."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common.config.scenario import load_scenario
+from common.runtime.model.inproc import run_inproc
+from services.cli.core_commands import EXIT_MISSION_FAILED, mission_failure
+from services.experiments.grid import RunSpec
+from services.experiments.worker import execute_run, row_of
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT = REPO / "configs" / "default.toml"
+# An obstacle overtaking the vehicle from behind at 3 m/s along its start line (faster than
+# v_max = 2 m/s, so no controller escapes it); it passes through and the vehicle goes on.
+RAMMED = 'world.moving=[{id=20, kind="line", radius_m=1.0, x0_m=0.0, y0_m=20.0, vx_mps=3.0}]'
+
+
+def test_a_run_that_touched_an_obstacle_is_no_success_even_at_the_goal() -> None:
+    s, _ = load_scenario(DEFAULT, [RAMMED, 'runtime.kind="inproc"'])
+    r = run_inproc(s)
+    m = r.metrics
+    assert r.reason == "goal" and m["reached_goal"] is True
+    assert m["collisions"] >= 1 and m["min_clearance_m"] < 0.0
+    # the obstacle's front (x = 3 t + 1) meets the hull's back (x = 5 - 0.8) by t = 1.1 s,
+    # sooner if the vehicle has not moved yet; truth is published every 0.05 s
+    assert 0.0 < m["first_contact_t_s"] <= 1.15
+    assert m["success"] is False
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120.0,
+    )
+
+
+def test_run_exits_3_on_contact_says_when_and_writes_the_metrics(tmp_path: Path) -> None:
+    out = tmp_path / "rammed"
+    r = _cli(
+        "run", str(DEFAULT), "--runtime", "inproc", "--set", RAMMED, "--out", str(out), "--json"
+    )
+    assert r.returncode == EXIT_MISSION_FAILED == 3, r.stderr
+    m = json.loads(r.stdout)  # stdout stays one JSON object; the verdict goes to stderr
+    assert m["success"] is False and m["reached_goal"] is True
+    said = re.search(r"mission failed: contact at t=(\S+) s \(min clearance (\S+) m\)", r.stderr)
+    assert said is not None, r.stderr
+    assert float(said[1]) == round(m["first_contact_t_s"], 2)
+    assert float(said[2]) == float(f"{m['min_clearance_m']:.3g}")
+    assert json.loads((out / "metrics.json").read_text()) == m
+
+
+def test_run_exits_3_when_the_goal_is_not_reached(tmp_path: Path) -> None:
+    out = tmp_path / "short"
+    r = _cli(
+        "run", str(DEFAULT), "--runtime", "inproc", "--set", "run.max_time_s=5", "--out", str(out)
+    )
+    assert r.returncode == 3, r.stderr
+    # the summary: the metrics table, then the verdict
+    assert re.search(r"success\s+False", r.stdout), r.stdout
+    said = re.search(r"mission failed: goal not reached \(max_time at t=5.00 s, (\S+) m ", r.stdout)
+    assert said is not None, r.stdout
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["success"] is False and m["collisions"] == 0
+    assert float(said[1]) == round(m["final_distance_to_goal_m"], 1)
+
+
+def test_only_a_judged_completed_run_is_a_failure() -> None:
+    assert mission_failure({"success": True, "end_reason": "goal"}) is None
+    # interrupted: no judgment; a mission that does not judge success: none either
+    assert mission_failure({"success": False, "end_reason": "interrupted"}) is None
+    assert mission_failure({"end_reason": "max_time", "final_x": 1.0}) is None
+    both = mission_failure(
+        {
+            "success": False,
+            "end_reason": "max_time",
+            "t_end_s": 200.0,
+            "reached_goal": False,
+            "final_distance_to_goal_m": 12.34,
+            "first_contact_t_s": 31.25,
+            "min_clearance_m": -0.123456,
+        }
+    )
+    assert both == (
+        "mission failed: contact at t=31.25 s (min clearance -0.123 m); "
+        "goal not reached (max_time at t=200.00 s, 12.3 m from the goal)"
+    )
+
+
+def test_a_sweep_keeps_a_run_with_contact_as_data() -> None:
+    # a sweep runs the library, not the CLI: no exit code to stop it; the row says "ok" (it
+    # ran) and carries the mission's judgment
+    _, raw = load_scenario(DEFAULT, [RAMMED, 'runtime.kind="inproc"'])
+    spec = RunSpec(run_id="rammed", labels={"world": "rammed"}, x=math.nan, seed=1, raw=raw)
+    outcome = execute_run(spec)
+    assert outcome.status == "ok", outcome.error
+    row = row_of(spec, outcome, "inproc", "now")
+    assert row["status"] == "ok" and row["success"] is False and row["reached_goal"] is True
+    assert row["collisions"] >= 1
+
+
+def test_losing_the_planner_for_8_s_is_a_short_reported_blind_run() -> None:
+    # the planner cut off from t = 20 s to 28 s: HOLD 2 s after its last command, the vehicle
+    # brakes at the hull's limit from at most cruise speed (1.5 m/s: 5.42 m to stop, see
+    # tests/test_vehicle_watchdog.py) until commands return; the metrics say how far it went
+    outage = 'network.outages=[{start_s=20.0, end_s=28.0, service="planner"}]'
+    s, _ = load_scenario(DEFAULT, [outage, 'runtime.kind="inproc"'])
+    m = run_inproc(s).metrics
+    assert m["hold_time_s"] == pytest.approx(3.0) and m["failsafe_time_s"] > 0.0
+    assert 4.0 < m["hold_distance_max_m"] <= 5.42 + 0.1
+    assert m["success"] is True

@@ -1,0 +1,82 @@
+"""One forged record message cannot fake a run's result: during a real launch a client on the
+router puts the vehicle's true state at the goal with seq 2**62 (as issue 14 found: the
+launcher reported `goal` at once), with no source, as "vehicle" and as "planner". The run's
+record refuses and counts every one, the mission ends when the real vehicle arrives, and a
+lockstep run's trajectory is the inproc run's, bit for bit."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from helpers.launch_proc import Tidelink, kill_recorded
+
+from common.bus import Bus, Inbox, Keys, Received
+from common.config.bus import BusConfig
+from common.config.scenario import load_scenario
+from common.messages import TruthState
+from common.runtime.model.inproc import run_inproc
+from common.runtime.processes.children import free_port
+
+pytestmark = pytest.mark.slow
+
+WAIT_S = 120.0
+DEFAULT = "configs/default.toml"
+SOURCES = ("", "vehicle", "planner")  # "" and "planner": wrong_source; "vehicle": seq_jump
+EVERY = 200  # inject after every 200th real truth state (10 s of mission time)
+LAST = 1000  # ... up to seq 1000 (t = 50 s), well before the real arrival (~65 s)
+
+
+def _inject(endpoint: str, run: Tidelink) -> int:
+    """Watch the real truth stream; after each EVERY-th state put one forgery per SOURCES on
+    the vehicle's truth key. Returns how many rounds were put."""
+    keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
+    rounds = 0
+    with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
+        pub = bus.publisher_on(keys.stream("vehicle", "truth"))
+        inbox = Inbox()
+        bus.subscribe_stream("vehicle", "truth", inbox)
+        while run.proc.poll() is None and rounds < LAST // EVERY:
+            ev = inbox.get(timeout=1.0)
+            if not isinstance(ev, Received) or not isinstance(ev.msg, TruthState):
+                continue
+            real = ev.msg
+            if real.source != "vehicle" or real.seq >= 2**62 or real.seq % EVERY:
+                continue
+            for source in SOURCES:  # at configs/default.toml's goal, (95, 20)
+                at_goal = dict(x=95.0, y=20.0, theta=0.0, v=0.0, w=0.0)
+                pub.put(TruthState(stamp=real.stamp, source=source, seq=2**62, **at_goal))
+            rounds += 1
+    return rounds
+
+
+@pytest.mark.parametrize("runtime", ["lockstep", "realtime"])
+def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
+    runtime: str, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    launch = ["launch", DEFAULT, "--runtime", runtime, "--listen", endpoint, "--no-plot"]
+    try:
+        with Tidelink(*launch, "--time-scale", "4", "--out", str(out)) as run:
+            run.wait_for(r"mission clock started", WAIT_S)
+            rounds = _inject(endpoint, run)
+            assert run.wait(WAIT_S) == 0, run.stderr
+    finally:
+        kill_recorded(out / "pids.json")
+    assert rounds == LAST // EVERY
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["end_reason"] == "goal" and m["success"] is True, m
+    assert m["record_rejected"] == {
+        "wrong_source": 2 * rounds,
+        "seq_jump": rounds,
+        "conflict": 0,
+    }
+    assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
+    if runtime == "lockstep":  # the whole run, exactly as if nobody had interfered
+        ref = run_inproc(load_scenario(Path(DEFAULT))[0])
+        assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+        assert m["t_end_s"] == ref.t_end
+    else:  # the real vehicle's arrival, not a forged one at 10 s
+        assert m["t_end_s"] > 55.0 and m["travel_time_s"] > 55.0
