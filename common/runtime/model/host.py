@@ -6,6 +6,9 @@ This is the part every runtime shares, so inproc and lockstep behave identically
   in the fixed order (delivery time, source, stream, seq, copy);
 - deliveries to `wake` inputs go to the core at once; the others wait in a ready buffer until
   the core's next step, where the input's queue policy applies (NEWEST keeps the last one);
+- each input holds at most its declared `max_queued` deliveries (in flight and ready): past
+  that the one due first is dropped and counted, so a flood of messages costs bounded memory
+  and bounded work per step, and the newest samples survive;
 - each output gets (source, seq, sent) and, per receiving service, the link model's delivery
   times, decided on the sending side from (seed, link, seq) so no arrival order matters.
 """
@@ -13,17 +16,33 @@ This is the part every runtime shares, so inproc and lockstep behave identically
 from __future__ import annotations
 
 import heapq
+import itertools
+import logging
 from dataclasses import dataclass
 
 from common.config.network import link_name
+from common.guard import RateLimitedLog
 from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, encode
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
-from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
+from common.runtime.model.core import (
+    Delivery,
+    Emit,
+    JudgesInputs,
+    QueuePolicy,
+    RestartsFilters,
+    ServiceCore,
+)
 from common.runtime.model.dataflow import Dataflow, Input
+
+log = logging.getLogger("tidelink.host")
 
 STATS_STREAM = "stats"
 NEVER = 2**62
+
+# (deliver_us, source, stream, seq, copy, sent_tick, arrival, msg): ordered by the first five;
+# `arrival` (a counter) only separates exact repeats, so a message is never compared
+Pending = tuple[int, str, str, int, int, int, int, Message]
 
 
 def to_us(t: float) -> int:
@@ -70,13 +89,18 @@ class Host:
         }
         self._seq: dict[str, int] = {o.stream: 0 for o in service.outputs}
         self._seq[STATS_STREAM] = 0
-        # (deliver_us, source, stream, seq, copy, sent_tick, msg)
-        self._pending: list[tuple[int, str, str, int, int, int, Message]] = []
+        # per input, a heap of deliveries not yet due (or sent in the current tick)
+        self._pending: dict[tuple[str, str], list[Pending]] = {k: [] for k in self._inputs}
+        self._wake = tuple(k for k, i in self._inputs.items() if i.wake)
+        self._arrival = itertools.count()
         self._ready: list[Delivery] = []
         # delays measured on incoming links (hand-over time - sent), by link name
         self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
+        self.dropped: dict[tuple[str, str], int] = {}  # per input: over max_queued, or shed
+        self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
+        self._drops_log = RateLimitedLog(log)
 
     @property
     def inputs(self) -> tuple[Input, ...]:
@@ -92,31 +116,65 @@ class Host:
     def accept(
         self, msg: Message, source: str, stream: str, times_us: tuple[int, ...], sent_tick: int
     ) -> None:
-        """Queue a message sent to this host, with its modelled delivery times."""
-        if (source, stream) not in self._inputs:
+        """Queue a message sent to this host, with its modelled delivery times; an input
+        already holding max_queued deliveries drops the one due first (maybe this one)."""
+        key = (source, stream)
+        inp = self._inputs.get(key)
+        if inp is None:
             return
+        heap = self._pending[key]
         for copy, t in enumerate(times_us):
-            heapq.heappush(self._pending, (t, source, stream, msg.seq, copy, sent_tick, msg))
+            item = (t, source, stream, msg.seq, copy, sent_tick, next(self._arrival), msg)
+            if len(heap) < inp.max_queued:
+                heapq.heappush(heap, item)
+            else:
+                heapq.heappushpop(heap, item)
+                self.count_dropped(source, stream, 1, "queue full")
+
+    def count_dropped(self, source: str, stream: str, n: int, why: str) -> None:
+        """Count n deliveries of an input lost before its core saw them (here, or by the
+        runtime in front of this host); logged once per input per mission second."""
+        key = (source, stream)
+        if key not in self._inputs or n <= 0:
+            return
+        self.dropped[key] = self.dropped.get(key, 0) + n
+        name = link_name(source, stream, self.name)
+        self._drops_log.warn(
+            name,
+            self._now_us / 1e6,
+            "t=%.2f s: %s: dropped %d deliveries (%s; %d in all)",
+            self._now_us / 1e6,
+            name,
+            n,
+            why,
+            self.dropped[key],
+        )
 
     def next_event_us(self) -> int:
         """The next time this host needs a tick: its next step or a due wake delivery."""
         nxt = self.next_step_us
-        for t, src, stream, *_ in self._pending:
-            if t < nxt and self._inputs[(src, stream)].wake:
-                nxt = t
+        for key in self._wake:
+            heap = self._pending[key]
+            if heap and heap[0][0] < nxt:
+                nxt = heap[0][0]
         return nxt
 
     # -- one tick ----------------------------------------------------------------------------
     def run_tick(self, tick: int, t_us: int) -> list[Outgoing]:
         """Hand over due deliveries, step if due, and publish what the core emitted."""
         emits: list[Emit] = []
+        self._now_us = t_us
+        due: list[Pending] = []
+        for heap in self._pending.values():
+            while heap and heap[0][0] <= t_us:
+                due.append(heapq.heappop(heap))
+        due.sort()  # the fixed order: (delivery time, source, stream, seq, copy)
         later = []
-        while self._pending and self._pending[0][0] <= t_us:
-            item = heapq.heappop(self._pending)
+        for item in due:
             if item[5] >= tick:  # sent in this tick: never delivered in the tick it was sent
                 later.append(item)
                 continue
-            d_us, src, stream, _seq, copy, _tick, msg = item
+            d_us, src, stream, _seq, copy, _tick, _arrival, msg = item
             d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
             self.delivered += 1
             if copy == 0:
@@ -129,7 +187,7 @@ class Host:
             else:
                 self._ready.append(d)
         for item in later:
-            heapq.heappush(self._pending, item)
+            heapq.heappush(self._pending[(item[1], item[2])], item)
         if self.next_step_us <= t_us:
             t = t_us / 1e6
             for d in self._policy(self._ready):
@@ -145,19 +203,29 @@ class Host:
         return out
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
-        newest: dict[tuple[str, str], int] = {}
-        for i, d in enumerate(ready):
-            if self._inputs[(d.source, d.stream)].policy is QueuePolicy.NEWEST:
-                newest[(d.source, d.stream)] = i
-        if not newest:
+        """NEWEST inputs keep their last delivery; the others their last max_queued."""
+        counts: dict[tuple[str, str], int] = {}
+        for d in ready:
+            counts[(d.source, d.stream)] = counts.get((d.source, d.stream), 0) + 1
+        keep: dict[tuple[str, str], int] = {}  # per input: how many of its last to keep
+        for key, n in counts.items():
+            inp = self._inputs[key]
+            k = 1 if inp.policy is QueuePolicy.NEWEST else min(n, inp.max_queued)
+            if k < n:
+                keep[key] = k
+                if inp.policy is QueuePolicy.NEWEST:
+                    self.superseded += n - k
+                else:
+                    self.count_dropped(key[0], key[1], n - k, "queue full at the step")
+        if not keep:
             return ready
-        kept = [
-            d
-            for i, d in enumerate(ready)
-            if self._inputs[(d.source, d.stream)].policy is not QueuePolicy.NEWEST
-            or newest[(d.source, d.stream)] == i
-        ]
-        self.superseded += len(ready) - len(kept)
+        seen: dict[tuple[str, str], int] = {}
+        kept = []
+        for d in ready:
+            key = (d.source, d.stream)
+            seen[key] = seen.get(key, 0) + 1
+            if key not in keep or counts[key] - seen[key] < keep[key]:
+                kept.append(d)
         return kept
 
     # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
@@ -237,4 +305,15 @@ class Host:
             )
             for (src, stream), m in sorted((k, a.snapshot()) for k, a in self._measured.items())
         )
-        return LinkStats(stamp=t, links=links, measured=measured)
+        core = self.core
+        return LinkStats(
+            stamp=t,
+            links=links,
+            measured=measured,
+            inputs_dropped={
+                link_name(src, stream, self.name): n
+                for (src, stream), n in sorted(self.dropped.items())
+            },
+            inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
+            resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
+        )
