@@ -226,12 +226,17 @@ class EstimatorCore:
     # -- what the runtime reports --------------------------------------------------------------
     @property
     def inputs_rejected(self) -> dict[str, int]:
-        """Inputs rejected, by '<stream>.<reason>': implausible, over the step's budget, and
-        detections refused because the track table was full."""
+        """Inputs rejected, by '<stream>.<reason>': implausible, over the step's budget, too
+        old for the replay buffer, and detections refused because the track table was full
+        (duplicates are not rejections: the network may deliver a message twice)."""
         out = dict(self._rejects.counts)
-        refused = self.scans.state.refused
-        if refused:
-            out["obstacles.track_limit"] = refused
+        for reason, n in (
+            ("nav.too_old", self.nav.rejected_old),
+            ("obstacles.too_old", self.scans.rejected_old),
+            ("obstacles.track_limit", self.scans.state.refused),
+        ):
+            if n:
+                out[reason] = n
         return out
 
     @property

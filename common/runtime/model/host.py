@@ -122,6 +122,9 @@ class Host:
         inp = self._inputs.get(key)
         if inp is None:
             return
+        if not isinstance(msg, inp.msg_type):  # well-formed, but not what this input carries
+            self.count_dropped(source, stream, 1, "wrong type", type(msg).__name__)
+            return
         heap = self._pending[key]
         for copy, t in enumerate(times_us):
             item = (t, source, stream, msg.seq, copy, sent_tick, next(self._arrival), msg)
@@ -131,22 +134,24 @@ class Host:
                 heapq.heappushpop(heap, item)
                 self.count_dropped(source, stream, 1, "queue full")
 
-    def count_dropped(self, source: str, stream: str, n: int, why: str) -> None:
-        """Count n deliveries of an input lost before its core saw them (here, or by the
-        runtime in front of this host); logged once per input per mission second."""
+    def count_dropped(self, source: str, stream: str, n: int, why: str, detail: str = "") -> None:
+        """Count n messages for an input lost before its core saw them (here, or by the
+        runtime in front of this host: no routing, a full inbox); `why` is one of a few
+        fixed reasons, logged once per input and reason per mission second with `detail`."""
         key = (source, stream)
         if key not in self._inputs or n <= 0:
             return
         self.dropped[key] = self.dropped.get(key, 0) + n
         name = link_name(source, stream, self.name)
         self._drops_log.warn(
-            name,
+            f"{name}: {why}",
             self._now_us / 1e6,
-            "t=%.2f s: %s: dropped %d deliveries (%s; %d in all)",
+            "t=%.2f s: %s: dropped %d (%s%s; %d dropped on this input in all)",
             self._now_us / 1e6,
             name,
             n,
             why,
+            f": {detail}" if detail else "",
             self.dropped[key],
         )
 
