@@ -64,8 +64,8 @@ class EstimatorCore:
     position outside the world, a speed or noise figure no sensor gives, a scan of more
     obstacles than a message may carry, or work beyond the step's budget is rejected,
     counted by reason (`inputs_rejected`) and logged once per reason per mission second. A
-    filter that diverges (non-finite or exploding) restarts from the next fix (`resets`), so
-    every output is finite.
+    filter that diverges (non-finite, exploding, or its linear algebra fails) restarts from
+    the fix being fused (`resets`), so every output is finite.
     """
 
     def __init__(

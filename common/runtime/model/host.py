@@ -17,11 +17,9 @@ from __future__ import annotations
 
 import heapq
 import itertools
-import logging
 from dataclasses import dataclass
 
 from common.config.network import link_name
-from common.guard import RateLimitedLog
 from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, encode
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
@@ -34,8 +32,7 @@ from common.runtime.model.core import (
     ServiceCore,
 )
 from common.runtime.model.dataflow import Dataflow, Input
-
-log = logging.getLogger("tidelink.host")
+from common.runtime.model.drops import InputDrops
 
 STATS_STREAM = "stats"
 NEVER = 2**62
@@ -98,9 +95,8 @@ class Host:
         self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
-        self.dropped: dict[tuple[str, str], int] = {}  # per input: over max_queued, or shed
+        self.drops = InputDrops(name)
         self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
-        self._drops_log = RateLimitedLog(log)
 
     @property
     def inputs(self) -> tuple[Input, ...]:
@@ -136,24 +132,14 @@ class Host:
 
     def count_dropped(self, source: str, stream: str, n: int, why: str, detail: str = "") -> None:
         """Count n messages for an input lost before its core saw them (here, or by the
-        runtime in front of this host: no routing, a full inbox); `why` is one of a few
-        fixed reasons, logged once per input and reason per mission second with `detail`."""
-        key = (source, stream)
-        if key not in self._inputs or n <= 0:
-            return
-        self.dropped[key] = self.dropped.get(key, 0) + n
-        name = link_name(source, stream, self.name)
-        self._drops_log.warn(
-            f"{name}: {why}",
-            self._now_us / 1e6,
-            "t=%.2f s: %s: dropped %d (%s%s; %d dropped on this input in all)",
-            self._now_us / 1e6,
-            name,
-            n,
-            why,
-            f": {detail}" if detail else "",
-            self.dropped[key],
-        )
+        runtime in front of this host: no routing, a full inbox); see InputDrops."""
+        if (source, stream) in self._inputs and n > 0:
+            self.drops.count(source, stream, n, why, self._now_us / 1e6, detail)
+
+    @property
+    def dropped(self) -> dict[tuple[str, str], int]:
+        """Messages dropped per input (source, stream) before the core saw them."""
+        return dict(self.drops.counts)
 
     def next_event_us(self) -> int:
         """The next time this host needs a tick: its next step or a due wake delivery."""
@@ -209,29 +195,21 @@ class Host:
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
         """NEWEST inputs keep their last delivery; the others their last max_queued."""
-        counts: dict[tuple[str, str], int] = {}
-        for d in ready:
-            counts[(d.source, d.stream)] = counts.get((d.source, d.stream), 0) + 1
-        keep: dict[tuple[str, str], int] = {}  # per input: how many of its last to keep
-        for key, n in counts.items():
-            inp = self._inputs[key]
-            k = 1 if inp.policy is QueuePolicy.NEWEST else min(n, inp.max_queued)
-            if k < n:
-                keep[key] = k
-                if inp.policy is QueuePolicy.NEWEST:
-                    self.superseded += n - k
+        by_input: dict[tuple[str, str], list[int]] = {}
+        for i, d in enumerate(ready):
+            by_input.setdefault((d.source, d.stream), []).append(i)
+        older: set[int] = set()
+        for (src, stream), idx in by_input.items():
+            inp = self._inputs[(src, stream)]
+            newest = inp.policy is QueuePolicy.NEWEST
+            n = len(idx) - (1 if newest else inp.max_queued)
+            if n > 0:
+                older.update(idx[:n])
+                if newest:
+                    self.superseded += n
                 else:
-                    self.count_dropped(key[0], key[1], n - k, "queue full at the step")
-        if not keep:
-            return ready
-        seen: dict[tuple[str, str], int] = {}
-        kept = []
-        for d in ready:
-            key = (d.source, d.stream)
-            seen[key] = seen.get(key, 0) + 1
-            if key not in keep or counts[key] - seen[key] < keep[key]:
-                kept.append(d)
-        return kept
+                    self.count_dropped(src, stream, n, "queue full at the step")
+        return [d for i, d in enumerate(ready) if i not in older] if older else ready
 
     # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
     def join_clock(self, t_us: int) -> bool:
@@ -315,10 +293,7 @@ class Host:
             stamp=t,
             links=links,
             measured=measured,
-            inputs_dropped={
-                link_name(src, stream, self.name): n
-                for (src, stream), n in sorted(self.dropped.items())
-            },
+            inputs_dropped=self.drops.by_link(),
             inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
             resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
         )
