@@ -23,6 +23,7 @@ from common.messages import (
     WIRE_VERSION,
     Detection,
     LinkCounters,
+    LinkStats,
     MeasuredDelay,
     Message,
     NavFix,
@@ -87,6 +88,10 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     MeasuredDelay: {
         "delivered": COUNT,
         **{k: NONNEG for k in ("delay_p50", "delay_p95", "delay_max")},
+    },
+    LinkStats: {
+        k: st.dictionaries(TEXT, COUNT, max_size=5)
+        for k in ("inputs_dropped", "inputs_rejected", "resets")
     },
     Tick: {"tick": COUNT, "time_us": COUNT},
     TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},

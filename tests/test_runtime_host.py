@@ -155,6 +155,7 @@ def test_dataflow_describes_services_links_and_types_as_plain_data() -> None:
             "type": "VelocityCommand",
             "policy": "newest",
             "wake": False,
+            "max_queued": 64,
         }
     ]
     talker = next(s for s in d["services"] if s["name"] == "talker")

@@ -6,6 +6,7 @@ import logging
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from types import TracebackType
 from typing import Any, NamedTuple
@@ -77,6 +78,15 @@ def _plain(sample: zenoh.Sample) -> RawFrame:
     )
 
 
+_Item = zenoh.Sample | RawFrame | Liveliness
+
+
+def _key_of(item: _Item) -> str:
+    if isinstance(item, RawFrame | Liveliness):
+        return item.key
+    return str(item.key_expr)
+
+
 class Inbox(_Rejects):
     """One queue that every subscription of a process feeds; the process's loop drains it.
 
@@ -86,6 +96,12 @@ class Inbox(_Rejects):
     bus closes, samples still queued are turned into plain data (`detach`), so no Zenoh
     object outlives the session. Payloads that fail to decode are counted per key and
     logged once per key; the inbox carries on with the next sample.
+
+    With `max_pending`, a loop that cannot keep up (a flood) does not fall ever further
+    behind: when more than max_pending events wait, `get` sheds the oldest samples first,
+    down to half, keeping every liveliness event and every sample whose key `keep` accepts
+    (a clock's ticks); `on_shed(key, n)` is told what was shed. Without it nothing is ever
+    dropped (a lockstep service must see every message).
     """
 
     def __init__(
@@ -93,38 +109,77 @@ class Inbox(_Rejects):
         *,
         clock: Callable[[], float] = time.monotonic,
         fifo: queue.SimpleQueue[Any] | None = None,
+        max_pending: int | None = None,
+        keep: Callable[[str], bool] = lambda key: False,
+        on_shed: Callable[[str, int], None] = lambda key, n: None,
     ) -> None:
         # clock and fifo are seams for tests (a fake clock, a queue that trickles)
         super().__init__()
         self._clock = clock
-        self._q: queue.SimpleQueue[zenoh.Sample | RawFrame | Liveliness] = (
-            queue.SimpleQueue() if fifo is None else fifo
-        )
+        self._q: queue.SimpleQueue[_Item] = queue.SimpleQueue() if fifo is None else fifo
         self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
+        self._max_pending = max_pending
+        self._keep = keep
+        self._on_shed = on_shed
+        self._backlog: deque[_Item] = deque()  # survivors of a shed, taken before the queue
+        self.shed: dict[str, int] = {}  # key -> samples shed
 
     def pending(self) -> int:
         """Events queued and not yet taken (valid or not: decoding happens in `get`)."""
-        return self._q.qsize()
+        return self._q.qsize() + len(self._backlog)
 
-    def detach(self) -> None:
-        """Replace the queued Zenoh samples by plain data, keeping their order."""
-        items = []
+    def _drain(self) -> list[_Item]:
+        items = list(self._backlog)
+        self._backlog.clear()
         while True:
             try:
                 items.append(self._q.get_nowait())
             except queue.Empty:
-                break
+                return items
+
+    def detach(self) -> None:
+        """Replace the queued Zenoh samples by plain data, keeping their order."""
+        for item in self._drain():
+            self._backlog.append(item if isinstance(item, Liveliness | RawFrame) else _plain(item))
+
+    def _shed(self) -> None:
+        """Drop the oldest samples, down to max_pending / 2, keeping the precious events."""
+        assert self._max_pending is not None
+        items = self._drain()
+        excess = len(items) - self._max_pending // 2
+        shed: dict[str, int] = {}
         for item in items:
-            self._q.put(item if isinstance(item, Liveliness | RawFrame) else _plain(item))
+            if excess > 0 and not isinstance(item, Liveliness):
+                key = _key_of(item)
+                if not self._keep(key):
+                    shed[key] = shed.get(key, 0) + 1
+                    excess -= 1
+                    continue
+            self._backlog.append(item)
+        for key, n in shed.items():
+            self.shed[key] = self.shed.get(key, 0) + n
+            self._on_shed(key, n)
+
+    def _take(self, deadline: float | None) -> _Item | None:
+        """The next queued event (survivors of a shed first), waiting until the deadline."""
+        if self._max_pending is not None and self.pending() > self._max_pending:
+            self._shed()
+        if self._backlog:
+            return self._backlog.popleft()
+        try:
+            if deadline is None:
+                return self._q.get()
+            return self._q.get(timeout=max(0.0, deadline - self._clock()))
+        except queue.Empty:
+            return None
 
     def get(self, timeout: float | None = None) -> Event | None:
         """The next valid event, or None when `timeout` seconds pass with nothing valid."""
         # One deadline for the whole call: a trickle of undecodable payloads must not keep
         # restarting the wait (the caller's step would never come).
         deadline = None if timeout is None else self._clock() + timeout
-        try:
-            item = self._q.get(timeout=timeout)
-        except queue.Empty:
+        item = self._take(deadline)
+        if item is None:
             return None
         while True:
             if isinstance(item, Liveliness):
@@ -135,12 +190,8 @@ class Inbox(_Rejects):
                 return Received(key, decode(payload), att)
             except WireError as exc:
                 self._reject(key, str(exc))
-            try:
-                if deadline is None:
-                    item = self._q.get()
-                else:
-                    item = self._q.get(timeout=max(0.0, deadline - self._clock()))
-            except queue.Empty:
+            item = self._take(deadline)
+            if item is None:
                 return None
 
 

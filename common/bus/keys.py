@@ -57,6 +57,10 @@ class Keys:
         """The key expression of every tick whose recipients include `service`."""
         return f"{self.root}/{CLOCK}/tick/**/{service}/**"
 
+    def is_tick(self, key: str) -> bool:
+        """Is `key` one of this run's clock tick keys (whatever its recipients)?"""
+        return key.startswith(f"{self.root}/{CLOCK}/tick/")
+
     def alive(self, service: str) -> str:
         """The liveliness token key of a service."""
         return f"{self.root}/alive/{service}"

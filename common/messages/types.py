@@ -232,10 +232,20 @@ class MeasuredDelay(WireRecord, frozen=True, kw_only=True):
 
 class LinkStats(Message, frozen=True, kw_only=True):
     """Per-link statistics a service publishes on `.../<service>/stats`: counters of its
-    outgoing links, and the delays it measured on its incoming ones."""
+    outgoing links, the delays it measured on its incoming ones, and how its inputs fared:
+    deliveries dropped because an input's queue was full (by link), inputs its core rejected
+    as implausible (by '<stream>.<reason>'), filters its core restarted (by filter)."""
 
     links: tuple[LinkCounters, ...]
     measured: tuple[MeasuredDelay, ...] = ()
+    inputs_dropped: dict[str, int] = msgspec.field(default_factory=dict)
+    inputs_rejected: dict[str, int] = msgspec.field(default_factory=dict)
+    resets: dict[str, int] = msgspec.field(default_factory=dict)
+
+    def validate(self) -> None:
+        for name in ("inputs_dropped", "inputs_rejected", "resets"):
+            for key, n in getattr(self, name).items():
+                check_range(f"{name}[{key!r}]", n, 0)
 
 
 class RunEnd(Message, frozen=True, kw_only=True):

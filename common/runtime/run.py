@@ -66,6 +66,7 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
             "record_rejected": dict(result.record.rejected),
         }
     )
+    metrics.update(input_health(result.record))
     if wall_s is not None:
         metrics["wall_s"] = round(wall_s, 3)
     cleaned: dict[str, Any] = _clean(metrics)
@@ -118,3 +119,35 @@ def link_stats(record: Record) -> dict[str, dict[str, Any]]:
                     }
                 )
     return out
+
+
+def input_health(record: Record) -> dict[str, Any]:
+    """How the services' inputs fared, from each service's last LinkStats: inputs its core
+    rejected as implausible (by service, then '<stream>.<reason>'), deliveries dropped because
+    an input's queue was full (by link), filters restarted (by service, then filter); with
+    the totals as scalars (a sweep's results.csv keeps those)."""
+    from common.messages import LinkStats
+
+    rejected: dict[str, dict[str, int]] = {}
+    dropped: dict[str, int] = {}
+    resets: dict[str, dict[str, int]] = {}
+    for service, stream in record.keys():
+        if stream != "stats":
+            continue
+        msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
+        if not msgs:
+            continue
+        last = msgs[-1]
+        if last.inputs_rejected:
+            rejected[service] = dict(sorted(last.inputs_rejected.items()))
+        dropped.update(last.inputs_dropped)
+        if last.resets:
+            resets[service] = dict(sorted(last.resets.items()))
+    return {
+        "inputs_rejected": sum(n for by in rejected.values() for n in by.values()),
+        "inputs_rejected_by_reason": rejected,
+        "inputs_dropped": sum(dropped.values()),
+        "inputs_dropped_by_link": dict(sorted(dropped.items())),
+        "filter_resets": sum(n for by in resets.values() for n in by.values()),
+        "filter_resets_by_service": resets,
+    }

@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
+from common.config.world import AreaConfig
+from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
+from services.estimator.health import healthy
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
 from services.estimator.tracks import ObstacleTracker, TrackerState
@@ -18,66 +23,193 @@ from services.estimator.vehicle_filter import make_vehicle_filter
 
 FloatArray = NDArray[np.float64]
 
+log = logging.getLogger("tidelink.estimator")
+
+M = TypeVar("M", NavFix, ObstacleDetections)
+
+# No prediction spans more than this: a fix after a longer silence restarts the filter from
+# itself (the old belief says nothing after so long), and a step this long after the last
+# fix publishes the belief predicted this far (its covariance already says "lost").
+MAX_PREDICT_S = 60.0
+# Work per step, however many measurements arrive between two steps (a flood, a replay
+# storm): fixes fused (a fix costs ~60 us) and detections fused (~500 us each), replays
+# included. A normal run fuses one fix and a few detections per step; a measurement beyond
+# the budget is rejected (counted as over_budget) instead of stalling the publish loop.
+FIX_BUDGET = 256
+DETECTION_BUDGET = 64
+# Measurements kept for out-of-sequence fusion (10 Hz fixes over history_s = 2 s are 20).
+MAX_BUFFERED = 256
+# What the filters' linear algebra raises on a degenerate belief (numpy's LinAlgError is a
+# ValueError, like scipy's refusal of non-finite input; overflows are ArithmeticErrors).
+NUMERIC_ERRORS = (ArithmeticError, ValueError)
+
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class VehicleBelief:
-    """The vehicle Gaussian (x, P) at `stamp` (None before the first fix) + pre-filter memory."""
+    """The vehicle Gaussian (x, P) at `stamp` (None before the first fix) + pre-filter memory,
+    and how many times the filter was restarted from a fix on the way here."""
 
-    x: FloatArray  # [x, y, theta, v, w]
-    P: FloatArray
+    x: FloatArray  # (5,): [x, y, theta, v, w]
+    P: FloatArray  # (5, 5)
     stamp: float | None
     prefilter: NavPrefilter  # never mutated once stored: fusing works on a copy
+    resets: int = 0
 
 
 class EstimatorCore:
     """Vehicle EKF/UKF over (prefiltered) fixes and per-id obstacle tracks, all fused at their
     sampling stamps with roll-back for late arrivals; outputs are predicted to the step time.
+
+    Every input is judged first (common.guard): a stamp from the future or from long ago, a
+    position outside the world, a speed or noise figure no sensor gives, a scan of more
+    obstacles than a message may carry, or work beyond the step's budget is rejected,
+    counted by reason (`inputs_rejected`) and logged once per reason per mission second. A
+    filter that diverges (non-finite, exploding, or its linear algebra fails) restarts from
+    the fix being fused (`resets`), so every output is finite.
     """
 
-    def __init__(self, cfg: EstimatorConfig, start: tuple[float, float, float]) -> None:
+    def __init__(
+        self,
+        cfg: EstimatorConfig,
+        start: tuple[float, float, float],
+        *,
+        area: AreaConfig | None = None,
+    ) -> None:
         self.cfg = cfg
         self._filter = make_vehicle_filter(cfg)
         self._tracker = ObstacleTracker(cfg)
+        self._judge = Plausibility.of_area(area if area is not None else AreaConfig())
+        self._rejects = RateLimitedLog(log)
         x0 = np.array([start[0], start[1], wrap_angle(start[2]), 0.0, 0.0])
         std0 = (cfg.init_std_xy_m, cfg.init_std_xy_m, cfg.init_std_theta_rad)
         P0 = np.diag(np.square(std0 + (cfg.init_std_v_mps, cfg.init_std_w_rps)))
         prefilter = NavPrefilter(cfg.prefilter, cfg.mean_window, cfg.lag_time_constant_s)
         belief = VehicleBelief(x=x0, P=P0, stamp=None, prefilter=prefilter)
         self.nav: ReplayBuffer[NavFix, VehicleBelief] = ReplayBuffer(
-            belief, self._fuse_fix, cfg.history_s
+            belief, self._fuse_fix, cfg.history_s, max_entries=MAX_BUFFERED
         )
         self.scans: ReplayBuffer[ObstacleDetections, TrackerState] = ReplayBuffer(
-            TrackerState(tracks={}), self._tracker.fuse, cfg.history_s
+            TrackerState(tracks={}),
+            self._tracker.fuse,
+            cfg.history_s,
+            max_entries=MAX_BUFFERED,
+            weight=lambda m: max(1, len(m.detections)),
         )
+        self._spent = {"nav": 0, "obstacles": 0}  # work since the last step, per budget
 
+    # -- fusion (pure functions of the belief and the measurement: replays repeat them) --------
     def _fuse_fix(self, b: VehicleBelief, fix: NavFix) -> VehicleBelief:
+        if b.stamp is not None and fix.stamp - b.stamp > MAX_PREDICT_S:
+            return self._restart(b, fix)
         prefilter = b.prefilter.copy()
         z = prefilter.apply(fix.stamp, np.array([fix.x, fix.y, fix.heading, fix.speed]))
         dt = 0.0 if b.stamp is None else fix.stamp - b.stamp
-        x, P = self._filter.predict(b.x, b.P, dt)
+        try:
+            x, P = self._filter.predict(b.x, b.P, dt)
+            x, P = self._filter.update(x, P, z, self._noise(fix))
+        except NUMERIC_ERRORS:  # e.g. a UKF covariance no longer positive definite
+            return self._restart(b, fix)
+        if not healthy(x, P):  # diverged: the fix (plausible, judged) is the better belief
+            return self._restart(b, fix)
+        return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets)
+
+    @staticmethod
+    def _noise(fix: NavFix) -> FloatArray:
         # R from the fix's own noise figures; a pre-filtered fix keeps the raw R (its errors
         # are correlated over the window, so a reduced R would be over-confident)
         stds = np.array([fix.std_xy, fix.std_xy, fix.std_heading, fix.std_speed])
-        R = np.diag(np.maximum(stds * stds, 1e-12))
-        x, P = self._filter.update(x, P, z, R)
-        return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter)
+        return np.diag(np.maximum(stds * stds, 1e-12))
 
+    def _restart(self, b: VehicleBelief, fix: NavFix) -> VehicleBelief:
+        """The belief of this fix alone (yaw rate unknown): after a long silence or when the
+        filter diverged. Fresh pre-filter memory: the old window is from before the gap."""
+        cfg = self.cfg
+        prefilter = NavPrefilter(cfg.prefilter, cfg.mean_window, cfg.lag_time_constant_s)
+        z = prefilter.apply(fix.stamp, np.array([fix.x, fix.y, fix.heading, fix.speed]))
+        x = np.array([z[0], z[1], wrap_angle(float(z[2])), z[3], 0.0])
+        P = np.zeros((5, 5))
+        P[:4, :4] = self._noise(fix)
+        P[4, 4] = cfg.init_std_w_rps**2
+        return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets + 1)
+
+    # -- ServiceCore ---------------------------------------------------------------------------
     def deliver(self, d: Delivery) -> list[Emit]:
         msg = d.msg
         if isinstance(msg, NavFix):
-            self.nav.add(msg, msg.stamp, msg.seq)
+            self._offer("nav", self.nav, msg, d.t, self._judge_fix(msg, d.t), FIX_BUDGET)
         elif isinstance(msg, ObstacleDetections):
-            self.scans.add(msg, msg.stamp, msg.seq)
+            why = self._judge_scan(msg, d.t)
+            self._offer("obstacles", self.scans, msg, d.t, why, DETECTION_BUDGET)
         return []
 
+    def _offer(
+        self,
+        stream: str,
+        buffer: ReplayBuffer[M, Any],
+        msg: M,
+        t: float,
+        why: Reason | str | None,
+        budget: int,
+    ) -> None:
+        """Fuse a judged measurement within the step's budget, or count and log why not."""
+        if why is None:
+            cost = buffer.cost(msg, msg.stamp, msg.seq)
+            if self._spent[stream] + cost > budget:
+                why = "over_budget"
+            else:
+                self._spent[stream] += cost
+                buffer.add(msg, msg.stamp, msg.seq)
+                return
+        self._rejects.warn(
+            f"{stream}.{why}",
+            t,
+            "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
+            t,
+            stream,
+            why,
+            msg.source,
+            msg.stamp,
+            msg.seq,
+        )
+
+    def _judge_fix(self, fix: NavFix, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(
+            j.stamp(fix.stamp, now),
+            j.position(fix.x, fix.y),
+            j.angle(fix.heading),
+            j.speed(fix.speed, fix.std_speed),
+            j.length(fix.std_xy),
+            j.angle_std(fix.std_heading),
+        )
+
+    def _judge_scan(self, scan: ObstacleDetections, now: float) -> Reason | None:
+        j = self._judge
+        why = first_reason(j.stamp(scan.stamp, now), j.items(len(scan.detections)))
+        for det in scan.detections:
+            if why is not None:
+                break
+            why = first_reason(
+                j.position(det.x, det.y), j.length(det.radius, det.std_xy, det.std_radius)
+            )
+        return why
+
     def belief_at(self, t: float) -> tuple[FloatArray, FloatArray]:
-        """The vehicle belief (x, P) predicted from the last fused fix to time t."""
+        """The vehicle belief (x, P) predicted from the last fused fix to time t (at most
+        MAX_PREDICT_S ahead; the fused belief itself if the prediction is not finite)."""
         b = self.nav.state
         if b.stamp is None:
             return b.x.copy(), b.P.copy()
-        return self._filter.predict(b.x, b.P, t - b.stamp)
+        try:
+            x, P = self._filter.predict(b.x, b.P, min(t - b.stamp, MAX_PREDICT_S))
+        except NUMERIC_ERRORS:
+            return b.x.copy(), b.P.copy()
+        if not healthy(x, P):
+            return b.x.copy(), b.P.copy()
+        return x, P
 
     def step(self, t: float) -> list[Emit]:
+        self._spent = dict.fromkeys(self._spent, 0)
         x, P = self.belief_at(t)
         state = StateEstimate(
             stamp=t,
@@ -90,6 +222,27 @@ class EstimatorCore:
         )
         tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]
+
+    # -- what the runtime reports --------------------------------------------------------------
+    @property
+    def inputs_rejected(self) -> dict[str, int]:
+        """Inputs rejected, by '<stream>.<reason>': implausible, over the step's budget, too
+        old for the replay buffer, and detections refused because the track table was full
+        (duplicates are not rejections: the network may deliver a message twice)."""
+        out = dict(self._rejects.counts)
+        for reason, n in (
+            ("nav.too_old", self.nav.rejected_old),
+            ("obstacles.too_old", self.scans.rejected_old),
+            ("obstacles.track_limit", self.scans.state.refused),
+        ):
+            if n:
+                out[reason] = n
+        return out
+
+    @property
+    def resets(self) -> dict[str, int]:
+        """Filters restarted: the vehicle filter (a long silence or divergence) and tracks."""
+        return {"vehicle_filter": self.nav.state.resets, "tracks": self.scans.state.resets}
 
     @property
     def counters(self) -> dict[str, int]:

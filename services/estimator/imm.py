@@ -153,4 +153,8 @@ class ImmFilter:
             out_P.append(0.5 * (kf.P + kf.P.T))
         ll = np.array(loglik)
         post = mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
-        return tuple(out_x), tuple(out_P), post / post.sum()
+        total = float(post.sum())
+        if not (total > 0.0 and np.isfinite(total)):
+            # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
+            return tuple(out_x), tuple(out_P), mu
+        return tuple(out_x), tuple(out_P), post / total

@@ -10,7 +10,9 @@ from numpy.typing import NDArray
 from scipy.special import chdtri
 
 from common.config.estimator import EstimatorConfig
+from common.guard import MAX_ITEMS
 from common.messages import ObstacleDetections, Track
+from services.estimator.health import healthy
 from services.estimator.imm import H_POS, ImmFilter, combine
 
 FloatArray = NDArray[np.float64]
@@ -38,14 +40,22 @@ class TrackBelief:
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class TrackerState:
-    """All tracks after some scans, and how many detections the gate rejected on the way."""
+    """All tracks after some scans, and on the way: detections the gate rejected, detections
+    of new ids refused because MAX_ITEMS tracks were live, tracks restarted (diverged)."""
 
     tracks: Mapping[int, TrackBelief]  # never mutated: fuse builds a new mapping
     gated_out: int = 0
+    refused: int = 0
+    resets: int = 0
 
 
 class ObstacleTracker:
-    """Associates detections to tracks by id, gates them (Mahalanobis, chi-square) and fuses."""
+    """Associates detections to tracks by id, gates them (Mahalanobis, chi-square) and fuses.
+
+    At most MAX_ITEMS tracks are held (a detection of one more id is refused: the work of
+    every publish grows with the tracks); a track whose filter diverges restarts from its
+    detection.
+    """
 
     def __init__(self, cfg: EstimatorConfig) -> None:
         self.cfg = cfg
@@ -81,13 +91,16 @@ class ObstacleTracker:
         # forget tracks that can never be published again (t >= msg.stamp from now on); a
         # detection of a forgotten id starts a fresh track
         out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= timeout}
-        gated_out = state.gated_out
+        gated_out, refused, resets = state.gated_out, state.refused, state.resets
         for det in sorted(msg.detections, key=lambda d: d.id):
             z = np.array([det.x, det.y])
             var = max(det.std_xy**2, 1e-12)
             r_var = max(det.std_radius**2, 1e-12)
             b = out.get(det.id)
             if b is None:
+                if len(out) >= MAX_ITEMS:
+                    refused += 1
+                    continue
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
                 continue
             xs, Ps, cbar = self._imm.predict(b.xs, b.Ps, b.mu, msg.stamp - b.stamp)
@@ -99,6 +112,10 @@ class ObstacleTracker:
                 gated_out += 1
                 continue
             xs, Ps, mu = self._imm.update(xs, Ps, cbar, z, R)
+            if not all(healthy(x, P) for x, P in zip(xs, Ps, strict=True)):
+                resets += 1
+                out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
+                continue
             # the radius is constant: inverse-variance weighted mean of its measurements
             w = b.radius_var / (b.radius_var + r_var)
             out[det.id] = TrackBelief(
@@ -110,7 +127,7 @@ class ObstacleTracker:
                 radius=b.radius + w * (det.radius - b.radius),
                 radius_var=b.radius_var * r_var / (b.radius_var + r_var),
             )
-        return TrackerState(tracks=out, gated_out=gated_out)
+        return TrackerState(tracks=out, gated_out=gated_out, refused=refused, resets=resets)
 
     def live(self, state: TrackerState, t: float) -> dict[int, TrackBelief]:
         """The tracks updated within track_timeout_s of t (the others are dropped)."""
@@ -128,6 +145,8 @@ class ObstacleTracker:
         live = self.live(state, t)
         for oid in sorted(live):
             x, P = self.predict(live[oid], t)
+            if not healthy(x, P):
+                continue  # never publish a non-finite track (its next detection restarts it)
             xm, Pm = x[_TO_MSG], P[_TO_MSG_2D]
             out.append(
                 Track(

@@ -26,6 +26,11 @@ from services.estimator.unicycle import (
 
 FloatArray = NDArray[np.float64]
 
+# Sub-steps of one prediction at most, whatever dt and max_predict_dt_s: the work of one
+# prediction stays bounded (the estimator never predicts further than 60 s, 600 default
+# sub-steps); beyond this the sub-steps just get longer.
+MAX_SUBSTEPS = 1000
+
 
 class VehicleFilter(Protocol):
     """Predict and update a Gaussian belief (x, P); inputs are never modified."""
@@ -43,7 +48,8 @@ class VehicleFilter(Protocol):
 
 def _substeps(dt: float, max_dt: float) -> tuple[int, float]:
     # equal sub-steps, a pure function of dt: replaying a prediction repeats it exactly
-    n = max(1, math.ceil(dt / max_dt - 1e-9))
+    ratio = dt / max_dt
+    n = max(1, math.ceil(ratio - 1e-9)) if ratio < MAX_SUBSTEPS else MAX_SUBSTEPS
     return n, dt / n
 
 

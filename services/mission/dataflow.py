@@ -99,7 +99,8 @@ def make_sensor(ctx: CoreContext) -> SensorCore:
 
 
 def make_estimator(ctx: CoreContext) -> EstimatorCore:
-    return EstimatorCore(ctx.scenario.estimator, _start(ctx.scenario))
+    s = ctx.scenario
+    return EstimatorCore(s.estimator, _start(s), area=s.world.area)
 
 
 def make_planner(ctx: CoreContext) -> PlannerCore:

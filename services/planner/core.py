@@ -7,6 +7,7 @@ from the estimator's tracks, predicted with their velocity and acceleration (pap
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -15,6 +16,7 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
+from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from common.world import ObstacleState
@@ -24,6 +26,8 @@ from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanPolicy
+
+log = logging.getLogger("tidelink.planner")
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -62,13 +66,59 @@ class PlannerCore:
         self.last_result: PlanResult | None = None
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
+        self._judge = Plausibility.of_area(world.area)
+        self._rejects = RateLimitedLog(log)
 
     def deliver(self, d: Delivery) -> list[Emit]:
-        if isinstance(d.msg, StateEstimate):
-            self.state = d.msg
-        elif isinstance(d.msg, ObstacleTracks):
-            self.tracks = d.msg
+        """Keep the newest estimate and tracks, unless implausible: a stamp from the future
+        (an estimate that never ages), a pose outside the world, more tracks than a message
+        may carry (planning work grows with them) are rejected, counted and logged."""
+        msg = d.msg
+        if isinstance(msg, StateEstimate):
+            stream, why = "state", self._judge_state(msg, d.t)
+        elif isinstance(msg, ObstacleTracks):
+            stream, why = "tracks", self._judge_tracks(msg, d.t)
+        else:
+            return []
+        if why is not None:
+            self._rejects.warn(
+                f"{stream}.{why}",
+                d.t,
+                "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
+                d.t,
+                stream,
+                why,
+                msg.source,
+                msg.stamp,
+                msg.seq,
+            )
+        elif isinstance(msg, StateEstimate):
+            self.state = msg
+        else:
+            self.tracks = msg
         return []
+
+    def _judge_state(self, m: StateEstimate, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(
+            j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
+        )
+
+    def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
+        j = self._judge
+        why = first_reason(j.stamp(m.stamp, now), j.items(len(m.tracks)))
+        for k in m.tracks:
+            if why is not None:
+                break
+            why = first_reason(
+                j.position(k.x, k.y), j.speed(k.vx, k.vy), j.accel(k.ax, k.ay), j.length(k.radius)
+            )
+        return why
+
+    @property
+    def inputs_rejected(self) -> dict[str, int]:
+        """Estimates and track sets rejected, by '<stream>.<reason>'."""
+        return dict(self._rejects.counts)
 
     def _obstacles(self, t: float) -> Obstacles:
         moving = []

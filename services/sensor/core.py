@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from common.config.sensor import SensorConfig
+from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import TruthState
 from common.runtime.model.core import Delivery, Emit
 from common.world import World
 from services.sensor.models import NAV_DRAWS, SCAN_DRAWS, nav_fix, scan
+
+log = logging.getLogger("tidelink.sensor")
 
 
 class SensorCore:
@@ -31,12 +36,39 @@ class SensorCore:
         self._last_nav = -np.inf
         self._last_scan = -np.inf
         self.stale_skips = 0  # scheduled samples skipped because the truth had not advanced
+        self._judge = Plausibility.of_area(world.cfg.area)
+        self._rejects = RateLimitedLog(log)
 
     def deliver(self, d: Delivery) -> list[Emit]:
         msg = d.msg
-        if isinstance(msg, TruthState) and (self._truth is None or msg.stamp > self._truth.stamp):
+        if not isinstance(msg, TruthState):
+            return []
+        why = self._judge_truth(msg, d.t)
+        if why is not None:
+            self._rejects.warn(
+                f"truth.{why}",
+                d.t,
+                "t=%.2f s: rejected a truth message (%s): from %r, stamp %.6g s, seq %d",
+                d.t,
+                why,
+                msg.source,
+                msg.stamp,
+                msg.seq,
+            )
+        elif self._truth is None or msg.stamp > self._truth.stamp:
             self._truth = msg
         return []
+
+    def _judge_truth(self, m: TruthState, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(
+            j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
+        )
+
+    @property
+    def inputs_rejected(self) -> dict[str, int]:
+        """Truth messages rejected, by 'truth.<reason>'."""
+        return dict(self._rejects.counts)
 
     def step(self, t: float) -> list[Emit]:
         # integer tick index from the runtime clock: no float accumulation over a long run

@@ -177,6 +177,9 @@ def one_of_each() -> list[Message]:
                     delay_max=0.5,
                 ),
             ),
+            inputs_dropped={"planner/cmd->sensor": 3},
+            inputs_rejected={"cmd.future": 2},
+            resets={"vehicle_filter": 1},
         ),
         RunEnd(stamp=12.5, seq=1, source=SOURCE, sent=SENT, reason="goal", ticks=250),
         Tick(

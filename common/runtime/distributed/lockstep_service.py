@@ -10,8 +10,8 @@ from common.bus import CLOCK, Bus, Inbox, Liveliness, Received
 from common.messages import Tick, TickAck, encode_routing
 from common.runtime.distributed.service_process import (
     ServiceSetup,
-    routing_for,
     service_main,
+    take_data,
     wire,
 )
 from common.runtime.model.seqwindow import SeqWindow, max_seq_gap
@@ -88,15 +88,17 @@ class LockstepService:
             if not ev.alive:
                 raise SystemExit(f"{self.name}: the coordinator went away; exiting")
             return None
-        if isinstance(ev.msg, Tick):
-            return ev.msg
+        if self.keys.is_tick(ev.key):  # only the clock's keys carry ticks
+            return ev.msg if isinstance(ev.msg, Tick) else None
         service, stream = self.keys.split(ev.key)
         window = self.received.get(f"{service}/{stream}")
         if window is not None and ev.msg.source == service and window.plausible(ev.msg.seq):
             window.take(ev.msg.seq)
-        routed = routing_for(ev, self.name)
-        if routed is not None and routed[1]:
-            self.host.accept(ev.msg, service, stream, routed[1], routed[0])
+        routed = take_data(self.host, self.keys, ev)
+        if routed is not None and routed.times_us:
+            self.host.accept(
+                ev.msg, routed.source, routed.stream, routed.times_us, routed.sent_tick
+            )
         return None
 
     def _next_tick(self, inbox: Inbox) -> Tick:

@@ -10,13 +10,20 @@ from common.bus import Bus, Inbox, Liveliness, Received
 from common.messages import Tick, encode_routing
 from common.runtime.distributed.service_process import (
     ServiceSetup,
-    routing_for,
     service_main,
+    take_data,
     wire,
 )
 from common.runtime.model.host import STATS_STREAM, to_us
 
 log = logging.getLogger("tidelink.realtime")
+
+# Events a service lets wait before shedding the oldest samples (a flood it cannot keep up
+# with): at ~20 us an event, 1024 are ~20 ms of backlog. Ticks and liveliness are never shed.
+INBOX_MAX_PENDING = 1024
+# A delivery modelled further ahead than this (mission seconds) is no link's delay but a
+# forged routing: it would hold a queue slot until then.
+MAX_DELIVERY_AHEAD_S = 60.0
 
 
 class RealtimeService:
@@ -29,6 +36,11 @@ class RealtimeService:
     long replan, a descheduled process) skips the missed periods, as a real-time loop must:
     commands stamped in the past would only be rejected as stale. The service stops on a stop
     Tick, or when the clock's liveliness token vanishes (its launcher is gone).
+
+    A flood cannot stall the loop: the inbox sheds its oldest samples once INBOX_MAX_PENDING
+    wait, each input holds at most its max_queued deliveries, and what is dropped or refused
+    (no routing, a forged delivery time, the wrong type) is counted in the stats and logged
+    once per input and reason per mission second.
     """
 
     def __init__(self, setup: ServiceSetup) -> None:
@@ -47,7 +59,7 @@ class RealtimeService:
 
     def run(self) -> int:
         with Bus(self.bus_cfg, self.keys, low_latency=True, identity=self.name) as bus:
-            inbox = Inbox()
+            inbox = Inbox(max_pending=INBOX_MAX_PENDING, keep=self.keys.is_tick, on_shed=self._shed)
             pubs = wire(bus, self.host, self.keys, inbox, express=False)
             bus.declare_alive(self.name)
             while True:
@@ -89,13 +101,23 @@ class RealtimeService:
         if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
 
+    def _shed(self, key: str, n: int) -> None:
+        """The inbox shed n samples of `key`: count them against that input."""
+        try:
+            service, stream = self.keys.split(key)
+        except ValueError:
+            return
+        self.host.count_dropped(service, stream, n, "inbox full (the loop fell behind)")
+
     def _handle(self, ev: Received | Liveliness) -> bool:
         """Take one event; True when the run is over."""
         if isinstance(ev, Liveliness):
             if not ev.alive:
                 log.info("%s: the mission clock went away; stopping", self.name)
             return not ev.alive
-        if isinstance(ev.msg, Tick):
+        if self.keys.is_tick(ev.key):  # only the clock's keys carry ticks
+            if not isinstance(ev.msg, Tick):
+                return False
             if ev.msg.stop:
                 return True
             if self.t0 is None:
@@ -103,13 +125,16 @@ class RealtimeService:
             return False
         if self.t0 is None:
             return False
-        routed = routing_for(ev, self.name)
-        times = routed[1] if routed is not None else ()
-        if times:
-            arrived = self.now_us()
-            service, stream = self.keys.split(ev.key)
-            # -1: realtime has no shared tick numbers; delivery waits for the modelled time
-            self.host.accept(ev.msg, service, stream, tuple(max(t, arrived) for t in times), -1)
+        routed = take_data(self.host, self.keys, ev)
+        if routed is None or not routed.times_us:
+            return False
+        arrived = self.now_us()
+        if max(routed.times_us) - arrived > MAX_DELIVERY_AHEAD_S * 1e6:
+            self.host.count_dropped(routed.source, routed.stream, 1, "delivery time too far ahead")
+            return False
+        # -1: realtime has no shared tick numbers; delivery waits for the modelled time
+        times = tuple(max(t, arrived) for t in routed.times_us)
+        self.host.accept(ev.msg, routed.source, routed.stream, times, -1)
         return False
 
 

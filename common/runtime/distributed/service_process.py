@@ -8,7 +8,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
 from common.config.bus import BusConfig
@@ -63,18 +63,34 @@ def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> di
     return {s: bus.publisher(host.name, s, express=express) for s in host.streams}
 
 
-def routing_for(ev: Received, receiver: str) -> tuple[int, tuple[int, ...]] | None:
-    """(sent tick, modelled delivery times for `receiver`) of a data message, or None when
-    its routing attachment is missing or malformed (logged: the message is not delivered)."""
+class Routed(NamedTuple):
+    """A data message's input (source, stream), the tick it was sent in and its modelled
+    delivery times to this service (none: the link model lost it)."""
+
+    source: str
+    stream: str
+    sent_tick: int
+    times_us: tuple[int, ...]
+
+
+def take_data(host: Host, keys: Keys, ev: Received) -> Routed | None:
+    """The routing of a data message for this host, or None: a message on a key that is not
+    an input, or without a valid routing attachment, is not delivered; the host counts it
+    among its inputs' drops and logs it once per input and reason per mission second (a
+    flood of them costs one line a second, not one a message)."""
+    try:
+        source, stream = keys.split(ev.key)
+    except ValueError:  # a key with more chunks: a tick key, or nothing we subscribed to
+        return None
     if ev.attachment is None:
-        log.warning("%s: message on %s without routing; ignored", receiver, ev.key)
+        host.count_dropped(source, stream, 1, "no routing attachment")
         return None
     try:
         sent_tick, schedule = decode_routing(ev.attachment)
     except WireError as exc:
-        log.warning("%s: bad routing on %s: %s", receiver, ev.key, exc)
+        host.count_dropped(source, stream, 1, "bad routing attachment", str(exc))
         return None
-    return sent_tick, schedule.get(receiver, ())
+    return Routed(source, stream, sent_tick, schedule.get(host.name, ()))
 
 
 class Runnable(Protocol):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Protocol, runtime_checkable
@@ -48,3 +49,20 @@ class ServiceCore(Protocol):
     def deliver(self, d: Delivery) -> list[Emit]: ...
 
     def step(self, t: float) -> list[Emit]: ...
+
+
+@runtime_checkable
+class JudgesInputs(Protocol):
+    """A core that rejects implausible inputs reports how many, by reason (e.g. 'nav.future');
+    its runtime publishes them in the service's statistics."""
+
+    @property
+    def inputs_rejected(self) -> Mapping[str, int]: ...
+
+
+@runtime_checkable
+class RestartsFilters(Protocol):
+    """A core that restarts a diverged filter reports how often, by filter."""
+
+    @property
+    def resets(self) -> Mapping[str, int]: ...

@@ -40,6 +40,10 @@ class Input:
     # wake=True asks the runtime to call the core at the delivery time itself (an event);
     # otherwise deliveries are handed over just before the next periodic step.
     wake: bool = False
+    # deliveries held for the core at most (in flight on the modelled link, or waiting for
+    # the step); beyond it the oldest are dropped and counted, so a flood costs neither
+    # memory nor a step's time without bound. A normal run holds a handful.
+    max_queued: int = 64
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,6 +121,8 @@ class Dataflow:
                 raise DataflowError(f"{s.name}: period_s must be > 0 (or None: event-driven)")
             if s.period_s is None and not any(i.wake for i in s.inputs):
                 raise DataflowError(f"{s.name}: an event-driven service needs a wake input")
+            if any(i.max_queued < 1 for i in s.inputs):
+                raise DataflowError(f"{s.name}: an input's max_queued must be >= 1")
             streams = [o.stream for o in s.outputs]
             if len(set(streams)) != len(streams):
                 raise DataflowError(f"{s.name}: an output stream is declared twice")
@@ -176,6 +182,7 @@ class Dataflow:
                             "type": i.msg_type.__name__,
                             "policy": i.policy.value,
                             "wake": i.wake,
+                            "max_queued": i.max_queued,
                         }
                         for i in s.inputs
                     ],

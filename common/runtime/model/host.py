@@ -6,6 +6,9 @@ This is the part every runtime shares, so inproc and lockstep behave identically
   in the fixed order (delivery time, source, stream, seq, copy);
 - deliveries to `wake` inputs go to the core at once; the others wait in a ready buffer until
   the core's next step, where the input's queue policy applies (NEWEST keeps the last one);
+- each input holds at most its declared `max_queued` deliveries (in flight and ready): past
+  that the one due first is dropped and counted, so a flood of messages costs bounded memory
+  and bounded work per step, and the newest samples survive;
 - each output gets (source, seq, sent) and, per receiving service, the link model's delivery
   times, decided on the sending side from (seed, link, seq) so no arrival order matters.
 """
@@ -13,17 +16,30 @@ This is the part every runtime shares, so inproc and lockstep behave identically
 from __future__ import annotations
 
 import heapq
+import itertools
 from dataclasses import dataclass
 
 from common.config.network import link_name
 from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, encode
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
-from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
+from common.runtime.model.core import (
+    Delivery,
+    Emit,
+    JudgesInputs,
+    QueuePolicy,
+    RestartsFilters,
+    ServiceCore,
+)
 from common.runtime.model.dataflow import Dataflow, Input
+from common.runtime.model.drops import InputDrops
 
 STATS_STREAM = "stats"
 NEVER = 2**62
+
+# (deliver_us, source, stream, seq, copy, sent_tick, arrival, msg): ordered by the first five;
+# `arrival` (a counter) only separates exact repeats, so a message is never compared
+Pending = tuple[int, str, str, int, int, int, int, Message]
 
 
 def to_us(t: float) -> int:
@@ -70,13 +86,17 @@ class Host:
         }
         self._seq: dict[str, int] = {o.stream: 0 for o in service.outputs}
         self._seq[STATS_STREAM] = 0
-        # (deliver_us, source, stream, seq, copy, sent_tick, msg)
-        self._pending: list[tuple[int, str, str, int, int, int, Message]] = []
+        # per input, a heap of deliveries not yet due (or sent in the current tick)
+        self._pending: dict[tuple[str, str], list[Pending]] = {k: [] for k in self._inputs}
+        self._wake = tuple(k for k, i in self._inputs.items() if i.wake)
+        self._arrival = itertools.count()
         self._ready: list[Delivery] = []
         # delays measured on incoming links (hand-over time - sent), by link name
         self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
+        self.drops = InputDrops(name)
+        self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
 
     @property
     def inputs(self) -> tuple[Input, ...]:
@@ -92,31 +112,60 @@ class Host:
     def accept(
         self, msg: Message, source: str, stream: str, times_us: tuple[int, ...], sent_tick: int
     ) -> None:
-        """Queue a message sent to this host, with its modelled delivery times."""
-        if (source, stream) not in self._inputs:
+        """Queue a message sent to this host, with its modelled delivery times; an input
+        already holding max_queued deliveries drops the one due first (maybe this one)."""
+        key = (source, stream)
+        inp = self._inputs.get(key)
+        if inp is None:
             return
+        if not isinstance(msg, inp.msg_type):  # well-formed, but not what this input carries
+            self.count_dropped(source, stream, 1, "wrong type", type(msg).__name__)
+            return
+        heap = self._pending[key]
         for copy, t in enumerate(times_us):
-            heapq.heappush(self._pending, (t, source, stream, msg.seq, copy, sent_tick, msg))
+            item = (t, source, stream, msg.seq, copy, sent_tick, next(self._arrival), msg)
+            if len(heap) < inp.max_queued:
+                heapq.heappush(heap, item)
+            else:
+                heapq.heappushpop(heap, item)
+                self.count_dropped(source, stream, 1, "queue full")
+
+    def count_dropped(self, source: str, stream: str, n: int, why: str, detail: str = "") -> None:
+        """Count n messages for an input lost before its core saw them (here, or by the
+        runtime in front of this host: no routing, a full inbox); see InputDrops."""
+        if (source, stream) in self._inputs and n > 0:
+            self.drops.count(source, stream, n, why, self._now_us / 1e6, detail)
+
+    @property
+    def dropped(self) -> dict[tuple[str, str], int]:
+        """Messages dropped per input (source, stream) before the core saw them."""
+        return dict(self.drops.counts)
 
     def next_event_us(self) -> int:
         """The next time this host needs a tick: its next step or a due wake delivery."""
         nxt = self.next_step_us
-        for t, src, stream, *_ in self._pending:
-            if t < nxt and self._inputs[(src, stream)].wake:
-                nxt = t
+        for key in self._wake:
+            heap = self._pending[key]
+            if heap and heap[0][0] < nxt:
+                nxt = heap[0][0]
         return nxt
 
     # -- one tick ----------------------------------------------------------------------------
     def run_tick(self, tick: int, t_us: int) -> list[Outgoing]:
         """Hand over due deliveries, step if due, and publish what the core emitted."""
         emits: list[Emit] = []
+        self._now_us = t_us
+        due: list[Pending] = []
+        for heap in self._pending.values():
+            while heap and heap[0][0] <= t_us:
+                due.append(heapq.heappop(heap))
+        due.sort()  # the fixed order: (delivery time, source, stream, seq, copy)
         later = []
-        while self._pending and self._pending[0][0] <= t_us:
-            item = heapq.heappop(self._pending)
+        for item in due:
             if item[5] >= tick:  # sent in this tick: never delivered in the tick it was sent
                 later.append(item)
                 continue
-            d_us, src, stream, _seq, copy, _tick, msg = item
+            d_us, src, stream, _seq, copy, _tick, _arrival, msg = item
             d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
             self.delivered += 1
             if copy == 0:
@@ -129,7 +178,7 @@ class Host:
             else:
                 self._ready.append(d)
         for item in later:
-            heapq.heappush(self._pending, item)
+            heapq.heappush(self._pending[(item[1], item[2])], item)
         if self.next_step_us <= t_us:
             t = t_us / 1e6
             for d in self._policy(self._ready):
@@ -145,20 +194,22 @@ class Host:
         return out
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
-        newest: dict[tuple[str, str], int] = {}
+        """NEWEST inputs keep their last delivery; the others their last max_queued."""
+        by_input: dict[tuple[str, str], list[int]] = {}
         for i, d in enumerate(ready):
-            if self._inputs[(d.source, d.stream)].policy is QueuePolicy.NEWEST:
-                newest[(d.source, d.stream)] = i
-        if not newest:
-            return ready
-        kept = [
-            d
-            for i, d in enumerate(ready)
-            if self._inputs[(d.source, d.stream)].policy is not QueuePolicy.NEWEST
-            or newest[(d.source, d.stream)] == i
-        ]
-        self.superseded += len(ready) - len(kept)
-        return kept
+            by_input.setdefault((d.source, d.stream), []).append(i)
+        older: set[int] = set()
+        for (src, stream), idx in by_input.items():
+            inp = self._inputs[(src, stream)]
+            newest = inp.policy is QueuePolicy.NEWEST
+            n = len(idx) - (1 if newest else inp.max_queued)
+            if n > 0:
+                older.update(idx[:n])
+                if newest:
+                    self.superseded += n
+                else:
+                    self.count_dropped(src, stream, n, "queue full at the step")
+        return [d for i, d in enumerate(ready) if i not in older] if older else ready
 
     # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
     def join_clock(self, t_us: int) -> bool:
@@ -237,4 +288,12 @@ class Host:
             )
             for (src, stream), m in sorted((k, a.snapshot()) for k, a in self._measured.items())
         )
-        return LinkStats(stamp=t, links=links, measured=measured)
+        core = self.core
+        return LinkStats(
+            stamp=t,
+            links=links,
+            measured=measured,
+            inputs_dropped=self.drops.by_link(),
+            inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
+            resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
+        )

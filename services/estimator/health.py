@@ -1,0 +1,27 @@
+"""When a Gaussian belief is usable: finite, with variances neither negative nor exploded."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+# A variance beyond this (a standard deviation of 1e6 m, rad, m/s or m/s^2) is a filter that
+# has diverged numerically, not a belief about anything in a world of a few km.
+MAX_VARIANCE = 1e12
+
+
+def healthy(x: FloatArray, P: FloatArray) -> bool:
+    """Is (x: (n,), P: (n, n)) usable: every entry finite, every variance in [0, MAX_VARIANCE]?
+
+    The wire refuses non-finite numbers and negative variances, so a belief that is not
+    healthy could not even be published.
+    """
+    d = np.diagonal(P)
+    return bool(
+        np.isfinite(x).all()
+        and np.isfinite(P).all()
+        and (d >= 0.0).all()
+        and (d <= MAX_VARIANCE).all()
+    )

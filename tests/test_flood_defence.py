@@ -1,0 +1,77 @@
+"""A flood of well-formed messages on a data key (issue 14, defect 8): a plain Zenoh client on
+the router puts 60 000 navigation fixes on the estimator's input during a real realtime
+launch, as fast as the bus takes them: without routing, with routing and stamped in Unix
+time (defect 2), with routing and absurd values. The estimator's loop keeps stepping (the
+inbox sheds its oldest samples, the input queue holds 64), the mission ends at the goal, the
+drops and rejections are in metrics.json, and the estimator's log stays small."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from helpers.launch_proc import Tidelink, kill_recorded
+
+from common.bus import Bus, Keys
+from common.config.bus import BusConfig
+from common.messages import NavFix, encode, encode_routing
+from common.runtime.processes.children import free_port
+
+pytestmark = pytest.mark.slow
+
+WAIT_S = 120.0
+FLOOD = 60_000
+
+
+def _fix(stamp: float, x: float = 20.0) -> bytes:
+    msg = NavFix(
+        stamp=stamp,
+        x=x,
+        y=20.0,
+        heading=0.0,
+        speed=1.0,
+        std_xy=0.5,
+        std_heading=0.05,
+        std_speed=0.1,
+        source="sensor",
+        seq=10**9,  # one seq for all: copies of one message must never be compared
+    )
+    return encode(msg)
+
+
+def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "4"]
+    routed = encode_routing(0, {"estimator": (0,)})  # what a crafted client could attach
+    variants = [
+        (_fix(5.0), None),  # no routing: never reaches the core
+        (_fix(1.79e9), routed),  # Unix time: rejected as from the future
+        (_fix(0.5, x=1e300), routed),  # finite but absurd: rejected as out of range
+    ]
+    try:
+        with Tidelink(*launch, "--out", str(out), "--no-plot") as run:
+            run.wait_for(r"vehicle: mode IDLE -> RUN", WAIT_S)
+            keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
+            with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
+                pub = bus.publisher_on(keys.stream("sensor", "nav"))
+                for i in range(FLOOD):
+                    data, attachment = variants[i % len(variants)]
+                    pub.put_bytes(data, attachment)
+            assert run.wait(WAIT_S) == 0, run.stderr
+    finally:
+        kill_recorded(out / "pids.json")
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["end_reason"] == "goal" and m["collisions"] == 0, m
+    # every flood message is accounted for: dropped in front of the core (no routing, a full
+    # inbox or input queue) or rejected by it
+    dropped = m["inputs_dropped_by_link"]["sensor/nav->estimator"]
+    rejected = m["inputs_rejected_by_reason"]["estimator"]
+    assert dropped >= FLOOD // 3, m["inputs_dropped_by_link"]
+    assert dropped + rejected.get("nav.future", 0) + rejected.get("nav.out_of_range", 0) >= FLOOD
+    assert m["inputs_dropped"] >= dropped and m["inputs_rejected"] >= 1
+    # a few lines a mission second at most, where it used to be one line per message
+    lines = (out / "logs" / "estimator.log").read_text().splitlines()
+    assert len(lines) < 200, lines[:20]
+    assert any("no routing attachment" in line for line in lines)

@@ -1,0 +1,75 @@
+"""What a realtime service does with each message before its core sees it (issue 14): ticks
+only from the clock's keys; data without or with forged routing, or of the wrong type,
+dropped and counted against its input (no bus needed: events are handed in directly)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from common.bus import Received
+from common.config.scenario import load_scenario
+from common.messages import NavFix, Tick, encode_routing
+from common.runtime.distributed.realtime_service import MAX_DELIVERY_AHEAD_S, RealtimeService
+from common.runtime.distributed.service_process import ServiceSetup
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+NAV = ("sensor", "nav")
+
+
+def _service() -> RealtimeService:
+    _, raw = load_scenario(DEFAULT)
+    svc = RealtimeService(ServiceSetup.of("estimator", raw, "tcp/127.0.0.1:7447"))
+    svc.t0 = time.monotonic()  # joined the mission clock at 0
+    return svc
+
+
+def _fix() -> NavFix:
+    return NavFix(
+        stamp=0.0,
+        x=5.0,
+        y=20.0,
+        heading=0.0,
+        speed=1.0,
+        std_xy=0.5,
+        std_heading=0.05,
+        std_speed=0.1,
+    )
+
+
+def _queued(svc: RealtimeService) -> int:
+    return len(svc.host._pending[NAV])
+
+
+@pytest.fixture
+def svc() -> RealtimeService:
+    return _service()
+
+
+def test_data_with_valid_routing_is_queued(svc: RealtimeService) -> None:
+    key = svc.keys.stream(*NAV)
+    assert not svc._handle(Received(key, _fix(), encode_routing(1, {"estimator": (0,)})))
+    assert _queued(svc) == 1 and svc.host.dropped == {}
+
+
+def test_data_without_or_with_bad_routing_is_dropped_and_counted(svc: RealtimeService) -> None:
+    key = svc.keys.stream(*NAV)
+    svc._handle(Received(key, _fix(), None))
+    svc._handle(Received(key, _fix(), b"\xc1 not msgpack"))
+    far = int((MAX_DELIVERY_AHEAD_S + 10.0) * 1e6)
+    svc._handle(Received(key, _fix(), encode_routing(1, {"estimator": (far,)})))
+    assert _queued(svc) == 0 and svc.host.dropped == {NAV: 3}
+    assert svc.host.link_stats(0.0).inputs_dropped == {"sensor/nav->estimator": 3}
+
+
+def test_only_the_clocks_keys_carry_ticks(svc: RealtimeService) -> None:
+    stop = Tick(stamp=0.0, tick=1, time_us=0, watermarks={}, stop=True)
+    routed = encode_routing(1, {"estimator": (0,)})
+    # a stop tick on a data key neither stops the service nor reaches the core
+    assert not svc._handle(Received(svc.keys.stream(*NAV), stop, routed))
+    assert svc.host.dropped == {NAV: 1}  # the wrong type for sensor/nav
+    # data on a tick key is ignored; a stop tick there ends the run
+    assert not svc._handle(Received(svc.keys.tick(["estimator"]), _fix(), None))
+    assert svc._handle(Received(svc.keys.tick(["estimator"]), stop, None))
