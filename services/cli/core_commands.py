@@ -122,7 +122,7 @@ def cmd_check(a: argparse.Namespace) -> int:
 
     scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=check_scenario)
     names = ", ".join(load_mission(scenario).dataflow.names)
-    print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {names})")
+    print(f"{a.scenario}: OK (mission {scenario.run.mission_name}, services {names})")
     return 0
 
 
