@@ -1,11 +1,11 @@
-"""Benchmark the work budget's estimates (common/config/budget.py) against what runs allocate.
+"""Benchmark the work estimates (common/config/work.py) against what replans and runs take.
 
 1. One replan on the default field per resolution, each in a fresh process: the budget's
    estimate of its peak memory beside the process's resident growth (ru_maxrss) and the
    peak Python's allocator traced (tracemalloc, a second process), and the replan's time.
 2. Inproc runs of the default mission, with finer vehicle and estimator steps: the estimated
    wall time beside the measured CPU time, and the messages of the record.
-The unit costs in common/config/budget.py were read off these numbers.
+The unit costs in common/config/work.py were read off these numbers.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ import time
 import tracemalloc
 from pathlib import Path
 
-from common.config.budget import estimate
 from common.config.planner import PlannerConfig
 from common.config.scenario import Scenario, load_scenario
+from common.config.work import estimate
 from common.world import World
 from services.planner.plan import Obstacles, PlanRequest, Pose2D, plan_path
 

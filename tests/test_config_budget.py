@@ -14,16 +14,11 @@ import numpy as np
 import pytest
 from helpers.planner_world import default_obstacles, default_start_goal
 
-from common.config.budget import (
-    DEFAULT_BUDGET,
-    RECORD_BYTES_PER_MESSAGE,
-    check_budget,
-    estimate,
-    message_rate_hz,
-)
+from common.config.budget import DEFAULT_BUDGET, check_budget
 from common.config.loader import ConfigError
 from common.config.planner import PlannerConfig
 from common.config.scenario import Scenario, load_scenario
+from common.config.work import RECORD_BYTES_PER_MESSAGE, estimate, message_rate_hz
 from common.config.world import AreaConfig
 from common.messages import decode, encode
 from common.runtime.model.inproc import run_inproc

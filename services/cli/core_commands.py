@@ -150,8 +150,8 @@ def scenario_check(a: argparse.Namespace) -> ScenarioCheck:
 
 
 def cmd_check(a: argparse.Namespace) -> int:
-    from common.config.budget import estimate
     from common.config.scenario import load_scenario
+    from common.config.work import estimate
     from common.runtime.model.mission import load_mission
 
     scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=scenario_check(a))
