@@ -56,7 +56,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LOOP_TOML = """
 [run]
 name = "benchloop"
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = {seconds}
 [run.mission_params]
 event_driven = true

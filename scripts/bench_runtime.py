@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RUNTIMES = ("inproc", "lockstep")
 LOOP_TOML = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = {seconds}
 [run.mission_params]
 event_driven = true
@@ -50,7 +50,7 @@ event_driven = true
 
 FLOOR_TOML = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = 30.0
 """
 

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # Gilbert-Elliott loss, duplication and an outage.
 LOSSY_TESTLOOP = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = {max_time}
 
 [network.default]

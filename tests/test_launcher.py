@@ -33,7 +33,7 @@ pytestmark = pytest.mark.slow
 WAIT_S = 45.0  # upper bound on any one wait; the happy paths take a few seconds
 TESTLOOP = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = {max_time}
 [runtime]
 time_scale = {scale}

@@ -367,7 +367,7 @@ def test_a_recorder_without_a_run_says_so_and_waits(tmp_path: Path) -> None:
 
 TESTLOOP = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = 16.0
 [runtime]
 time_scale = 2.0
@@ -401,7 +401,7 @@ def test_metrics_of_a_recording_with_a_restarted_service_equal_the_runs(tmp_path
 
 CRASHING = """
 [run]
-mission = "tests.helpers.testloop:TestLoop"
+mission = "testloop"
 max_time_s = 600.0
 [run.mission_params]
 crash_service = "filter"

@@ -160,7 +160,9 @@ def test_a_failed_run_is_recorded_with_its_error(tmp_path: Path) -> None:
         f'name = "fail"\nscenario = "{SMALL}"\nseeds = 1\ncontrollers = ["fuzzy_pid"]\n'
         '[[axes]]\nname = "m"\n[[axes.values]]\nlabel = "ok"\n'
         '[[axes.values]]\nlabel = "broken"\n'
-        'set = { "run.mission" = "services.mission:NoSuchMission" }\n'
+        # valid as a scenario (only a mission checks its own parameters, when it is built):
+        # the run fails, not the sweep
+        'set = { "run.mission" = "testloop", "run.mission_params" = { crash_service = "x" } }\n'
     )
     out = tmp_path / "out"
     code = main(["sweep", str(p), "--runtime", "inproc", "--jobs", "1", "--out", str(out)])
@@ -168,7 +170,7 @@ def test_a_failed_run_is_recorded_with_its_error(tmp_path: Path) -> None:
     rows = {r["m"]: r for r in _csv(out / "results.csv")}
     assert rows["ok"]["status"] == "ok" and rows["ok"]["error"] == ""
     assert rows["broken"]["status"] == "error"
-    assert "cannot load 'services.mission:NoSuchMission'" in rows["broken"]["error"]
+    assert "run.mission_params.crash_service: must be one of" in rows["broken"]["error"]
     assert "Traceback" in (out / "runs" / rows["broken"]["run_id"] / "error.txt").read_text()
     assert "## Failed runs" in (out / "summary.md").read_text()
     assert math.isfinite(float(rows["ok"]["travel_time_s"]))

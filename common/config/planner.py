@@ -12,6 +12,7 @@ from typing import Literal
 
 from common.config.checks import int_range, nonneg, positive
 from common.config.errors import ConfigValueError
+from common.config.world import AreaConfig
 
 SearchKind = Literal["dijkstra", "astar"]
 RefineMethod = Literal["levenberg_marquardt", "lbfgsb"]
@@ -102,3 +103,11 @@ class PlannerConfig:
             raise ConfigValueError(
                 "curvature_margin", f"{self.curvature_margin!r} is invalid, expected in (0, 1]"
             )
+
+
+def grid_shape(area: AreaConfig, resolution_m: float) -> tuple[int, int]:
+    """(nx, ny) cells covering the area at the given resolution (the planner's cost map; the
+    work budget sizes it from here before any planner runs)."""
+    nx = max(1, math.ceil((area.x_max_m - area.x_min_m) / resolution_m - 1e-9))
+    ny = max(1, math.ceil((area.y_max_m - area.y_min_m) / resolution_m - 1e-9))
+    return nx, ny

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from common.config.errors import ConfigValueError
+from common.config.missions import resolve_mission, unknown_mission
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
@@ -19,8 +20,9 @@ class RunConfig:
     vehicle: str = "auv1"
     seed: int = 1
     max_time_s: float = 300.0  # virtual seconds; the mission ends here if not before
-    # "module:Class" of the mission (the cores of the dataflow, its end and its metrics)
-    mission: str = "services.mission:AuvMission"
+    # a registered mission's name (common/config/missions.py; the cores of the dataflow, its
+    # end and its metrics); its registered "module:Class" is accepted too, nothing else
+    mission: str = "auv"
     # the mission's own parameters ([run.mission_params]), checked by the mission itself
     mission_params: dict[str, bool | int | float | str] = field(default_factory=dict)
 
@@ -32,8 +34,14 @@ class RunConfig:
             raise ConfigValueError("seed", "must be in [0, 2**63)")
         if self.max_time_s <= 0:
             raise ConfigValueError("max_time_s", "must be > 0")
-        if ":" not in self.mission:
-            raise ConfigValueError("mission", "expected 'module:Class'")
+        if resolve_mission(self.mission) is None:  # checked by name: nothing is imported
+            raise ConfigValueError("mission", unknown_mission(self.mission))
+
+    @property
+    def mission_name(self) -> str:
+        """The registered name of the mission, however `mission` spells it."""
+        found = resolve_mission(self.mission)
+        return found[0] if found else self.mission
 
 
 @dataclass(frozen=True, kw_only=True)

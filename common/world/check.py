@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from common.config.budget import DEFAULT_BUDGET, Budget, check_budget
 from common.config.errors import ConfigError
 from common.config.world import PoseConfig, WorldConfig
 from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
@@ -13,9 +14,10 @@ if TYPE_CHECKING:
     from common.config.scenario import Scenario
 
 
-def check_scenario(scenario: Scenario, file: str = "") -> None:
+def check_scenario(scenario: Scenario, file: str = "", budget: Budget = DEFAULT_BUDGET) -> None:
     """The check `load_scenario(..., check=check_scenario)` runs after loading a scenario."""
     check_world(scenario.world, file)
+    check_budget(scenario, file, budget)  # the run's memory and time (common/config/budget.py)
 
 
 def check_world(cfg: WorldConfig, file: str = "") -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import logging
 import math
@@ -10,7 +11,10 @@ import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from common.config.scenario import ScenarioCheck
 
 log = logging.getLogger("tidelink")
 
@@ -118,28 +122,58 @@ def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
     p.add_argument("--seed", type=int, default=None, help="override run.seed")
 
 
-def cmd_check(a: argparse.Namespace) -> int:
-    from common.config.scenario import load_scenario
-    from common.runtime.model.mission import load_mission
+def budget_arg(p: argparse.ArgumentParser) -> None:
+    """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
+    p.add_argument(
+        "--budget",
+        type=_budget_factor,
+        default=1.0,
+        metavar="FACTOR",
+        help="allow FACTOR times every work budget a scenario is checked against (the planner "
+        "grid's memory, the record's memory, the run's wall time), e.g. 4 on a bigger machine",
+    )
+
+
+def _budget_factor(text: str) -> float:
+    try:
+        factor = float(text)
+    except ValueError:
+        factor = math.nan
+    if not (math.isfinite(factor) and factor > 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a factor > 0")
+    return factor
+
+
+def scenario_check(a: argparse.Namespace) -> ScenarioCheck:
+    """The check a command that runs a scenario applies: geometry and the --budget'ed work."""
+    from common.config.budget import DEFAULT_BUDGET
     from common.world.check import check_scenario
 
-    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=check_scenario)
+    return functools.partial(check_scenario, budget=DEFAULT_BUDGET.scaled(a.budget))
+
+
+def cmd_check(a: argparse.Namespace) -> int:
+    from common.config.scenario import load_scenario
+    from common.config.work import estimate
+    from common.runtime.model.mission import load_mission
+
+    scenario, _ = load_scenario(a.scenario, a.overrides, a.seed, check=scenario_check(a))
     names = ", ".join(load_mission(scenario).dataflow.names)
-    print(f"{a.scenario}: OK (mission {scenario.run.mission}, services {names})")
+    print(f"{a.scenario}: OK (mission {scenario.run.mission_name}, services {names})")
+    print(f"  estimated: {estimate(scenario).summary()}")
     return 0
 
 
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario, write_outputs
-    from common.world.check import check_scenario
 
     overrides = list(a.overrides) + certs_overrides(a.certs)
     if a.runtime:
         overrides.append(f'runtime.kind="{a.runtime}"')
     if a.time_scale is not None:
         overrides.append(f"runtime.time_scale={a.time_scale}")
-    scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=check_scenario)
+    scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=scenario_check(a))
     if scenario.runtime.kind != "inproc":  # the process is the run's router
         check_exposure(scenario.bus.listen, scenario.bus.secured, a.insecure)
     out = (
@@ -249,6 +283,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add check, run and router to the tidelink parser."""
     c = sub.add_parser("check", help="validate a scenario file and exit non-zero on any problem")
     scenario_args(c)
+    budget_arg(c)
     c.set_defaults(func=cmd_check)
 
     r = sub.add_parser("run", help="run one mission and write DIR/metrics.json")
@@ -262,6 +297,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    budget_arg(r)
     certs_args(r, identity=None)
     insecure_arg(r)
     r.set_defaults(func=cmd_run)

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from services.cli.core_commands import (
+    budget_arg,
     certs_args,
     certs_overrides,
     check_exposure,
@@ -18,6 +19,7 @@ from services.cli.core_commands import (
     print_metrics,
     report_outcome,
     scenario_args,
+    scenario_check,
 )
 
 if TYPE_CHECKING:
@@ -45,11 +47,12 @@ def cmd_launch(a: argparse.Namespace) -> int:
     from common.runtime.model.mission import load_mission
     from common.runtime.processes.policy import RestartPolicy, policies_for
     from common.runtime.processes.signals import Interrupted
-    from common.world.check import check_scenario
     from services.launcher import LaunchOptions, launch
     from services.launcher.progress import make_display
 
-    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed, check=check_scenario)
+    scenario, raw = load_scenario(
+        a.scenario, _runtime_overrides(a), a.seed, check=scenario_check(a)
+    )
     names = load_mission(scenario).dataflow.names
     check_exposure(a.listen, scenario.bus.secured, a.insecure)
     scenario.bus.router_on(tuple(a.listen))  # e.g. a tls/ endpoint without --certs: say so now
@@ -203,6 +206,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "`tidelink metrics`, Foxglove)",
     )
     la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    budget_arg(la)
     certs_args(la, identity=None)
     insecure_arg(la)
     la.set_defaults(func=cmd_launch)

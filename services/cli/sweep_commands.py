@@ -8,6 +8,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from services.cli.core_commands import budget_arg
+
 
 def _jobs(text: str) -> int:
     n = int(text)
@@ -52,6 +54,7 @@ def cmd_sweep(a: argparse.Namespace) -> int:
         keep_trajectories=a.keep_trajectories,
         retry_errors=a.retry_errors,
         plots=not a.no_plots,
+        budget=a.budget,
     )
     rep = run_sweep(exp, str(a.experiment), opts)
     print(
@@ -103,6 +106,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--keep-trajectories", action="store_true", help="also save DIR/runs/<id>/trajectory.npz"
     )
     s.add_argument("--no-plots", action="store_true", help="skip DIR/plots/")
+    budget_arg(s)
     s.set_defaults(func=cmd_sweep)
 
     r = sub.add_parser("reproduce", help="the paper's section-4 comparison and DIR/REPORT.md")

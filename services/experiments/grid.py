@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import itertools
 import json
@@ -10,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from common.config.budget import DEFAULT_BUDGET, Budget
 from common.config.loader import ConfigError, apply_override, read_toml
 from common.config.scenario import scenario_from_raw
 from common.world.check import check_scenario
@@ -74,8 +76,13 @@ def expand(
     runtime: str,
     log_root: Path | None = None,
     keep_trajectory: bool = False,
+    budget: Budget = DEFAULT_BUDGET,
 ) -> Plan:
-    """Every (cell, seed) with its scenario; raises ConfigError naming the experiment key."""
+    """Every (cell, seed) with its scenario; raises ConfigError naming the experiment key.
+
+    Each cell is checked as `tidelink check` checks a scenario (geometry, and the work budget
+    of one of its runs under this runtime) before any run starts.
+    """
     base = read_toml(exp.scenario)
     axes = exp.all_axes
     where_base = [(f"set.{k}", k, v) for k, v in exp.set.items()]
@@ -97,12 +104,12 @@ def expand(
                 apply_override(raw, k.split("."), to_raw(val))
             except ConfigError as exc:
                 raise ConfigError(file, origin, exc.problem) from None
+        apply_override(raw, ["runtime", "kind"], runtime)  # the budget depends on it
         for seed in range(exp.first_seed, exp.first_seed + exp.seeds):
             rid = run_id(labels, overrides, seed)
             r = copy.deepcopy(raw)
             apply_override(r, ["run", "seed"], seed)
             apply_override(r, ["run", "name"], f"{exp.name}-{rid}")  # keeps parallel runs apart
-            apply_override(r, ["runtime", "kind"], runtime)
             runs.append(
                 RunSpec(
                     run_id=rid,
@@ -114,7 +121,7 @@ def expand(
                     keep_trajectory=keep_trajectory,
                 )
             )
-        _validate(raw, exp, file, labels, where)
+        _validate(raw, exp, file, labels, where, budget)
     return Plan(experiment=exp, file=file, runtime=runtime, runs=tuple(runs))
 
 
@@ -124,22 +131,24 @@ def _validate(
     file: str,
     labels: dict[str, str],
     where: list[tuple[str, str, SetValue]],
+    budget: Budget,
 ) -> None:
     """Build the cell's scenario now, so a bad cell fails the sweep before any run starts."""
     try:
-        scenario_from_raw(raw, exp.scenario, check=check_scenario)
+        scenario_from_raw(raw, exp.scenario, check=functools.partial(check_scenario, budget=budget))
     except ConfigError as exc:
-        # blame the override that wrote the failing key, if one did (else the base scenario)
-        culprit = next(
-            (
-                o
-                for o, k, _ in reversed(where)
-                if exc.key_path[: len(k.split("."))] == tuple(k.split("."))
-            ),
-            "",
-        )
+        # blame the override that wrote the failing key or a key below it (world.area.x_max_m
+        # for a budget error at world.area), if one did (else the base scenario)
+        culprit = next((o for o, k, _ in reversed(where) if _nested(exc.key_path, k)), "")
         if not culprit:
             raise
         raise ConfigError(
             file, culprit, f"in cell {cell_key(labels)}: scenario key {exc.key}: {exc.problem}"
         ) from None
+
+
+def _nested(key_path: tuple[str | int, ...], key: str) -> bool:
+    """Whether the dotted `key` lies at, below or above `key_path`."""
+    parts = tuple(key.split("."))
+    n = min(len(parts), len(key_path))
+    return key_path[:n] == parts[:n]

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from common.config.budget import DEFAULT_BUDGET
 from services.experiments.execute import run_all
 from services.experiments.grid import Plan, RunSpec, expand
 from services.experiments.plots import plot_sweep
@@ -35,6 +36,7 @@ class SweepOptions:
     retry_errors: bool = False  # rerun runs recorded as failed
     plots: bool = True
     rich: bool | None = None  # progress bar: None = only on a terminal
+    budget: float = 1.0  # scales every run's work budget (common/config/budget.py)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +59,7 @@ def plan_sweep(exp: Experiment, file: str, opts: SweepOptions) -> Plan:
         runtime=opts.runtime,
         log_root=opts.out / "runs",
         keep_trajectory=opts.keep_trajectories,
+        budget=DEFAULT_BUDGET.scaled(opts.budget),
     )
 
 

@@ -15,7 +15,7 @@ from services.mission.metrics import mission_metrics
 
 
 class AuvMission:
-    """The mission of `[run] mission = "services.mission:AuvMission"` (the default)."""
+    """The mission of `[run] mission = "auv"` (the default)."""
 
     def __init__(self, scenario: Scenario) -> None:
         self.s = scenario

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import convolve1d
 
-from common.config.planner import PlannerConfig
+from common.config.planner import PlannerConfig, grid_shape
 from common.config.world import AreaConfig
 from common.world.geometry import FloatArray
 from services.planner.clearance import StaticField
@@ -71,13 +70,6 @@ class CostMap:
         dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
         dy = (top - bottom) / res
         return val, np.stack([dx, dy], axis=1)
-
-
-def grid_shape(area: AreaConfig, resolution_m: float) -> tuple[int, int]:
-    """(nx, ny) cells covering the area at the given resolution."""
-    nx = max(1, math.ceil((area.x_max_m - area.x_min_m) / resolution_m - 1e-9))
-    ny = max(1, math.ceil((area.y_max_m - area.y_min_m) / resolution_m - 1e-9))
-    return nx, ny
 
 
 def smoothing_kernel(l_cells: int) -> FloatArray:

@@ -2,8 +2,9 @@
 
 It exercises the runtimes end to end without the AUV services: a noisy sensor samples the
 plant, a filter smooths it, a proportional controller drives the plant to a set-point, the
-plant integrates the command. Select it with `[run] mission = "tests.helpers.testloop:TestLoop"`
-and set its parameters (TestLoopParams) in the scenario's `[run.mission_params]` table.
+plant integrates the command. Select it with `[run] mission = "testloop"` (registered in
+pyproject.toml; the older spelling "tests.helpers.testloop:TestLoop" names it too) and set its
+parameters (TestLoopParams) in the scenario's `[run.mission_params]` table.
 """
 
 from __future__ import annotations

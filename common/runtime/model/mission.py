@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-import importlib
+from importlib.metadata import EntryPoint
 from typing import Any, Protocol
 
+from common.config.errors import ConfigError
+from common.config.missions import GROUP, resolve_mission, unknown_mission
 from common.config.scenario import Scenario
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.model.record import Record
@@ -30,11 +32,20 @@ def mission_record(mission: Mission) -> Record:
 
 
 def load_mission(scenario: Scenario) -> Mission:
-    """Instantiate the scenario's `[run] mission = "module:Class"`."""
-    module_name, _, cls_name = scenario.run.mission.partition(":")
+    """Instantiate the scenario's `[run] mission`, a registered mission (common.config.missions).
+
+    Only a registered target is ever imported; RunConfig has already refused any other value,
+    this checks again for a Scenario built some other way.
+    """
+    found = resolve_mission(scenario.run.mission)
+    if found is None:
+        raise ConfigError("", ("run", "mission"), unknown_mission(scenario.run.mission))
+    name, target = found
     try:
-        cls = getattr(importlib.import_module(module_name), cls_name)
+        cls = EntryPoint(name=name, value=target, group=GROUP).load()
     except (ImportError, AttributeError) as exc:
-        raise ValueError(f"run.mission: cannot load {scenario.run.mission!r}: {exc}") from None
+        raise ValueError(
+            f"run.mission: the registered mission {name!r} ({target}) cannot be loaded: {exc}"
+        ) from None
     mission: Mission = cls(scenario)
     return mission
