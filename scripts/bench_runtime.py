@@ -15,7 +15,14 @@
    loop's dataflow) against plain, runs interleaved plain, secured, plain, secured, ...
    (target: secured / plain <= 1.2 at p50); the certificates are made for the benchmark in
    a temporary directory. Each run's wall time (bring-up, handshakes and teardown included)
-   is shown too.
+   is shown too. Read the loop's ratio against the spread between runs of one kind: each
+   service starts its clock at the first Tick it receives (realtime_service), so a run's
+   command ages carry that run's clock skew between its services, which on a loaded 2-core
+   machine is milliseconds, more than mTLS costs;
+6. so, beside it, what the secured loop pays per hop, without the loop's clocks: one of its
+   hops (sensor -> router -> filter, the typed bus, scripts/_bus_hop.py) one-way, plain,
+   mTLS, and mTLS + the loop's access control, interleaved rounds; with each client's
+   session open time (connection and TLS handshake).
 
 The first lockstep call of a process also starts the fork server its services are forked
 from (common.runtime.processes.forkserver: ~1 s of imports); later calls find it running.
@@ -187,27 +194,68 @@ def loop_certs(directory: Path, seconds: float) -> None:
     create_certs(directory, [LAUNCHER, *load_mission(s).dataflow.names])
 
 
-def bench_secured_latency(seconds: float, rounds: int) -> list[tuple[LoopLatency, LoopLatency]]:
-    """`rounds` pairs of runs, plain then secured, with certificates made here."""
+@dataclass(frozen=True)
+class Hop:
+    """One hop through a router (scripts/_bus_hop.py): one-way latency, session open times."""
+
+    p50_us: float
+    p99_us: float
+    open_rx_ms: float
+    open_tx_ms: float
+
+
+HOP_VARIANTS = ("plain", "mtls", "mtls+acl")
+
+
+def bench_hop(variant: str, certs: Path, n: int = 2000) -> Hop:
+    """One measurement of scripts/_bus_hop.py (its own router process)."""
+    code = ROOT / "scripts" / "_bus_hop.py"
+    args = [variant, str(n)] + ([] if variant == "plain" else [str(certs)])
+    out = subprocess.run(
+        [sys.executable, str(code), *args], capture_output=True, text=True, check=True, timeout=120
+    )
+    p50, p99, open_rx, open_tx = (float(v) for v in out.stdout.split())
+    return Hop(p50, p99, open_rx, open_tx)
+
+
+@dataclass(frozen=True)
+class Secured:
+    """Rounds of the loop (plain, secured) and of one hop (each of HOP_VARIANTS)."""
+
+    loops: list[tuple[LoopLatency, LoopLatency]]
+    hops: list[dict[str, Hop]]
+    load: tuple[float, float]  # 1-minute load average before and after
+
+
+def bench_secured_latency(seconds: float, rounds: int) -> Secured:
+    """`rounds` pairs of loop runs, plain then secured, then `rounds` rounds of the hop
+    variants, with certificates made here."""
+    load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="tidelink-bench-certs-") as tmp:
         certs = Path(tmp)
         loop_certs(certs, seconds)
-        return [
+        loops = [
             (bench_realtime_latency(seconds), bench_realtime_latency(seconds, certs))
             for _ in range(rounds)
         ]
+        hops = [{v: bench_hop(v, certs) for v in HOP_VARIANTS} for _ in range(rounds)]
+    return Secured(loops, hops, (load0, os.getloadavg()[0]))
 
 
-def _spread(xs: list[float]) -> str:
-    return f"{min(xs):.2f}-{max(xs):.2f}"
+def _spread(xs: list[float], fmt: str = ".2f") -> str:
+    return f"{min(xs):{fmt}}-{max(xs):{fmt}}"
 
 
-def print_secured(pairs: list[tuple[LoopLatency, LoopLatency]]) -> None:
-    """Every run, then secured / plain ratios of the medians, and the per-round spread."""
+def print_secured(sec: Secured) -> None:
+    """Every loop run, secured / plain ratios of the medians with the per-round spread and
+    the spread within each kind; then the hop's variants and their ratios to plain."""
     med = statistics.median
+    pairs = sec.loops
     print(
         "realtime control loop secured (`--certs`: mutual TLS, and the run's router enforces "
-        "the access control generated from the loop's dataflow) against plain, interleaved:"
+        "the access control generated from the loop's dataflow) against plain, interleaved "
+        f"(load average {sec.load[0]:.2f} before, {sec.load[1]:.2f} after, on "
+        f"{os.cpu_count()} CPUs):"
     )
     print("  round  bus       p50 us    p99 us  commands  wall s (bring-up + mission + teardown)")
     for i, pair in enumerate(pairs):
@@ -227,7 +275,33 @@ def print_secured(pairs: list[tuple[LoopLatency, LoopLatency]]) -> None:
         f"(rounds {_spread(p50s)})  p99 {p99:.2f}x (rounds {_spread(p99s)})  "
         f"(target p50 <= 1.2)  {'OK' if p50 <= 1.2 else 'MISSED'}"
     )
+    print(
+        f"  p50 between runs of one kind: plain {_spread([r.p50_us for r in plain], '.0f')} us, "
+        f"secured {_spread([r.p50_us for r in secured], '.0f')} us (each run carries its own "
+        "clock skew between services, see the docstring)"
+    )
     print(f"  secured - plain wall time per round: {', '.join(f'{w:+.2f} s' for w in walls)}")
+    print(
+        "one hop of the loop through a router (sensor -> router -> filter, typed bus, one-way, "
+        "1 ms apart), interleaved rounds:"
+    )
+    print("  variant      p50 us (rounds)          p99 us   / plain p50   p99   session open ms")
+    base = {q: med(getattr(h["plain"], q) for h in sec.hops) for q in ("p50_us", "p99_us")}
+    for v in HOP_VARIANTS:
+        hs = [h[v] for h in sec.hops]
+        p50v, p99v = med(h.p50_us for h in hs), med(h.p99_us for h in hs)
+        print(
+            f"  {v:<10} {p50v:7.0f} ({_spread([h.p50_us for h in hs], '.0f'):>11})  "
+            f"{p99v:8.0f}   {p50v / base['p50_us']:9.2f}x {p99v / base['p99_us']:5.2f}x   "
+            f"receiver {med(h.open_rx_ms for h in hs):.0f}, "
+            f"sender {med(h.open_tx_ms for h in hs):.0f}"
+        )
+    added = med(h["mtls+acl"].p50_us for h in sec.hops) - base["p50_us"]
+    loop50 = med(r.p50_us for r in plain)
+    print(
+        f"  3 hops x the p50 mTLS + ACL adds ({added:+.0f} us each) on the plain loop's p50 "
+        f"({loop50:.0f} us): {(loop50 + 3 * added) / loop50:.2f}x (an estimate, not measured)"
+    )
 
 
 def main() -> None:
@@ -237,8 +311,9 @@ def main() -> None:
     p.add_argument(
         "--secured-rounds",
         type=int,
-        default=2,
-        help="pairs of realtime loop runs, plain then secured (0: plain only, no --certs run)",
+        default=3,
+        help="pairs of realtime loop runs, plain then secured, and rounds of the secured hop "
+        "(0: plain loop only)",
     )
     a = p.parse_args()
     seeds = range(1, a.seeds + 1)
@@ -293,11 +368,12 @@ def main() -> None:
         f"{rtt50:.0f} us; tick / round trip = {1e3 * floor_ms / rtt50:.1f}x"
     )
     raw50, raw99 = raw_latency_us("2000")
+    sec = None
     if a.secured_rounds > 0:
-        pairs = bench_secured_latency(a.realtime_s, a.secured_rounds)
-        loop = pairs[0][0]  # the first plain run
+        sec = bench_secured_latency(a.realtime_s, a.secured_rounds)
+        loop = sec.loops[0][0]  # the first plain run
     else:
-        pairs, loop = [], bench_realtime_latency(a.realtime_s)
+        loop = bench_realtime_latency(a.realtime_s)
     rt50, rt99, n = loop.p50_us, loop.p99_us, loop.n
     print(f"realtime control loop, zero-delay profile ({n} commands):")
     print(f"  sensor sample -> command applied  p50 {rt50:8.0f} us   p99 {rt99:8.0f} us")
@@ -306,8 +382,8 @@ def main() -> None:
         f"  loop / (3 raw hops)               p50 {rt50 / (3 * raw50):8.2f}x  p99 "
         f"{rt99 / (3 * raw99):8.2f}x"
     )
-    if pairs:
-        print_secured(pairs)
+    if sec is not None:
+        print_secured(sec)
 
 
 if __name__ == "__main__":
