@@ -27,8 +27,15 @@ acknowledged before the next; a turn's rate is its messages / (last decoded - fi
 stamped). Rounds are repeated; medians are shown. The load average is printed: on a busy
 machine the rates and latencies mean little.
 
+Mutual TLS (the secured bus, README "Security"): each round also runs the typed-inbox /
+raw-queue pair over tls/ with certificates of a CA made for this run (common/bus/certs.py,
+in a temporary directory), right after the same pair over tcp/, and tls/tcp ratios are
+printed per pattern. The two sessions are peers, so there is no router and no access
+control in these rows (scripts/bench_runtime.py measures a run whose router enforces one).
+--no-tls skips them.
+
     .venv/bin/python scripts/bench_bus.py [--lat-n 3000] [--tput-n 50000] [--repeats 3]
-        [--turns 5] [--express | --batched] [--diagnose]
+        [--turns 5] [--express | --batched] [--diagnose] [--no-tls]
 """
 
 from __future__ import annotations
@@ -40,16 +47,19 @@ import queue
 import statistics
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import msgpack
 import zenoh
 
 from common.bus import Bus, Inbox, Keys, Received
+from common.bus.certs import create_certs
 from common.config.bus import BusConfig
 from common.messages import NavFix, encode
 from common.runtime.processes.children import free_port
@@ -62,6 +72,9 @@ PAIRS = tuple((t, w) for t in TWINS for w in RAWS)
 # which shows why that is not the default (the network thread then contends for the GIL).
 DIAGNOSTIC_PAIRS = (("typed-direct", "raw-queue"),)
 INBOX_MODES = ("typed-inbox", "typed-direct")
+# the pair also measured over tls/ (mutual TLS) each round, against its tcp/ run of the round
+TLS_PAIR = ("typed-inbox", "raw-queue")
+SENDER, RECEIVER = "sender", "receiver"  # the identities (certificate CNs) of the two processes
 WAIT_S = 20.0
 WARMUP = 200  # latency samples dropped at the start (connection and caches warming up)
 
@@ -123,6 +136,17 @@ class Keyset:
         return self.keys.alive("done")
 
 
+def bus_config(certs: str, *, listen: str = "", connect: str = "") -> BusConfig:
+    """A peer on one endpoint; under mutual TLS when `certs` names a certificates directory
+    (the tcp/ endpoint is then served as tls/ on the same address, BusConfig.endpoint)."""
+    return BusConfig(
+        listen=(listen,) if listen else (),
+        connect=(connect,) if connect else (),
+        security="mtls" if certs else "none",
+        certs=certs,
+    )
+
+
 def _reliable_pub(session: zenoh.Session, key: str, express: bool = False) -> Any:
     return session.declare_publisher(
         key,
@@ -162,14 +186,22 @@ def _putter(bus: Bus, ks: Keyset, mode: str, express: bool) -> Callable[[int], o
 
 
 def sender(
-    modes: list[str], phase: str, endpoint: str, run: str, n: int, unit: int, express: bool
+    modes: list[str],
+    phase: str,
+    endpoint: str,
+    run: str,
+    n: int,
+    unit: int,
+    express: bool,
+    certs: str = "",
+    identity: str = SENDER,
 ) -> None:
     """Publish n messages per mode in turns of `unit` messages per mode. Latency (unit 1):
     each message after the previous one's ack; throughput: each turn back to back, the next
     turn after the receiver acknowledged this one. Then wait for done, so the session
-    outlives the measurement."""
+    outlives the measurement. With `certs`: over mutual TLS, presenting `identity`."""
     ks = Keyset(Keys(run=run, vehicle="bench"))
-    with Bus(BusConfig(connect=(endpoint,)), ks.keys) as bus:
+    with Bus(bus_config(certs, connect=endpoint), ks.keys, identity=identity) as bus:
         session = bus.session
         acks = session.declare_subscriber(ks.ack, zenoh.handlers.FifoChannel(16))
         try:
@@ -266,12 +298,17 @@ class Result:
     turn_rates: list[float]  # msg/s of each turn: its messages / (last received - first sent)
 
 
-def receive(modes: list[str], phase: str, n: int, unit: int, express: bool) -> dict[str, Result]:
-    """One measurement of the modes, taking turns of `unit` messages, against a fresh sender."""
+def receive(
+    modes: list[str], phase: str, n: int, unit: int, express: bool, certs: str = ""
+) -> dict[str, Result]:
+    """One measurement of the modes, taking turns of `unit` messages, against a fresh sender;
+    over mutual TLS when `certs` names a directory holding the sender's and receiver's
+    certificates (tcp/ otherwise)."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     ks = Keyset(Keys(run=f"b{time.monotonic_ns()}", vehicle="bench"))
     low_latency = "typed-direct" in modes
-    with Bus(BusConfig(listen=(endpoint,)), ks.keys, low_latency=low_latency) as bus:
+    cfg = bus_config(certs, listen=endpoint)
+    with Bus(cfg, ks.keys, low_latency=low_latency, identity=RECEIVER) as bus:
         session = bus.session
         ack = _reliable_pub(session, ks.ack)
         recs = {m: Recorder(n, ack, 1 if phase == "latency" else unit) for m in modes}
@@ -285,7 +322,8 @@ def receive(modes: list[str], phase: str, n: int, unit: int, express: bool) -> d
         token = session.liveliness().declare_token(ks.ready)
         child = subprocess.Popen(
             [sys.executable, __file__, "--child", ",".join(modes), phase, endpoint]
-            + [ks.keys.run, str(n), str(unit), "--express" if express else "--batched"],
+            + [ks.keys.run, str(n), str(unit), "--express" if express else "--batched"]
+            + (["--certs", certs, "--identity", SENDER] if certs else []),
         )
         try:
             # the sender takes the modes in turns of `unit` messages; pulling each pull-mode's
@@ -330,34 +368,65 @@ def _size(mode: str) -> int:
     return len(msgpack.packb(nav_dict(0, 0)))
 
 
-def main(lat_n: int, tput_n: int, turns: int, repeats: int, diagnose: bool, express: bool) -> None:
-    """Repeat paired latency and paired throughput runs; print medians and ratios."""
+Samples = dict[str, list[float]]  # "p50"/"p99" + mode -> one value per round; mode -> rates
+
+
+def measure_pair(
+    pair: tuple[str, str],
+    lat_n: int,
+    unit: int,
+    turns: int,
+    express: bool,
+    certs: str,
+    lat: Samples,
+    rate: Samples,
+    label: str,
+) -> None:
+    """One paired latency run and one paired throughput run of `pair` (over mutual TLS when
+    `certs` is set), added to `lat` and `rate`; prints the round's line after `label`."""
+    got = receive(list(pair), "latency", lat_n + WARMUP, 1, express, certs)
+    tp = receive(list(pair), "throughput", unit * turns, unit, express, certs)
+    for m in pair:
+        for q, name in ((0.5, "p50"), (0.99, "p99")):
+            lat.setdefault(name + m, []).append(_pct(got[m].latencies_ns, q))
+        rate.setdefault(m, []).extend(tp[m].turn_rates)
+    print(
+        label
+        + "  ".join(
+            f"{m} p50 {_pct(got[m].latencies_ns, 0.5):.1f} us, "
+            f"{statistics.median(tp[m].turn_rates):.0f} msg/s"
+            for m in pair
+        ),
+        flush=True,
+    )
+
+
+def main(
+    lat_n: int, tput_n: int, turns: int, repeats: int, diagnose: bool, express: bool, tls: bool
+) -> None:
+    """Repeat paired latency and paired throughput runs; print medians and ratios. With `tls`,
+    the TLS_PAIR also over mutual TLS each round, with certificates made for this run."""
     pairs = PAIRS + DIAGNOSTIC_PAIRS if diagnose else PAIRS
     unit = max(1, tput_n // turns)
-    lat: dict[tuple[str, str], dict[str, list[float]]] = {p: {} for p in pairs}
-    rate: dict[tuple[str, str], dict[str, list[float]]] = {p: {} for p in pairs}
+    lat: dict[tuple[str, str], Samples] = {p: {} for p in pairs}
+    rate: dict[tuple[str, str], Samples] = {p: {} for p in pairs}
+    tls_lat: Samples = {}
+    tls_rate: Samples = {}
     print(
         f"publishers (typed and raw alike): RELIABLE, BLOCK, express={express}; "
         f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs",
         flush=True,
     )
-    for r in range(repeats):
-        for pair in pairs:
-            got = receive(list(pair), "latency", lat_n + WARMUP, 1, express)
-            tp = receive(list(pair), "throughput", unit * turns, unit, express)
-            for m in pair:
-                for q, name in ((0.5, "p50"), (0.99, "p99")):
-                    lat[pair].setdefault(name + m, []).append(_pct(got[m].latencies_ns, q))
-                rate[pair].setdefault(m, []).extend(tp[m].turn_rates)
-            print(
-                f"round {r + 1}/{repeats} "
-                + "  ".join(
-                    f"{m} p50 {_pct(got[m].latencies_ns, 0.5):.1f} us, "
-                    f"{statistics.median(tp[m].turn_rates):.0f} msg/s"
-                    for m in pair
-                ),
-                flush=True,
-            )
+    with tempfile.TemporaryDirectory(prefix="tidelink-bench-certs-") as certs:
+        if tls:
+            create_certs(Path(certs), [SENDER, RECEIVER])
+        for r in range(repeats):
+            for pair in pairs:
+                label = f"round {r + 1}/{repeats} "
+                measure_pair(pair, lat_n, unit, turns, express, "", lat[pair], rate[pair], label)
+                if tls and pair == TLS_PAIR:  # right after its tcp/ run: the same conditions
+                    label = f"round {r + 1}/{repeats} over tls/ "
+                    measure_pair(pair, lat_n, unit, turns, express, certs, tls_lat, tls_rate, label)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     med = statistics.median
     print(
@@ -403,6 +472,35 @@ def main(lat_n: int, tput_n: int, turns: int, repeats: int, diagnose: bool, expr
         f"  throughput {best_tp}/{worst_tp} = {tr:.2f}  (target >= 0.8)"
         f"  {'OK' if tr >= 0.8 else 'MISSED'}"
     )
+    if tls:
+        report_tls(lat[TLS_PAIR], rate[TLS_PAIR], tls_lat, tls_rate, repeats)
+
+
+def report_tls(
+    tcp_lat: Samples, tcp_rate: Samples, tls_lat: Samples, tls_rate: Samples, repeats: int
+) -> None:
+    """TLS_PAIR over tls/ against the same pair over tcp/: medians and tls/tcp ratios."""
+    med = statistics.median
+    print(
+        f"\nmutual TLS against plain tcp/: the {' / '.join(TLS_PAIR)} pair over tls/ (both "
+        "peers present a certificate of a CA made for this run), each round right after the "
+        f"same pair over tcp/ (median of {repeats} rounds). Peer to peer: no router, so no "
+        "access control in these rows (scripts/bench runtime measures a secured run, whose "
+        "router enforces one)."
+    )
+    print(f"{'pattern':>14}  {'p50 us':>13}  {'p99 us':>13}  {'msg/s':>15}  tls/tcp")
+    print(f"{'':>14}  {'tcp':>6} {'tls':>6}  {'tcp':>6} {'tls':>6}  {'tcp':>7} {'tls':>7}")
+    for m in TLS_PAIR:
+        p50 = med(tcp_lat["p50" + m]), med(tls_lat["p50" + m])
+        p99 = med(tcp_lat["p99" + m]), med(tls_lat["p99" + m])
+        tput = med(tcp_rate[m]), med(tls_rate[m])
+        rounds = [b / a for a, b in zip(tcp_lat["p50" + m], tls_lat["p50" + m], strict=True)]
+        print(
+            f"{m:>14}  {p50[0]:6.1f} {p50[1]:6.1f}  {p99[0]:6.1f} {p99[1]:6.1f}  "
+            f"{tput[0]:7.0f} {tput[1]:7.0f}  latency p50 {p50[1] / p50[0]:.2f} "
+            f"(rounds {min(rounds):.2f}-{max(rounds):.2f}), p99 {p99[1] / p99[0]:.2f}; "
+            f"throughput {tput[1] / tput[0]:.2f}"
+        )
 
 
 if __name__ == "__main__":
@@ -414,6 +512,12 @@ if __name__ == "__main__":
     ap.add_argument("--turns", type=int, default=5, help="turns per pattern per throughput run")
     ap.add_argument("--repeats", type=int, default=3, help="interleaved rounds (median shown)")
     ap.add_argument("--diagnose", action="store_true", help="add the typed-direct row")
+    ap.add_argument(
+        "--no-tls",
+        dest="tls",
+        action="store_false",
+        help="skip the rows over mutual TLS (tls/ against tcp/)",
+    )
     default_express = inspect.signature(Bus.publisher).parameters["express"].default
     ex = ap.add_mutually_exclusive_group()
     ex.add_argument(
@@ -430,9 +534,22 @@ if __name__ == "__main__":
         metavar=("MODES", "PHASE", "ENDPOINT", "RUN", "N", "UNIT"),
         help=argparse.SUPPRESS,
     )
+    # the child's side of mutual TLS: the run's certificates directory and whose to present
+    ap.add_argument("--certs", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--identity", default=SENDER, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
         modes, phase, endpoint, run, n, unit = a.child
-        sender(modes.split(","), phase, endpoint, run, int(n), int(unit), a.express)
+        sender(
+            modes.split(","),
+            phase,
+            endpoint,
+            run,
+            int(n),
+            int(unit),
+            a.express,
+            certs=a.certs,
+            identity=a.identity,
+        )
     else:
-        main(a.lat_n, a.tput_n, a.turns, a.repeats, a.diagnose, a.express)
+        main(a.lat_n, a.tput_n, a.turns, a.repeats, a.diagnose, a.express, a.tls)

@@ -9,7 +9,23 @@
    Zenoh round trip through a Python router measured here (a tick is such a round trip);
 4. realtime control-loop latency with a zero-delay profile: sensor sample to command applied
    at the plant, through sensor -> filter -> controller -> plant (three Zenoh hops via the
-   router, event-driven cores), against the raw Zenoh one-way hop latency measured here.
+   router, event-driven cores), against the raw Zenoh one-way hop latency measured here;
+5. the same loop secured as `tidelink run --certs DIR` runs it (issue 13: every service over
+   mutual TLS to the run's router, which enforces the access control generated from the
+   loop's dataflow) against plain, runs interleaved plain, secured, plain, secured, ...
+   (target: secured / plain <= 1.2 at p50); the certificates are made for the benchmark in
+   a temporary directory. Each run's wall time (bring-up, handshakes and teardown included)
+   is shown too. Read the loop's ratio against the spread between runs of one kind: each
+   service starts its clock at the first Tick it receives (realtime_service), and that skew
+   between services, milliseconds on a loaded 2-core machine and different in every run,
+   is in every command age twice over: as an offset between the sensor's and the plant's
+   clocks, and as real waits (a zero-delay message is handed over at max(its send time,
+   arrival) on the receiver's clock, so a receiver whose clock started later holds it) —
+   far more than mTLS costs;
+6. so, beside it, what the secured loop pays per hop, without the loop's clocks: one of its
+   hops (sensor -> router -> filter, the typed bus, scripts/_bus_hop.py) one-way, plain,
+   mTLS, and mTLS + the loop's access control, interleaved rounds; with each client's
+   session open time (connection and TLS handshake).
 
 The first lockstep call of a process also starts the fork server its services are forked
 from (common.runtime.processes.forkserver: ~1 s of imports); later calls find it running.
@@ -27,15 +43,20 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from common.bus.certs import create_certs
 from common.config.scenario import load_scenario
 from common.messages import VehicleStatus
+from common.runtime.distributed.acl import LAUNCHER
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
+from common.runtime.model.mission import load_mission
+from services.cli.core_commands import certs_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNTIMES = ("inproc", "lockstep")
@@ -133,21 +154,176 @@ def raw_latency_us(*args: str) -> tuple[float, float]:
     return p50, p99
 
 
-def bench_realtime_latency(seconds: float) -> tuple[float, float, int]:
+@dataclass(frozen=True)
+class LoopLatency:
+    """One realtime loop run: the commands' age when applied at the plant, and its wall time."""
+
+    p50_us: float
+    p99_us: float
+    n: int  # commands applied
+    wall_s: float  # the whole run_realtime call: bring-up, the mission, teardown
+
+
+def _loop_toml(seconds: float) -> Path:
     tmp = Path("/tmp/tidelink-bench-loop.toml")
     tmp.write_text(LOOP_TOML.format(seconds=seconds))
-    s, raw = load_scenario(tmp)
+    return tmp
+
+
+def bench_realtime_latency(seconds: float, certs: Path | None = None) -> LoopLatency:
+    """The test loop in realtime; with `certs` secured as `tidelink run --certs` secures it
+    (mutual TLS, the router enforcing the access control generated from the dataflow)."""
+    overrides = certs_overrides(None if certs is None else str(certs))
+    s, raw = load_scenario(_loop_toml(seconds), overrides)
+    assert s.bus.secured == (certs is not None)
+    t0 = time.perf_counter()
     r = run_realtime(s, raw)
+    wall_s = time.perf_counter() - t0
     ages = np.array(
         [m.command_age for m in r.record.stream("plant", "status") if isinstance(m, VehicleStatus)]
     )
-    return float(np.percentile(ages, 50) * 1e6), float(np.percentile(ages, 99) * 1e6), len(ages)
+    return LoopLatency(
+        p50_us=float(np.percentile(ages, 50) * 1e6),
+        p99_us=float(np.percentile(ages, 99) * 1e6),
+        n=len(ages),
+        wall_s=wall_s,
+    )
+
+
+def loop_certs(directory: Path, seconds: float) -> None:
+    """The identities a secured run of the test loop presents: the clock (this process, the
+    run's router) and every service of its dataflow."""
+    s, _ = load_scenario(_loop_toml(seconds))
+    create_certs(directory, [LAUNCHER, *load_mission(s).dataflow.names])
+
+
+@dataclass(frozen=True)
+class Hop:
+    """One hop through a router (scripts/_bus_hop.py): one-way latency, session open times."""
+
+    p50_us: float
+    p99_us: float
+    open_rx_ms: float
+    open_tx_ms: float
+
+
+HOP_VARIANTS = ("plain", "mtls", "mtls+acl")
+TARGET = 1.2  # issue 13: the secured loop's p50 at most 1.2x the plain one's
+
+
+def bench_hop(variant: str, certs: Path, n: int = 2000) -> Hop:
+    """One measurement of scripts/_bus_hop.py (its own router process)."""
+    code = ROOT / "scripts" / "_bus_hop.py"
+    args = [variant, str(n)] + ([] if variant == "plain" else [str(certs)])
+    out = subprocess.run(
+        [sys.executable, str(code), *args], capture_output=True, text=True, check=True, timeout=120
+    )
+    p50, p99, open_rx, open_tx = (float(v) for v in out.stdout.split())
+    return Hop(p50, p99, open_rx, open_tx)
+
+
+@dataclass(frozen=True)
+class Secured:
+    """Rounds of the loop (plain, secured) and of one hop (each of HOP_VARIANTS)."""
+
+    loops: list[tuple[LoopLatency, LoopLatency]]
+    hops: list[dict[str, Hop]]
+    load: tuple[float, float]  # 1-minute load average before and after
+
+
+def bench_secured_latency(seconds: float, rounds: int) -> Secured:
+    """`rounds` pairs of loop runs, plain then secured, then `rounds` rounds of the hop
+    variants, with certificates made here."""
+    load0 = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory(prefix="tidelink-bench-certs-") as tmp:
+        certs = Path(tmp)
+        loop_certs(certs, seconds)
+        loops = [
+            (bench_realtime_latency(seconds), bench_realtime_latency(seconds, certs))
+            for _ in range(rounds)
+        ]
+        hops = [{v: bench_hop(v, certs) for v in HOP_VARIANTS} for _ in range(rounds)]
+    return Secured(loops, hops, (load0, os.getloadavg()[0]))
+
+
+def _spread(xs: list[float], fmt: str = ".2f") -> str:
+    return f"{min(xs):{fmt}}-{max(xs):{fmt}}"
+
+
+def print_secured(sec: Secured) -> None:
+    """Every loop run, secured / plain ratios of the medians with the per-round spread and
+    the spread within each kind; then the hop's variants and their ratios to plain."""
+    med = statistics.median
+    pairs = sec.loops
+    print(
+        "realtime control loop secured (`--certs`: mutual TLS, and the run's router enforces "
+        "the access control generated from the loop's dataflow) against plain, interleaved "
+        f"(load average {sec.load[0]:.2f} before, {sec.load[1]:.2f} after, on "
+        f"{os.cpu_count()} CPUs):"
+    )
+    print("  round  bus       p50 us    p99 us  commands  wall s (bring-up + mission + teardown)")
+    for i, pair in enumerate(pairs):
+        for name, r in zip(("plain", "secured"), pair, strict=True):
+            print(
+                f"  {i + 1:5d}  {name:<8} {r.p50_us:7.0f}  {r.p99_us:8.0f}  {r.n:8d}  "
+                f"{r.wall_s:6.2f}"
+            )
+    plain, secured = [p for p, _ in pairs], [s for _, s in pairs]
+    p50 = med(r.p50_us for r in secured) / med(r.p50_us for r in plain)
+    p99 = med(r.p99_us for r in secured) / med(r.p99_us for r in plain)
+    p50s = [s.p50_us / p.p50_us for p, s in pairs]
+    p99s = [s.p99_us / p.p99_us for p, s in pairs]
+    walls = [s.wall_s - p.wall_s for p, s in pairs]
+    # plain runs that differ among themselves by more than the target cannot judge it
+    noise = max(r.p50_us for r in plain) / min(r.p50_us for r in plain)
+    verdict = "OK" if p50 <= TARGET else "MISSED"
+    if noise > TARGET:
+        verdict = f"INCONCLUSIVE (plain runs alone differ {noise:.2f}x at p50)"
+    print(
+        f"  secured / plain (medians of {len(pairs)} runs each)  p50 {p50:.2f}x "
+        f"(rounds {_spread(p50s)})  p99 {p99:.2f}x (rounds {_spread(p99s)})  "
+        f"(target p50 <= {TARGET})  {verdict}"
+    )
+    print(
+        f"  p50 between runs of one kind: plain {_spread([r.p50_us for r in plain], '.0f')} us, "
+        f"secured {_spread([r.p50_us for r in secured], '.0f')} us (each run carries its own "
+        "clock skew between services, see the docstring)"
+    )
+    print(f"  secured - plain wall time per round: {', '.join(f'{w:+.2f} s' for w in walls)}")
+    print(
+        "one hop of the loop through a router (sensor -> router -> filter, typed bus, one-way, "
+        "1 ms apart), interleaved rounds:"
+    )
+    print("  variant      p50 us (rounds)          p99 us   / plain p50   p99   session open ms")
+    base = {q: med(getattr(h["plain"], q) for h in sec.hops) for q in ("p50_us", "p99_us")}
+    for v in HOP_VARIANTS:
+        hs = [h[v] for h in sec.hops]
+        p50v, p99v = med(h.p50_us for h in hs), med(h.p99_us for h in hs)
+        print(
+            f"  {v:<10} {p50v:7.0f} ({_spread([h.p50_us for h in hs], '.0f'):>11})  "
+            f"{p99v:8.0f}   {p50v / base['p50_us']:9.2f}x {p99v / base['p99_us']:5.2f}x   "
+            f"receiver {med(h.open_rx_ms for h in hs):.0f}, "
+            f"sender {med(h.open_tx_ms for h in hs):.0f}"
+        )
+    added = med(h["mtls+acl"].p50_us for h in sec.hops) - base["p50_us"]
+    loop50 = med(r.p50_us for r in plain)
+    print(
+        f"  3 hops x the p50 mTLS + ACL adds ({added:+.0f} us each) on the plain loop's p50 "
+        f"({loop50:.0f} us): {(loop50 + 3 * added) / loop50:.2f}x (an estimate, not measured)"
+    )
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, default=4)
     p.add_argument("--realtime-s", type=float, default=20.0)
+    p.add_argument(
+        "--secured-rounds",
+        type=int,
+        default=3,
+        help="pairs of realtime loop runs, plain then secured, and rounds of the secured hop "
+        "(0: plain loop only)",
+    )
     a = p.parse_args()
     seeds = range(1, a.seeds + 1)
     rows = [bench_lockstep(seed) for seed in seeds]
@@ -201,7 +377,13 @@ def main() -> None:
         f"{rtt50:.0f} us; tick / round trip = {1e3 * floor_ms / rtt50:.1f}x"
     )
     raw50, raw99 = raw_latency_us("2000")
-    rt50, rt99, n = bench_realtime_latency(a.realtime_s)
+    sec = None
+    if a.secured_rounds > 0:
+        sec = bench_secured_latency(a.realtime_s, a.secured_rounds)
+        loop = sec.loops[0][0]  # the first plain run
+    else:
+        loop = bench_realtime_latency(a.realtime_s)
+    rt50, rt99, n = loop.p50_us, loop.p99_us, loop.n
     print(f"realtime control loop, zero-delay profile ({n} commands):")
     print(f"  sensor sample -> command applied  p50 {rt50:8.0f} us   p99 {rt99:8.0f} us")
     print(f"  raw zenoh one-way hop (baseline)  p50 {raw50:8.0f} us   p99 {raw99:8.0f} us")
@@ -209,6 +391,8 @@ def main() -> None:
         f"  loop / (3 raw hops)               p50 {rt50 / (3 * raw50):8.2f}x  p99 "
         f"{rt99 / (3 * raw99):8.2f}x"
     )
+    if sec is not None:
+        print_secured(sec)
 
 
 if __name__ == "__main__":
