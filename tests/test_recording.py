@@ -428,7 +428,9 @@ def test_a_launch_that_fails_or_is_stopped_still_closes_its_recording(tmp_path: 
         kill_recorded(failing / "pids.json")
         kill_recorded(stopped / "pids.json")
     crashed = read_recording(failing / "run.mcap")
-    assert crashed.truncation is None and crashed.end is None  # closed; no end announced
+    # closed, and the run's end says how it ended (a failed launch still ends its run)
+    assert crashed.truncation is None
+    assert crashed.end is not None and crashed.end.reason == "service_failed"
     assert crashed.frames
     interrupted = read_recording(stopped / "run.mcap")
     assert interrupted.truncation is None

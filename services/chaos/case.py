@@ -43,7 +43,7 @@ class Outcome:
     fault: Fault
     exit_code: int | None  # None: it hung (killed after the timeout)
     metrics: dict[str, Any] = field(default_factory=dict)
-    leftovers: list[int] = field(default_factory=list)
+    leftovers: list[str] = field(default_factory=list)  # "name pid" of each left running
     wall_s: float = 0.0
     injected: int = 0
     note: str = ""
@@ -183,20 +183,20 @@ def _strike(
     return 0
 
 
-def _leftovers(out: Path) -> list[int]:
-    """Processes of the case still running a moment after its launcher ended."""
-    pids = [p for ps in _pids(out).values() for p in ps]
+def _leftovers(out: Path) -> list[str]:
+    """Processes of the case still running ("name pid") a moment after its launcher ended."""
+    named = [(n, p) for n, ps in _pids(out).items() for p in ps]
     deadline = time.monotonic() + 10.0
-    left = [p for p in pids if _alive(p)]
+    left = [(n, p) for n, p in named if _alive(p)]
     while left and time.monotonic() < deadline:
         time.sleep(0.1)  # processes given 10 s to go; polling /proc, not a result
-        left = [p for p in left if _alive(p)]
-    for p in left:
+        left = [(n, p) for n, p in left if _alive(p)]
+    for _, p in left:
         try:
             os.killpg(p, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):
             pass
-    return left
+    return [f"{n} {p}" for n, p in left]
 
 
 def _metrics(out: Path) -> dict[str, Any]:

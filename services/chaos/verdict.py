@@ -28,7 +28,7 @@ def problems(o: Outcome) -> list[str]:
     if o.exit_code is None:
         bad.append("hung")
     if o.leftovers:
-        bad.append(f"left {len(o.leftovers)} processes running")
+        bad.append(f"left running: {', '.join(o.leftovers)}")
     if o.fault.kind == "kill_launcher":
         return bad  # nobody is left to write metrics: that its children went is the test
     m = o.metrics

@@ -7,8 +7,10 @@ import functools
 import json
 import logging
 import math
+import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,6 +22,7 @@ log = logging.getLogger("tidelink")
 
 
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
+ROUTER_CLOSE_S = 3.0  # how long `tidelink router` gives its session to close on a signal
 # `run` and `launch`: the mission ran to its end (metrics written) without success: contact
 # with an obstacle, or the goal not reached. Distinct from 1 (a service or the run failed).
 EXIT_MISSION_FAILED = 3
@@ -256,14 +259,23 @@ def cmd_router(a: argparse.Namespace) -> int:
         certs=a.certs or "",
     )
     install_shutdown_handlers()
-    try:
-        with Bus(cfg, Keys("router", "router"), identity=a.identity, access_control=acl):
+    bus = Bus(cfg, Keys("router", "router"), identity=a.identity, access_control=acl)
+    with bus:
+        try:
             where = ", ".join(cfg.endpoint(e) for e in a.listen)
             print(f"zenoh router listening on {where}; Ctrl-C to stop", flush=True)
             while True:
                 signal.pause()  # the router works on Zenoh's threads; we only wait for a signal
-    except Shutdown:
-        return 0
+        except Shutdown:
+            # closing a router while its clients drop away can take Zenoh long (seen: > 10 s
+            # after a SIGKILLed launcher); a router keeps nothing worth waiting for
+            closing = threading.Thread(target=bus.close, daemon=True)
+            closing.start()
+            closing.join(ROUTER_CLOSE_S)
+            if closing.is_alive():
+                log.warning("the router's session did not close in %g s; exiting", ROUTER_CLOSE_S)
+                os._exit(0)
+    return 0
 
 
 def _read_acl(path: Path) -> dict[str, Any]:
