@@ -8,6 +8,7 @@ from common.config.scenario import load_scenario
 from common.messages import PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery
 from services.planner.core import PlannerCore
+from services.planner.result import Pose2D
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
@@ -60,3 +61,31 @@ def test_walled_off_goal_stops_the_vehicle_and_says_why() -> None:
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
     assert isinstance(cmd, VelocityCommand)
     assert (cmd.v, cmd.w) == (0.0, 0.0)
+
+
+def test_a_start_in_contact_turns_on_the_spot_then_drives_out() -> None:
+    # issue 14 defect 5: x = 15.5 puts the hull 0.3 m into circle 1, heading into it; the
+    # planner used to answer NO_PATH with v = 0 forever
+    core = _core(["world.start.x_m=15.5"])
+    core.deliver(_estimate(0.0, x=15.5))
+    out = core.step(0.05)
+    (path,) = [e.msg for e in out if e.stream == "path"]
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
+    assert path.status == "OK" and "start in contact (hull clearance -0.30 m)" in path.reason
+    assert core.last_result is not None and core.last_result.turn_rad != 0.0
+    assert cmd.v == 0.0 and cmd.w != 0.0  # turning on the spot, within eq. (11)
+    assert core.vehicle.w_min_rps <= cmd.w <= core.vehicle.w_max_rps
+    assert (cmd.w > 0.0) == (core.last_result.turn_rad > 0.0)
+    # once it faces the way out it follows the path: forward, and no replan meanwhile (the
+    # escape passes closer than rho0 by design; the replan policy must not call that infeasible)
+    heading = core.last_result.turn_rad
+    est = StateEstimate(stamp=1.0, x=15.5, y=20.0, theta=heading, v=0.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=est, t=1.05))
+    out = core.step(1.05)
+    assert [e for e in out if e.stream == "path"] == []
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(cmd, VelocityCommand) and cmd.v > 0.0
+    assert not core.policy.check(
+        2.5, Pose2D(x=15.5, y=20.2, theta=heading), core.goal, core._obstacles(2.5)
+    ).replan

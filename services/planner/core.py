@@ -17,9 +17,11 @@ from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
+from common.scalar import wrap_angle
 from common.world import ObstacleState
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
+from services.planner.controllers.turn_on_spot import TurnOnSpot
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
@@ -54,7 +56,9 @@ class PlannerCore:
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
-        self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
+        self.limits = Limits.from_vehicle(vehicle)
+        self.controller = make_controller(controller, self.limits)
+        self.turn: TurnOnSpot | None = None  # a turn on the spot before the path (escape.py)
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
@@ -120,11 +124,15 @@ class PlannerCore:
         decision = self.policy.check(t, here, self.goal, obstacles)
         if decision.replan:
             out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
+        # delay compensation: the estimate's uplink age plus the expected downlink delay
+        latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+        turning = None if self.turn is None else self.turn.command(pose, latency)
         if self.ref is None:
             v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
+        elif turning is not None:
+            v, w = turning  # in contact: face the way out before following the path
         else:
-            # delay compensation: the estimate's uplink age plus the expected downlink delay
-            latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+            self.turn = None
             v, w = self.controller.command(t, pose, self.ref, latency)
         out.append(
             Emit(
@@ -148,14 +156,21 @@ class PlannerCore:
         self.policy.on_planned(t, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
+        self.turn = None
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
+            if result.turn_rad != 0.0:  # the way out of contact leaves sideways
+                self.turn = TurnOnSpot(
+                    heading=wrap_angle(here.theta + result.turn_rad),
+                    limits=self.limits,
+                    yaw_tau_s=self.vehicle.yaw_tau_s,
+                )
             return PathMsg(
                 stamp=t,
                 path_id=self.path_id,
                 status="OK",
-                reason=why,
+                reason=f"{why}: {result.reason}" if result.reason else why,
                 degree=result.degree,
                 control_points=_flat(result.control_points),
                 weights=_flat(result.weights),

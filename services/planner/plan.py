@@ -3,22 +3,28 @@
 `plan_path(request, config)` is a pure function: no clock unless one is handed in (only to
 fill the timing breakdown), no randomness. A walled-off or unsafe goal, or a curve that
 cannot be made to satisfy eq. (12)-(13) and (20), yields status NO_PATH with a reason,
-never a colliding path.
+never a colliding path. A start inside the safety margin may leave it within escape_len_m;
+a start in contact first takes the shortest straight way out (escape.py) and the rest is
+planned from where that ends.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
+from common.scalar import wrap_angle
 from common.world.geometry import FloatArray
 from services.planner.check import CurveCheck, check_curve
 from services.planner.clearance import StaticField, moving_distance
+from services.planner.controllers.turn_on_spot import DONE_RAD
 from services.planner.costmap import CostMap, build_costmap
+from services.planner.escape import find_escapes, prepend_escape
 from services.planner.fit import FitProblem, initial_curve, resample
 from services.planner.nurbs_curve import NurbsCurve
 from services.planner.prediction import passing_discs, predicted_discs
@@ -108,6 +114,12 @@ def plan_path(
 
     `clock` (e.g. time.perf_counter) only fills the timing breakdown of the result.
     """
+    return _plan(req, cfg, clock, may_escape=True)
+
+
+def _plan(
+    req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, *, may_escape: bool
+) -> PlanResult:
     clk = _Clock(clock)
     r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
@@ -133,7 +145,14 @@ def plan_path(
         float(moving_distance(obs.moving, s_xy, np.zeros(1), cfg.accel_horizon_s)[0][0]),
     )
     if d_start <= r:
-        return _no_path("start is in contact with an obstacle", clk)
+        escaped = _escape_then_plan(req, cfg, clock, static, d_start) if may_escape else None
+        if escaped is None:  # no way out (or the end of one touches again: a moving obstacle)
+            return _no_path(
+                f"start is in contact with an obstacle (hull clearance {d_start - r:.2f} m) "
+                f"and no straight way out stays off it",
+                clk,
+            )
+        return escaped
     t_max = (
         2.0
         * float(np.hypot(area.x_max_m - area.x_min_m, area.y_max_m - area.y_min_m))
@@ -198,6 +217,7 @@ def plan_path(
                 turn_penalty=chk.turn_penalty,
                 rounds=rounds,
                 timing=clk.timing(),
+                escape_m=cfg.escape_len_m if d_start < d_req else 0.0,
             )
         if attempt > 0 or met_moving is None:
             break
@@ -206,7 +226,87 @@ def plan_path(
         discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)])
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
-    return _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
+    failed = _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
+    if not may_escape:
+        return failed
+    # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
+    # turn on the spot first; inside the margin, failing that, leave it straight first
+    turned = _turn_then_plan(req, cfg, clock, failed)
+    if turned.ok or d_start >= d_req:
+        return turned
+    escaped = _escape_then_plan(req, cfg, clock, static, d_start)
+    return escaped if escaped is not None and escaped.ok else failed
+
+
+def _turn_then_plan(
+    req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, failed: PlanResult
+) -> PlanResult:
+    """No curve leaves along the vehicle's heading (eq. (10) with R_min, near an obstacle the
+    vehicle heads for): turn on the spot to the grid path's first leg, and plan from there.
+
+    The vehicle is commanded to stop on NO_PATH anyway; turning while it stops makes a path
+    exist instead of stopping for good (the turn on the spot is turn_on_spot.py's).
+    """
+    lead = failed.grid_path[1] - failed.grid_path[0] if len(failed.grid_path) >= 2 else None
+    if lead is None:
+        return failed
+    theta = math.atan2(float(lead[1]), float(lead[0]))
+    turn = wrap_angle(theta - req.start.theta)
+    if abs(turn) <= DONE_RAD:  # the heading is already that: turning cannot help
+        return failed
+    dt = req.r_min_m * abs(turn) / req.v_ref_mps  # at an R_min turn's yaw rate, as escape.py
+    moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
+    turned = dataclasses.replace(
+        req,
+        start=dataclasses.replace(req.start, theta=theta),
+        obstacles=dataclasses.replace(req.obstacles, moving=moving),
+    )
+    again = _plan(turned, cfg, clock, may_escape=False)
+    if not again.ok:
+        return failed
+    why = f"no curve leaves along the heading: turn {math.degrees(turn):+.0f} deg on the spot"
+    return dataclasses.replace(again, reason=why, turn_rad=turn)
+
+
+def _escape_then_plan(
+    req: PlanRequest,
+    cfg: PlannerConfig,
+    clock: Callable[[], float] | None,
+    static: StaticField,
+    d_start: float,
+) -> PlanResult | None:
+    """A start in contact (or deep in the margin): the shortest way out (escape.py) that a
+    plan can continue from, joined to that plan; None if there is no way out.
+
+    The way out may be as long as leaving the margin along the normal, plus escape_len_m.
+    Moving obstacles are planned for where they will be when the escape ends.
+    """
+    r = req.vehicle_radius_m
+    max_len = cfg.escape_len_m + (r + cfg.rho0_m - d_start)
+    escapes = find_escapes(
+        req.start,
+        static,
+        req.obstacles.moving,
+        req.area,
+        r=r,
+        rho0=cfg.rho0_m,
+        r_min=req.r_min_m,
+        v_ref=req.v_ref_mps,
+        accel_horizon_s=cfg.accel_horizon_s,
+        max_len_m=max_len,
+    )
+    first: PlanResult | None = None
+    for esc in escapes:
+        dt = esc.duration_s(req.r_min_m, req.v_ref_mps)
+        moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
+        rest = dataclasses.replace(
+            req, start=esc.free, obstacles=dataclasses.replace(req.obstacles, moving=moving)
+        )
+        res = prepend_escape(esc, _plan(rest, cfg, clock, may_escape=False), req.goal)
+        if res.ok:
+            return res
+        first = first or res
+    return first
 
 
 def _fit_and_check(
