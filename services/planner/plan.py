@@ -3,31 +3,29 @@
 `plan_path(request, config)` is a pure function: no clock unless one is handed in (only to
 fill the timing breakdown), no randomness. A walled-off or unsafe goal, or a curve that
 cannot be made to satisfy eq. (12)-(13) and (20), yields status NO_PATH with a reason,
-never a colliding path. A start inside the safety margin may leave it within escape_len_m;
-a start in contact first takes the shortest straight way out (escape.py) and the rest is
-planned from where that ends.
+never a colliding path. A start inside the safety margin may leave it within escape_len_m.
+Near an obstacle, where no curve leaves the vehicle's pose, the plan recovers (recover.py):
+a start in contact first takes the shortest straight way out; a heading no curve can leave
+along is turned on the spot first.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 
 import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
-from common.scalar import wrap_angle
 from common.world.geometry import FloatArray
 from services.planner.check import CurveCheck, check_curve
 from services.planner.clearance import StaticField, moving_distance
-from services.planner.controllers.turn_on_spot import DONE_RAD
 from services.planner.costmap import CostMap, build_costmap
-from services.planner.escape import find_escapes, prepend_escape
 from services.planner.fit import FitProblem, initial_curve, resample
 from services.planner.nurbs_curve import NurbsCurve
 from services.planner.prediction import passing_discs, predicted_discs
+from services.planner.recover import leave_then_plan, turn_then_plan
 from services.planner.refine import RefineWeights, refine
 from services.planner.result import (
     Obstacles,
@@ -120,7 +118,13 @@ def plan_path(
 def _plan(
     req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, *, may_escape: bool
 ) -> PlanResult:
+    """plan_path; `may_escape` is False for the plan that follows a recovery (recover.py),
+    so one recovery never nests another."""
     clk = _Clock(clock)
+
+    def rest(q: PlanRequest) -> PlanResult:
+        return _plan(q, cfg, clock, may_escape=False)
+
     r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
     s_xy = np.array([req.start.x, req.start.y])
@@ -145,8 +149,8 @@ def _plan(
         float(moving_distance(obs.moving, s_xy, np.zeros(1), cfg.accel_horizon_s)[0][0]),
     )
     if d_start <= r:
-        escaped = _escape_then_plan(req, cfg, clock, static, d_start) if may_escape else None
-        if escaped is None:  # no way out (or the end of one touches again: a moving obstacle)
+        escaped = leave_then_plan(req, cfg, static, d_start, rest) if may_escape else None
+        if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
             return _no_path(
                 f"start is in contact with an obstacle (hull clearance {d_start - r:.2f} m) "
                 f"and no straight way out stays off it",
@@ -231,82 +235,11 @@ def _plan(
         return failed
     # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
     # turn on the spot first; inside the margin, failing that, leave it straight first
-    turned = _turn_then_plan(req, cfg, clock, failed)
+    turned = turn_then_plan(req, failed, rest)
     if turned.ok or d_start >= d_req:
         return turned
-    escaped = _escape_then_plan(req, cfg, clock, static, d_start)
+    escaped = leave_then_plan(req, cfg, static, d_start, rest)
     return escaped if escaped is not None and escaped.ok else failed
-
-
-def _turn_then_plan(
-    req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, failed: PlanResult
-) -> PlanResult:
-    """No curve leaves along the vehicle's heading (eq. (10) with R_min, near an obstacle the
-    vehicle heads for): turn on the spot to the grid path's first leg, and plan from there.
-
-    The vehicle is commanded to stop on NO_PATH anyway; turning while it stops makes a path
-    exist instead of stopping for good (the turn on the spot is turn_on_spot.py's).
-    """
-    lead = failed.grid_path[1] - failed.grid_path[0] if len(failed.grid_path) >= 2 else None
-    if lead is None:
-        return failed
-    theta = math.atan2(float(lead[1]), float(lead[0]))
-    turn = wrap_angle(theta - req.start.theta)
-    if abs(turn) <= DONE_RAD:  # the heading is already that: turning cannot help
-        return failed
-    dt = req.r_min_m * abs(turn) / req.v_ref_mps  # at an R_min turn's yaw rate, as escape.py
-    moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
-    turned = dataclasses.replace(
-        req,
-        start=dataclasses.replace(req.start, theta=theta),
-        obstacles=dataclasses.replace(req.obstacles, moving=moving),
-    )
-    again = _plan(turned, cfg, clock, may_escape=False)
-    if not again.ok:
-        return failed
-    why = f"no curve leaves along the heading: turn {math.degrees(turn):+.0f} deg on the spot"
-    return dataclasses.replace(again, reason=why, turn_rad=turn)
-
-
-def _escape_then_plan(
-    req: PlanRequest,
-    cfg: PlannerConfig,
-    clock: Callable[[], float] | None,
-    static: StaticField,
-    d_start: float,
-) -> PlanResult | None:
-    """A start in contact (or deep in the margin): the shortest way out (escape.py) that a
-    plan can continue from, joined to that plan; None if there is no way out.
-
-    The way out may be as long as leaving the margin along the normal, plus escape_len_m.
-    Moving obstacles are planned for where they will be when the escape ends.
-    """
-    r = req.vehicle_radius_m
-    max_len = cfg.escape_len_m + (r + cfg.rho0_m - d_start)
-    escapes = find_escapes(
-        req.start,
-        static,
-        req.obstacles.moving,
-        req.area,
-        r=r,
-        rho0=cfg.rho0_m,
-        r_min=req.r_min_m,
-        v_ref=req.v_ref_mps,
-        accel_horizon_s=cfg.accel_horizon_s,
-        max_len_m=max_len,
-    )
-    first: PlanResult | None = None
-    for esc in escapes:
-        dt = esc.duration_s(req.r_min_m, req.v_ref_mps)
-        moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
-        rest = dataclasses.replace(
-            req, start=esc.free, obstacles=dataclasses.replace(req.obstacles, moving=moving)
-        )
-        res = prepend_escape(esc, _plan(rest, cfg, clock, may_escape=False), req.goal)
-        if res.ok:
-            return res
-        first = first or res
-    return first
 
 
 def _fit_and_check(
