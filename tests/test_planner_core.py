@@ -89,3 +89,22 @@ def test_a_start_in_contact_turns_on_the_spot_then_drives_out() -> None:
     assert not core.policy.check(
         2.5, Pose2D(x=15.5, y=20.2, theta=heading), core.goal, core._obstacles(2.5)
     ).replan
+
+
+def test_every_path_says_since_when_its_status_has_held() -> None:
+    # the launcher raises its NO_PATH alarm from PathMsg.stamp - PathMsg.status_since
+    core = _core()
+
+    def path_at(t: float, x: float) -> PathMsg:
+        core.deliver(_estimate(t - 0.05, x=x))
+        (path,) = [e.msg for e in core.step(t) if e.stream == "path"]
+        assert isinstance(path, PathMsg)
+        return path
+
+    # a start outside the area has no path: NO_PATH, replanned every min_replan_interval_s
+    first = path_at(0.1, -5.0)
+    again = path_at(1.2, -5.0)
+    assert (first.status, first.status_since) == ("NO_PATH", 0.1)
+    assert (again.status, again.status_since, again.stamp) == ("NO_PATH", 0.1, 1.2)
+    ok = path_at(2.3, 5.0)
+    assert (ok.status, ok.status_since) == ("OK", 2.3)

@@ -26,6 +26,7 @@ from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanPolicy
+from services.planner.result import PlanStatus
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -64,6 +65,10 @@ class PlannerCore:
         self.ref: PathArcReference | None = None
         self.path_id = 0
         self.last_result: PlanResult | None = None
+        # the status of the last path published and since when it has held without a break:
+        # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
+        self.path_status: PlanStatus | None = None
+        self.status_since = 0.0
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
 
@@ -157,6 +162,8 @@ class PlannerCore:
         self.last_result = result
         self.path_id += 1
         self.turn = None
+        if result.status != self.path_status:
+            self.path_status, self.status_since = result.status, t
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
@@ -170,6 +177,7 @@ class PlannerCore:
                 stamp=t,
                 path_id=self.path_id,
                 status="OK",
+                status_since=self.status_since,
                 reason=f"{why}: {result.reason}" if result.reason else why,
                 degree=result.degree,
                 control_points=_flat(result.control_points),
@@ -186,6 +194,7 @@ class PlannerCore:
             stamp=t,
             path_id=self.path_id,
             status="NO_PATH",
+            status_since=self.status_since,
             reason=f"{why}: {result.reason}",
             degree=0,
             control_points=(),
