@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from common.config.scenario import load_scenario
 from common.messages import PathMsg, StateEstimate, VelocityCommand
-from common.runtime.model.core import Delivery
+from common.runtime.model.core import Delivery, Emit
 from services.planner.core import PlannerCore
 from services.planner.result import Pose2D
 
@@ -108,3 +110,78 @@ def test_every_path_says_since_when_its_status_has_held() -> None:
     assert (again.status, again.status_since, again.stamp) == ("NO_PATH", 0.1, 1.2)
     ok = path_at(2.3, 5.0)
     assert (ok.status, ok.status_since) == ("OK", 2.3)
+
+
+# --- losing the planner for seconds (issue 14, defect 4) ----------------------------------------
+
+
+def _along(stamp: float) -> Delivery:
+    """The estimate of a vehicle running east at 1.5 m/s on y = 14 (between circles 1 and 2)."""
+    return _estimate(stamp, x=5.0 + 1.5 * stamp, y=14.0)
+
+
+def _cmds(out: list[Emit]) -> list[VelocityCommand]:
+    return [e.msg for e in out if isinstance(e.msg, VelocityCommand)]
+
+
+def _paths(out: list[Emit]) -> list[PathMsg]:
+    return [e.msg for e in out if isinstance(e.msg, PathMsg)]
+
+
+@pytest.mark.parametrize("stepped_in_the_gap", [True, False], ids=["uplink out", "SIGSTOP"])
+@pytest.mark.parametrize("backlog_order", [1, -1], ids=["backlog in order", "backlog reversed"])
+def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
+    stepped_in_the_gap: bool, backlog_order: int
+) -> None:
+    core = _core(["world.start.y_m=14.0"])
+    k = 0
+    for k in range(100):  # 10 s of normal operation at 10 Hz
+        t = 0.05 + 0.1 * k
+        core.deliver(_along(t - 0.05))
+        assert _cmds(core.step(t))
+    last = 0.05 + 0.1 * k
+    # 8 s without estimates: the planner either keeps stepping without fresh input (its
+    # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods)
+    if stepped_in_the_gap:
+        for j in range(1, 81):
+            cmds = _cmds(core.step(last + 0.1 * j))
+            # commands from the last estimate while it is fresh, then none: the vehicle holds
+            assert bool(cmds) is (0.1 * j + 0.05 <= core.cfg.max_estimate_age_s)
+        assert core.stale_skips == 71
+    t_wake = last + 8.1
+    # it wakes with the 8 s backlog of estimates, delivered before its next step
+    backlog = [round(last + 0.1 * j, 9) for j in range(1, 81)]
+    for stamp in backlog[::backlog_order]:
+        core.deliver(_along(stamp))
+    out = core.step(t_wake)
+    newest = max(backlog)
+    assert core.state is not None and core.state.stamp == newest
+    (path,) = _paths(out)
+    assert (path.status, path.reason) == ("OK", "resumed")
+    # the new path starts at the newest estimate, not where the old plan left off
+    assert path.control_points[:2] == pytest.approx((5.0 + 1.5 * newest, 14.0))
+    # and the command is exactly what a planner that knew only that estimate would send
+    fresh = _core(["world.start.y_m=14.0"])
+    fresh.deliver(_along(newest))
+    (expected,) = _cmds(fresh.step(t_wake))
+    (cmd,) = _cmds(out)
+    assert (cmd.v, cmd.w) == (expected.v, expected.w)
+
+
+def test_a_restarted_planner_plans_from_the_estimate_not_from_the_scenario_start() -> None:
+    core = _core()  # a new process: no state, the scenario says start (5, 20)
+    assert core.step(40.0) == []  # nothing to plan from until an estimate comes
+    core.deliver(_estimate(40.0, x=30.0, y=14.0))
+    (path,) = _paths(core.step(40.05))
+    assert path.control_points[:2] == pytest.approx((30.0, 14.0))
+
+
+def test_an_estimate_from_the_future_cannot_hold_the_place_of_later_ones() -> None:
+    core = _core()
+    core.deliver(_estimate(1.0))
+    bogus = StateEstimate(stamp=1e6, x=50.0, y=5.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=bogus, t=1.05))
+    assert core.future_ignored == 1
+    core.deliver(_estimate(1.1, x=6.5))
+    core.deliver(_estimate(0.9, x=4.0))  # late and older: not taken over the newer one
+    assert core.state is not None and (core.state.stamp, core.state.x) == (1.1, 6.5)

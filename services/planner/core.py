@@ -25,7 +25,7 @@ from services.planner.controllers.turn_on_spot import TurnOnSpot
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
-from services.planner.replan import ReplanPolicy
+from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 
 
@@ -71,12 +71,24 @@ class PlannerCore:
         self.status_since = 0.0
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
+        self.future_ignored = 0  # estimates and tracks stamped implausibly far ahead
+        self.last_cmd_t: float | None = None  # when the last command was sent
 
     def deliver(self, d: Delivery) -> list[Emit]:
+        # the newest by stamp, not the last handed over: a backlog (a planner woken after a
+        # stall) or a reordering link may hand an older estimate over after a newer one. One
+        # stamped in the future (beyond what a clock offset explains) is ignored, so it
+        # cannot hold the place of every later one.
+        if isinstance(d.msg, StateEstimate | ObstacleTracks):
+            if d.msg.stamp > d.t + self.cfg.max_estimate_age_s:
+                self.future_ignored += 1
+                return []
         if isinstance(d.msg, StateEstimate):
-            self.state = d.msg
+            if self.state is None or d.msg.stamp >= self.state.stamp:
+                self.state = d.msg
         elif isinstance(d.msg, ObstacleTracks):
-            self.tracks = d.msg
+            if self.tracks is None or d.msg.stamp >= self.tracks.stamp:
+                self.tracks = d.msg
         return []
 
     def _obstacles(self, t: float) -> Obstacles:
@@ -116,6 +128,7 @@ class PlannerCore:
             self.stale_skips += 1
             return []
         if self.arrived:
+            self.last_cmd_t = t
             return [
                 Emit(
                     stream="cmd",
@@ -126,7 +139,17 @@ class PlannerCore:
             ]
         here = Pose2D(x=s.x, y=s.y, theta=s.theta)
         obstacles = self._obstacles(t)
-        decision = self.policy.check(t, here, self.goal, obstacles)
+        gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
+        if math.isfinite(gap) and gap > self.cfg.max_estimate_age_s:
+            # no command for longer than an estimate may age: the planner was stopped (or
+            # restarted), or its uplink was out, while the vehicle held and coasted off the
+            # plan. The plan and the controller's state are stale: before commanding again,
+            # plan afresh from the newest estimate (the one in hand, checked fresh above).
+            decision = ReplanDecision(
+                replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
+            )
+        else:
+            decision = self.policy.check(t, here, self.goal, obstacles)
         if decision.replan:
             out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
         # delay compensation: the estimate's uplink age plus the expected downlink delay
@@ -139,6 +162,7 @@ class PlannerCore:
         else:
             self.turn = None
             v, w = self.controller.command(t, pose, self.ref, latency)
+        self.last_cmd_t = t
         out.append(
             Emit(
                 stream="cmd",

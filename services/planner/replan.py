@@ -11,6 +11,9 @@ last replan, so noisy tracks cannot make the planner chatter):
                 margin, or contact, is what that stretch is for);
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes.
+The core adds one event of its own, ahead of these and of the interval:
+  resumed       it sent no command for longer than max_estimate_age_s (it was stopped, or
+                its uplink was out), so its plan and its controller's state are stale.
 A replan should start from the vehicle's current pose (see `replan_request`).
 """
 
@@ -29,7 +32,9 @@ from services.planner.clearance import StaticField
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
-ReplanReason = Literal["", "no_path", "goal_changed", "deviation", "infeasible", "corridor"]
+ReplanReason = Literal[
+    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "resumed"
+]
 
 
 @dataclass(frozen=True, kw_only=True)
