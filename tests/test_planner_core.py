@@ -7,13 +7,14 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from common.messages import PathMsg, StateEstimate, VelocityCommand
+from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from services.planner.core import PlannerCore
 from services.planner.result import Pose2D
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+COV6 = tuple(0.01 if i % 7 == 0 else 0.0 for i in range(36))
 
 
 def _core(overrides: list[str] | None = None) -> PlannerCore:
@@ -69,13 +70,17 @@ def test_a_start_in_contact_turns_on_the_spot_then_drives_out() -> None:
     # issue 14 defect 5: x = 15.5 puts the hull 0.3 m into circle 1, heading into it; the
     # planner used to answer NO_PATH with v = 0 forever
     core = _core(["world.start.x_m=15.5"])
-    core.deliver(_estimate(0.0, x=15.5))
+    core.deliver(_estimate(0.0, x=15.5))  # still under way at 1 m/s
     out = core.step(0.05)
     (path,) = [e.msg for e in out if e.stream == "path"]
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
     assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
     assert path.status == "OK" and "start in contact (hull clearance -0.30 m)" in path.reason
     assert core.last_result is not None and core.last_result.turn_rad != 0.0
+    assert (cmd.v, cmd.w) == (0.0, 0.0)  # it stops straight before it turns
+    still = StateEstimate(stamp=0.1, x=15.5, y=20.0, theta=0.0, v=0.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=still, t=0.15))
+    (cmd,) = _cmds(core.step(0.15))
     assert cmd.v == 0.0 and cmd.w != 0.0  # turning on the spot, within eq. (11)
     assert core.vehicle.w_min_rps <= cmd.w <= core.vehicle.w_max_rps
     assert (cmd.w > 0.0) == (core.last_result.turn_rad > 0.0)
@@ -97,18 +102,24 @@ def test_every_path_says_since_when_its_status_has_held() -> None:
     # the launcher raises its NO_PATH alarm from PathMsg.stamp - PathMsg.status_since
     core = _core()
 
-    def path_at(t: float, x: float) -> PathMsg:
-        core.deliver(_estimate(t - 0.05, x=x))
+    def path_at(t: float, blocked: bool) -> PathMsg:
+        # a tracked obstacle parked on the goal walls it off while it is there
+        parked = Track(
+            id=50, x=95.0, y=20.0, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=6.0, covariance=COV6
+        )
+        tracks = ObstacleTracks(stamp=t - 0.05, tracks=(parked,) if blocked else ())
+        core.deliver(Delivery(source="estimator", stream="tracks", msg=tracks, t=t))
+        core.deliver(_estimate(t - 0.05))
         (path,) = [e.msg for e in core.step(t) if e.stream == "path"]
         assert isinstance(path, PathMsg)
         return path
 
-    # a start outside the area has no path: NO_PATH, replanned every min_replan_interval_s
-    first = path_at(0.1, -5.0)
-    again = path_at(1.2, -5.0)
+    # NO_PATH, replanned every min_replan_interval_s, keeps the time it began
+    first = path_at(0.1, blocked=True)
+    again = path_at(1.2, blocked=True)
     assert (first.status, first.status_since) == ("NO_PATH", 0.1)
     assert (again.status, again.status_since, again.stamp) == ("NO_PATH", 0.1, 1.2)
-    ok = path_at(2.3, 5.0)
+    ok = path_at(2.3, blocked=False)
     assert (ok.status, ok.status_since) == ("OK", 2.3)
 
 

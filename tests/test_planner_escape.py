@@ -14,7 +14,7 @@ from helpers.planner_world import circle, default_scenario, polygon
 
 from common.config.planner import PlannerConfig
 from common.config.world import WorldConfig
-from common.world import World
+from common.world import ObstacleState, World
 from services.planner.clearance import StaticField
 from services.planner.controllers.base import Limits
 from services.planner.controllers.turn_on_spot import DONE_RAD, TurnOnSpot
@@ -203,3 +203,53 @@ def test_turn_on_the_spot_reaches_the_heading_with_a_small_overshoot() -> None:
     assert abs(theta - math.pi / 2) <= DONE_RAD
     # a 90 degree turn at up to 0.5 rad/s: a few seconds, not a spin
     assert t < 8.0 and peak < math.pi / 2 + 0.05 * math.pi / 2
+
+
+def test_a_vehicle_that_coasted_out_of_the_area_is_led_back_in() -> None:
+    # hull 1.5 m beyond the southern edge, heading south-east (a hold that kept its heading)
+    req = _request(64.8, -0.7, -0.9)
+    res = plan_path(req, CFG)
+    assert res.ok, res.reason
+    assert "start outside the area (hull 1.50 m beyond its edge)" in res.reason
+    pts, s, k = _dense(res)
+    edge = np.minimum(pts[:, 1] - WORLD_CFG.area.y_min_m, WORLD_CFG.area.y_max_m - pts[:, 1])
+    back = s <= res.escape_m - 0.05
+    assert np.all(np.diff(edge[back]) >= -1e-9)  # never farther out on the way back
+    assert edge[s >= res.escape_m].min() >= R - 1e-9  # then the hull stays in (eq. (10))
+    assert _hull_clearance(pts).min() >= CFG.rho0_m - 1e-6  # and nothing comes near
+    assert k.max() < 1.0 / R_MIN
+
+
+def test_a_way_out_is_never_empty_when_a_moving_obstacle_draws_off() -> None:
+    # a moving disc in contact, heading off at 1 m/s: during a turn on the spot it leaves,
+    # so a turned candidate is clear where it starts; the way out is still a segment
+    mover = ObstacleState(
+        id=9, x=50.0, y=22.5, vx=0.0, vy=1.0, ax=0.0, ay=0.0, radius=2.0, moving=True
+    )
+    start = Pose2D(x=50.0, y=20.0, theta=math.pi / 2)  # heading into it, hull 0.3 m in
+    escapes = find_escapes(
+        start,
+        StaticField.build((), ()),
+        (mover,),
+        WORLD_CFG.area,
+        r=R,
+        rho0=CFG.rho0_m,
+        r_min=R_MIN,
+        v_ref=1.5,
+        accel_horizon_s=CFG.accel_horizon_s,
+        max_len_m=5.0,
+    )
+    assert escapes and all(e.length_m > 0.0 for e in escapes)
+    req = _request(50.0, 20.0, math.pi / 2, Obstacles(moving=(mover,)))
+    assert plan_path(req, CFG).ok
+
+
+def test_a_vehicle_still_under_way_stops_straight_before_it_turns() -> None:
+    lim = Limits(v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5, r_min=R_MIN)
+    turn = TurnOnSpot(heading=math.pi, limits=lim, yaw_tau_s=0.5)
+    # turning at 1 m/s would sweep an arc of radius v / w: stop first (the hull is a disc,
+    # so only a turn in place cannot bring it nearer anything)
+    assert turn.command((0.0, 0.0, 0.0, 1.0, 0.0)) == (0.0, 0.0)
+    v, w = turn.command((0.0, 0.0, 0.0, 0.05, 0.0)) or (math.nan, math.nan)
+    assert v == 0.0 and w == lim.w_max
+    assert turn.command((0.0, 0.0, math.pi - 0.05, 1.0, 0.0)) is None  # facing it: done

@@ -7,8 +7,9 @@ the rest of the run. So the planner first leaves contact by the shortest way out
 the rest from the free pose it reaches (plan.py), and the path is the two joined.
 
 The way out is a straight segment from the start, in one of `N_DIRECTIONS` directions:
-- it must never take the hull deeper (d along it stays >= d at the start) and must stay in
-  the area (eq. (10) with the hull);
+- it must never take the hull deeper (d along it stays >= d at the start, or >= r + rho0
+  from a start that far out) and must keep it in the area (eq. (10)), or, from a start the
+  vehicle coasted out of the area to, bring it back in;
 - it ends where d first reaches r + rho0 + 1 cm: out of the safety margin of eq. (12)-(13),
   so the rest is an ordinary plan. In a gap too narrow for that, it ends at r + rho0 / 4 +
   1 cm instead (the hull free; the rest then leaves the margin like any start inside it);
@@ -37,6 +38,7 @@ from numpy.typing import NDArray
 from common.config.world import AreaConfig
 from common.scalar import wrap_angle
 from common.world import ObstacleState
+from common.world.geometry import FloatArray
 from services.planner.clearance import StaticField, moving_distance
 from services.planner.nurbs_curve import NurbsCurve, join
 from services.planner.result import PlanResult, Pose2D
@@ -57,6 +59,7 @@ class Escape:
     length_m: float
     start_clearance_m: float  # hull to surface at the start (<= 0: in contact)
     end_clearance_m: float  # hull to surface at the free pose (> 0)
+    start_outside_m: float = 0.0  # how far the hull reaches beyond the area's edge (eq. (10))
 
     @property
     def heading(self) -> float:
@@ -82,9 +85,15 @@ class Escape:
             if self.turn_rad == 0.0
             else f"after turning {math.degrees(self.turn_rad):+.0f} deg on the spot"
         )
+        if self.start_outside_m > 0.0:
+            where = f"outside the area (hull {self.start_outside_m:.2f} m beyond its edge)"
+        elif self.start_clearance_m <= 0.0:
+            where = f"in contact (hull clearance {self.start_clearance_m:.2f} m)"
+        else:
+            where = f"inside the safety margin (hull clearance {self.start_clearance_m:.2f} m)"
         return (
-            f"start in contact (hull clearance {self.start_clearance_m:.2f} m): escape "
-            f"{self.length_m:.2f} m {turn} to a hull clearance of {self.end_clearance_m:.2f} m"
+            f"start {where}: escape {self.length_m:.2f} m {turn} to a hull clearance of "
+            f"{self.end_clearance_m:.2f} m"
         )
 
 
@@ -128,19 +137,21 @@ def find_escapes(
         float(static.distance(here)[0][0]),
         float(moving_distance(moving, here, np.zeros(1), accel_horizon_s)[0][0]),
     )
-    inside = (
-        (pts[..., 0] >= area.x_min_m + r)
-        & (pts[..., 0] <= area.x_max_m - r)
-        & (pts[..., 1] >= area.y_min_m + r)
-        & (pts[..., 1] <= area.y_max_m - r)
-    )
-    # a sample is usable while every sample up to it is in the area and no deeper than d0
-    ok = np.logical_and.accumulate(inside & (d >= d0 - 1e-9), axis=1)
+    a = _to_edge(area, pts[..., 0], pts[..., 1])  # (J, K)
+    a0 = float(_to_edge(area, np.array(start.x), np.array(start.y)))
+    # a sample is usable while every sample up to it is no deeper than d0 (no nearer than
+    # r + rho0, from a start beyond it) and keeps the hull in the area (eq. (10)); from a
+    # start outside the area, no farther out than a0
+    usable = (d >= min(d0, r + rho0) - 1e-9) & (a >= min(a0, r) - 1e-9)
+    ok = np.logical_and.accumulate(usable, axis=1)
     out: list[Escape] = []
     for target in dict.fromkeys((r + rho0 + BEYOND_M, r + 0.25 * rho0 + BEYOND_M)):
-        if target <= d0 + BEYOND_M:
+        if target <= d0 + BEYOND_M and a0 >= r + BEYOND_M:
             continue  # already that far out: nothing to escape to
-        reached = ok & (d >= target)
+        reached = ok & (d >= target) & (a >= r + BEYOND_M)
+        # at least one step: a moving obstacle may have drawn off during the turn, but a way
+        # out is a segment (the join needs one, and the vehicle is where it was)
+        reached[:, 0] = False
         hit: NDArray[np.bool_] = np.any(reached, axis=1)
         k = np.argmax(reached, axis=1)  # first sample at the target, per direction
         cost = s[k] + r_min * np.abs(turns)
@@ -158,9 +169,18 @@ def find_escapes(
                     length_m=float(s[k[j]]),
                     start_clearance_m=d0 - r,
                     end_clearance_m=float(d[j, k[j]]) - r,
+                    start_outside_m=max(0.0, r - a0),
                 )
             )
     return out
+
+
+def _to_edge(area: AreaConfig, x: FloatArray, y: FloatArray) -> FloatArray:
+    """Distance from points to the nearest edge of the area, negative outside it."""
+    return np.minimum(
+        np.minimum(x - area.x_min_m, area.x_max_m - x),
+        np.minimum(y - area.y_min_m, area.y_max_m - y),
+    )
 
 
 def prepend_escape(esc: Escape, rest: PlanResult, goal: Pose2D) -> PlanResult:

@@ -129,8 +129,6 @@ def _plan(
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
     s_xy = np.array([req.start.x, req.start.y])
     g_xy = np.array([req.goal.x, req.goal.y])
-    if not _inside(area, req.start, r):
-        return _no_path("start is outside the area", clk)
     if not _inside(area, req.goal, r):
         return _no_path("goal is outside the area", clk)
     d_min = float(np.hypot(*(g_xy - s_xy)))
@@ -148,14 +146,16 @@ def _plan(
         float(static.distance(s_xy)[0][0]),
         float(moving_distance(obs.moving, s_xy, np.zeros(1), cfg.accel_horizon_s)[0][0]),
     )
-    if d_start <= r:
+    outside = not _inside(area, req.start, r)
+    if outside or d_start <= r:
         escaped = leave_then_plan(req, cfg, static, d_start, rest) if may_escape else None
         if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
-            return _no_path(
-                f"start is in contact with an obstacle (hull clearance {d_start - r:.2f} m) "
-                f"and no straight way out stays off it",
-                clk,
+            where = (
+                "outside the area"
+                if outside
+                else f"in contact with an obstacle (hull clearance {d_start - r:.2f} m)"
             )
+            return _no_path(f"start is {where} and no straight way out is clear", clk)
         return escaped
     t_max = (
         2.0

@@ -6,8 +6,9 @@ Without this, the planner answered NO_PATH at every replan and the vehicle stopp
 - turn_then_plan: the heading is what no curve can satisfy (eq. (10) with R_min, eqs.
   (19)-(20): the vehicle faces an obstacle too near to turn away from). Turn on the spot to
   the grid path's first leg, then plan from the same place.
-- leave_then_plan: the start is in contact (or deep in the margin): the shortest straight
-  way out (escape.py), then the rest planned from where it ends, joined to it.
+- leave_then_plan: the start is in contact, outside the area (a vehicle that coasted out
+  of it) or deep in the margin: the shortest straight way out (escape.py), then the rest
+  planned from where it ends, joined to it.
 The turn on the spot itself is controllers/turn_on_spot.py's, commanded by the core.
 """
 
@@ -58,14 +59,16 @@ def turn_then_plan(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResu
 def leave_then_plan(
     req: PlanRequest, cfg: PlannerConfig, static: StaticField, d_start: float, plan: Plan
 ) -> PlanResult | None:
-    """A start in contact (or deep in the margin): the shortest way out (escape.py) that a
-    plan can continue from, joined to that plan; None if there is no way out.
+    """A start in contact, outside the area or deep in the margin: the shortest way out
+    (escape.py) that a plan can continue from, joined to that plan; None if there is none.
 
-    The way out may be as long as leaving the margin along the normal, plus escape_len_m.
+    The way out may be as long as leaving the margin (and coming back into the area) along
+    the normal, plus escape_len_m.
     Moving obstacles are planned for where they will be when the escape ends.
     """
-    r = req.vehicle_radius_m
-    max_len = cfg.escape_len_m + (r + cfg.rho0_m - d_start)
+    r, area, p = req.vehicle_radius_m, req.area, req.start
+    beyond = max(area.x_min_m - p.x, p.x - area.x_max_m, area.y_min_m - p.y, p.y - area.y_max_m)
+    max_len = cfg.escape_len_m + max(r + cfg.rho0_m - d_start, 0.0) + max(r + beyond, 0.0)
     escapes = find_escapes(
         req.start,
         static,

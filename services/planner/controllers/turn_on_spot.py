@@ -9,6 +9,11 @@ follows the command as a first-order lag of time constant tau (VehicleConfig.yaw
 unsaturated the error obeys tau e'' + e' + e / (2 tau) = 0: a damping ratio of 1 / sqrt(2)
 whatever tau, which overshoots by 4 %. The turn is done within `DONE_RAD`; the path tracker
 removes what is left.
+
+The hull is a disc (eq. (12)), so turning in place cannot bring it nearer anything; turning
+while still under way could (a turn of radius v / w toward the obstacle). So a vehicle that
+still moves is first stopped straight (v = 0, w = 0, as on NO_PATH), and turns once below
+`STILL_MPS`.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from common.scalar import clamp, wrap_angle
 from services.planner.controllers.base import Limits, Pose, predict_pose
 
 DONE_RAD = 0.1  # ~6 degrees: what the tracker absorbs within R_min in well under a metre
+STILL_MPS = 0.1  # below this speed the vehicle counts as stopped: it may turn in place
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -30,10 +36,13 @@ class TurnOnSpot:
     yaw_tau_s: float
 
     def command(self, pose: Pose, latency_s: float = 0.0) -> tuple[float, float] | None:
-        """(0, w) while the (delay-compensated) heading is off by more than DONE_RAD."""
+        """(0, w) while the (delay-compensated) heading is off by more than DONE_RAD; (0, 0)
+        first while the vehicle still moves."""
         theta = predict_pose(pose, latency_s)[2] if latency_s > 0.0 else pose[2]
         e = wrap_angle(self.heading - theta)
         if abs(e) <= DONE_RAD:
             return None
+        if abs(pose[3]) > STILL_MPS:
+            return self.limits.saturate(0.0, 0.0)
         w = clamp(e / (2.0 * self.yaw_tau_s), self.limits.w_min, self.limits.w_max)
         return self.limits.saturate(0.0, w)
