@@ -253,3 +253,46 @@ def test_a_vehicle_still_under_way_stops_straight_before_it_turns() -> None:
     v, w = turn.command((0.0, 0.0, 0.0, 0.05, 0.0)) or (math.nan, math.nan)
     assert v == 0.0 and w == lim.w_max
     assert turn.command((0.0, 0.0, math.pi - 0.05, 1.0, 0.0)) is None  # facing it: done
+
+
+def _random_start(rng: np.random.Generator, kind: int) -> tuple[float, float]:
+    """A start in contact (0), inside the margin (1), off the area's southern edge (2)."""
+    while True:
+        x, y = rng.uniform(2.0, 75.0), rng.uniform(-1.5, 39.0)
+        d = WORLD.clearance(x, y, R, 0.0)
+        edge = y - WORLD_CFG.area.y_min_m - R
+        if (kind, d <= 0.0, 0.0 < d < CFG.rho0_m, edge < 0.0 and d > 0.0) in {
+            (0, True, False, False),
+            (1, False, True, False),
+            (2, False, False, True),
+        }:
+            return x, y
+
+
+def test_any_start_in_contact_in_the_margin_or_off_the_area_plans_safely_or_says_why() -> None:
+    # seeded random starts of each kind, with a moving obstacle about: plan_path never
+    # raises, and an OK path starts at the vehicle, keeps rho0 past its escape (static
+    # obstacles, the world's eq. (12)), keeps the hull in the area and kappa < 1 / R_min
+    rng = np.random.default_rng(14)
+    mover = ObstacleState(
+        id=10, x=40.0, y=30.0, vx=0.0, vy=-0.5, ax=0.0, ay=0.0, radius=1.5, moving=True
+    )
+    obstacles = Obstacles(circles=WORLD_CFG.circles, polygons=WORLD_CFG.polygons, moving=(mover,))
+    area = WORLD_CFG.area
+    ok = 0
+    for i in range(36):
+        x, y = _random_start(rng, i % 3)
+        res = plan_path(_request(x, y, rng.uniform(-math.pi, math.pi), obstacles), CFG)
+        if not res.ok:
+            assert res.reason
+            continue
+        ok += 1
+        pts, s, k = _dense(res)
+        assert pts[0] == pytest.approx((x, y), abs=1e-9)
+        after = s >= res.escape_m
+        assert _hull_clearance(pts[after]).min() >= CFG.rho0_m - 1e-6
+        assert pts[after, 0].min() >= area.x_min_m + R - 1e-6
+        assert pts[after, 1].min() >= area.y_min_m + R - 1e-6
+        assert pts[after, 1].max() <= area.y_max_m - R + 1e-6
+        assert k.max() < 1.0 / R_MIN
+    assert ok >= 34, ok  # 36 of 36 when written; none before (contact, off the area)
