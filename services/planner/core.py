@@ -73,6 +73,8 @@ class PlannerCore:
         self.stale_skips = 0  # steps without a command because the estimate was too old
         self.future_ignored = 0  # estimates and tracks stamped implausibly far ahead
         self.last_cmd_t: float | None = None  # when the last command was sent
+        # a longer silence than this makes the vehicle hold (and the estimate stale)
+        self.resume_after_s = max(planner.max_estimate_age_s, vehicle.watchdog.hold_after_s)
 
     def deliver(self, d: Delivery) -> list[Emit]:
         # the newest by stamp, not the last handed over: a backlog (a planner woken after a
@@ -140,11 +142,11 @@ class PlannerCore:
         here = Pose2D(x=s.x, y=s.y, theta=s.theta)
         obstacles = self._obstacles(t)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
-        if math.isfinite(gap) and gap > self.cfg.max_estimate_age_s:
-            # no command for longer than an estimate may age: the planner was stopped (or
-            # restarted), or its uplink was out, while the vehicle held and coasted off the
-            # plan. The plan and the controller's state are stale: before commanding again,
-            # plan afresh from the newest estimate (the one in hand, checked fresh above).
+        if math.isfinite(gap) and gap > self.resume_after_s:
+            # no command for so long that the vehicle's watchdog has made it hold: it has
+            # coasted off the plan while the planner was stopped or its uplink was out. The
+            # plan and the controller's state are stale: before commanding again, plan
+            # afresh from the newest estimate (the one in hand, checked fresh above).
             decision = ReplanDecision(
                 replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
             )

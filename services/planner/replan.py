@@ -12,8 +12,9 @@ last replan, so noisy tracks cannot make the planner chatter):
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes.
 The core adds one event of its own, ahead of these and of the interval:
-  resumed       it sent no command for longer than max_estimate_age_s (it was stopped, or
-                its uplink was out), so its plan and its controller's state are stale.
+  resumed       it sent no command for longer than the vehicle's hold_after_s (and
+                max_estimate_age_s): it was stopped, or its uplink was out, while the vehicle
+                held off the plan, so the plan and its controller's state are stale.
 A replan should start from the vehicle's current pose (see `replan_request`).
 """
 
