@@ -59,7 +59,7 @@ class PlannerCore:
         )
         self.limits = Limits.from_vehicle(vehicle)
         self.controller = make_controller(controller, self.limits)
-        self.turn: TurnOnSpot | None = None  # a turn on the spot before the path (escape.py)
+        self.turn: TurnOnSpot | None = None  # a turn on the spot before the path (recover.py)
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
@@ -160,7 +160,7 @@ class PlannerCore:
         if self.ref is None:
             v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
         elif turning is not None:
-            v, w = turning  # in contact: face the way out before following the path
+            v, w = turning  # near an obstacle: face the way the path leaves, then follow it
         else:
             self.turn = None
             v, w = self.controller.command(t, pose, self.ref, latency)
@@ -193,7 +193,7 @@ class PlannerCore:
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
-            if result.turn_rad != 0.0:  # the way out of contact leaves sideways
+            if result.turn_rad != 0.0:  # the path leaves other than along the heading
                 self.turn = TurnOnSpot(
                     heading=wrap_angle(here.theta + result.turn_rad),
                     limits=self.limits,
