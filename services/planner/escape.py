@@ -1,4 +1,4 @@
-"""Escape from contact: the shortest straight way out for a start whose hull touches an obstacle.
+"""Escape: the shortest straight way out for a start in contact, off the area or in the margin.
 
 A plan starts at the vehicle. When that pose already touches an obstacle (eq. (12): the
 centre-to-surface distance d is <= the hull radius r), the grid has no free start cell, and
