@@ -13,6 +13,8 @@ from common.config.loader import ConfigError
 from common.config.network import LinkProfile
 from common.config.scenario import load_scenario
 from common.world.check import check_scenario
+from services.experiments.grid import expand
+from services.experiments.schema import load_experiment
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -283,8 +285,38 @@ def test_a_post_init_range_error_names_its_field_as_data() -> None:
         pytest.param(
             "[[world.circles]]\nid = 1\nx_m = 6.0\ny_m = 20.0\nradius_m = 2.0\n",
             ("world", "start"),
-            "(5.0, 20.0) lies inside an obstacle at t = 0",
+            "(5.0, 20.0) puts the hull (radius 0.8 m, vehicle.radius_m) in contact with "
+            "obstacle 1 at t = 0: clearance -1.80 m",
             id="start inside a circle",
+        ),
+        pytest.param(
+            # the centre is 0.5 m off the circle, the 0.8 m hull overlaps it by 0.3 m
+            "[[world.circles]]\nid = 3\nx_m = 8.5\ny_m = 20.0\nradius_m = 3.0\n",
+            ("world", "start"),
+            "in contact with obstacle 3 at t = 0: clearance -0.30 m, expected > 0",
+            id="start hull touches a circle",
+        ),
+        pytest.param(
+            "[[world.polygons]]\nid = 4\n"
+            "vertices_m = [95.5, 15.0, 99.0, 15.0, 99.0, 25.0, 95.5, 25.0]\n",
+            ("world", "goal"),
+            "(95.0, 20.0) puts the hull (radius 0.8 m, vehicle.radius_m) in contact with "
+            "obstacle 4 at t = 0: clearance -0.30 m",
+            id="goal hull touches a polygon",
+        ),
+        pytest.param(
+            '[[world.moving]]\nid = 5\nkind = "line"\nradius_m = 1.0\nx0_m = 6.0\n'
+            "y0_m = 20.0\nvx_mps = 0.5\nvy_mps = 0.0\n",
+            ("world", "start"),
+            "in contact with obstacle 5 at t = 0: clearance -0.80 m",
+            id="start hull touches a moving obstacle at t = 0",
+        ),
+        pytest.param(
+            "[[world.circles]]\nid = 6\nx_m = 95.0\ny_m = 24.0\nradius_m = 2.5\n",
+            ("world", "goal"),
+            "(95.0, 20.0) is 0.70 m (hull to surface) from obstacle 6, inside the safe "
+            "distance planner.rho0_m = 1 m",
+            id="goal inside the planner's safe distance",
         ),
     ],
 )
@@ -299,8 +331,14 @@ def test_geometry_is_checked_after_loading(
 
 
 def test_the_shipped_scenarios_pass_the_geometric_check() -> None:
-    for path in sorted((REPO / "configs").glob("*.toml")):
+    paths = sorted((REPO / "configs").glob("**/*.toml"))
+    scenarios = [p for p in paths if "axes" not in p.read_text()]  # the rest are experiments
+    assert len(scenarios) >= 2 and len(paths) > len(scenarios)
+    for path in scenarios:
         load_scenario(path, check=check_scenario)
+    # every cell of every shipped experiment is built with the same check before a sweep runs
+    for path in sorted(set(paths) - set(scenarios)):
+        assert expand(load_experiment(path), str(path), runtime="inproc").runs
 
 
 def test_config_does_not_import_the_world() -> None:
@@ -377,4 +415,18 @@ def test_check_reports_a_geometric_error(tmp_path: Path) -> None:
     path = _write(tmp_path, text)
     res = _check(str(path))
     assert res.returncode == 2
-    assert f"{path}: world.goal: (95.0, 20.0) lies inside an obstacle at t = 0" in res.stderr
+    assert f"{path}: world.goal: (95.0, 20.0) puts the hull" in res.stderr
+    assert "in contact with obstacle 1 at t = 0: clearance -1.80 m" in res.stderr
+
+
+def test_check_rejects_a_start_whose_hull_touches_an_obstacle() -> None:
+    # issue 14: world.start.x_m=15.5 puts the 0.8 m hull 0.3 m into circle 1 (20, 20, r 4)
+    res = _check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.5")
+    assert res.returncode == 2 and res.stdout == ""
+    assert (
+        "configs/default.toml: world.start: (15.5, 20.0) puts the hull (radius 0.8 m, "
+        "vehicle.radius_m) in contact with obstacle 1 at t = 0: clearance -0.30 m" in res.stderr
+    )
+    # one centimetre more and the hull is free: accepted
+    ok = _check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.19")
+    assert ok.returncode == 0, ok.stderr

@@ -4,13 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from common.config.scenario import load_scenario
-from common.messages import PathMsg, StateEstimate, VelocityCommand
-from common.runtime.model.core import Delivery
+from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
+from common.runtime.model.core import Delivery, Emit
 from services.planner.core import PlannerCore
+from services.planner.result import Pose2D
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+COV6 = tuple(0.01 if i % 7 == 0 else 0.0 for i in range(36))
 
 
 def _core(overrides: list[str] | None = None) -> PlannerCore:
@@ -60,3 +64,135 @@ def test_walled_off_goal_stops_the_vehicle_and_says_why() -> None:
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
     assert isinstance(cmd, VelocityCommand)
     assert (cmd.v, cmd.w) == (0.0, 0.0)
+
+
+def test_a_start_in_contact_turns_on_the_spot_then_drives_out() -> None:
+    # issue 14 defect 5: x = 15.5 puts the hull 0.3 m into circle 1, heading into it; the
+    # planner used to answer NO_PATH with v = 0 forever
+    core = _core(["world.start.x_m=15.5"])
+    core.deliver(_estimate(0.0, x=15.5))  # still under way at 1 m/s
+    out = core.step(0.05)
+    (path,) = [e.msg for e in out if e.stream == "path"]
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
+    assert path.status == "OK" and "start in contact (hull clearance -0.30 m)" in path.reason
+    assert core.last_result is not None and core.last_result.turn_rad != 0.0
+    assert (cmd.v, cmd.w) == (0.0, 0.0)  # it stops straight before it turns
+    still = StateEstimate(stamp=0.1, x=15.5, y=20.0, theta=0.0, v=0.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=still, t=0.15))
+    (cmd,) = _cmds(core.step(0.15))
+    assert cmd.v == 0.0 and cmd.w != 0.0  # turning on the spot, within eq. (11)
+    assert core.vehicle.w_min_rps <= cmd.w <= core.vehicle.w_max_rps
+    assert (cmd.w > 0.0) == (core.last_result.turn_rad > 0.0)
+    # once it faces the way out it follows the path: forward, and no replan meanwhile (the
+    # escape passes closer than rho0 by design; the replan policy must not call that infeasible)
+    heading = core.last_result.turn_rad
+    est = StateEstimate(stamp=1.0, x=15.5, y=20.0, theta=heading, v=0.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=est, t=1.05))
+    out = core.step(1.05)
+    assert [e for e in out if e.stream == "path"] == []
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(cmd, VelocityCommand) and cmd.v > 0.0
+    assert not core.policy.check(
+        2.5, Pose2D(x=15.5, y=20.2, theta=heading), core.goal, core._obstacles(2.5)
+    ).replan
+
+
+def test_every_path_says_since_when_its_status_has_held() -> None:
+    # the launcher raises its NO_PATH alarm from PathMsg.stamp - PathMsg.status_since
+    core = _core()
+
+    def path_at(t: float, blocked: bool) -> PathMsg:
+        # a tracked obstacle parked on the goal walls it off while it is there
+        parked = Track(
+            id=50, x=95.0, y=20.0, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=6.0, covariance=COV6
+        )
+        tracks = ObstacleTracks(stamp=t - 0.05, tracks=(parked,) if blocked else ())
+        core.deliver(Delivery(source="estimator", stream="tracks", msg=tracks, t=t))
+        core.deliver(_estimate(t - 0.05))
+        (path,) = [e.msg for e in core.step(t) if e.stream == "path"]
+        assert isinstance(path, PathMsg)
+        return path
+
+    # NO_PATH, replanned every min_replan_interval_s, keeps the time it began
+    first = path_at(0.1, blocked=True)
+    again = path_at(1.2, blocked=True)
+    assert (first.status, first.status_since) == ("NO_PATH", 0.1)
+    assert (again.status, again.status_since, again.stamp) == ("NO_PATH", 0.1, 1.2)
+    ok = path_at(2.3, blocked=False)
+    assert (ok.status, ok.status_since) == ("OK", 2.3)
+
+
+# --- losing the planner for seconds (issue 14, defect 4) ----------------------------------------
+
+
+def _along(stamp: float) -> Delivery:
+    """The estimate of a vehicle running east at 1.5 m/s on y = 14 (between circles 1 and 2)."""
+    return _estimate(stamp, x=5.0 + 1.5 * stamp, y=14.0)
+
+
+def _cmds(out: list[Emit]) -> list[VelocityCommand]:
+    return [e.msg for e in out if isinstance(e.msg, VelocityCommand)]
+
+
+def _paths(out: list[Emit]) -> list[PathMsg]:
+    return [e.msg for e in out if isinstance(e.msg, PathMsg)]
+
+
+@pytest.mark.parametrize("stepped_in_the_gap", [True, False], ids=["uplink out", "SIGSTOP"])
+@pytest.mark.parametrize("backlog_order", [1, -1], ids=["backlog in order", "backlog reversed"])
+def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
+    stepped_in_the_gap: bool, backlog_order: int
+) -> None:
+    core = _core(["world.start.y_m=14.0"])
+    k = 0
+    for k in range(100):  # 10 s of normal operation at 10 Hz
+        t = 0.05 + 0.1 * k
+        core.deliver(_along(t - 0.05))
+        assert _cmds(core.step(t))
+    last = 0.05 + 0.1 * k
+    # 8 s without estimates: the planner either keeps stepping without fresh input (its
+    # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods)
+    if stepped_in_the_gap:
+        for j in range(1, 81):
+            cmds = _cmds(core.step(last + 0.1 * j))
+            # commands from the last estimate while it is fresh, then none: the vehicle holds
+            assert bool(cmds) is (0.1 * j + 0.05 <= core.cfg.max_estimate_age_s)
+        assert core.stale_skips == 71
+    t_wake = last + 8.1
+    # it wakes with the 8 s backlog of estimates, delivered before its next step
+    backlog = [round(last + 0.1 * j, 9) for j in range(1, 81)]
+    for stamp in backlog[::backlog_order]:
+        core.deliver(_along(stamp))
+    out = core.step(t_wake)
+    newest = max(backlog)
+    assert core.state is not None and core.state.stamp == newest
+    (path,) = _paths(out)
+    assert (path.status, path.reason) == ("OK", "resumed")
+    # the new path starts at the newest estimate, not where the old plan left off
+    assert path.control_points[:2] == pytest.approx((5.0 + 1.5 * newest, 14.0))
+    # and the command is exactly what a planner that knew only that estimate would send
+    fresh = _core(["world.start.y_m=14.0"])
+    fresh.deliver(_along(newest))
+    (expected,) = _cmds(fresh.step(t_wake))
+    (cmd,) = _cmds(out)
+    assert (cmd.v, cmd.w) == (expected.v, expected.w)
+
+
+def test_a_restarted_planner_plans_from_the_estimate_not_from_the_scenario_start() -> None:
+    core = _core()  # a new process: no state, the scenario says start (5, 20)
+    assert core.step(40.0) == []  # nothing to plan from until an estimate comes
+    core.deliver(_estimate(40.0, x=30.0, y=14.0))
+    (path,) = _paths(core.step(40.05))
+    assert path.control_points[:2] == pytest.approx((30.0, 14.0))
+
+
+def test_an_estimate_from_the_future_cannot_hold_the_place_of_later_ones() -> None:
+    core = _core()
+    core.deliver(_estimate(1.0))
+    bogus = StateEstimate(stamp=1e6, x=50.0, y=5.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=bogus, t=1.05))
+    assert core.inputs_rejected == {"state.future": 1}
+    core.deliver(_estimate(1.1, x=6.5))
+    core.deliver(_estimate(0.9, x=4.0))  # late and older: not taken over the newer one
+    assert core.state is not None and (core.state.stamp, core.state.x) == (1.1, 6.5)

@@ -49,6 +49,20 @@ def test_polygon_clearance_exact_distance() -> None:
     assert w.clearance(46.0, 12.0, 1.25, 0.0) == pytest.approx(0.75, abs=1e-12)
 
 
+def test_nearest_names_the_obstacle_that_attains_the_clearance() -> None:
+    moving = MovingObstacleConfig(id=9, kind="line", x0_m=50.0, y0_m=12.0, vx_mps=1.0, vy_mps=0.0)
+    circle = CircleObstacleConfig(id=1, x_m=30.0, y_m=10.0, radius_m=2.0)
+    w = _world(circles=(circle,), polygons=(SQUARE,), moving=(moving,))
+    assert w.nearest(35.0, 10.0, 0.5, 0.0) == (1, pytest.approx(2.5, abs=1e-12))
+    assert w.nearest(46.0, 12.0, 0.0, 0.0) == (2, pytest.approx(2.0, abs=1e-12))
+    # at t = 3 s the moving disc (radius 1) is at (53, 12): 1 m from (55, 12) minus r_k
+    assert w.nearest(55.0, 12.0, 0.0, 3.0) == (9, pytest.approx(1.0, abs=1e-12))
+    assert w.nearest(55.0, 12.0, 0.0, 3.0, moving=False) == (2, pytest.approx(11.0, abs=1e-12))
+    for x, y, r, t in [(35.0, 10.0, 0.5, 0.0), (46.0, 17.0, 0.2, 1.0), (55.0, 12.0, 0.0, 3.0)]:
+        assert w.nearest(x, y, r, t)[1] == w.clearance(x, y, r, t)
+    assert _world().nearest(1.0, 1.0, 0.5, 0.0) == (None, math.inf)
+
+
 def test_polygon_sensing_uses_centroid_and_circumradius() -> None:
     w = _world(polygons=(SQUARE,))
     (o,) = w.obstacles_at(3.0)

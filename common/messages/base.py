@@ -9,7 +9,7 @@ from typing import Any
 
 import msgspec
 
-WIRE_VERSION = 3
+WIRE_VERSION = 4
 
 
 class WireError(ValueError):

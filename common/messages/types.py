@@ -105,6 +105,9 @@ class PathMsg(Message, frozen=True, kw_only=True):
 
     path_id: int
     status: PathStatus
+    # when the planner began publishing `status` without a break (s, runtime clock): for a
+    # NO_PATH, when it first failed to plan; stamp - status_since is how long it persists
+    status_since: float = 0.0
     reason: str
     degree: int
     control_points: tuple[float, ...]  # flat x0, y0, x1, y1, ...

@@ -1,4 +1,4 @@
-"""Geometric checks of a loaded scenario's world: simple polygons, start and goal not inside."""
+"""Geometric checks of a loaded scenario's world: simple polygons, start and goal hulls free."""
 
 from __future__ import annotations
 
@@ -16,16 +16,24 @@ if TYPE_CHECKING:
 
 def check_scenario(scenario: Scenario, file: str = "", budget: Budget = DEFAULT_BUDGET) -> None:
     """The check `load_scenario(..., check=check_scenario)` runs after loading a scenario."""
-    check_world(scenario.world, file)
+    check_world(
+        scenario.world,
+        file,
+        vehicle_radius_m=scenario.vehicle.radius_m,
+        rho0_m=scenario.planner.rho0_m,
+    )
     check_budget(scenario, file, budget)  # the run's memory and time (common/config/budget.py)
 
 
-def check_world(cfg: WorldConfig, file: str = "") -> None:
+def check_world(
+    cfg: WorldConfig, file: str = "", *, vehicle_radius_m: float = 0.0, rho0_m: float = 0.0
+) -> None:
     """Raise ConfigError at key `world...` of `file` for a world whose geometry is unusable.
 
     The config dataclasses check each value on its own; this needs the geometry model:
-    every polygon must be simple with non-zero area, and start and goal must not lie inside
-    an obstacle at t = 0.
+    every polygon must be simple with non-zero area; at t = 0 neither the start nor the goal
+    may put the hull (a disc of `vehicle_radius_m`) in contact with an obstacle; and the goal
+    must keep `rho0_m` from every static one, or the planner could never end a path there.
     """
     for i, p in enumerate(cfg.polygons):
         v = vertices_array(p.vertices_m)
@@ -36,12 +44,33 @@ def check_world(cfg: WorldConfig, file: str = "") -> None:
             raise ConfigError(file, where, "the polygon has zero area, expected a proper polygon")
     world = World(cfg)
     for name, pose in (("start", cfg.start), ("goal", cfg.goal)):
-        _check_free(world, file, name, pose)
+        _check_free(world, file, name, pose, vehicle_radius_m)
+    _check_goal_margin(world, file, cfg.goal, vehicle_radius_m, rho0_m)
 
 
-def _check_free(world: World, file: str, name: str, pose: PoseConfig) -> None:
-    # eq. (12) with r = 0 and the obstacles at t = 0: the pose must not lie inside any.
-    if world.clearance(pose.x_m, pose.y_m, 0.0, 0.0) <= 0.0:
+def _check_free(world: World, file: str, name: str, pose: PoseConfig, r: float) -> None:
+    # eq. (12) with the hull radius r and the obstacles at t = 0: a pose in contact would
+    # start (or end) the mission touching an obstacle
+    oid, d = world.nearest(pose.x_m, pose.y_m, r, 0.0)
+    if d <= 0.0:
         raise ConfigError(
-            file, ("world", name), f"({pose.x_m}, {pose.y_m}) lies inside an obstacle at t = 0"
+            file,
+            ("world", name),
+            f"({pose.x_m}, {pose.y_m}) puts the hull (radius {r:g} m, vehicle.radius_m) in "
+            f"contact with obstacle {oid} at t = 0: clearance {d:.2f} m, expected > 0 "
+            f"(eq. (12))",
+        )
+
+
+def _check_goal_margin(world: World, file: str, pose: PoseConfig, r: float, rho0: float) -> None:
+    # eq. (12)-(13): every planned path keeps rho0 from static obstacles, so the planner
+    # refuses a goal closer than that (NO_PATH for the whole run); moving ones pass by
+    oid, d = world.nearest(pose.x_m, pose.y_m, r, 0.0, moving=False)
+    if d < rho0:
+        raise ConfigError(
+            file,
+            ("world", "goal"),
+            f"({pose.x_m}, {pose.y_m}) is {d:.2f} m (hull to surface) from obstacle {oid}, "
+            f"inside the safe distance planner.rho0_m = {rho0:g} m: no path may end there "
+            f"(eq. (12)-(13))",
         )

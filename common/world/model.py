@@ -119,22 +119,34 @@ class World:
 
         Polygons use the exact signed distance to their boundary minus r. +inf when empty.
         """
-        best = math.inf
-        for i in range(len(self._circle_ids)):
+        return self.nearest(x, y, r_vehicle, t)[1]
+
+    def nearest(
+        self, x: float, y: float, r_vehicle: float, t: float, *, moving: bool = True
+    ) -> tuple[int | None, float]:
+        """The obstacle that attains eq. (12)'s minimum at (x, y, t), and that clearance.
+
+        (None, +inf) when there is no obstacle; `moving=False` looks at static ones only.
+        """
+        best, who = math.inf, None
+        for i, cid in enumerate(self._circle_ids):
             d = math.hypot(x - self._cxy[i, 0], y - self._cxy[i, 1]) - (r_vehicle + self._cr[i])
-            best = min(best, float(d))
+            if d < best:
+                best, who = float(d), cid
         for p in self._polygons:
             # the polygon lies in the disc (centroid, circumradius): if even that disc is no
             # nearer than the best so far, the exact distance cannot change the minimum
             if math.hypot(x - p.cx, y - p.cy) - p.circumradius - r_vehicle >= best:
                 continue
-            d = polygon_signed_distance(p.vertices, np.array(x), np.array(y))
-            best = min(best, float(d) - r_vehicle)
-        for _, rk, traj in self._moving:
+            d = float(polygon_signed_distance(p.vertices, np.array(x), np.array(y))) - r_vehicle
+            if d < best:
+                best, who = d, p.id
+        for mid, rk, traj in self._moving if moving else ():
             pos, _, _ = traj.state(t)
             d = math.hypot(x - float(pos[0]), y - float(pos[1])) - (r_vehicle + rk)
-            best = min(best, d)
-        return best
+            if d < best:
+                best, who = d, mid
+        return who, best
 
     def clearance_many(
         self, xs: ArrayLike, ys: ArrayLike, r_vehicle: ArrayLike, ts: ArrayLike

@@ -19,13 +19,16 @@ from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
+from common.scalar import wrap_angle
 from common.world import ObstacleState
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
+from services.planner.controllers.turn_on_spot import TurnOnSpot
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
-from services.planner.replan import ReplanPolicy
+from services.planner.replan import ReplanDecision, ReplanPolicy
+from services.planner.result import PlanStatus
 
 log = logging.getLogger("tidelink.planner")
 
@@ -58,21 +61,33 @@ class PlannerCore:
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
-        self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
+        self.limits = Limits.from_vehicle(vehicle)
+        self.controller = make_controller(controller, self.limits)
+        self.turn: TurnOnSpot | None = None  # a turn on the spot before the path (recover.py)
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
         self.path_id = 0
         self.last_result: PlanResult | None = None
+        # the status of the last path published and since when it has held without a break:
+        # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
+        self.path_status: PlanStatus | None = None
+        self.status_since = 0.0
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
         self._judge = Plausibility.of_area(world.area)
         self._rejects = RateLimitedLog(log)
+        self.last_cmd_t: float | None = None  # when the last command was sent
+        # a longer silence than this makes the vehicle hold (and the estimate stale)
+        self.resume_after_s = max(planner.max_estimate_age_s, vehicle.watchdog.hold_after_s)
 
     def deliver(self, d: Delivery) -> list[Emit]:
-        """Keep the newest estimate and tracks, unless implausible: a stamp from the future
-        (an estimate that never ages), a pose outside the world, more tracks than a message
-        may carry (planning work grows with them) are rejected, counted and logged."""
+        """Keep the newest estimate and tracks by stamp, unless implausible: a stamp from the
+        future (an estimate that never ages, which would hold the place of every later one),
+        a pose outside the world, more tracks than a message may carry (planning work grows
+        with them) are rejected, counted and logged. Newest by stamp, not the last handed
+        over: a backlog (a planner woken after a stall) or a reordering link may hand an older
+        estimate over after a newer one."""
         msg = d.msg
         if isinstance(msg, StateEstimate):
             stream, why = "state", self._judge_state(msg, d.t)
@@ -93,8 +108,9 @@ class PlannerCore:
                 msg.seq,
             )
         elif isinstance(msg, StateEstimate):
-            self.state = msg
-        else:
+            if self.state is None or msg.stamp >= self.state.stamp:
+                self.state = msg
+        elif self.tracks is None or msg.stamp >= self.tracks.stamp:
             self.tracks = msg
         return []
 
@@ -157,6 +173,7 @@ class PlannerCore:
             self.stale_skips += 1
             return []
         if self.arrived:
+            self.last_cmd_t = t
             return [
                 Emit(
                     stream="cmd",
@@ -167,15 +184,30 @@ class PlannerCore:
             ]
         here = Pose2D(x=s.x, y=s.y, theta=s.theta)
         obstacles = self._obstacles(t)
-        decision = self.policy.check(t, here, self.goal, obstacles)
+        gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
+        if math.isfinite(gap) and gap > self.resume_after_s:
+            # no command for so long that the vehicle's watchdog has made it hold: it has
+            # coasted off the plan while the planner was stopped or its uplink was out. The
+            # plan and the controller's state are stale: before commanding again, plan
+            # afresh from the newest estimate (the one in hand, checked fresh above).
+            decision = ReplanDecision(
+                replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
+            )
+        else:
+            decision = self.policy.check(t, here, self.goal, obstacles)
         if decision.replan:
             out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
+        # delay compensation: the estimate's uplink age plus the expected downlink delay
+        latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+        turning = None if self.turn is None else self.turn.command(pose, latency)
         if self.ref is None:
             v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
+        elif turning is not None:
+            v, w = turning  # near an obstacle: face the way the path leaves, then follow it
         else:
-            # delay compensation: the estimate's uplink age plus the expected downlink delay
-            latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+            self.turn = None
             v, w = self.controller.command(t, pose, self.ref, latency)
+        self.last_cmd_t = t
         out.append(
             Emit(
                 stream="cmd",
@@ -198,14 +230,24 @@ class PlannerCore:
         self.policy.on_planned(t, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
+        self.turn = None
+        if result.status != self.path_status:
+            self.path_status, self.status_since = result.status, t
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
+            if result.turn_rad != 0.0:  # the path leaves other than along the heading
+                self.turn = TurnOnSpot(
+                    heading=wrap_angle(here.theta + result.turn_rad),
+                    limits=self.limits,
+                    yaw_tau_s=self.vehicle.yaw_tau_s,
+                )
             return PathMsg(
                 stamp=t,
                 path_id=self.path_id,
                 status="OK",
-                reason=why,
+                status_since=self.status_since,
+                reason=f"{why}: {result.reason}" if result.reason else why,
                 degree=result.degree,
                 control_points=_flat(result.control_points),
                 weights=_flat(result.weights),
@@ -221,6 +263,7 @@ class PlannerCore:
             stamp=t,
             path_id=self.path_id,
             status="NO_PATH",
+            status_since=self.status_since,
             reason=f"{why}: {result.reason}",
             degree=0,
             control_points=(),

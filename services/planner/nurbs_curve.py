@@ -74,6 +74,35 @@ def averaged_knots(points: FloatArray, degree: int) -> FloatArray:
     return np.concatenate([np.zeros(degree + 1), interior, np.ones(degree + 1)])
 
 
+def join(a: NurbsCurve, b: NurbsCurve, split: float) -> NurbsCurve:
+    """Curve a then curve b as one curve on [0, 1], a on [0, split] and b on [split, 1].
+
+    Both clamped, of one degree p, a ending where b starts. The joint knot gets multiplicity
+    p, so each piece keeps its own shape (C0 at the joint; G1 when the end tangents agree);
+    b's weights are scaled so that the shared control point has a's weight (a rational piece
+    does not change when all its weights are scaled by one factor).
+    """
+    p = a.degree
+    if b.degree != p:
+        raise ValueError(f"join: degrees differ ({p} and {b.degree})")
+    for c in (a, b):
+        if np.ptp(c.knots[: p + 1]) > 0.0 or np.ptp(c.knots[-p - 1 :]) > 0.0:
+            raise ValueError("join: both curves must have clamped knot vectors")
+    if not np.allclose(a.ctrl[-1], b.ctrl[0], rtol=0.0, atol=1e-9):
+        raise ValueError("join: the first curve must end where the second starts")
+    if not 0.0 < split < 1.0:
+        raise ValueError(f"join: split {split!r} must lie in (0, 1)")
+    ka = (a.knots - a.knots[0]) / (a.knots[-1] - a.knots[0]) * split
+    kb = split + (b.knots - b.knots[0]) / (b.knots[-1] - b.knots[0]) * (1.0 - split)
+    wb = b.weights * (a.weights[-1] / b.weights[0])
+    return NurbsCurve(
+        p,
+        np.concatenate([a.ctrl, b.ctrl[1:]]),
+        np.concatenate([a.weights, wb[1:]]),
+        np.concatenate([ka[:-1], kb[p + 1 :]]),
+    )
+
+
 def find_spans(knots: FloatArray, degree: int, u: FloatArray) -> IntArray:
     """Knot span index i with u_i <= u < u_{i+1} for each u (the last span is closed)."""
     n_ctrl = len(knots) - degree - 1

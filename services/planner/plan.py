@@ -3,7 +3,10 @@
 `plan_path(request, config)` is a pure function: no clock unless one is handed in (only to
 fill the timing breakdown), no randomness. A walled-off or unsafe goal, or a curve that
 cannot be made to satisfy eq. (12)-(13) and (20), yields status NO_PATH with a reason,
-never a colliding path.
+never a colliding path. A start inside the safety margin may leave it within escape_len_m.
+Near an obstacle, where no curve leaves the vehicle's pose, the plan recovers (recover.py):
+a start in contact first takes the shortest straight way out; a heading no curve can leave
+along is turned on the spot first.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from services.planner.costmap import CostMap, build_costmap
 from services.planner.fit import FitProblem, initial_curve, resample
 from services.planner.nurbs_curve import NurbsCurve
 from services.planner.prediction import passing_discs, predicted_discs
+from services.planner.recover import leave_then_plan, turn_then_plan
 from services.planner.refine import RefineWeights, refine
 from services.planner.result import (
     Obstacles,
@@ -108,13 +112,23 @@ def plan_path(
 
     `clock` (e.g. time.perf_counter) only fills the timing breakdown of the result.
     """
+    return _plan(req, cfg, clock, may_escape=True)
+
+
+def _plan(
+    req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, *, may_escape: bool
+) -> PlanResult:
+    """plan_path; `may_escape` is False for the plan that follows a recovery (recover.py),
+    so one recovery never nests another."""
     clk = _Clock(clock)
+
+    def rest(q: PlanRequest) -> PlanResult:
+        return _plan(q, cfg, clock, may_escape=False)
+
     r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
     s_xy = np.array([req.start.x, req.start.y])
     g_xy = np.array([req.goal.x, req.goal.y])
-    if not _inside(area, req.start, r):
-        return _no_path("start is outside the area", clk)
     if not _inside(area, req.goal, r):
         return _no_path("goal is outside the area", clk)
     d_min = float(np.hypot(*(g_xy - s_xy)))
@@ -132,8 +146,17 @@ def plan_path(
         float(static.distance(s_xy)[0][0]),
         float(moving_distance(obs.moving, s_xy, np.zeros(1), cfg.accel_horizon_s)[0][0]),
     )
-    if d_start <= r:
-        return _no_path("start is in contact with an obstacle", clk)
+    outside = not _inside(area, req.start, r)
+    if outside or d_start <= r:
+        escaped = leave_then_plan(req, cfg, static, d_start, rest) if may_escape else None
+        if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
+            where = (
+                "outside the area"
+                if outside
+                else f"in contact with an obstacle (hull clearance {d_start - r:.2f} m)"
+            )
+            return _no_path(f"start is {where} and no straight way out is clear", clk)
+        return escaped
     t_max = (
         2.0
         * float(np.hypot(area.x_max_m - area.x_min_m, area.y_max_m - area.y_min_m))
@@ -198,6 +221,7 @@ def plan_path(
                 turn_penalty=chk.turn_penalty,
                 rounds=rounds,
                 timing=clk.timing(),
+                escape_m=cfg.escape_len_m if d_start < d_req else 0.0,
             )
         if attempt > 0 or met_moving is None:
             break
@@ -206,7 +230,16 @@ def plan_path(
         discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)])
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
-    return _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
+    failed = _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
+    if not may_escape:
+        return failed
+    # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
+    # turn on the spot first; inside the margin, failing that, leave it straight first
+    turned = turn_then_plan(req, failed, rest)
+    if turned.ok or d_start >= d_req:
+        return turned
+    escaped = leave_then_plan(req, cfg, static, d_start, rest)
+    return escaped if escaped is not None and escaped.ok else failed
 
 
 def _fit_and_check(

@@ -6,9 +6,15 @@ last replan, so noisy tracks cannot make the planner chatter):
   goal_changed  the goal moved;
   deviation     the vehicle is farther than deviation_threshold_m from its path;
   infeasible    the rest of the path violates eq. (12)-(13): some obstacle (static, or moving
-                at the time the vehicle will pass) is closer than r + rho0;
+                at the time the vehicle will pass) is closer than r + rho0 (static ones are
+                not counted over the plan's escape_m, which it may pass closer: leaving the
+                margin, or contact, is what that stretch is for);
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes.
+The core adds one event of its own, ahead of these and of the interval:
+  resumed       it sent no command for longer than the vehicle's hold_after_s (and
+                max_estimate_age_s): it was stopped, or its uplink was out, while the vehicle
+                held off the plan, so the plan and its controller's state are stale.
 A replan should start from the vehicle's current pose (see `replan_request`).
 """
 
@@ -27,7 +33,9 @@ from services.planner.clearance import StaticField
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
-ReplanReason = Literal["", "no_path", "goal_changed", "deviation", "infeasible", "corridor"]
+ReplanReason = Literal[
+    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "resumed"
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,6 +73,7 @@ class ReplanPolicy:
         self.known_ids: frozenset[int] = frozenset()  # tracks the current plan accounted for
         self.last_replan_t: float | None = None
         self.s_now = 0.0  # progress along the path (m), monotone
+        self.escape_m = 0.0  # the current plan's first escape_m may pass static obstacles closer
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
         # per (path, static obstacle set) and sliced at every check, not recomputed (it was
@@ -79,6 +88,7 @@ class ReplanPolicy:
         self.goal = goal
         self.s_now = 0.0
         self.last_check_t = t
+        self.escape_m = result.escape_m
         if not result.ok:
             self.pts = None
             return
@@ -112,6 +122,8 @@ class ReplanPolicy:
         d_req = self.r + self.cfg.rho0_m
         ahead = self.pts[i_now:]
         d = self._static_distance(obstacles)[i_now:]
+        if self.escape_m > 0.0:  # the plan checked that stretch against them itself
+            d = np.where(self.s[i_now:] < self.escape_m, np.inf, d)
         if len(d):
             j = int(np.argmin(d))
             if d[j] < d_req - 1e-6:

@@ -86,6 +86,10 @@ class PlanResult:
     min_clearance_m: float = 0.0  # hull-to-obstacle-surface minimum; >= rho0 when OK
     turn_penalty: float = 0.0  # eq. (19) f_R of the final curve
     rounds: int = 0  # refinement rounds used (over all search attempts)
+    # the first escape_m of arc length may pass closer than r + rho0: a start inside the
+    # margin leaves it within planner.escape_len_m; a start in contact first escapes it
+    escape_m: float = 0.0
+    turn_rad: float = 0.0  # turn on the spot before following the curve (contact escape)
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property

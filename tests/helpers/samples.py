@@ -101,6 +101,7 @@ def one_of_each() -> list[Message]:
             sent=SENT,
             path_id=2,
             status="OK",
+            status_since=11.5,
             reason="",
             degree=2,
             control_points=(0.0, 0.0, 5.0, 1.0, 10.0, 0.0, 15.0, 2.0),
