@@ -34,6 +34,7 @@ SERVICE_MODULE = "common.runtime.distributed.realtime_service"
 RETELL_S = 1.0  # wall seconds between re-publications of the mission time (late joiners)
 CHECK_EVERY_S = 0.1  # wall seconds between supervision checks and progress reports
 FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
+GONE_GRACE_S = 0.5  # after a service's token went: its last frames may still be on their way
 
 
 class RealtimeDriver:
@@ -186,11 +187,21 @@ class RealtimeDriver:
         return RunResult(reason, t_end_us / 1e6, 0, self.record, self.mission.metrics(self.record))
 
     def _collect_final(self, inbox: Inbox) -> None:
-        """Take the final statistics each service sends as it stops, until all have left."""
+        """Take the final statistics each service sends as it stops: a service is done
+        GONE_GRACE_S after its token went. The token's going alone is no proof its last
+        frames were taken: liveliness and data reach this process by different paths, in
+        either order (a flood's or a restart's final counts were lost that way)."""
         deadline = time.monotonic() + FINAL_STATS_S
-        # until a service's token has gone its final statistics may still be on their way,
-        # even from a process that has exited (its session sends them before the token goes)
-        while self.alive and time.monotonic() < deadline and not self.stop.hurry:
+        gone_at: dict[str, float] = {}
+
+        def done(name: str) -> bool:
+            if name in self.alive:
+                return False
+            return time.monotonic() - gone_at.setdefault(name, time.monotonic()) > GONE_GRACE_S
+
+        while not all(done(n) for n in self.names):
+            if time.monotonic() > deadline or self.stop.hurry:
+                break
             self.take(inbox.get(timeout=0.05))
         while (ev := inbox.get(timeout=0.0)) is not None:
             self.take(ev)
