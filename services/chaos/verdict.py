@@ -50,7 +50,7 @@ def problems(o: Outcome) -> list[str]:
 def table(outcomes: list[Outcome]) -> str:
     """fault x outcome, one row per case."""
     head = (
-        f"{'fault':<24} {'verdict':<7} {'exit':>4} {'end':<15} {'goal':<5} {'min clr':>8} "
+        f"{'fault':<27} {'verdict':<7} {'exit':>4} {'end':<15} {'goal':<5} {'min clr':>8} "
         f"{'hold s':>6} {'fs s':>5} {'left':>4} {'metrics':<7} {'wall s':>6}  why"
     )
     rows = [head, "-" * len(head)]
@@ -59,7 +59,7 @@ def table(outcomes: list[Outcome]) -> str:
         bad = problems(o)
         clr = m.get("min_clearance_m")
         rows.append(
-            f"{o.fault.name:<24} {'PASS' if not bad else 'FAIL':<7} "
+            f"{o.fault.name:<27} {'PASS' if not bad else 'FAIL':<7} "
             f"{'-' if o.exit_code is None else o.exit_code:>4} "
             f"{str(m.get('end_reason', '-'))[:15]:<15} "
             f"{('yes' if m.get('reached_goal') else 'no') if m else '-':<5} "
