@@ -25,9 +25,11 @@ import time
 
 import numpy as np
 
+# the payload bench_bus measures (run as a script: scripts/ is on the path)
+from bench_bus import navfix
+
 from common.bus import CLOCK, Bus, Inbox, Keys, Liveliness, Received
 from common.config.bus import BusConfig
-from common.messages import NavFix
 from common.runtime.distributed.acl import LAUNCHER, access_control, run_grants
 from common.runtime.processes.children import free_port
 from tests.helpers.testloop import TestLoopParams, testloop_dataflow
@@ -37,23 +39,6 @@ KEYS = Keys("hop", "bench")
 SENDER, RECEIVER = "sensor", "filter"  # the loop's first hop; their certificates and grants
 WARMUP = 200
 WAIT_S = 30.0
-
-
-def navfix(sent: float, seq: int) -> NavFix:
-    """The payload (bench_bus's values), stamped with the send time (CLOCK_MONOTONIC, s)."""
-    return NavFix(
-        stamp=12.5,
-        source=SENDER,
-        seq=seq,
-        sent=sent,
-        x=10.25,
-        y=-3.5,
-        heading=0.75,
-        speed=1.5,
-        std_xy=0.5,
-        std_heading=0.0625,
-        std_speed=0.125,
-    )
 
 
 def _base(certs: str) -> BusConfig:
@@ -78,10 +63,9 @@ def sender(endpoint: str, certs: str) -> None:
             raise TimeoutError("no clock token")
         seq = 0
         while not gone.is_set():
-            sent = time.monotonic_ns() * 1e-9
-            pub.put(navfix(sent, seq))
+            pub.put(navfix(time.monotonic_ns(), seq))
             seq += 1
-            time.sleep(0.001)
+            time.sleep(0.001)  # pacing: one message a millisecond, as the loop's sensor
     print(f"{open_ms:.1f}")
 
 
