@@ -8,6 +8,7 @@ drops and rejections are in metrics.json, and the estimator's log stays small.""
 from __future__ import annotations
 
 import json
+import threading
 from pathlib import Path
 
 import pytest
@@ -54,11 +55,25 @@ def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -
         with Tidelink(*launch, "--out", str(out), "--no-plot") as run:
             run.wait_for(r"vehicle: mode IDLE -> RUN", WAIT_S)
             keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
-            with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
-                pub = bus.publisher_on(keys.stream("sensor", "nav"))
+            key = keys.stream("sensor", "nav")
+            cfg = BusConfig(mode="client", connect=(endpoint,))
+            with Bus(cfg, keys) as watcher, Bus(cfg, keys) as bus:
+                arrived = threading.Event()
+                sentinel = _fix(5.0, x=21.0)
+                watcher.subscribe_raw(key, lambda f: f.payload == sentinel and arrived.set())
+                pub = bus.publisher_on(key)
                 for i in range(FLOOD):
                     data, attachment = variants[i % len(variants)]
                     pub.put_bytes(data, attachment)
+                # Closing a session discards what it has not sent yet: close only once the
+                # router has passed on a last message (one link: it arrives after the
+                # flood). Sent again until seen, in case the watcher's subscription was
+                # not yet known to the router; each is one more unrouted drop.
+                for _ in range(20):
+                    pub.put_bytes(sentinel)
+                    if arrived.wait(1.0):
+                        break
+                assert arrived.is_set(), "the router never passed the flood on"
             assert run.wait(WAIT_S) == 0, run.stderr
     finally:
         kill_recorded(out / "pids.json")
@@ -69,7 +84,8 @@ def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -
     dropped = m["inputs_dropped_by_link"]["sensor/nav->estimator"]
     rejected = m["inputs_rejected_by_reason"]["estimator"]
     assert dropped >= FLOOD // 3, m["inputs_dropped_by_link"]
-    assert dropped + rejected.get("nav.future", 0) + rejected.get("nav.out_of_range", 0) >= FLOOD
+    refused = rejected.get("nav.future", 0) + rejected.get("nav.out_of_range", 0)
+    assert dropped + refused >= FLOOD, (dropped, rejected)
     assert m["inputs_dropped"] >= dropped and m["inputs_rejected"] >= 1
     # a few lines a mission second at most, where it used to be one line per message
     lines = (out / "logs" / "estimator.log").read_text().splitlines()
