@@ -7,8 +7,15 @@ import re
 from pathlib import Path
 
 from common.config.scenario import load_scenario
-from services.experiments.reproduce import ReproduceOptions, reproduce
-from services.experiments.tuning import TUNED_GAINS, Candidate, candidate_gains, choose
+from services.experiments.reproduce import CASES, ReproduceOptions, reproduce
+from services.experiments.tuning import (
+    TUNED_GAINS,
+    Box,
+    Candidate,
+    Point,
+    candidate_gains,
+    choose,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
@@ -16,73 +23,90 @@ SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
 def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
     opts = ReproduceOptions(
-        out=tmp_path,
+        out=tmp_path / "runs",
+        report_dir=tmp_path / "report",
         scenario=SMALL,
+        crossing=None,
         seeds=1,
         runtime="inproc",
         jobs=2,
-        tune=True,
         tune_seeds=1,
-        tune_factors=(1.0,),
+        tune_box=Box(a_lo=0, a_hi=0, b_lo=0, b_hi=0),
+        tune_limit=0,  # one candidate, never widened: the search itself is tested below
         rich=False,
     )
     res = reproduce(opts)
-    assert (res.sweep.total, res.sweep.errors) == (6, 0)  # 2 networks x 3 controllers x 1 seed
-    assert res.tuned is not None and set(res.tuned) == {"nurbs", "backstepping", "fuzzy_pid"}
-    chosen = json.loads((tmp_path / "tuning" / "chosen.json").read_text())
+    # 5 cases (2 networks x compensation on/off, and the eq. (2)-(3) ablation) x 3 controllers
+    assert (res.sweep.total, res.sweep.errors) == (15, 0)
+    assert {r["case"] for r in res.sweep.rows} == {c.label for c in CASES}
+    comp = {r["case"]: r for r in res.sweep.rows if r["controller"] == "backstepping"}
+    assert res.tuning is not None and set(res.tuning.best) == {"nurbs", "backstepping", "fuzzy_pid"}
+    chosen = json.loads((tmp_path / "runs" / "tuning" / "chosen.json").read_text())
     assert chosen["seeds"] == [101] and set(chosen["chosen"]) == set(TUNED_GAINS)
+    assert res.report == tmp_path / "report" / "REPORT.md"
     text = res.report.read_text()
     for heading in (
+        "## What is compared, and on which terms",
         "## Gains",
-        "## Results: perfect network",
-        "## Results: lossy network",
+        "## Which of the paper's claims hold on equal terms",
+        "### `perfect`: perfect network, compensation on for all",
+        "### `lossy-uncompensated`: lossy network, compensation off for all",
+        "### `lossy-no-prefilter`",
         "## Beside the paper",
-        "## The paper's qualitative claims",
         "## Figures",
     ):
-        assert heading in text
-    # the paper's numbers beside ours, and the on-path tolerance stated
-    for paper in (
-        "| 62 |",
-        "| 29 |",
-        "| 85 |",
-        "| 4 |",
-        "| 100 |",
-        "21.89 min",
-        "32.5 min",
-        "4.98 min",
-        "within 0.5 m",
-    ):
+        assert heading in text, heading
+    # the paper's numbers beside ours (its "4" is returns to the path), the tolerance stated
+    for paper in ("| 62 |", "| 29 |", "| 85 |", "| 4 |", "| 100 |", "21.89 min", "within 0.5 m"):
         assert paper in text, paper
-    assert (
-        text.count("**matches")
-        + text.count("**partly matches**")
-        + text.count("**does not match**")
-        == 10
-    )  # five claims judged on each of the two networks
+    # four claims judged in each of the four equal-terms cases; actions are not graded
+    assert text.count("in case `") >= 16
+    assert "one measurement, not two claims" in text
     assert "Planning: the first plan is kept" in text
-    # the paper's setup: one planned path per run, followed by every controller
     assert {r["replans"] for r in res.sweep.rows} == {"1"}
+    assert comp  # every case ran the baselines too
     figs = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
-    assert len(figs) == 10  # figures 2-6 for each network
+    assert len(figs) == 10  # figures 2-6 for the perfect and lossy cases
     for f in figs:
-        assert (tmp_path / f).read_bytes()[:4] == b"\x89PNG"
+        assert (tmp_path / "report" / f).read_bytes()[:4] == b"\x89PNG"
 
 
 def test_the_gain_grid_is_the_same_for_every_controller() -> None:
     s, _ = load_scenario(SMALL)
-    grid = candidate_gains(s, (0.5, 1.0, 2.0))
+    box = Box()
+    grid = [candidate_gains(s, pt, 2.0) for pt in box.points()]
     assert len(grid) == 9
-    base = candidate_gains(s, (1.0,))[0]
+    base = candidate_gains(s, (0, 0), 2.0)
     for ctrl, (a, b) in TUNED_GAINS.items():
         ratios = sorted((g[a] / base[a], g[b] / base[b]) for g in grid)
         assert ratios == sorted((fa, fb) for fa in (0.5, 1.0, 2.0) for fb in (0.5, 1.0, 2.0)), ctrl
 
 
-def _cand(ctrl: str, label: str, succ: float, xte: float, tt: float = 60.0) -> Candidate:
+def test_the_grid_widens_where_a_choice_is_on_its_edge_until_the_limit() -> None:
+    box = Box()  # exponents -1..1 on both gains
+    inner = {"nurbs": _cand("nurbs", "c", 1.0, 0.1, point=(0, 0))}
+    assert box.widened(inner, limit=4) is None and box.edges(inner["nurbs"]) == []
+    # one controller's choice on the high edge of a, another on the low edge of b
+    best = {
+        "nurbs": _cand("nurbs", "x", 1.0, 0.1, point=(1, 0)),
+        "fuzzy_pid": _cand("fuzzy_pid", "y", 1.0, 0.1, point=(0, -1)),
+    }
+    wider = box.widened(best, limit=4)
+    assert wider == Box(a_lo=-1, a_hi=2, b_lo=-2, b_hi=1)
+    assert len(wider.points()) == 16  # the same, larger grid for every controller
+    # at the limit nothing grows, and the edge is reported
+    at_limit = Box(a_lo=-1, a_hi=1, b_lo=-1, b_hi=1)
+    assert at_limit.widened(best, limit=1) is None
+    assert at_limit.edges(best["nurbs"]) == ["a"]
+
+
+def _cand(
+    ctrl: str, label: str, succ: float, xte: float, tt: float = 60.0, point: Point = (0, 0)
+) -> Candidate:
     return Candidate(
         controller=ctrl,
         label=label,
+        point=point,
         gains={},
         runs=2,
         success_rate=succ,

@@ -10,6 +10,8 @@ from pathlib import Path
 
 from services.cli.core_commands import budget_arg
 
+CROSSING = Path("configs/crossing.toml")  # services.experiments.reproduce.CROSSING (lazy import)
+
 
 def _jobs(text: str) -> int:
     n = int(text)
@@ -18,7 +20,7 @@ def _jobs(text: str) -> int:
     return n
 
 
-def _common(p: argparse.ArgumentParser) -> None:
+def _common(p: argparse.ArgumentParser, runtime: str = "lockstep") -> None:
     p.add_argument(
         "--jobs",
         type=_jobs,
@@ -28,9 +30,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--runtime",
         choices=("lockstep", "inproc"),
-        default="lockstep",
-        help="lockstep: every service its own process over Zenoh (default); "
-        "inproc: one process, bit-identical and faster",
+        default=runtime,
+        help="lockstep: every service its own process over Zenoh; inproc: one process, "
+        f"bit-identical and faster (default: {runtime})",
     )
     p.add_argument(
         "--scheduler",
@@ -69,6 +71,8 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
 
     opts = ReproduceOptions(
         out=a.out,
+        report_dir=a.report_dir,
+        crossing=None if str(a.crossing) == "none" else a.crossing,
         scenario=a.scenario,
         seeds=a.seeds,
         runtime=a.runtime,
@@ -80,8 +84,10 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
         command="tidelink " + shlex.join(sys.argv[1:]),
     )
     res = reproduce(opts)
-    print(f"reproduce: {res.sweep.total} runs ({res.sweep.errors} failed); report {res.report}")
-    return 1 if res.sweep.errors else 0
+    errors = res.sweep.errors + (res.crossing.errors if res.crossing else 0)
+    total = res.sweep.total + (res.crossing.total if res.crossing else 0)
+    print(f"reproduce: {total} runs ({errors} failed); report {res.report}")
+    return 1 if errors else 0
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -116,13 +122,28 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=Path("configs/default.toml"),
         help="the scenario (default: configs/default.toml, the paper-like field)",
     )
-    r.add_argument("--out", type=Path, default=Path("runs/reproduce"), help="output folder")
-    r.add_argument("--seeds", type=int, default=3, help="seeds per cell (default 3)")
-    _common(r)
     r.add_argument(
-        "--tune",
-        action="store_true",
-        help="first choose every controller's gains by the same grid search",
+        "--out", type=Path, default=Path("runs/reproduce"), help="the runs (default runs/reproduce)"
+    )
+    r.add_argument(
+        "--report-dir",
+        type=Path,
+        default=Path("docs/reproduce"),
+        help="where REPORT.md and its figures go (default docs/reproduce, the committed report)",
+    )
+    r.add_argument(
+        "--crossing",
+        type=Path,
+        default=CROSSING,
+        help=f"the crossing-obstacles scenario (default {CROSSING}); 'none' skips it",
+    )
+    r.add_argument("--seeds", type=int, default=5, help="seeds per cell (default 5)")
+    _common(r, runtime="inproc")  # bit-identical to lockstep (tested), and faster
+    r.add_argument(
+        "--no-tune",
+        dest="tune",
+        action="store_false",
+        help="keep the scenario's gains instead of running the same gain search for each",
     )
     r.add_argument("--tune-seeds", type=int, default=2, help="seeds per tuning candidate")
     r.add_argument(

@@ -17,6 +17,7 @@ from services.experiments.sweep import SweepOptions, SweepReport, run_sweep
 from services.experiments.tuning import (
     CONTROLLERS,
     PERFECT_NETWORK,
+    Box,
     Candidate,
     choose,
     chosen_set,
@@ -25,10 +26,42 @@ from services.experiments.tuning import (
     tuning_experiment,
 )
 
-NETWORKS = ("perfect", "lossy")
 # The paper's three controllers each follow the one shortest path: keep the first plan for the
 # whole run (no replan is ever due), unless --replan lets the planner react as in a mission.
 FIXED_PATH: dict[str, SetValue] = {"planner.min_replan_interval_s": 1e9}
+# The paper's pipeline as published: eq. (2) mean filter and eq. (3) lag on the fixes.
+PAPER_PIPELINE: dict[str, SetValue] = {"estimator.prefilter": "mean+lag"}
+# The moving obstacles of the default field pass the planned path by chance; this scenario
+# sends them across it (eqs. (12)-(13) and replanning are what carry the vehicle through).
+CROSSING = Path("configs/crossing.toml")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Case:
+    """One column of the comparison: a network, and delay compensation for all or for none."""
+
+    label: str
+    network: str  # "perfect" | "lossy"
+    compensation: bool
+    prefilter: bool = True  # eq. (2)-(3) on (the ablation switches them off)
+
+    def overrides(self) -> dict[str, SetValue]:
+        out: dict[str, SetValue] = {"controller.delay_compensation": self.compensation}
+        if self.network == "perfect":
+            out.update(PERFECT_NETWORK)
+        if not self.prefilter:
+            out["estimator.prefilter"] = "none"
+        return out
+
+
+CASES = (
+    Case(label="perfect", network="perfect", compensation=True),
+    Case(label="perfect-uncompensated", network="perfect", compensation=False),
+    Case(label="lossy", network="lossy", compensation=True),
+    Case(label="lossy-uncompensated", network="lossy", compensation=False),
+    # the ablation of eqs. (2)-(3): where they matter, with a noisy, lossy network
+    Case(label="lossy-no-prefilter", network="lossy", compensation=True, prefilter=False),
+)
 
 
 def planning_overrides(replan: bool) -> dict[str, SetValue]:
@@ -54,112 +87,172 @@ def describe_network(cfg: NetworkConfig) -> str:
 class ReproduceOptions:
     """What `tidelink reproduce` runs and where."""
 
-    out: Path
+    out: Path  # the runs (results.csv, logs, trajectories)
+    report_dir: Path | None = None  # REPORT.md and figures/ (default: out)
     scenario: Path = Path("configs/default.toml")
-    seeds: int = 3
+    crossing: Path | None = CROSSING  # None: no crossing-obstacles section
+    seeds: int = 5
     first_seed: int = 1
-    runtime: str = "lockstep"
+    runtime: str = "inproc"
     jobs: int = 1
     scheduler: str = ""
-    tune: bool = False
+    tune: bool = True
     tune_seeds: int = 2
     tune_first_seed: int = 101  # disjoint from the evaluation seeds
-    tune_factors: tuple[float, ...] = (0.5, 1.0, 2.0)
+    tune_box: Box = Box()  # the first box of the search (exponents of tune_step)
+    tune_step: float = 2.0
+    tune_limit: int = 4  # the box never goes beyond factors tune_step**-4 .. tune_step**4
     replan: bool = False  # False: every controller follows the first plan (the paper's setup)
     rich: bool | None = None
     command: str = ""
+
+    @property
+    def report_root(self) -> Path:
+        return self.out if self.report_dir is None else self.report_dir
 
 
 @dataclass(frozen=True, kw_only=True)
 class ReproduceResult:
     report: Path
     sweep: SweepReport
-    tuned: dict[str, Candidate] | None
+    crossing: SweepReport | None
+    tuning: Tuning | None
 
 
-def _tune(opts: ReproduceOptions) -> tuple[dict[str, Candidate], list[Candidate]]:
-    scenario, _ = load_scenario(opts.scenario)
-    exp = tuning_experiment(
-        str(opts.scenario.resolve()),
-        scenario,
-        seeds=opts.tune_seeds,
-        first_seed=opts.tune_first_seed,
-        factors=opts.tune_factors,
-        extra=planning_overrides(opts.replan),
-    )
-    rep = run_sweep(
+@dataclass(frozen=True, kw_only=True)
+class Tuning:
+    """The outcome of the gain search: every candidate, the choices and the final box."""
+
+    best: dict[str, Candidate]
+    candidates: list[Candidate]
+    box: Box
+    rounds: int
+
+
+def _sweep(opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = False) -> SweepReport:
+    return run_sweep(
         exp,
-        "tidelink reproduce --tune",
+        f"tidelink reproduce ({exp.name})",
         SweepOptions(
-            out=opts.out / "tuning",
+            out=out,
             runtime=opts.runtime,
             jobs=opts.jobs,
             scheduler=opts.scheduler,
+            keep_trajectories=keep,
             rich=opts.rich,
         ),
     )
-    candidates = score(rep.rows, exp)
-    best = choose(candidates)
-    save_choice(
-        opts.out / "tuning" / "chosen.json",
-        best,
-        opts.tune_factors,
-        list(range(opts.tune_first_seed, opts.tune_first_seed + opts.tune_seeds)),
-    )
-    return best, candidates
+
+
+def _base_overrides(opts: ReproduceOptions) -> dict[str, SetValue]:
+    """What every comparison and tuning run shares: the paper's pipeline and planning mode."""
+    return {**PAPER_PIPELINE, **planning_overrides(opts.replan)}
+
+
+def tune(opts: ReproduceOptions) -> Tuning:
+    """The gain search (tuning.py): run the box, widen it while a choice lies on its edge.
+
+    Each round runs only the points not yet run (the sweep resumes in DIR/tuning)."""
+    scenario, _ = load_scenario(opts.scenario)
+    box, rounds = opts.tune_box, 0
+    while True:
+        rounds += 1
+        exp = tuning_experiment(
+            str(opts.scenario.resolve()),
+            scenario,
+            box=box,
+            step=opts.tune_step,
+            seeds=opts.tune_seeds,
+            first_seed=opts.tune_first_seed,
+            extra=_base_overrides(opts),
+        )
+        rep = _sweep(opts, exp, opts.out / "tuning")
+        candidates = score(rep.rows, exp, box, opts.tune_step)
+        best = choose(candidates)
+        wider = box.widened(best, opts.tune_limit)
+        if wider is None:
+            break
+        print(f"reproduce: a choice lies on the edge of the gain grid: widening it to {wider}")
+        box = wider
+    seeds = list(range(opts.tune_first_seed, opts.tune_first_seed + opts.tune_seeds))
+    save_choice(opts.out / "tuning" / "chosen.json", best, box, opts.tune_step, seeds)
+    return Tuning(best=best, candidates=candidates, box=box, rounds=rounds)
 
 
 def comparison_experiment(opts: ReproduceOptions, gains: dict[str, SetValue]) -> Experiment:
-    """Network (perfect, lossy) x the three controllers x seeds, with the chosen gains."""
-    nets = (AxisValue(label="perfect", set=dict(PERFECT_NETWORK)), AxisValue(label="lossy"))
+    """The cases (network x compensation for all, and the eq. (2)-(3) ablation) x the three
+    controllers x seeds, with the chosen gains."""
+    cases = tuple(AxisValue(label=c.label, set=c.overrides()) for c in CASES)
     return Experiment(
         name="reproduce",
         scenario=str(opts.scenario.resolve()),
         seeds=opts.seeds,
         first_seed=opts.first_seed,
         controllers=CONTROLLERS,
-        set={**gains, **planning_overrides(opts.replan)},
-        axes=(Axis(name="network", values=nets, x_label="network"),),
+        set={**gains, **_base_overrides(opts)},
+        axes=(Axis(name="case", values=cases, x_label="case"),),
+    )
+
+
+def crossing_experiment(
+    opts: ReproduceOptions, path: Path, gains: dict[str, SetValue]
+) -> Experiment:
+    """Moving obstacles across the planned path: the planner replans (that is the point),
+    compensation on for all, the three controllers x seeds."""
+    return Experiment(
+        name="crossing",
+        scenario=str(path.resolve()),
+        seeds=opts.seeds,
+        first_seed=opts.first_seed,
+        controllers=CONTROLLERS,
+        set={**gains, **PAPER_PIPELINE, "controller.delay_compensation": True},
+        axes=(Axis(name="case", values=(AxisValue(label="crossing"),), x_label="case"),),
     )
 
 
 def reproduce(opts: ReproduceOptions) -> ReproduceResult:
-    """Optionally tune, run the comparison, draw the figures and write DIR/REPORT.md."""
-    tuned, candidates = (None, []) if not opts.tune else _tune(opts)
-    exp = comparison_experiment(opts, chosen_set(tuned) if tuned else {})
-    sweep = run_sweep(
-        exp,
-        "tidelink reproduce",
-        SweepOptions(
-            out=opts.out,
-            runtime=opts.runtime,
-            jobs=opts.jobs,
-            scheduler=opts.scheduler,
-            keep_trajectories=True,
-            rich=opts.rich,
-        ),
-    )
-    grid = tuple(a.name for a in exp.all_axes)
-    cells = aggregate(sweep.rows, grid)
+    """Tune (unless told not to), run the comparison and the crossing scenario, draw the
+    figures and write REPORT.md."""
+    tuning = tune(opts) if opts.tune else None
+    gains = chosen_set(tuning.best) if tuning else {}
+    exp = comparison_experiment(opts, gains)
+    sweep = _sweep(opts, exp, opts.out, keep=True)
+    crossing = None
+    if opts.crossing is not None:
+        crossing = _sweep(
+            opts, crossing_experiment(opts, opts.crossing, gains), opts.out / "crossing", keep=True
+        )
+    rows = sweep.rows + (crossing.rows if crossing else [])
+    cells = aggregate(rows, ("case", "controller"))
     scenario, _ = load_scenario(opts.scenario)
-    figs = _figures(opts, sweep, scenario.world)
+    root = opts.report_root
+    figs = _figures(opts, root, sweep, scenario.world, ("perfect", "lossy"))
+    if crossing is not None and opts.crossing is not None:
+        cross_world = load_scenario(opts.crossing)[0].world
+        figs |= _figures(opts, root, crossing, cross_world, ("crossing",), "crossing")
     from services.mission.metrics import ON_PATH_TOL_M  # the tolerance the metric uses
 
     inp = ReportInputs(
         scenario=str(opts.scenario),
+        crossing=str(opts.crossing) if crossing is not None else "",
         runtime=opts.runtime,
         area=_area(scenario.world),
         networks={
             "perfect": "no delay, no loss (the paper's setting)",
             "lossy": describe_network(scenario.network),
         },
+        cases=CASES,
         seeds=list(range(opts.first_seed, opts.first_seed + opts.seeds)),
         on_path_tol_m=ON_PATH_TOL_M,
+        r_min_m=scenario.vehicle.turn_radius_min_m,
+        rho0_m=scenario.planner.rho0_m,
         cells=cells,
+        outcomes=_outcomes(rows),
         figures=figs,
-        errors=sweep.errors,
-        tuned=tuned,
-        candidates=candidates,
+        errors=sweep.errors + (crossing.errors if crossing else 0),
+        tuning=tuning,
+        tune_step=opts.tune_step,
+        tune_limit=opts.tune_limit,
         tune_seeds=list(range(opts.tune_first_seed, opts.tune_first_seed + opts.tune_seeds)),
         same_first_plan=_same_first_plan(sweep.rows),
         replan=opts.replan,
@@ -167,9 +260,10 @@ def reproduce(opts: ReproduceOptions) -> ReproduceResult:
         left_corridor=_left_corridor(sweep.rows, scenario.planner.corridor_halfwidth_m),
         command=opts.command,
     )
-    path = opts.out / "REPORT.md"
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / "REPORT.md"
     write_report(path, inp)
-    return ReproduceResult(report=path, sweep=sweep, tuned=tuned)
+    return ReproduceResult(report=path, sweep=sweep, crossing=crossing, tuning=tuning)
 
 
 def _area(w: WorldConfig) -> str:
@@ -177,73 +271,88 @@ def _area(w: WorldConfig) -> str:
     return f"{a.x_max_m - a.x_min_m:g} m x {a.y_max_m - a.y_min_m:g} m"
 
 
+def _outcomes(rows: list[dict[str, str]]) -> dict[tuple[str, str], dict[str, int]]:
+    """Per (case, controller): how many runs ended in each outcome (metrics.py `outcome`)."""
+    out: dict[tuple[str, str], dict[str, int]] = {}
+    for r in rows:
+        if r.get("status") == "ok":
+            counts = out.setdefault((r["case"], r["controller"]), {})
+            counts[r.get("outcome", "")] = counts.get(r.get("outcome", ""), 0) + 1
+    return out
+
+
 def _same_first_plan(rows: list[dict[str, str]]) -> dict[str, bool]:
-    """Per network: did every controller start from the same first plan in each seed?"""
+    """Per case: did every controller start from the same first plan in each seed?"""
     out: dict[str, bool] = {}
-    for net in NETWORKS:
+    for case in CASES:
         by_seed: dict[str, set[str]] = {}
         for r in rows:
-            if r.get("network") == net and r.get("status") == "ok":
+            if r.get("case") == case.label and r.get("status") == "ok":
                 by_seed.setdefault(r["seed"], set()).add(r.get("planned_length_m", ""))
-        out[net] = bool(by_seed) and all(len(v) == 1 for v in by_seed.values())
+        out[case.label] = bool(by_seed) and all(len(v) == 1 for v in by_seed.values())
     return out
 
 
 def _left_corridor(
     rows: list[dict[str, str]], corridor_m: float
 ) -> dict[tuple[str, str], tuple[int, int]]:
-    """Per (network, controller): runs whose max XTE to the optimal path left its corridor."""
+    """Per (case, controller): runs whose max XTE to the optimal path left its corridor."""
     out: dict[tuple[str, str], tuple[int, int]] = {}
     for r in rows:
         if r.get("status") != "ok":
             continue
-        key = (r["network"], r["controller"])
+        key = (r["case"], r["controller"])
         k, n = out.get(key, (0, 0))
         out[key] = (k + (as_number(r.get("xte_optimal_max_m")) > corridor_m), n + 1)
     return out
 
 
 def _figures(
-    opts: ReproduceOptions, sweep: SweepReport, world: WorldConfig
+    opts: ReproduceOptions,
+    root: Path,
+    sweep: SweepReport,
+    world: WorldConfig,
+    cases: tuple[str, ...],
+    runs: str = "",
 ) -> dict[str, list[str]]:
-    """Figures 2-6 for each network from the first seed's trajectories."""
-    fig_dir = opts.out / "figures"
+    """Figures 2-6 for each case from the first seed's trajectories (REPORT_DIR/figures)."""
+    fig_dir = root / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     out: dict[str, list[str]] = {}
-    for net in NETWORKS:
+    for case in cases:
         trajs = {}
         for r in sweep.rows:
             if (
-                r.get("network") == net
+                r.get("case") == case
                 and r.get("seed") == str(opts.first_seed)
                 and r.get("status") == "ok"
             ):
-                f = opts.out / "runs" / r["run_id"] / "trajectory.npz"
+                f = opts.out / runs / "runs" / r["run_id"] / "trajectory.npz"
                 if f.exists():
                     trajs[r["controller"]] = figures.load_trajectory(f)
         names = []
         for i, ctrl in enumerate(c for c in CONTROLLERS if c in trajs):
-            name = f"figures/{net}_{i + 2}_{ctrl}.png"
+            name = f"figures/{case}_{i + 2}_{ctrl}.png"
             figures.trajectory_figure(
-                opts.out / name,
+                root / name,
                 world,
                 ctrl,
                 trajs[ctrl],
-                f"{figures.NAMES[ctrl]}, {net} network, seed {opts.first_seed}",
+                f"{figures.NAMES[ctrl]}, {case}, seed {opts.first_seed}",
             )
             names.append(name)
         if trajs:
             figures.overlay_figure(
-                opts.out / f"figures/{net}_5_overlay.png",
+                root / f"figures/{case}_5_overlay.png",
                 world,
                 trajs,
-                f"The three controllers, {net} network",
+                f"The three controllers, {case}",
             )
             figures.time_distance_figure(
-                opts.out / f"figures/{net}_6_time_distance.png",
+                root / f"figures/{case}_6_time_distance.png",
                 trajs,
-                f"Time against distance travelled, {net} network",
+                f"Time against distance travelled, {case}",
             )
-            names += [f"figures/{net}_5_overlay.png", f"figures/{net}_6_time_distance.png"]
-        out[net] = names
+            names += [f"figures/{case}_5_overlay.png", f"figures/{case}_6_time_distance.png"]
+        out[case] = names
     return out

@@ -1,15 +1,19 @@
-"""A fair gain search for the three controllers before the paper comparison (`--tune`).
+"""A fair gain search for the three controllers before the paper comparison.
 
 Every controller gets the same procedure: its two principal path-following gains, each
-scaled by the same factors around the scenario's values (3 x 3 = 9 candidates by default),
-run on a perfect network with seeds disjoint from the evaluation seeds. The chosen candidate
-has the highest success rate (goal reached, no collision), then the lowest RMS cross-track
-error to the path in force at each moment, then the shortest travel time. The error to the
-path in force is the controller's own tracking error; the error to the first ("optimal")
-plan, which the report judges accuracy by, also counts the planner's decision to re-route
-around an obstacle on its other side, which one or two tuning seeds make a noisy criterion.
-No candidate is chosen to make a baseline fail: the baselines get exactly the search the
-NURBS tracker gets.
+scaled by powers of one step (x2 by default) around the scenario's values, run on a perfect
+network with seeds disjoint from the evaluation seeds. It starts with the 3 x 3 box of
+factors 1/2, 1, 2 and widens the box, for every controller alike, in each direction where
+some controller's choice lies on its edge, until every choice is interior or the box reaches
+the search limit (factors 1/16 to 16 by default): a choice on the edge of its grid says only
+that the grid was too small. The chosen candidate has the highest success rate (goal
+reached, no contact, never inside rho0), then the lowest RMS cross-track error to the path
+in force at each moment, then the shortest travel time. The error to the path in force is
+the controller's own tracking error; the error to the first ("optimal") plan, which the
+report judges accuracy by, also counts the planner's decision to re-route around an
+obstacle on its other side, which one or two tuning seeds make a noisy criterion. No
+candidate is chosen to make a baseline fail: the baselines get exactly the search the NURBS
+tracker gets.
 """
 
 from __future__ import annotations
@@ -45,17 +49,61 @@ PERFECT_NETWORK: dict[str, SetValue] = {
 }
 
 
+Point = tuple[int, int]  # exponents (i_a, i_b): the candidate scales the gains by step**i
+
+
 @dataclass(frozen=True, kw_only=True)
 class Candidate:
     """One gain setting of one controller and how it did over the tuning seeds."""
 
     controller: str
     label: str
+    point: Point
     gains: dict[str, float]
     runs: int
     success_rate: float
     xte_rms_m: float
     travel_time_s: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Box:
+    """The exponents searched: i_a in [a_lo, a_hi], i_b in [b_lo, b_hi] (a rectangle)."""
+
+    a_lo: int = -1
+    a_hi: int = 1
+    b_lo: int = -1
+    b_hi: int = 1
+
+    def points(self) -> list[Point]:
+        return list(
+            itertools.product(range(self.a_lo, self.a_hi + 1), range(self.b_lo, self.b_hi + 1))
+        )
+
+    def widened(self, best: dict[str, Candidate], limit: int) -> Box | None:
+        """The box grown by one step in each direction where a choice lies on the edge (and
+        the limit |i| <= limit allows it), or None when nothing can grow."""
+        lo_a = any(c.point[0] == self.a_lo for c in best.values()) and self.a_lo > -limit
+        hi_a = any(c.point[0] == self.a_hi for c in best.values()) and self.a_hi < limit
+        lo_b = any(c.point[1] == self.b_lo for c in best.values()) and self.b_lo > -limit
+        hi_b = any(c.point[1] == self.b_hi for c in best.values()) and self.b_hi < limit
+        if not (lo_a or hi_a or lo_b or hi_b):
+            return None
+        return Box(
+            a_lo=self.a_lo - lo_a,
+            a_hi=self.a_hi + hi_a,
+            b_lo=self.b_lo - lo_b,
+            b_hi=self.b_hi + hi_b,
+        )
+
+    def edges(self, c: Candidate) -> list[str]:
+        """Which of the candidate's gains sit on an edge of the box ('a', 'b')."""
+        a, b = c.point
+        return [
+            n
+            for n, on in (("a", a in (self.a_lo, self.a_hi)), ("b", b in (self.b_lo, self.b_hi)))
+            if on
+        ]
 
 
 def gain_value(scenario: Scenario, key: str) -> float:
@@ -66,36 +114,39 @@ def gain_value(scenario: Scenario, key: str) -> float:
     return float(node)
 
 
-def candidate_gains(scenario: Scenario, factors: tuple[float, ...]) -> list[dict[str, float]]:
-    """The grid: candidate i sets every controller's pair to (f_a * a0, f_b * b0)."""
-    out = []
-    for fa, fb in itertools.product(factors, factors):
-        g: dict[str, float] = {}
-        for a, b in TUNED_GAINS.values():
-            g[a] = fa * gain_value(scenario, a)
-            g[b] = fb * gain_value(scenario, b)
-        out.append(g)
-    return out
+def point_label(point: Point, step: float) -> str:
+    """'a0.5_b2': the factors of a point, as the tuning sweep's axis labels them."""
+    return f"a{step ** point[0]:g}_b{step ** point[1]:g}"
+
+
+def candidate_gains(scenario: Scenario, point: Point, step: float) -> dict[str, float]:
+    """A point of the grid: every controller's pair scaled by (step**i_a, step**i_b)."""
+    fa, fb = step ** point[0], step ** point[1]
+    g: dict[str, float] = {}
+    for a, b in TUNED_GAINS.values():
+        g[a] = fa * gain_value(scenario, a)
+        g[b] = fb * gain_value(scenario, b)
+    return g
 
 
 def tuning_experiment(
     scenario_path: str,
     scenario: Scenario,
     *,
+    box: Box,
+    step: float,
     seeds: int,
     first_seed: int,
-    factors: tuple[float, ...],
     extra: dict[str, SetValue] | None = None,
 ) -> Experiment:
-    """The search as a sweep: axis 'gains' (factor pairs) x controllers, perfect network.
+    """The search as a sweep: axis 'gains' (the box's points) x controllers, perfect network.
 
-    `extra` are overrides for every run (the comparison's planning mode).
+    `extra` are overrides for every run (the comparison's planning mode and pipeline).
     """
-    values = []
-    for (fa, fb), g in zip(
-        itertools.product(factors, factors), candidate_gains(scenario, factors), strict=True
-    ):
-        values.append(AxisValue(label=f"a{fa:g}_b{fb:g}", set=dict(g)))
+    values = tuple(
+        AxisValue(label=point_label(pt, step), set=dict(candidate_gains(scenario, pt, step)))
+        for pt in box.points()
+    )
     return Experiment(
         name="tune",
         scenario=scenario_path,
@@ -103,22 +154,25 @@ def tuning_experiment(
         first_seed=first_seed,
         controllers=CONTROLLERS,
         set={**PERFECT_NETWORK, **(extra or {})},
-        axes=(Axis(name="gains", values=tuple(values), x_label="gain factors (a, b)"),),
+        axes=(Axis(name="gains", values=values, x_label="gain factors (a, b)"),),
     )
 
 
-def score(rows: list[dict[str, str]], exp: Experiment) -> list[Candidate]:
-    """Every (controller, candidate) with its success rate, mean xte and travel time."""
-    gains_axis = exp.axes[0]
+def score(rows: list[dict[str, str]], exp: Experiment, box: Box, step: float) -> list[Candidate]:
+    """Every (controller, point of the box) with its success rate, mean xte and travel time;
+    `exp` is the tuning experiment of the box (its 'gains' axis holds each point's gains)."""
+    sets = {v.label: v.set for v in exp.axes[0].values}
     out = []
     for ctrl in CONTROLLERS:
         keys = TUNED_GAINS[ctrl]
-        for v in gains_axis.values:
+        for pt in box.points():
+            label = point_label(pt, step)
+            gains = sets[label]
             rs = [
                 r
                 for r in rows
                 if r.get("controller") == ctrl
-                and r.get("gains") == v.label
+                and r.get("gains") == label
                 and r.get("status") == "ok"
             ]
             succ = [as_number(r.get("success")) for r in rs]
@@ -131,8 +185,9 @@ def score(rows: list[dict[str, str]], exp: Experiment) -> list[Candidate]:
             out.append(
                 Candidate(
                     controller=ctrl,
-                    label=v.label,
-                    gains={k: _number(v.set[k]) for k in keys},
+                    label=label,
+                    point=pt,
+                    gains={k: _number(gains[k]) for k in keys},
                     runs=len(rs),
                     success_rate=_mean(succ),
                     xte_rms_m=_mean(xte),
@@ -181,15 +236,19 @@ def chosen_set(best: dict[str, Candidate]) -> dict[str, SetValue]:
 
 
 def save_choice(
-    path: Path, best: dict[str, Candidate], factors: tuple[float, ...], seeds: list[int]
+    path: Path, best: dict[str, Candidate], box: Box, step: float, seeds: list[int]
 ) -> None:
+    """DIR/tuning/chosen.json: the search box, the seeds and each controller's choice."""
     doc = {
-        "factors": list(factors),
+        "step": step,
+        "box": {"a": [box.a_lo, box.a_hi], "b": [box.b_lo, box.b_hi]},
         "seeds": seeds,
         "chosen": {
             k: {
                 "label": c.label,
+                "point": list(c.point),
                 "gains": c.gains,
+                "on_edge": box.edges(c),
                 "success_rate": c.success_rate,
                 TUNING_XTE: c.xte_rms_m,
             }
