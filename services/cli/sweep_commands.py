@@ -10,7 +10,8 @@ from pathlib import Path
 
 from services.cli.core_commands import budget_arg
 
-CROSSING = Path("configs/crossing.toml")  # services.experiments.reproduce.CROSSING (lazy import)
+# the same as services.experiments.reproduce.CROSSING (imported lazily: the CLI starts fast)
+CROSSING = Path("configs/experiments/scenarios/crossing.toml")
 
 
 def _jobs(text: str) -> int:

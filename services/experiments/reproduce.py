@@ -33,7 +33,7 @@ FIXED_PATH: dict[str, SetValue] = {"planner.min_replan_interval_s": 1e9}
 PAPER_PIPELINE: dict[str, SetValue] = {"estimator.prefilter": "mean+lag"}
 # The moving obstacles of the default field pass the planned path by chance; this scenario
 # sends them across it (eqs. (12)-(13) and replanning are what carry the vehicle through).
-CROSSING = Path("configs/crossing.toml")
+CROSSING = Path("configs/experiments/scenarios/crossing.toml")
 
 
 @dataclass(frozen=True, kw_only=True)
