@@ -109,7 +109,8 @@ def claims(cells: Cells, net: str) -> list[str]:
         c = cells.get((net, ctrl))
         if c is not None and c.success.n and c.success.mean < 1.0:
             out.append(
-                f"- Caution: {NAMES[ctrl]} reached the goal without a collision in only "
+                f"- Caution: {NAMES[ctrl]} reached the goal without contact and outside "
+                f"the safety distance rho0 in only "
                 f"{100 * c.success.mean:.0f} % of the runs on the {net} network, so its "
                 "travel time and errors describe runs that failed the mission."
             )

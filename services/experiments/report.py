@@ -161,7 +161,8 @@ def write_report(path: Path, inp: ReportInputs) -> None:
         f"path* when the true vehicle is within {inp.on_path_tol_m} m of the first planned path "
         "as it is issued (services/mission/metrics.py ON_PATH_TOL_M). Values are mean ± "
         "half-width of the 95 % t-interval over the seeds; success is goal reached without "
-        "collision (Wilson 95 % interval); travel time only over runs that reached the goal.",
+        "contact and never inside the safety distance rho0 (Wilson 95 % interval); travel "
+        "time only over runs that reached the goal.",
         "",
         _planning_text(inp),
         "",

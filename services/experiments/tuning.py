@@ -3,8 +3,9 @@
 Every controller gets the same procedure: its two principal path-following gains, each
 scaled by the same factors around the scenario's values (3 x 3 = 9 candidates by default),
 run on a perfect network with seeds disjoint from the evaluation seeds. The chosen candidate
-has the highest success rate (goal reached, no collision), then the lowest RMS cross-track
-error to the path in force at each moment, then the shortest travel time. The error to the
+has the highest success rate (goal reached, no contact, never inside the safety distance
+rho0), then the lowest RMS cross-track error to the path in force at each moment, then the
+shortest travel time. The error to the
 path in force is the controller's own tracking error; the error to the first ("optimal")
 plan, which the report judges accuracy by, also counts the planner's decision to re-route
 around an obstacle on its other side, which one or two tuning seeds make a noisy criterion.
