@@ -1,6 +1,6 @@
 """A run with any contact is no success: `success` false in the metrics, `tidelink run` exits 3
 and says why (contact, or the goal not reached), the metrics still written; a sweep keeps
-such a run as a row of data."""
+such a run as a row of data. A run that succeeds says so, and has every metric."""
 
 from __future__ import annotations
 
@@ -78,6 +78,37 @@ def test_run_exits_3_when_the_goal_is_not_reached(tmp_path: Path) -> None:
     assert float(said[1]) == round(m["final_distance_to_goal_m"], 1)
 
 
+# what issue 15 added to metrics.json: executed curvature, the safety distance, the outcome,
+# returns to the optimal path
+NEW_KEYS = {
+    "max_executed_curvature_after_start",
+    "time_above_curvature_limit_s",
+    "rho0_m",
+    "rho0_breach_m",
+    "time_below_rho0_s",
+    "time_in_contact_s",
+    "outcome",
+    "path_reentries",
+}
+
+
+def test_a_default_run_has_every_metric_and_its_summary_says_the_outcome(tmp_path: Path) -> None:
+    out = tmp_path / "default"
+    r = _cli("run", str(DEFAULT), "--runtime", "inproc", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "metrics.json").read_text())
+    assert NEW_KEYS <= m.keys(), NEW_KEYS - m.keys()
+    assert m["outcome"] == "success" and m["success"] is True and m["rho0_breach_m"] == 0.0
+    assert m["time_below_rho0_s"] == m["time_in_contact_s"] == 0.0
+    assert isinstance(m["path_reentries"], int) and m["path_reentries"] >= 0
+    # the curvature after the start-up is part of the whole run's
+    assert 0.0 < m["max_executed_curvature_after_start"] <= m["max_executed_curvature"]
+    assert r.stdout.splitlines()[-1] == (
+        f"mission succeeded: goal reached in {m['travel_time_s']:.2f} s, never inside the "
+        f"safety distance rho0 = 1.0 m (min clearance {m['min_clearance_m']:.2f} m)"
+    )
+
+
 def test_only_a_judged_completed_run_is_a_failure() -> None:
     assert mission_failure({"success": True, "end_reason": "goal"}) is None
     # interrupted: no judgment; a mission that does not judge success: none either
@@ -121,4 +152,8 @@ def test_losing_the_planner_for_8_s_is_a_short_reported_blind_run() -> None:
     m = run_inproc(s).metrics
     assert m["hold_time_s"] == pytest.approx(3.0) and m["failsafe_time_s"] > 0.0
     assert 4.0 < m["hold_distance_max_m"] <= 5.42 + 0.1
-    assert m["success"] is True
+    # it still reaches the goal without contact, but blind it coasts past circle 2 (32, 8)
+    # with 0.04 m to spare, 0.96 m inside rho0 = 1 m for 8.5 s: no success (issue 15)
+    assert m["reached_goal"] is True and m["collisions"] == 0
+    assert m["outcome"] == "rho0_breach" and m["success"] is False
+    assert 0.0 < m["min_clearance_m"] < 0.1 and m["time_below_rho0_s"] > 5.0

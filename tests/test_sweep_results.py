@@ -15,7 +15,7 @@ from scipy import stats
 from services.experiments.claims import compare
 from services.experiments.results import ResultsFile, as_number
 from services.experiments.stats import Estimate, mean_ci, wilson
-from services.experiments.summary import aggregate
+from services.experiments.summary import FAILURES, aggregate, write_summary
 
 
 def _row(i: int, **extra: object) -> dict[str, object]:
@@ -129,6 +129,50 @@ def test_aggregate_groups_cells_and_conditions_travel_time_on_the_goal() -> None
     assert a.success.mean == 0.5 and a.success.n == 2
     assert a.metrics["travel_time_s"].mean == 10.0  # the failed run's 200 s is not a travel time
     assert a.metrics["xte"].mean == 2.0 and b.metrics["xte"].n == 1
+
+
+def test_aggregate_counts_each_outcome_and_the_summary_shows_them(tmp_path: Path) -> None:
+    ends = ["success", "rho0_breach", "rho0_breach", "collision", "not_reached", "success"]
+    rows = [
+        {
+            "run_id": str(i),
+            "status": "ok",
+            "ctrl": "a" if i < 4 else "b",
+            "outcome": end,
+            "success": str(end == "success"),
+            "reached_goal": str(end in ("success", "rho0_breach")),
+            "rho0_m": "1.0",
+            "time_below_rho0_s": "2.0" if end != "success" else "0.0",
+        }
+        for i, end in enumerate(ends)
+    ]
+    # a row of an older sweep, without the column: judged by its success and its parts
+    rows.append(
+        {"run_id": "old", "status": "ok", "ctrl": "b", "success": "False", "reached_goal": "False"}
+    )
+    rows.append({"run_id": "err", "status": "error", "ctrl": "b", "error": "boom"})
+    a, b = aggregate(rows, ("ctrl",))
+    assert a.outcomes == {"success": 1, "rho0_breach": 2, "collision": 1, "not_reached": 0}
+    assert b.outcomes == {"success": 1, "rho0_breach": 0, "collision": 0, "not_reached": 2}
+    assert (a.n_judged, b.n_judged, b.n_runs, b.n_errors) == (4, 3, 4, 1)
+    assert a.success.mean == 0.25 and b.success.n == 3
+    assert "rho0_m" not in a.metrics and "outcome" not in a.metrics  # a setting, a word
+    assert a.metrics["time_below_rho0_s"].mean == 1.5
+    write_summary(tmp_path, "t", "intro", [a, b], ("ctrl",), [])
+    table = (tmp_path / "summary.md").read_text().splitlines()
+    head = next(line for line in table if line.startswith("| ctrl |"))
+    cols = [c.strip() for c in head.strip("|").split("|")]
+    assert cols[:7] == ["ctrl", "runs", "errors", "success", *FAILURES]
+    assert FAILURES == ("rho0_breach", "collision", "not_reached")
+    row_a = next(line for line in table if line.startswith("| a |"))
+    below = a.metrics["time_below_rho0_s"].text()
+    assert [c.strip() for c in row_a.strip("|").split("|")][4:8] == ["2/4", "1/4", "0/4", below]
+    with (tmp_path / "summary.csv").open() as fh:
+        got = {(r["ctrl"], r["metric"]): r for r in csv.DictReader(fh)}
+    share = got[("a", "outcome_rho0_breach_rate")]
+    assert float(share["mean"]) == 0.5 and share["n"] == "4"
+    assert float(share["ci_low"]) < 0.5 < float(share["ci_high"])  # Wilson, as success_rate
+    assert float(got[("b", "outcome_not_reached_rate")]["mean"]) == pytest.approx(2 / 3)
 
 
 def test_compare_says_which_side_and_whether_intervals_separate() -> None:

@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 from services.chaos.case import Outcome
+from services.mission.outcome import describe
 
 
 def contact(m: dict[str, Any]) -> bool:
@@ -16,7 +17,9 @@ def contact(m: dict[str, Any]) -> bool:
 
 
 def succeeded(m: dict[str, Any]) -> bool:
-    """Reached the goal with no contact (the `success` metric where the mission has it)."""
+    """The mission's `success` where it judges one (goal reached, no contact, never inside
+    the safety distance rho0: services/mission/outcome.py); else reached the goal with no
+    contact."""
     if "success" in m:
         return bool(m["success"])
     return bool(m.get("reached_goal")) and not contact(m)
@@ -38,10 +41,10 @@ def problems(o: Outcome) -> list[str]:
     if o.exit_code == 0 and not succeeded(m):
         bad.append("exit 0 without success" + (" (contact)" if contact(m) else ""))
     if o.fault.survivable and not succeeded(m):
-        bad.append(
-            f"mission failed: {m.get('end_reason')}"
-            + (f", contact (min clearance {m.get('min_clearance_m'):.2f} m)" if contact(m) else "")
+        words = describe(m) or (
+            f"contact (min clearance {m.get('min_clearance_m'):.2f} m)" if contact(m) else ""
         )
+        bad.append(f"mission failed: {m.get('end_reason')}" + (f", {words}" if words else ""))
     if not o.fault.survivable and m.get("end_reason") != "service_failed":
         bad.append(f"end_reason {m.get('end_reason')!r}, expected service_failed")
     return bad

@@ -24,7 +24,8 @@ log = logging.getLogger("tidelink")
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
 ROUTER_CLOSE_S = 3.0  # how long `tidelink router` gives its session to close on a signal
 # `run` and `launch`: the mission ran to its end (metrics written) without success: contact
-# with an obstacle, or the goal not reached. Distinct from 1 (a service or the run failed).
+# with an obstacle, the goal not reached, or the goal reached inside the safety distance rho0
+# (services/mission/outcome.py). Distinct from 1 (a service or the run failed).
 EXIT_MISSION_FAILED = 3
 
 
@@ -193,31 +194,39 @@ def cmd_run(a: argparse.Namespace) -> int:
 
 
 def mission_failure(metrics: dict[str, Any]) -> str | None:
-    """Why a run that ended is no success ("mission failed: ..."), or None: it succeeded, it
-    was interrupted (not a judgment), or its mission does not judge success (no `success`)."""
-    if metrics.get("success", True) or metrics.get("end_reason") == "interrupted":
+    """Why a run that ended is no success ("mission failed: " and its outcome in words), or
+    None: it succeeded, it was interrupted (not a judgment), or its mission does not judge
+    success (no `outcome` or `success`)."""
+    verdict = _verdict(metrics)
+    if verdict is None or verdict[0]:
         return None
-    why = []
-    if metrics.get("first_contact_t_s") is not None:
-        why.append(
-            f"contact at t={metrics['first_contact_t_s']:.2f} s "
-            f"(min clearance {metrics['min_clearance_m']:.3g} m)"
-        )
-    if not metrics.get("reached_goal"):
-        where = metrics.get("final_distance_to_goal_m")
-        far = "" if where is None else f", {where:.1f} m from the goal"
-        t_end = metrics.get("t_end_s") or 0.0
-        why.append(f"goal not reached ({metrics.get('end_reason')} at t={t_end:.2f} s{far})")
-    return "mission failed: " + ("; ".join(why) or "no success")
+    return "mission failed: " + verdict[1]
+
+
+def _verdict(metrics: dict[str, Any]) -> tuple[bool, str] | None:
+    """(succeeded, the outcome in words) of a run its mission judged; None if it does not
+    judge or the run was interrupted."""
+    from services.mission.outcome import describe, outcome_of
+
+    outcome = outcome_of(metrics)
+    if outcome is None or metrics.get("end_reason") == "interrupted":
+        return None
+    return outcome == "success", describe(metrics)
 
 
 def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
-    """Say why a mission failed (in the summary on stdout; on stderr when stdout is JSON) and
-    return the exit code: EXIT_MISSION_FAILED then, else 0."""
-    failure = mission_failure(metrics)
-    if failure is None:
+    """Say the run's outcome in words (a failure in the summary on stdout, on stderr when
+    stdout is JSON; a success in the summary only) and return the exit code:
+    EXIT_MISSION_FAILED for a failure, else 0."""
+    verdict = _verdict(metrics)
+    if verdict is None:
         return 0
-    print(failure, file=sys.stderr if json_output else sys.stdout, flush=True)
+    succeeded, words = verdict
+    if succeeded:
+        if not json_output:
+            print(f"mission succeeded: {words}", flush=True)
+        return 0
+    print(f"mission failed: {words}", file=sys.stderr if json_output else sys.stdout, flush=True)
     return EXIT_MISSION_FAILED
 
 

@@ -13,7 +13,7 @@ from services.experiments.summary import CellStats
 
 # what is worth a figure (the others are in summary.csv)
 PLOT_METRICS = {
-    "success": "success rate (goal, no collision)",
+    "success": "success rate (goal, no contact, never inside rho0)",
     "travel_time_s": "travel time, eq. (21) (s)",
     "xte_optimal_rms_m": "cross-track error to the optimal path, RMS (m)",
     "xte_optimal_max_m": "cross-track error to the optimal path, max (m)",

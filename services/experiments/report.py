@@ -18,6 +18,7 @@ from services.experiments.claims import (
 )
 from services.experiments.summary import CellStats, success_text
 from services.experiments.tuning import TUNED_GAINS, Box
+from services.mission.outcome import OUTCOMES
 
 if TYPE_CHECKING:
     from services.experiments.reproduce import Case, Tuning
@@ -37,7 +38,6 @@ TABLE = (
     ("time_above_curvature_limit_s", "time above 1/R_min (s)"),
     ("replans", "replans"),
 )
-OUTCOMES = ("success", "rho0_breach", "collision", "not_reached")
 EQUAL_TERMS = ("perfect", "perfect-uncompensated", "lossy", "lossy-uncompensated")
 
 
@@ -57,7 +57,6 @@ class ReportInputs:
     networks: dict[str, str]  # network label -> description
     figures: dict[str, list[str]]  # case -> figure files (relative to the report)
     errors: int
-    outcomes: dict[tuple[str, str], dict[str, int]] = field(default_factory=dict)
     crossing: str = ""  # the crossing scenario, "" when not run
     tuning: Tuning | None = None
     tune_step: float = 2.0
@@ -74,10 +73,10 @@ def _by_cell(inp: ReportInputs) -> Cells:
     return {(c.labels.get("case", ""), c.labels.get("controller", "")): c for c in inp.cells}
 
 
-def _outcome_text(counts: dict[str, int] | None) -> str:
-    if not counts:
+def _outcome_text(c: CellStats | None) -> str:
+    if c is None or not c.n_judged:
         return "–"
-    return " / ".join(str(counts.get(o, 0)) for o in OUTCOMES)
+    return " / ".join(str(c.outcomes.get(o, 0)) for o in OUTCOMES)
 
 
 def _results_table(inp: ReportInputs, cells: Cells, case: str) -> list[str]:
@@ -93,7 +92,7 @@ def _results_table(inp: ReportInputs, cells: Cells, case: str) -> list[str]:
         vals = [
             NAMES[ctrl],
             success_text(c.success) if c else "–",
-            _outcome_text(inp.outcomes.get((case, ctrl))),
+            _outcome_text(c),
         ]
         vals += [fmt(estimate(cells, case, ctrl, m)) for m, _ in TABLE]
         lines.append("| " + " | ".join(vals) + " |")
@@ -230,9 +229,18 @@ def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
     """Facts about R_min and rho0 in execution, per controller over the equal-terms cases."""
     lines = []
     for ctrl in NAMES:
-        breaches = sum(inp.outcomes.get((c, ctrl), {}).get("rho0_breach", 0) for c in EQUAL_TERMS)
-        contacts = sum(inp.outcomes.get((c, ctrl), {}).get("collision", 0) for c in EQUAL_TERMS)
-        runs = sum(sum(inp.outcomes.get((c, ctrl), {}).values()) for c in EQUAL_TERMS)
+        judged = [cell for c in EQUAL_TERMS if (cell := cells.get((c, ctrl))) is not None]
+        breaches = sum(cell.outcomes.get("rho0_breach", 0) for cell in judged)
+        contacts = sum(cell.outcomes.get("collision", 0) for cell in judged)
+        runs = sum(cell.n_judged for cell in judged)
+        above = max(
+            (
+                e.mean
+                for c in EQUAL_TERMS
+                if (e := estimate(cells, c, ctrl, "time_above_curvature_limit_s"))
+            ),
+            default=float("nan"),
+        )
         curv = max(
             (
                 e.mean
@@ -244,7 +252,8 @@ def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
         lines.append(
             f"- {NAMES[ctrl]}: {breaches} rho0 breaches and {contacts} collisions in {runs} "
             f"runs; highest mean executed curvature after the start {curv:.3g} 1/m "
-            f"(1/R_min = {1 / inp.r_min_m:.3g} 1/m)."
+            f"(1/R_min = {1 / inp.r_min_m:.3g} 1/m), at most {above:.3g} s above it on "
+            "average (from rest included)."
         )
     return lines
 

@@ -247,7 +247,6 @@ def reproduce(opts: ReproduceOptions) -> ReproduceResult:
         r_min_m=scenario.vehicle.turn_radius_min_m,
         rho0_m=scenario.planner.rho0_m,
         cells=cells,
-        outcomes=_outcomes(rows),
         figures=figs,
         errors=sweep.errors + (crossing.errors if crossing else 0),
         tuning=tuning,
@@ -269,16 +268,6 @@ def reproduce(opts: ReproduceOptions) -> ReproduceResult:
 def _area(w: WorldConfig) -> str:
     a = w.area
     return f"{a.x_max_m - a.x_min_m:g} m x {a.y_max_m - a.y_min_m:g} m"
-
-
-def _outcomes(rows: list[dict[str, str]]) -> dict[tuple[str, str], dict[str, int]]:
-    """Per (case, controller): how many runs ended in each outcome (metrics.py `outcome`)."""
-    out: dict[tuple[str, str], dict[str, int]] = {}
-    for r in rows:
-        if r.get("status") == "ok":
-            counts = out.setdefault((r["case"], r["controller"]), {})
-            counts[r.get("outcome", "")] = counts.get(r.get("outcome", ""), 0) + 1
-    return out
 
 
 def _same_first_plan(rows: list[dict[str, str]]) -> dict[str, bool]:

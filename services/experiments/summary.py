@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.experiments.results import LEAD, TAIL_FACTS, as_number
 from services.experiments.stats import Estimate, mean_ci, wilson
+from services.mission.outcome import OUTCOMES, outcome_of
 
 # the columns summary.md shows for every cell (all metrics are in summary.csv)
 KEY_METRICS = (
@@ -17,6 +18,9 @@ KEY_METRICS = (
     "xte_optimal_rms_m",
     "min_clearance_m",
     "collisions",
+    "time_below_rho0_s",
+    "time_above_curvature_limit_s",
+    "path_reentries",
     "control_actions",
     "control_actions_on_path",
     "on_path_fraction",
@@ -25,20 +29,39 @@ KEY_METRICS = (
 )
 # eq. (21) travel time only means something for runs that arrived
 ON_GOAL_ONLY = frozenset({"travel_time_s", "mean_speed_mps"})
+# the failures summary.md counts in a column each (success has its rate)
+FAILURES = tuple(o for o in OUTCOMES if o != "success")
 NOT_METRICS = frozenset(
-    {*LEAD, *TAIL_FACTS, "trajectory_sha256", "controller", "end_reason", "success"}
+    {
+        *LEAD,
+        *TAIL_FACTS,
+        "trajectory_sha256",
+        "controller",
+        "end_reason",
+        "success",
+        "outcome",
+        "rho0_m",  # the safety distance judged against: a setting, not a measurement
+    }
 )
 
 
 @dataclass(frozen=True, kw_only=True)
 class CellStats:
-    """One grid cell over its seeds: counts, success rate and every metric's estimate."""
+    """One grid cell over its seeds: counts, success rate, how many runs ended in each
+    outcome (services/mission/outcome.py) and every metric's estimate."""
 
     labels: dict[str, str]
     n_runs: int
     n_errors: int
     success: Estimate
     metrics: dict[str, Estimate]
+    # runs per outcome, every outcome present (0 if none), over the runs that have one
+    outcomes: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def n_judged(self) -> int:
+        """Runs with an outcome."""
+        return sum(self.outcomes.values())
 
 
 def metric_names(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[str]:
@@ -68,6 +91,7 @@ def aggregate(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[CellSta
             m: mean_ci([as_number(r.get(m)) for r in (goal if m in ON_GOAL_ONLY else ok)])
             for m in names
         }
+        ends = [row_outcome(r) for r in ok]
         out.append(
             CellStats(
                 labels=dict(zip(grid, key, strict=True)),
@@ -75,15 +99,29 @@ def aggregate(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[CellSta
                 n_errors=len(rs) - len(ok),
                 success=wilson(wins, len(ok)),
                 metrics=metrics,
+                outcomes={o: ends.count(o) for o in OUTCOMES},
             )
         )
     return out
+
+
+def row_outcome(r: dict[str, str]) -> str | None:
+    """A results.csv row's outcome; derived from `success` for rows of an older sweep that
+    lack the column; None if its mission does not judge runs."""
+    num = {k: as_number(r.get(k)) for k in ("success", "reached_goal", "collisions")}
+    typed = {k: bool(v) for k, v in num.items() if math.isfinite(v)}
+    return outcome_of({"outcome": r.get("outcome"), **typed})
 
 
 def success_text(e: Estimate) -> str:
     if e.n == 0:
         return "–"
     return f"{100 * e.mean:.0f} % [{100 * e.low:.0f}, {100 * e.high:.0f}]"
+
+
+def outcome_text(c: CellStats, outcome: str) -> str:
+    """How many of a cell's judged runs ended in this outcome, "k/n"."""
+    return f"{c.outcomes.get(outcome, 0)}/{c.n_judged}" if c.n_judged else "–"
 
 
 def write_summary(
@@ -101,14 +139,17 @@ def write_summary(
         "",
         intro,
         "",
-        "Success = reached the goal without a collision (Wilson 95 % interval). Other "
-        "columns: mean ± half-width of the 95 % t-interval over the seeds; "
-        "travel_time_s only over runs that reached the goal.",
+        "Success = reached the goal without contact and never inside the safety distance "
+        "rho0 (Wilson 95 % interval). The failures are counted by outcome (of the runs "
+        "judged): rho0_breach = goal reached without contact but inside rho0, collision = "
+        "any contact, not_reached = no contact, goal not reached. Other columns: mean ± "
+        "half-width of the 95 % t-interval over the seeds; travel_time_s only over runs "
+        "that reached the goal.",
         "",
         "## Key metrics",
         "",
     ]
-    head = [*grid, "runs", "errors", "success", *keys]
+    head = [*grid, "runs", "errors", "success", *FAILURES, *keys]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for c in cells:
         vals = [c.labels[g] for g in grid] + [
@@ -116,6 +157,7 @@ def write_summary(
             str(c.n_errors),
             success_text(c.success),
         ]
+        vals += [outcome_text(c, o) for o in FAILURES]
         vals += [c.metrics[m].text() if m in c.metrics else "–" for m in keys]
         lines.append("| " + " | ".join(vals) + " |")
     if errors:
@@ -148,5 +190,9 @@ def write_summary(
             w.writerow(
                 [*lab, "success_rate", c.success.mean, c.success.low, c.success.high, c.success.n]
             )
+            for o, k in c.outcomes.items():  # each outcome's share, with its Wilson interval
+                if c.n_judged:
+                    e = wilson(k, c.n_judged)
+                    w.writerow([*lab, f"outcome_{o}_rate", e.mean, e.low, e.high, e.n])
             for m, e in c.metrics.items():
                 w.writerow([*lab, m, e.mean, e.low, e.high, e.n])

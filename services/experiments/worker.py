@@ -118,9 +118,10 @@ def row_of(spec: RunSpec, outcome: RunOutcome, runtime: str, finished_at: str) -
     )
     m = outcome.metrics
     if outcome.status == "ok":
-        # paper §4 success: reached the goal without touching an obstacle; the mission's own
-        # judgment when it makes one (services/mission/metrics.py), a run that failed it is
-        # still data (status "ok")
+        # paper §4 success: reached the goal without touching an obstacle, and (the mission's
+        # own judgment when it makes one, services/mission/outcome.py) never inside the
+        # safety distance rho0; its `outcome` column says which failure otherwise. A run
+        # that failed is still data (status "ok")
         if "success" in m:
             row["success"] = bool(m["success"])
         else:

@@ -13,6 +13,8 @@ from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, V
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
 from services.mission.continuity import follows, reach_mps
+from services.mission.outcome import classify
+from services.mission.reentry import reentries
 from services.planner.nurbs_curve import NurbsCurve
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -20,6 +22,14 @@ from services.planner.nurbs_curve import NurbsCurve
 ON_PATH_TOL_M = 0.5
 # executed curvature |w| / v is only meaningful while the vehicle actually moves
 MIN_SPEED_FOR_CURVATURE = 0.3
+# `max_executed_curvature_after_start` leaves out the start-up: the first START_UP_S
+# seconds after the vehicle first moves in that sense (v > MIN_SPEED_FOR_CURVATURE)
+START_UP_S = 1.0
+# eq. (11)'s turning bound |w| <= |v| / R_min counts as broken when |w| exceeds |v| / R_min
+# by more than this yaw rate: 1.7 % of the bound at cruise speed (0.3 rad/s), and more than
+# |v| / R_min changes in one 0.05 s truth period at the acceleration limit (0.3 m/s^2 * 0.05
+# s / 5 m = 0.003 rad/s): a plant that bounds w by a speed one period old still passes.
+YAW_RATE_TOL_RPS = 0.005
 
 
 def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
@@ -42,7 +52,7 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
         "controller": s.controller.kind,
     }
     if not truth:
-        return m | {"reached_goal": False, "success": False}
+        return m | {"reached_goal": False, "outcome": "not_reached", "success": False}
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
     t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
     g, st = s.world.goal, s.world.start
@@ -64,17 +74,15 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
         }
     )
     clear = world.clearance_many(x, y, s.vehicle.radius_m, t)
-    collided = clear < 0.0
-    m["min_clearance_m"] = float(clear.min())
-    m["collisions"] = int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0]))
-    if m["collisions"]:
-        m["first_contact_t_s"] = float(t[np.argmax(collided)])
-    # a run with any contact is no success, whatever else it achieved
-    m["success"] = arrival is not None and m["collisions"] == 0 and m["min_clearance_m"] >= 0.0
-    moving = v > MIN_SPEED_FOR_CURVATURE
-    m["max_executed_curvature"] = (
-        float(np.max(np.abs(w[moving]) / v[moving])) if moving.any() else 0.0
+    m.update(_safety_metrics(t, clear, s.planner.rho0_m))
+    m["outcome"] = classify(
+        reached_goal=arrival is not None,
+        contact=m["collisions"] > 0,
+        below_rho0=m["rho0_breach_m"] > 0.0,
     )
+    # paper §4 success, with eq. (6)'s safety distance as part of it
+    m["success"] = m["outcome"] == "success"
+    m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
     m.update(_path_metrics(record, t, x, y, end))
     m.update(_estimation_metrics(record, t, x, y))
     statuses: list[VehicleStatus] = _typed(record, "vehicle", "status", VehicleStatus)
@@ -95,6 +103,48 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
             }
         )
     return m
+
+
+def _duration_s(t: np.ndarray, when: np.ndarray) -> float:
+    """Time during which `when` held: each truth state t: (n,) holds until the next one."""
+    return float(np.sum(np.diff(t)[when[:-1]]))
+
+
+def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> dict[str, Any]:
+    """Contact and eq. (6)'s safety distance, from the hull-to-obstacle-surface clearance
+    clear: (n,) of every truth state (eq. 12, the same geometry the planner keeps rho0 in)."""
+    collided = clear < 0.0
+    below = clear < rho0_m
+    out: dict[str, Any] = {
+        "min_clearance_m": float(clear.min()),
+        "collisions": int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0])),
+        "time_in_contact_s": _duration_s(t, collided),
+        "rho0_m": rho0_m,
+        # how deep inside rho0 the hull came (more than rho0 once in contact); 0 if never
+        "rho0_breach_m": max(0.0, rho0_m - float(clear.min())),
+        "time_below_rho0_s": _duration_s(t, below),
+    }
+    if out["collisions"]:
+        out["first_contact_t_s"] = float(t[np.argmax(collided)])
+    return out
+
+
+def _curvature_metrics(
+    t: np.ndarray, v: np.ndarray, w: np.ndarray, turn_radius_min_m: float
+) -> dict[str, Any]:
+    """Executed curvature |w| / v of the true motion, and time beyond eq. (11)'s turning
+    bound |w| <= |v| / R_min; t, v, w: (n,)."""
+    moving = v > MIN_SPEED_FOR_CURVATURE
+    curv = np.abs(w[moving]) / v[moving]
+    started = t[moving][0] + START_UP_S if moving.any() else math.inf
+    after = curv[t[moving] >= started]
+    # no speed gate here: at v = 0 a yaw rate is a turn on the spot, the tightest turn of all
+    above = np.abs(w) - np.abs(v) / turn_radius_min_m > YAW_RATE_TOL_RPS
+    return {
+        "max_executed_curvature": float(curv.max()) if len(curv) else 0.0,
+        "max_executed_curvature_after_start": float(after.max()) if len(after) else 0.0,
+        "time_above_curvature_limit_s": _duration_s(t, above),
+    }
 
 
 def _arrival(truth: list[TruthState], near: np.ndarray, speed_mps: float) -> int | None:
@@ -143,6 +193,8 @@ def _path_metrics(
             "planned_max_curvature": first.max_curvature,
             "xte_optimal_rms_m": float(np.sqrt(np.mean(xte**2))),
             "xte_optimal_max_m": float(np.max(xte)),
+            # the paper's fuzzy-PID count: returns into the band around the optimal path
+            "path_reentries": reentries(xte, ON_PATH_TOL_M),
         }
     )
     # cross-track error against the path in force at each moment

@@ -1,0 +1,83 @@
+"""What a run's outcome is (success, rho0 breach, collision, goal not reached), and in words.
+
+Precedence, strongest first: any contact with an obstacle is a "collision", whatever else
+happened; a run without contact that did not reach the goal is "not_reached" (whether it also
+came inside rho0 is said in its words); a run that reached the goal without contact but came
+inside the safety distance rho0 of eq. (6) at any moment is a "rho0_breach"; only a run that
+reached the goal and never came inside rho0 is a "success".
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal, cast
+
+Outcome = Literal["success", "rho0_breach", "collision", "not_reached"]
+OUTCOMES: tuple[Outcome, ...] = ("success", "rho0_breach", "collision", "not_reached")
+
+
+def classify(*, reached_goal: bool, contact: bool, below_rho0: bool) -> Outcome:
+    """The outcome of a run, by the precedence of the module docstring."""
+    if contact:
+        return "collision"
+    if not reached_goal:
+        return "not_reached"
+    return "rho0_breach" if below_rho0 else "success"
+
+
+def outcome_of(m: dict[str, Any]) -> Outcome | None:
+    """The outcome a run's metrics state (derived for metrics older than `outcome` from
+    `success` and what it was made of); None if its mission does not judge runs."""
+    stated = m.get("outcome")
+    if stated in OUTCOMES:
+        return cast(Outcome, stated)
+    if "success" not in m:
+        return None
+    if m["success"]:
+        return "success"
+    contact = bool(m.get("collisions")) or m.get("first_contact_t_s") is not None
+    # no contact and at the goal, yet no success: only the safety distance is left
+    return classify(reached_goal=bool(m.get("reached_goal")), contact=contact, below_rho0=True)
+
+
+def describe(m: dict[str, Any]) -> str:
+    """The outcome in words, e.g. "goal reached, but 0.33 m inside the safety distance rho0
+    = 1.0 m for 2.1 s (min clearance 0.67 m)"; "" if the mission does not judge runs."""
+    outcome = outcome_of(m)
+    if outcome is None:
+        return ""
+    if outcome == "success":
+        rho0 = m.get("rho0_m")
+        kept = "" if rho0 is None else f", never inside the safety distance rho0 = {float(rho0)} m"
+        return (
+            f"goal reached in {m.get('travel_time_s') or 0.0:.2f} s{kept} "
+            f"(min clearance {m.get('min_clearance_m', float('nan')):.2f} m)"
+        )
+    if outcome == "rho0_breach":
+        return "goal reached, but " + _inside_rho0(m)
+    why = []
+    if outcome == "collision":
+        first = m.get("first_contact_t_s")
+        contact = f"contact at t={first:.2f} s " if first is not None else "contact "
+        contact += f"(min clearance {m['min_clearance_m']:.3g} m)"
+        if m.get("time_in_contact_s") is not None:
+            contact += f", in contact for {m['time_in_contact_s']:.2f} s"
+        why.append(contact)
+    if not m.get("reached_goal"):
+        where = m.get("final_distance_to_goal_m")
+        far = "" if where is None else f", {where:.1f} m from the goal"
+        t_end = m.get("t_end_s") or 0.0
+        why.append(f"goal not reached ({m.get('end_reason')} at t={t_end:.2f} s{far})")
+    elif outcome == "collision":
+        why.append("goal reached")
+    if outcome == "not_reached" and (m.get("rho0_breach_m") or 0.0) > 0.0:
+        why.append(_inside_rho0(m))
+    return "; ".join(why)
+
+
+def _inside_rho0(m: dict[str, Any]) -> str:
+    rho0 = m.get("rho0_m")
+    what = "the safety distance" + ("" if rho0 is None else f" rho0 = {float(rho0)} m")
+    return (
+        f"{m['rho0_breach_m']:.2f} m inside {what} for {m.get('time_below_rho0_s', 0.0):.1f} s "
+        f"(min clearance {m['min_clearance_m']:.2f} m)"
+    )

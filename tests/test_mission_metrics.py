@@ -1,0 +1,177 @@
+"""The run's outcome and its safety and turning metrics, on synthetic truth records: a
+straight pass by one circle at a chosen distance (so the time inside rho0 and in contact is
+known in closed form), and yaw-rate profiles against eq. (11)'s turning bound."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from common.config.scenario import Scenario, load_scenario
+from common.messages import TruthState
+from common.runtime.model.record import Record
+from common.world import World
+from services.cli.core_commands import mission_failure
+from services.mission.metrics import YAW_RATE_TOL_RPS, mission_metrics
+from services.mission.outcome import OUTCOMES, classify, describe, outcome_of
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+SPEED = 1.5  # m/s along y = 20
+DT = 0.05  # the vehicle's truth period
+
+
+def _scenario(circle_y_m: float) -> Scenario:
+    """The default area with one circle of radius 2 m at (50, circle_y_m), nothing else."""
+    s, _ = load_scenario(
+        DEFAULT,
+        [
+            f"world.circles=[{{id=1, x_m=50.0, y_m={circle_y_m}, radius_m=2.0}}]",
+            "world.polygons=[]",
+            "world.moving=[]",
+        ],
+    )
+    return s
+
+
+def _samples(x_end: float = 95.0) -> int:
+    """How many truth states a pass from x = 5 to x_end takes at SPEED."""
+    return int(round((x_end - 5.0) / (SPEED * DT))) + 1
+
+
+def _record(x_end: float, v: np.ndarray | None, w: np.ndarray | None) -> Record:
+    """Truth along y = 20 from x = 5 at SPEED, every DT, up to x_end (95: the goal), with
+    the speeds v and yaw rates w given (their own, not the motion's: the metrics read them)."""
+    n = _samples(x_end)
+    t = DT * np.arange(n)
+    v = np.full(n, SPEED) if v is None else v
+    w = np.zeros(n) if w is None else w
+    rec = Record()
+    for i in range(n):
+        rec.add(
+            "vehicle",
+            "truth",
+            TruthState(
+                stamp=float(t[i]), source="vehicle", seq=i + 1,
+                x=5.0 + SPEED * float(t[i]), y=20.0, theta=0.0, v=float(v[i]), w=float(w[i]),
+            ),
+        )  # fmt: skip
+    return rec
+
+
+def _metrics(
+    circle_y_m: float,
+    x_end: float = 95.0,
+    v: np.ndarray | None = None,
+    w: np.ndarray | None = None,
+) -> dict[str, Any]:
+    s = _scenario(circle_y_m)
+    return mission_metrics(_record(x_end, v, w), s, World(s.world))
+
+
+def _crossing_s(hull_to_surface_m: float, offset_m: float) -> float:
+    """How long a pass at offset_m from the centre of the 2 m circle stays with a clearance
+    below hull_to_surface_m (hull radius 0.8 m)."""
+    reach = 2.0 + 0.8 + hull_to_surface_m
+    return 2.0 * math.sqrt(reach**2 - offset_m**2) / SPEED
+
+
+def test_a_pass_outside_rho0_is_a_success() -> None:
+    m = _metrics(24.0)  # clearance 4 - 2 - 0.8 = 1.2 m > rho0 = 1.0 m
+    assert m["outcome"] == "success" and m["success"] is True
+    assert m["min_clearance_m"] == pytest.approx(1.2)
+    assert m["rho0_m"] == 1.0
+    assert m["rho0_breach_m"] == 0.0 and m["time_below_rho0_s"] == 0.0
+    assert m["time_in_contact_s"] == 0.0 and m["collisions"] == 0
+    assert mission_failure(m | {"end_reason": "goal"}) is None
+
+
+def test_a_pass_inside_rho0_reaches_the_goal_but_is_no_success() -> None:
+    m = _metrics(23.5)  # clearance 0.7 m: 0.3 m inside rho0
+    assert m["reached_goal"] is True and m["collisions"] == 0
+    assert m["outcome"] == "rho0_breach" and m["success"] is False
+    assert m["rho0_breach_m"] == pytest.approx(0.3)
+    # each 0.05 s state counts until the next: the sampled time is the exact one +- a period
+    assert m["time_below_rho0_s"] == pytest.approx(_crossing_s(1.0, 3.5), abs=DT)
+    assert m["time_in_contact_s"] == 0.0
+    said = mission_failure(m | {"end_reason": "goal"})
+    assert said == (
+        "mission failed: goal reached, but 0.30 m inside the safety distance rho0 = 1.0 m "
+        f"for {m['time_below_rho0_s']:.1f} s (min clearance 0.70 m)"
+    )
+
+
+def test_contact_is_a_collision_whatever_else_happened() -> None:
+    m = _metrics(22.5)  # clearance -0.3 m
+    assert m["outcome"] == "collision" and m["success"] is False and m["collisions"] == 1
+    assert m["time_in_contact_s"] == pytest.approx(_crossing_s(0.0, 2.5), abs=DT)
+    assert m["time_below_rho0_s"] == pytest.approx(_crossing_s(1.0, 2.5), abs=DT)
+    assert m["rho0_breach_m"] == pytest.approx(1.3)  # deeper than rho0: into the obstacle
+    said = mission_failure(m | {"end_reason": "goal"})
+    assert said is not None and said.startswith(
+        f"mission failed: contact at t={m['first_contact_t_s']:.2f} s (min clearance -0.3 m), "
+        f"in contact for {m['time_in_contact_s']:.2f} s; goal reached"
+    )
+
+
+def test_a_run_short_of_the_goal_is_not_reached_even_inside_rho0() -> None:
+    m = _metrics(23.5, x_end=60.0)
+    assert m["reached_goal"] is False and m["outcome"] == "not_reached"
+    assert m["rho0_breach_m"] == pytest.approx(0.3)  # still measured and said
+    said = mission_failure(m | {"end_reason": "max_time", "t_end_s": 36.6})
+    assert said is not None and said.startswith(
+        "mission failed: goal not reached (max_time at t=36.60 s, 35.0 m from the goal); "
+        "0.30 m inside the safety distance rho0 = 1.0 m"
+    )
+
+
+def test_outcome_precedence_collision_then_not_reached_then_rho0_breach() -> None:
+    table = {
+        (reached, contact, below): classify(reached_goal=reached, contact=contact, below_rho0=below)
+        for reached in (False, True)
+        for contact in (False, True)
+        for below in (False, True)
+    }
+    assert {k for k, v in table.items() if v == "collision"} == {
+        (r, True, b) for r in (False, True) for b in (False, True)
+    }
+    assert table[(False, False, False)] == table[(False, False, True)] == "not_reached"
+    assert table[(True, False, True)] == "rho0_breach"
+    assert table[(True, False, False)] == "success"
+    assert set(table.values()) == set(OUTCOMES)
+
+
+def test_metrics_older_than_outcome_are_judged_by_their_success() -> None:
+    assert outcome_of({"success": True}) == "success"
+    assert outcome_of({"success": False, "reached_goal": True, "collisions": 1}) == "collision"
+    assert outcome_of({"success": False, "reached_goal": False}) == "not_reached"
+    assert outcome_of({"end_reason": "max_time"}) is None and describe({}) == ""
+
+
+def test_time_above_the_turning_bound_and_curvature_after_the_start() -> None:
+    i = np.arange(_samples())  # state i is at t = 0.05 i
+    # from rest at 0.3 m/s^2 to cruise, turning at 0.3 rad/s throughout the first 2 s (R
+    # = v / w far below R_min = 5 m while slow); then 0.4 rad/s (R = 3.75 m) for 3 s from
+    # t = 20 s, and the bound plus half the tolerance (within it) for 10 s from t = 30 s
+    v = np.minimum(0.3 * DT * i, SPEED)
+    w = np.zeros(len(i))
+    w[i < 40] = 0.3
+    w[(i >= 400) & (i < 460)] = 0.4
+    w[(i >= 600) & (i < 800)] = SPEED / 5.0 + YAW_RATE_TOL_RPS / 2.0
+    m = _metrics(24.0, v=v, w=w)
+    # the start: |w| > |v| / 5 + tol while v < 5 (0.3 - tol) = 1.475 m/s, i.e. all of t < 2 s
+    assert m["time_above_curvature_limit_s"] == pytest.approx(2.0 + 3.0, abs=1e-9)
+    # v > 0.3 m/s from t = 1.05 s: curvature 0.3 / 0.315 there; 1 s later it is 0.4 / 1.5
+    assert m["max_executed_curvature"] == pytest.approx(0.3 / 0.315)
+    assert m["max_executed_curvature_after_start"] == pytest.approx(0.4 / SPEED)
+
+
+def test_a_turn_on_the_spot_is_above_the_bound_and_rest_is_not() -> None:
+    i = np.arange(_samples())
+    v = np.where(i < 80, 0.0, SPEED)
+    w = np.where(i < 20, 0.2, 0.0)  # turning on the spot for 1 s, then 3 s at rest
+    m = _metrics(24.0, v=v, w=w)
+    assert m["time_above_curvature_limit_s"] == pytest.approx(1.0, abs=1e-9)
