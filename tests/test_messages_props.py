@@ -14,12 +14,15 @@ from typing import Any
 import msgpack
 import msgspec
 import pytest
-from helpers.samples import one_of_each
+from helpers.samples import one_of_each, variants
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from common.messages import (
+    MAX_SEQUENCE_LEN,
     MESSAGE_TYPES,
+    SEQUENCE_STEP_MAX_MS,
+    SEQUENCE_STEP_MIN_MS,
     WIRE_VERSION,
     Detection,
     LinkCounters,
@@ -74,6 +77,8 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
         "commands_rejected": COUNT,
         "commands_clamped": COUNT,
         "rejected_by_reason": st.dictionaries(TEXT, COUNT, max_size=5),
+        "delay_jitter_s": NONNEG,
+        "delay_samples": COUNT,
     },
     LinkCounters: {
         **{
@@ -120,6 +125,8 @@ def strategy_for_class(cls: type) -> S[Any]:
     """st.builds over the record's fields, with the class's (and its bases') overrides."""
     if cls is PathMsg:
         return path_msgs()
+    if cls is VelocityCommand:
+        return velocity_commands()
     hints = typing.get_type_hints(cls)
     over: dict[str, S[Any]] = {}
     for base in reversed(cls.__mro__):
@@ -173,6 +180,27 @@ def path_msgs(draw: st.DrawFn) -> PathMsg:
     )
 
 
+ENTRY = st.integers(-100_000, 100_000)  # a future entry, in thousandths of m/s or rad/s
+
+
+@st.composite
+def velocity_commands(draw: st.DrawFn) -> VelocityCommand:
+    """A single command, or one with n future entries at a step in the wire's bounds."""
+    env = {k: draw(v) for k, v in OVERRIDES[Message].items()}
+    n = draw(st.integers(0, 6))
+    step = st.integers(SEQUENCE_STEP_MIN_MS, SEQUENCE_STEP_MAX_MS) if n else st.just(0)
+    return VelocityCommand(
+        **env,
+        v=draw(FINITE),
+        w=draw(FINITE),
+        path_id=draw(COUNT),
+        controller=draw(TEXT),
+        step_ms=draw(step),
+        v_next_mmps=tuple(draw(st.lists(ENTRY, min_size=n, max_size=n))),
+        w_next_mradps=tuple(draw(st.lists(ENTRY, min_size=n, max_size=n))),
+    )
+
+
 BY_TYPE: dict[type[Message], S[Any]] = {cls: strategy_for_class(cls) for cls in MESSAGE_TYPES}
 ANY_MESSAGE: S[Message] = st.one_of(list(BY_TYPE.values()))
 
@@ -214,6 +242,7 @@ def test_decode_of_arbitrary_bytes_raises_only_wire_error(data: bytes) -> None:
 
 
 Mutation = Callable[[bytearray], None]
+PINNED = [*one_of_each(), *variants().values()]
 
 
 @st.composite
@@ -239,7 +268,7 @@ def _apply(buf: bytearray, kind: str, pos: int, val: int) -> None:
 @st.composite
 def mutated_messages(draw: st.DrawFn) -> bytes:
     """A valid encoded message with 1-4 flipped/overwritten/inserted/deleted bytes or truncated."""
-    buf = bytearray(encode(draw(ANY_MESSAGE | st.sampled_from(one_of_each()))))
+    buf = bytearray(encode(draw(ANY_MESSAGE | st.sampled_from(PINNED))))
     for _ in range(draw(st.integers(1, 4))):
         if buf:
             _apply(buf, *draw(_mutation(len(buf))))
@@ -263,7 +292,7 @@ MSGPACK_VALUES: S[Any] = st.recursive(
 @st.composite
 def wellformed_envelopes_with_junk(draw: st.DrawFn) -> bytes:
     """A valid envelope and type name whose body has the right keys but arbitrary values."""
-    msg = draw(st.sampled_from(one_of_each()))
+    msg = draw(st.sampled_from(PINNED))
     frame = msgpack.unpackb(encode(msg))
     body = frame[1]
     for key in draw(st.lists(st.sampled_from(sorted(body)), min_size=1, max_size=3)):
@@ -324,7 +353,48 @@ def _track_with_cov(cov: list[float]) -> bytes:
     return _packed(frame)
 
 
+def _sequence_with(**fields: Any) -> bytes:
+    """The pinned command with future entries, some fields replaced (as a hostile peer might)."""
+    frame: list[Any] = msgpack.unpackb(encode(variants()["VelocityCommand+sequence"]))
+    frame[1].update(fields)
+    return _packed(frame)
+
+
 _VALID = encode(one_of_each()[0])
+_HUGE = 10**6
+# A sequence's entry times are stamp + k * step_s: they cannot be out of order by construction;
+# what a peer can get wrong is the step, the lengths and the entries themselves.
+SEQUENCE_CASES: list[tuple[str, bytes, list[str]]] = [
+    (
+        "a million entries",
+        _sequence_with(v_next_mmps=[1500] * _HUGE, w_next_mradps=[0] * _HUGE),
+        ["VelocityCommand.v_next_mmps", f"length <= {MAX_SEQUENCE_LEN}"],
+    ),
+    (
+        "nan entry",
+        _sequence_with(w_next_mradps=[0, math.nan, 5]),
+        ["VelocityCommand.w_next_mradps[1]", "expected `int`", "float"],
+    ),
+    (
+        "entry out of range",
+        _sequence_with(v_next_mmps=[10**7, 0, 0]),
+        ["VelocityCommand.v_next_mmps[0]", "<= 100000"],
+    ),
+    ("zero step", _sequence_with(step_ms=0), ["step_ms", "out of range", ">= 1"]),
+    ("negative step", _sequence_with(step_ms=-100), ["step_ms", "-100", "out of range"]),
+    ("nan step", _sequence_with(step_ms=math.nan), ["step_ms", "expected `int`", "float"]),
+    ("step of an hour", _sequence_with(step_ms=3_600_000), ["step_ms", "<= 10000"]),
+    (
+        "unequal lengths",
+        _sequence_with(w_next_mradps=[0]),
+        ["w_next_mradps", "expected 3", "got 1"],
+    ),
+    (
+        "step without entries",
+        _sequence_with(v_next_mmps=[], w_next_mradps=[]),
+        ["step_ms", "without future entries"],
+    ),
+]
 ERROR_CASES: list[tuple[str, bytes, list[str]]] = [
     ("unknown type", _with_field("type", "Teleport"), ["unknown message type", "'Teleport'"]),
     ("no type", _without_field("type"), ["no message type"]),
@@ -364,7 +434,11 @@ ERROR_CASES: list[tuple[str, bytes, list[str]]] = [
 ]
 
 
-@pytest.mark.parametrize(("what", "data", "needles"), ERROR_CASES, ids=[c[0] for c in ERROR_CASES])
+@pytest.mark.parametrize(
+    ("what", "data", "needles"),
+    ERROR_CASES + SEQUENCE_CASES,
+    ids=[c[0] for c in ERROR_CASES + SEQUENCE_CASES],
+)
 def test_decode_errors_say_what_is_wrong(what: str, data: bytes, needles: list[str]) -> None:
     with pytest.raises(WireError) as info:
         decode(data)

@@ -124,8 +124,10 @@ def test_core_counts_rejections_and_clamps_in_status() -> None:
     core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
     _send(core, 1.0, 0.95, 9.0, 0.0)  # applied, clamped to v_max
     _send(core, 1.2, 0.90, 1.0, 0.0)  # older than the last applied: rejected
-    _send(core, 2.6, 1.50, 1.0, 0.0)  # 1.1 s old: rejected
-    s = _status(core, 2.65)
+    # 1.3 s old, beyond max_command_age_s + the delay measured so far (the median of 0.05 s
+    # and 0.3 s, 0.175 s): rejected
+    _send(core, 2.8, 1.50, 1.0, 0.0)
+    s = _status(core, 2.85)
     assert (s.commands_applied, s.commands_rejected, s.commands_clamped) == (1, 2, 1)
     assert s.v_applied == 2.0
 
@@ -220,6 +222,8 @@ def test_only_the_commanders_commands_count_and_every_rejection_is_counted_by_re
         "non_finite": 1,
         "wrong_source": 2,
         "future": 1,
+        "malformed": 0,
+        "too_long": 0,
         "out_of_order": 1,
         "stale": 1,
     }

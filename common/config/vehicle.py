@@ -15,8 +15,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from common.config.checks import nonneg, positive
+from common.config.checks import int_range, nonneg, positive
 from common.config.errors import ConfigValueError
+from common.messages import MAX_SEQUENCE_LEN
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,9 +46,13 @@ class CurrentConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class WatchdogConfig:
-    """Command watchdog: reject stale/out-of-order commands, HOLD then FAILSAFE on silence."""
+    """Command watchdog: reject stale/out-of-order commands, consume a command's sequence of
+    future entries, HOLD then FAILSAFE when it runs out (services/vehicle/watchdog.py)."""
 
-    max_command_age_s: float = 1.0  # reject a command whose age (t_now - stamp) exceeds this
+    # reject a command whose newest entry is older than this *beyond* the one-way delay the
+    # vehicle measures (t_now - t_last > max_command_age_s + measured delay; t_last = stamp
+    # for a single command), so a known delay is not mistaken for an outage
+    max_command_age_s: float = 1.0
     # reject a command stamped further ahead of the vehicle's clock than this (clock skew
     # between processes is milliseconds; one command from the far future must not lock the
     # out-of-order check against every later command)
@@ -62,8 +67,18 @@ class WatchdogConfig:
     # 10.5 s into HOLD); from 2.0 m/s: 4.0 m + 8.4 m. The former ramp, 0.2 m/s^2, braked
     # over 7.3 m from 1.5 m/s and 12.1 m from 2.0 m/s.
     hold_decel_mps2: float = 0.0
+    # a command may carry at most this many future entries (the wire refuses more than
+    # common.messages.MAX_SEQUENCE_LEN) spanning at most max_horizon_s past its stamp: at a
+    # 0.1 s step, 20 s of predicted commands, enough to ride through a 20 s outage
+    max_sequence_len: int = 200
+    max_horizon_s: float = 30.0
+    # commands whose delay the reported figure (median, MAD jitter) and the stale rule use
+    delay_window: int = 31
 
     def __post_init__(self) -> None:
+        int_range("max_sequence_len", self.max_sequence_len, 0, MAX_SEQUENCE_LEN)
+        positive("max_horizon_s", self.max_horizon_s)
+        int_range("delay_window", self.delay_window, 1, 10_000)
         positive("max_command_age_s", self.max_command_age_s)
         positive("max_future_s", self.max_future_s)
         positive("hold_after_s", self.hold_after_s)

@@ -13,7 +13,10 @@ from common.messages.codec import (
     replace,
 )
 from common.messages.types import (
+    MAX_SEQUENCE_LEN,
     MESSAGE_TYPES,
+    SEQUENCE_STEP_MAX_MS,
+    SEQUENCE_STEP_MIN_MS,
     Detection,
     LinkCounters,
     LinkStats,
@@ -35,7 +38,10 @@ from common.messages.types import (
 )
 
 __all__ = [
+    "MAX_SEQUENCE_LEN",
     "MESSAGE_TYPES",
+    "SEQUENCE_STEP_MAX_MS",
+    "SEQUENCE_STEP_MIN_MS",
     "WIRE_VERSION",
     "Detection",
     "LinkCounters",

@@ -9,7 +9,7 @@ from typing import Any
 
 import msgspec
 
-WIRE_VERSION = 4
+WIRE_VERSION = 5  # 5: VelocityCommand's future entries, VehicleStatus's delay figures
 
 
 class WireError(ValueError):

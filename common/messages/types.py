@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from collections.abc import Sequence
+from typing import Annotated, Literal
 
 import msgspec
 
@@ -150,20 +152,143 @@ class PathMsg(Message, frozen=True, kw_only=True):
         check_range("v_ref", self.v_ref, 0.0)
 
 
-class VelocityCommand(Message, frozen=True, kw_only=True):
-    """A velocity command to the vehicle: surge speed v (m/s) and yaw rate w (rad/s)."""
+# Bounds of a command's sequence of future entries (packet-based predictive control). The
+# wire refuses more entries (a hostile 10^6-entry frame is refused from its array header, before
+# a single entry is read); the vehicle accepts at most `max_sequence_len` of them.
+MAX_SEQUENCE_LEN = 1000
+SEQUENCE_STEP_MIN_MS = 1  # the step between entries is a whole number of milliseconds
+SEQUENCE_STEP_MAX_MS = 10_000
+# a future entry travels in thousandths (mm/s, mrad/s); |entry| <= 100 m/s or rad/s (a sanity
+# bound only: the vehicle clamps to its eq. (11) bounds)
+SEQUENCE_UNITS_PER_SI = 1000
+_Q_MAX = 100 * SEQUENCE_UNITS_PER_SI
+_Entries = Annotated[
+    tuple[Annotated[int, msgspec.Meta(ge=-_Q_MAX, le=_Q_MAX)], ...],
+    msgspec.Meta(max_length=MAX_SEQUENCE_LEN),
+]
+
+
+def _quantised(name: str, xs: Sequence[float]) -> tuple[int, ...]:
+    """Entries in SI units as integers in thousandths (rounded half to even)."""
+    try:
+        return tuple(round(x * SEQUENCE_UNITS_PER_SI) for x in xs)
+    except (ValueError, OverflowError) as exc:  # NaN, infinity
+        raise WireError(f"{name}: {exc}") from None
+
+
+class VelocityCommand(Message, frozen=True, kw_only=True, omit_defaults=True):
+    """A velocity command to the vehicle: surge speed v (m/s) and yaw rate w (rad/s), in force
+    from `stamp`, optionally followed by a sequence of future commands (packet-based
+    predictive control).
+
+    Entry 0 is (v, w), in force from `stamp`; entry k = 1..n is (v_next_mmps[k-1] mm/s,
+    w_next_mradps[k-1] mrad/s), in force from stamp + k * step_s, step_s = step_ms / 1000
+    (the properties v_next, w_next and step_s give them in SI units). A fixed step rather
+    than explicit times: one number instead of one per entry, and the entry times cannot be
+    out of order. The sequence is integers (1 ms; 1 mm/s, 1 mrad/s: far below what the
+    actuators resolve), 1-3 bytes each in MessagePack where a float takes 9. With no future
+    entries (n = 0, step_ms = 0) this is the single command of wire version 4, byte for byte
+    apart from the version: fields at their default are left out of the frame
+    (omit_defaults; msgspec tells a default by identity, which holds for the integer 0 and
+    the empty tuple however they were computed, not for a float 0.0), so an absent sequence
+    costs nothing.
+    """
 
     v: float
     w: float
     path_id: int
     controller: str = ""
+    step_ms: int = 0  # time between entries (ms); 0 without future entries
+    v_next_mmps: _Entries = ()
+    w_next_mradps: _Entries = ()
+
+    @classmethod
+    def predictive(
+        cls,
+        *,
+        stamp: float,
+        v: float,
+        w: float,
+        path_id: int,
+        controller: str = "",
+        step_s: float = 0.0,
+        v_next: Sequence[float] = (),
+        w_next: Sequence[float] = (),
+    ) -> VelocityCommand:
+        """A command with future entries given in m/s and rad/s (quantised for the wire) at
+        a step of step_s, a whole number of milliseconds."""
+        step_ms = round(step_s * 1000) if math.isfinite(step_s) else -1
+        if abs(step_ms - step_s * 1000) > 1e-6:
+            raise WireError(f"step_s: {step_s!r} is not a whole number of milliseconds")
+        return cls(
+            stamp=stamp,
+            v=v,
+            w=w,
+            path_id=path_id,
+            controller=controller,
+            step_ms=step_ms,
+            v_next_mmps=_quantised("v_next", v_next),
+            w_next_mradps=_quantised("w_next", w_next),
+        )
+
+    @property
+    def step_s(self) -> float:
+        """Time between entries (s)."""
+        return self.step_ms / 1000
+
+    @property
+    def horizon(self) -> int:
+        """Number n of future entries (0: a single command)."""
+        return len(self.v_next_mmps)
+
+    @property
+    def v_next(self) -> tuple[float, ...]:
+        """Future surge speeds (m/s) of entries 1..n."""
+        return tuple(q / SEQUENCE_UNITS_PER_SI for q in self.v_next_mmps)
+
+    @property
+    def w_next(self) -> tuple[float, ...]:
+        """Future yaw rates (rad/s) of entries 1..n."""
+        return tuple(q / SEQUENCE_UNITS_PER_SI for q in self.w_next_mradps)
 
     def validate(self) -> None:
         check_range("path_id", self.path_id, 0)
+        n = len(self.v_next_mmps)
+        if len(self.w_next_mradps) != n:
+            raise WireError(
+                f"w_next_mradps: expected {n} entries (as v_next_mmps), "
+                f"got {len(self.w_next_mradps)}"
+            )
+        if n == 0:
+            if self.step_ms != 0:
+                raise WireError(f"step_ms: {self.step_ms!r} without future entries (must be 0)")
+            return
+        # checked when built (msgspec checks these itself when it decodes)
+        if n > MAX_SEQUENCE_LEN:
+            raise WireError(f"v_next_mmps: {n} future entries, at most {MAX_SEQUENCE_LEN}")
+        check_range("step_ms", self.step_ms, SEQUENCE_STEP_MIN_MS, SEQUENCE_STEP_MAX_MS)
+        for name in ("v_next_mmps", "w_next_mradps"):
+            qs = getattr(self, name)
+            if any(type(q) is not int for q in qs):
+                raise WireError(f"{name}: entries must be integers")
+            check_range(f"{name} entry", min(qs), -_Q_MAX)
+            check_range(f"{name} entry", max(qs), hi=_Q_MAX)
 
 
 class VehicleStatus(Message, frozen=True, kw_only=True):
-    """The vehicle's mode (incl. FAILSAFE), the command it applies and its age."""
+    """The vehicle's mode (incl. FAILSAFE), the command it applies and its age, its command
+    counters, and the one-way delay it observes on commands.
+
+    `command_age` is t minus the start of the entry in force (for a single command: t minus
+    its stamp). The delay figures are over the last `vehicle.watchdog.delay_window` commands
+    from the commander that passed the source, finiteness, future and shape checks (late,
+    overtaken and duplicated ones included: their delay is real), each sample being delivery
+    time minus stamp (mission time; the planner stamps a command when it sends it, so this is
+    the command link's one-way delay): `delay_s` is their median, `delay_jitter_s` 1.4826 x
+    their median absolute deviation from it (the standard deviation, for normal jitter), both 0
+    before the first sample; `delay_samples` counts every sample so far. A single outlier moves
+    either figure by at most one rank of the window.
+    """
 
     mode: VehicleMode
     mode_since: float = 0.0  # when the vehicle entered `mode` (the last mode change)
@@ -174,10 +299,14 @@ class VehicleStatus(Message, frozen=True, kw_only=True):
     commands_rejected: int
     commands_clamped: int
     rejected_by_reason: dict[str, int] = msgspec.field(default_factory=dict)
+    delay_s: float = 0.0
+    delay_jitter_s: float = 0.0
+    delay_samples: int = 0
 
     def validate(self) -> None:
         check_range("command_age", self.command_age, 0.0)
-        for name in ("commands_applied", "commands_rejected", "commands_clamped"):
+        check_range("delay_jitter_s", self.delay_jitter_s, 0.0)
+        for name in ("commands_applied", "commands_rejected", "commands_clamped", "delay_samples"):
             check_range(name, getattr(self, name), 0)
         for reason, n in self.rejected_by_reason.items():
             check_range(f"rejected_by_reason[{reason!r}]", n, 0)

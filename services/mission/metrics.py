@@ -94,7 +94,7 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
                 "commands_applied": last.commands_applied,
                 "commands_rejected": last.commands_rejected,
                 "commands_rejected_stale": last.rejected_by_reason.get("stale", 0),
-                # by reason: non_finite, wrong_source, future, out_of_order, stale
+                # by reason: services/vehicle/watchdog.py REJECTIONS
                 "commands_rejected_by_reason": dict(last.rejected_by_reason),
                 "commands_clamped": last.commands_clamped,
                 "hold_time_s": dt * sum(1 for q in statuses if q.mode == "HOLD"),

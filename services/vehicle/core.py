@@ -3,7 +3,8 @@
 Time handling: the plant is integrated with RK4 on a fixed absolute grid of dt_internal_s
 (cells [k dt, (k+1) dt]). Every accepted command becomes a command *schedule* in force from
 its exact delivery time; a cell is integrated once it is complete, split only where the
-applied (v, w) actually changes (a delivery that changes it, a watchdog mode change). So a
+applied (v, w) actually changes (a delivery that changes it, the start of a command's next
+entry, a watchdog mode change). So a
 command takes effect exactly when it is delivered, yet re-sending the same command at other
 times leaves the trajectory bit-identical. States at off-grid output times are integrated
 on a scratch copy. Everything depends only on the sequence of (deliver, step) calls.
@@ -80,7 +81,16 @@ class VehicleCore:
             return []
         self._commit(d.t)
         before = self._watchdog.schedule
-        self.last_verdict = verdict = self._watchdog.offer(d.t, msg.stamp, msg.v, msg.w, msg.source)
+        self.last_verdict = verdict = self._watchdog.offer(
+            d.t,
+            msg.stamp,
+            msg.v,
+            msg.w,
+            msg.source,
+            step_s=msg.step_s,
+            v_next=msg.v_next,
+            w_next=msg.w_next,
+        )
         if verdict != "applied":
             self._log_rejection(verdict, d.t, msg)
         after = self._watchdog.schedule
@@ -143,6 +153,9 @@ class VehicleCore:
                     commands_rejected=wd.rejected,
                     commands_clamped=wd.clamped,
                     rejected_by_reason=wd.rejections,
+                    delay_s=wd.delay.delay_s,
+                    delay_jitter_s=wd.delay.jitter_s,
+                    delay_samples=wd.delay.count,
                 ),
             ),
         ]
@@ -191,9 +204,12 @@ class VehicleCore:
         """RK4 over [t_a, t_b] inside cell k, split where the applied (v, w) changes."""
         cands = {start for start, _ in self._pieces}
         for _, sc in self._pieces:
-            cands.update(sc.transitions)
+            cands.update(sc.transitions_between(t_a, t_b))
         seg_a, cur = t_a, self._applied_vw(t_a)
-        for c in sorted(x for x in cands if t_a < x < t_b):
+        # a change within float noise of the cell's end takes effect at the end, as a delivery
+        # there does (_commit's tolerance): so a command's next entry acts exactly as the same
+        # command delivered at that entry's start time would
+        for c in sorted(x for x in cands if t_a < x < t_b - _GRID_TOL_S):
             val = self._applied_vw(c)
             if val != cur:
                 state = self._rk4(state, k, seg_a, c, cur)

@@ -1,33 +1,58 @@
-"""Command watchdog of a networked loop: reject stale or reordered commands, HOLD, FAILSAFE.
+"""Command watchdog of a networked loop: reject stale or reordered commands, consume a
+command's sequence of future entries, HOLD when it runs out, then FAILSAFE.
 
-Rules (times on the runtime clock, `stamp` = the command's validity time):
-- a command with a non-finite field, from another source than the vehicle's commander (the
-  envelope's `source`, when a commander is set), stamped more than max_future_s ahead of
-  t_now, with stamp < the last applied stamp (overtaken on the network), or with age
-  t_now - stamp > max_command_age_s is rejected and counted by reason; a duplicate (stamp
-  equal to the last applied one) is idempotent and re-applied. The future check comes
-  before the order check, so no single command can lock out every later one;
-- an accepted command is clamped to the eq. (11) bounds (counted in `clamped` when it had to
-  be), never applied raw;
-- once the applied command is hold_after_s old, the commanded speed falls to the floor
-  (max(0, v_min)) at hold_decel_mps2 and the yaw rate is zero (heading hold): mode HOLD. By
-  default (hold_decel_mps2 = 0) the speed command drops at once and the speed loop brakes at
-  the hull's limit, the shortest stop the plant allows (a blind vehicle should cover as
-  little ground as it can; with v_min = 0 the distance is bounded, see WatchdogConfig);
-- once it is failsafe_after_s old, the mode is FAILSAFE (same motion) until a fresh command.
+A command carries entries k = 0..n (n = 0: a single command): entry k, (v_k, w_k), is in
+force from t_k = stamp + k * step_s (packet-based predictive control). Rules (times on the
+runtime clock; t_last = t_n, the start of the last entry, = stamp for a single command):
+- a command is rejected, and counted by reason, in this order: `too_long` if it carries
+  more than max_sequence_len future entries (judged first, so a hostile length costs
+  nothing); `non_finite` if any field is; `wrong_source` if it comes from another source
+  than the vehicle's commander (the envelope's `source`, when a commander is set); `future`
+  if stamped more than max_future_s ahead of t_now; `malformed` if its future speeds and
+  rates differ in length or its step lies outside the wire's [1 ms, 10 s]; `too_long` if
+  t_last - stamp > max_horizon_s; `out_of_order` if stamp < the stamp of the sequence in
+  force (overtaken on the network: the newest sequence wins, whole); `stale` if
+  t_now - t_last > max_command_age_s + d, with d >= 0 the median one-way delay measured on
+  the commands *before* this one (delay.py). Staleness is age beyond the known delay, so a
+  steady 1 s delay is not an outage, and a sequence stamped long ago still counts while its
+  entries reach to about now; a command cannot vouch for its own delay. A duplicate (stamp
+  equal to the one in force) is idempotent and re-applied. The future check comes before
+  the order check, so no single command can lock out every later one;
+- every command that passes the source, finiteness, future and shape checks is a delay
+  sample (t_now - stamp), the late and overtaken ones included: their delay is real;
+- an accepted command replaces the sequence in force from its delivery on; each entry is
+  clamped to the eq. (11) bounds (counted once in `clamped` when any had to be), never
+  applied raw. Its entries are applied in turn; the last one stays in force;
+- HOLD counts from the end of the buffer, t_last, as it counted from a single command's
+  stamp before sequences existed: from t_hold = t_last + hold_after_s the commanded speed
+  falls to the floor (max(0, v_min)) at hold_decel_mps2 and the yaw rate is zero (heading
+  hold): mode HOLD. The last entry is thus treated exactly as a single command stamped t_last
+  (a single command behaves as it always did), and a sequence buys its whole horizon on top
+  of hold_after_s of blind running. By default (hold_decel_mps2 = 0) the speed command drops
+  at once and the speed loop brakes at the hull's limit, the shortest stop the plant allows
+  (a blind vehicle should cover as little ground as it can; with v_min = 0 the distance is
+  bounded, see WatchdogConfig);
+- from t_fail = t_last + failsafe_after_s the mode is FAILSAFE (same motion) until a fresh
+  command.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_left, bisect_right
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 from common.config.vehicle import WatchdogConfig
-from common.messages import VehicleMode
+from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS, VehicleMode
+from services.vehicle.delay import DelayMeter
 
-Verdict = Literal["applied", "non_finite", "wrong_source", "future", "out_of_order", "stale"]
-REJECTIONS: tuple[Verdict, ...] = ("non_finite", "wrong_source", "future", "out_of_order", "stale")
+Rejection = Literal[
+    "non_finite", "wrong_source", "future", "malformed", "too_long", "out_of_order", "stale"
+]
+Verdict = Literal["applied", Rejection]
+REJECTIONS: tuple[Rejection, ...] = get_args(Rejection)
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -44,38 +69,54 @@ class Applied:
 class Schedule:
     """The command as a function of time until the next accepted command (immutable).
 
-    Before any command: IDLE, (0, 0). Then RUN with (v, w) until t_hold, then HOLD: the speed
+    Before any command: IDLE, (0, 0). Then RUN with entry k, (vs[k], ws[k]), from starts[k]
+    (entry 0 also before its start) until t_hold, then HOLD from the last entry: the speed
     command falls to v_floor at `decel` (inf: at once), w = 0 (FAILSAFE from t_fail). The
-    plant integrator keeps these per time window, so a command's effect does not depend on
-    when the plant happens to be integrated.
+    plant integrator keeps these per time window and splits its steps at the entry starts and
+    the mode changes (transitions_between), so a command's effect does not depend on when the
+    plant happens to be integrated.
     """
 
-    stamp: float | None = None
-    v: float = 0.0
-    w: float = 0.0
-    t_hold: float = math.inf  # stamp + hold_after_s
-    t_fail: float = math.inf  # stamp + failsafe_after_s
+    starts: tuple[float, ...] = ()  # starts[k] = stamp + k * step_s; () before any command
+    vs: tuple[float, ...] = ()  # (n + 1,) clamped surge speeds (m/s)
+    ws: tuple[float, ...] = ()  # (n + 1,) clamped yaw rates (rad/s)
+    t_hold: float = math.inf  # starts[-1] + hold_after_s
+    t_fail: float = math.inf  # starts[-1] + failsafe_after_s
     decel: float = 0.0
     v_floor: float = 0.0
 
+    @property
+    def stamp(self) -> float | None:
+        """The stamp of the command this schedule comes from (None before any)."""
+        return self.starts[0] if self.starts else None
+
     def at(self, t: float) -> Applied:
         """The command in force at time t (held constant over an integration step from t)."""
-        if self.stamp is None:
+        if not self.starts:
             return Applied(mode="IDLE", v=0.0, w=0.0, age_s=0.0)
-        age = max(0.0, t - self.stamp)  # a stamp from the future (clock skew) counts as fresh
+        # the entry that started last, at t (entry 0 also before its start)
+        k = max(0, bisect_right(self.starts, t) - 1) if len(self.starts) > 1 else 0
+        # the age of the entry in force; one from the future (clock skew) counts as fresh
+        age = max(0.0, t - self.starts[k])
         if t < self.t_hold:
-            return Applied(mode="RUN", v=self.v, w=self.w, age_s=age)
-        # HOLD / FAILSAFE: lower the commanded speed, hold the heading (w = 0); an infinite
-        # rate drops it at once (inf * 0 would be NaN at t_hold itself)
+            return Applied(mode="RUN", v=self.vs[k], w=self.ws[k], age_s=age)
+        # HOLD / FAILSAFE (k = n: t_hold is past the last start): lower the commanded speed
+        # from the last entry's, hold the heading (w = 0); an infinite rate drops it at once
+        # (inf * 0 would be NaN at t_hold itself)
+        v_last = self.vs[-1]
         drop = math.inf if math.isinf(self.decel) else self.decel * (t - self.t_hold)
-        v = min(self.v, max(self.v_floor, self.v - drop))
+        v = min(v_last, max(self.v_floor, v_last - drop))
         mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
         return Applied(mode=mode, v=v, w=0.0, age_s=age)
 
-    @property
-    def transitions(self) -> tuple[float, float]:
-        """The times at which this schedule changes mode by itself."""
-        return self.t_hold, self.t_fail
+    def transitions_between(self, t_a: float, t_b: float) -> list[float]:
+        """The times in (t_a, t_b) at which this schedule changes by itself: the starts of
+        entries 1..n, t_hold and t_fail."""
+        out = [x for x in (self.t_hold, self.t_fail) if t_a < x < t_b]
+        if len(self.starts) > 1:
+            i = max(1, bisect_right(self.starts, t_a))
+            out.extend(self.starts[i : bisect_left(self.starts, t_b)])
+        return out
 
 
 class Watchdog:
@@ -96,6 +137,7 @@ class Watchdog:
         self._v_bounds = (v_min, v_max)
         self._w_bounds = (w_min, w_max)
         self.schedule = Schedule()
+        self.delay = DelayMeter(cfg.delay_window)
         self.applied = 0
         self.clamped = 0
         self.rejected_stale = 0
@@ -103,6 +145,8 @@ class Watchdog:
         self.rejected_non_finite = 0
         self.rejected_wrong_source = 0
         self.rejected_future = 0
+        self.rejected_malformed = 0
+        self.rejected_too_long = 0
 
     @property
     def rejected(self) -> int:
@@ -114,40 +158,77 @@ class Watchdog:
         """Rejected commands by reason (every reason, zeros included)."""
         return {r: getattr(self, f"rejected_{r}") for r in REJECTIONS}
 
-    def offer(self, t_now: float, stamp: float, v: float, w: float, source: str = "") -> Verdict:
-        """Judge a command from `source` delivered at t_now; apply it (clamped) unless it is
+    def offer(
+        self,
+        t_now: float,
+        stamp: float,
+        v: float,
+        w: float,
+        source: str = "",
+        *,
+        step_s: float = 0.0,
+        v_next: Sequence[float] = (),
+        w_next: Sequence[float] = (),
+    ) -> Verdict:
+        """Judge a command from `source` delivered at t_now: (v, w) from `stamp`, then
+        (v_next[k-1], w_next[k-1]) from stamp + k * step_s; apply it (clamped) unless it is
         rejected (the verdict says why)."""
-        if not (math.isfinite(stamp) and math.isfinite(v) and math.isfinite(w)):
-            self.rejected_non_finite += 1
-            return "non_finite"
-        if self._commander is not None and source != self._commander:
-            self.rejected_wrong_source += 1
-            return "wrong_source"
-        if stamp - t_now > self._cfg.max_future_s:
-            self.rejected_future += 1
-            return "future"
-        last = self.schedule.stamp
-        if last is not None and stamp < last:
-            self.rejected_out_of_order += 1
-            return "out_of_order"
-        if t_now - stamp > self._cfg.max_command_age_s:
-            self.rejected_stale += 1
-            return "stale"
-        # eq. (11): clamp to the bounds, and count that we had to
-        vc = min(max(v, self._v_bounds[0]), self._v_bounds[1])
-        wc = min(max(w, self._w_bounds[0]), self._w_bounds[1])
-        if vc != v or wc != w:
+        verdict = self._judge(t_now, stamp, v, w, source, step_s, v_next, w_next)
+        if verdict != "applied":
+            setattr(self, f"rejected_{verdict}", getattr(self, f"rejected_{verdict}") + 1)
+            return verdict
+        # eq. (11): clamp every entry to the bounds, and count that we had to
+        vs = tuple(min(max(x, self._v_bounds[0]), self._v_bounds[1]) for x in (v, *v_next))
+        ws = tuple(min(max(x, self._w_bounds[0]), self._w_bounds[1]) for x in (w, *w_next))
+        if vs != (v, *v_next) or ws != (w, *w_next):
             self.clamped += 1
         self.applied += 1
+        starts = tuple(stamp + k * step_s for k in range(len(vs)))
         self.schedule = Schedule(
-            stamp=stamp,
-            v=vc,
-            w=wc,
-            t_hold=stamp + self._cfg.hold_after_s,
-            t_fail=stamp + self._cfg.failsafe_after_s,
+            starts=starts,
+            vs=vs,
+            ws=ws,
+            t_hold=starts[-1] + self._cfg.hold_after_s,
+            t_fail=starts[-1] + self._cfg.failsafe_after_s,
             decel=self._cfg.hold_decel_mps2 or math.inf,  # 0: at once
             v_floor=max(0.0, self._v_bounds[0]),
         )
+        return "applied"
+
+    def _judge(
+        self,
+        t_now: float,
+        stamp: float,
+        v: float,
+        w: float,
+        source: str,
+        step_s: float,
+        v_next: Sequence[float],
+        w_next: Sequence[float],
+    ) -> Verdict:
+        """The verdict on a command, in the order of the module docstring; records its delay."""
+        n = len(v_next)
+        if max(n, len(w_next)) > self._cfg.max_sequence_len:
+            return "too_long"
+        scalars = (stamp, v, w, step_s)
+        if not all(map(math.isfinite, (*scalars, *v_next, *w_next))):
+            return "non_finite"
+        if self._commander is not None and source != self._commander:
+            return "wrong_source"
+        if stamp - t_now > self._cfg.max_future_s:
+            return "future"
+        step_ok = SEQUENCE_STEP_MIN_MS <= step_s * 1000 <= SEQUENCE_STEP_MAX_MS
+        if len(w_next) != n or (n and not step_ok):
+            return "malformed"
+        if n * step_s > self._cfg.max_horizon_s:
+            return "too_long"
+        allowance = max(0.0, self.delay.delay_s)  # from the commands before this one
+        self.delay.add(t_now - stamp)
+        last = self.schedule.stamp
+        if last is not None and stamp < last:
+            return "out_of_order"
+        if t_now - (stamp + n * step_s) > self._cfg.max_command_age_s + allowance:
+            return "stale"
         return "applied"
 
     def command(self, t: float) -> Applied:

@@ -20,6 +20,7 @@ from common.messages import (
     TruthState,
     VehicleStatus,
     VelocityCommand,
+    replace,
 )
 
 # Envelope fields of every sample (the runtime fills these in real runs).
@@ -137,6 +138,9 @@ def one_of_each() -> list[Message]:
             commands_rejected=1,
             commands_clamped=3,
             rejected_by_reason={"stale": 1},
+            delay_s=0.5,
+            delay_jitter_s=0.0625,
+            delay_samples=118,
         ),
         TruthState(
             stamp=12.5,
@@ -207,3 +211,24 @@ def one_of_each() -> list[Message]:
             done=False,
         ),
     ]
+
+
+def variants() -> dict[str, Message]:
+    """Further pinned forms of some types, by name: a command carrying future entries."""
+    return {
+        "VelocityCommand+sequence": replace(
+            VelocityCommand.predictive(
+                stamp=12.5,
+                v=1.5,
+                w=-0.25,
+                path_id=2,
+                controller="nurbs",
+                step_s=0.125,
+                v_next=(1.5, 1.25, 0.0),
+                w_next=(-0.125, 0.0, 0.5),
+            ),
+            seq=12,
+            source=SOURCE,
+            sent=SENT,
+        )
+    }

@@ -1,0 +1,37 @@
+"""The one-way delay the vehicle observes on commands: a running median and a robust jitter.
+
+Each sample is d = t_delivered - stamp (mission time). Over the last `window` samples:
+- delay  = median(d)
+- jitter = 1.4826 * median(|d - delay|)   (MAD; 1.4826 makes it the standard deviation of
+  normal jitter, the consistency constant 1 / Phi^-1(3/4))
+Both are order statistics, so a single outlier in a window of n >= 3 samples moves either by
+at most one rank, where it would drag a mean by (outlier - mean) / n; a constant delay gives
+that delay and zero jitter from the first sample on. Before any sample both are 0.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from statistics import median
+
+MAD_TO_SIGMA = 1.4826
+
+
+class DelayMeter:
+    """Median and MAD jitter of the last `window` delay samples (s); pure, no clock."""
+
+    def __init__(self, window: int) -> None:
+        if window < 1:
+            raise ValueError(f"window: {window!r} samples, expected >= 1")
+        self._window: deque[float] = deque(maxlen=window)
+        self.count = 0  # samples ever added
+        self.delay_s = 0.0
+        self.jitter_s = 0.0
+
+    def add(self, delay_s: float) -> None:
+        """Add one sample (s; negative when a stamp is ahead of the vehicle's clock)."""
+        self._window.append(delay_s)
+        self.count += 1
+        m = median(self._window)
+        self.delay_s = m
+        self.jitter_s = MAD_TO_SIGMA * median(abs(d - m) for d in self._window)
