@@ -8,8 +8,8 @@ and the path is the two joined.
 
 The vehicle cannot turn on the spot (the plant enforces |w| <= v / R_min, eqs. (19)-(20))
 and has no reverse (v_min >= 0), so a way out leaves along the vehicle's heading: an arc of
-radius `radius_m` (R_min with the refinement's curvature margin) turning by `turn_rad`, then
-a straight run, in one of `N_TURNS` turns (straight ahead, and arcs to either side up to a
+radius `radius_m` (no tighter than R_min; recover.py takes 1.2 R_min) turning by `turn_rad`,
+then a straight run, in one of `N_TURNS` turns (straight ahead, and arcs to either side up to a
 half turn). Along it:
 - the hull may not go deeper into contact than it starts (d stays >= d at the start, and
   > r from a start out of contact), nor farther out of the area (eq. (10)) than it starts;
@@ -22,8 +22,8 @@ half turn). Along it:
   1 cm instead (the hull free; the rest then leaves the margin like any start inside it).
 Among the ways out, the one that goes least deep below min(d at the start, r + rho0), in
 steps of `DEPTH_STEP_M`, wins, then the shortest (it gains clearance soonest), then the
-smallest turn. When no plan can be made from
-where it ends (it faces a wall, say), the next best is tried. Moving obstacles are compared
+smallest turn. When no plan can be made from where it ends (it faces a wall, say), the next
+best is tried. Moving obstacles are compared
 where they will be when the vehicle passes (arc length over the cruise speed).
 """
 
@@ -62,7 +62,9 @@ class Escape:
     start_clearance_m: float  # hull to surface at the start (<= 0: in contact)
     end_clearance_m: float  # hull to surface at the free pose (> 0)
     start_outside_m: float = 0.0  # how far the hull reaches beyond the area's edge (eq. (10))
-    deeper_m: float = 0.0  # how much deeper than at the start the hull goes on the way
+    # how far the way goes below min(d at the start, r + rho0): into the margin, never into
+    # contact deeper than the start
+    deeper_m: float = 0.0
 
     @property
     def arc_m(self) -> float:

@@ -6,7 +6,8 @@ tighter than R_min (the vehicle can neither turn on the spot nor reverse), each 
 an ordinary plan (`plan`, the pipeline of plan.py, handed in) joined to it:
 - turn_then_plan: the heading is what no curve can satisfy (eq. (10) with R_min, eqs.
   (19)-(20): the vehicle faces an obstacle too near to turn away from within the margins the
-  refinement keeps). Turn toward the grid path's first leg on one arc, then plan from there.
+  refinement keeps). Turn on an arc (toward the grid path's first leg if it can), then plan
+  from there.
 - leave_then_plan: the start is in contact, outside the area (a vehicle that coasted out
   of it) or deep in the margin: the way out escape.py finds, then the rest planned from
   where it ends.
