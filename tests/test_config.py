@@ -229,6 +229,30 @@ def test_bad_overrides_are_reported_at_their_key(
     assert needle in err.problem
 
 
+@pytest.mark.parametrize(
+    ("key", "value", "needle"),
+    [
+        ("controller.compensate_baselines", "true", "the same for every controller"),
+        ("controller.fuzzy_pid.slow_k", "1.0", "not from the immune fuzzy PID literature"),
+        ("controller.fuzzy_pid.v_floor_ratio", "0.4", "shared speed profile"),
+        ("controller.nurbs.curvature_budget", "0.7", "controller.speed.curvature_budget"),
+        ("controller.nurbs.preview_s", "3.0", "controller.speed.preview_s"),
+    ],
+)
+def test_a_removed_key_says_it_was_removed_and_why(
+    tmp_path: Path, key: str, value: str, needle: str
+) -> None:
+    # in the file and as an override alike: not a bare "unknown key", but the reason
+    table, _, name = key.rpartition(".")
+    for path, overrides in (
+        (_write(tmp_path, f"{GOOD}\n[{table}]\n{name} = {value}\n", "in_file.toml"), []),
+        (_write(tmp_path, GOOD, "plain.toml"), [f"{key}={value}"]),
+    ):
+        err = _error(path, overrides)
+        assert err.key == key
+        assert err.problem.startswith("was removed: ") and needle in err.problem
+
+
 def test_an_override_without_a_value_is_rejected(tmp_path: Path) -> None:
     err = _error(_write(tmp_path, GOOD), ["run.seed"])
     assert err.file == "--set"

@@ -1,4 +1,5 @@
-"""Controller building blocks: references, prediction, fuzzy inference, saturation, config."""
+"""Controller building blocks: references, prediction, fuzzy inference, the shared speed
+profile, saturation, config."""
 
 from __future__ import annotations
 
@@ -9,7 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from common.config.controller import ControllerConfig, ControllerKind, FuzzyPidGains, NurbsGains
+from common.config.controller import (
+    ControllerConfig,
+    ControllerKind,
+    FuzzyPidGains,
+    NurbsGains,
+    SpeedConfig,
+)
 from common.config.vehicle import CurrentConfig, VehicleConfig
 from services.planner.controllers import (
     Backstepping,
@@ -32,6 +39,7 @@ from services.planner.controllers.fuzzy import (
     memberships,
     parse_table,
 )
+from services.planner.controllers.speed import SpeedProfile, target_speed
 
 LIMITS = Limits.from_vehicle(VehicleConfig())
 
@@ -179,12 +187,84 @@ def test_immune_gain_stays_in_its_band() -> None:
     assert ctrl.last_gains[3] == g.immune_k1
 
 
-def test_nurbs_speed_respects_the_yaw_budget() -> None:
+SPEED = SpeedConfig()
+
+
+def test_the_profile_slows_for_the_tightest_curvature_ahead() -> None:
     # kappa = 1/3 on a 3 m circle: v |kappa| <= 0.7 w_max = 0.35 rad/s -> v = 1.05 m/s;
     # on an 8 m circle 1.5 m/s needs 0.19 rad/s: no reduction
-    tr = NurbsTracker(NurbsGains(), LIMITS)
-    assert math.isclose(tr.speed_for(Circle(cx=0.0, cy=0.0, radius=3.0), 0.0), 1.05)
-    assert tr.speed_for(Circle(cx=0.0, cy=0.0, radius=8.0), 0.0) == 1.5
+    assert math.isclose(target_speed(Circle(cx=0.0, cy=0.0, radius=3.0), 0.0, SPEED, LIMITS), 1.05)
+    assert target_speed(Circle(cx=0.0, cy=0.0, radius=8.0), 0.0, SPEED, LIMITS) == 1.5
+
+    # a 3 m arc 4 m ahead on a line (a polyline has no curvature: a stand-in reference whose
+    # curvature is 1/3 from s = 24 on) slows down 4 m ahead of it, not 5 m: the preview
+    # window is v_cruise * preview_s = 4.5 m long
+    class Bend(StraightLine):
+        def curvature_at_s(self, s: float) -> float:
+            return 1.0 / 3.0 if s >= 24.0 else 0.0
+
+    bend = Bend(x0=0.0, y0=0.0, x1=100.0, y1=0.0)
+    assert math.isclose(target_speed(bend, 20.0, SPEED, LIMITS), 1.05)
+    assert target_speed(bend, 18.0, SPEED, LIMITS) == 1.5
+
+
+def test_the_profile_stops_at_the_end_of_the_path() -> None:
+    # v <= sqrt(2 decel d_left): 1.5 m/s until 5.625 m before the end, then braking to 0
+    line = StraightLine(x0=0.0, y0=0.0, x1=50.0, y1=0.0)
+    assert target_speed(line, 50.0 - 5.7, SPEED, LIMITS) == 1.5
+    for d in (5.0, 2.0, 0.5, 0.0):
+        assert math.isclose(target_speed(line, 50.0 - d, SPEED, LIMITS), math.sqrt(0.4 * d))
+    assert target_speed(line, 60.0, SPEED, LIMITS) == 0.0  # past it (the projection clamps)
+
+
+def test_the_profile_ramps_up_from_the_vehicle_speed_and_slows_at_once() -> None:
+    line = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0)
+    prof = SpeedProfile(SPEED, LIMITS)
+    # from rest: the first command is the vehicle's speed, then + accel dt per call, whatever
+    # the vehicle does meanwhile, until the cruise cap
+    vs = [prof.command(0.1 * k, line, 0.0, 0.0) for k in range(100)]
+    assert vs[0] == 0.0
+    assert np.allclose(np.diff(vs[:75]), SPEED.accel_mps2 * 0.1)
+    assert max(vs) == 1.5 and vs[-1] == 1.5
+    # a gap in the calls (an outage) ramps by the time that passed, not by the call count
+    prof.reset()
+    assert prof.command(0.0, line, 0.0, 0.4) == 0.4  # a path taken under way: from its speed
+    assert math.isclose(prof.command(2.0, line, 0.0, 0.4), 0.8)
+    # a slow-down (the end of the path) takes effect at once, the ramp resumes from there
+    assert math.isclose(prof.command(2.1, line, 199.0, 0.8), math.sqrt(0.4))
+    assert math.isclose(prof.command(2.2, line, 10.0, 0.8), math.sqrt(0.4) + 0.02)
+    # eq. (11): a cruise speed above v_max is capped
+    fast = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0, v_ref=9.0)
+    prof.reset()
+    assert prof.command(0.0, fast, 0.0, 2.0) == LIMITS.v_max
+
+
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_every_controller_takes_its_speed_from_the_profile(kind: ControllerKind) -> None:
+    # on the path, aligned, from rest: every controller commands the same ramp (speed is
+    # shared, steering is the only difference), and never turns while the vehicle is still
+    line = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0)
+    ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
+    prof = SpeedProfile(SPEED, LIMITS)
+    for k in range(30):
+        pose = (0.1 * k, 0.5, -0.1, 0.0, 0.0)  # off the line and askew, at rest
+        v, w = ctrl.command(0.1 * k, pose, line)
+        assert v == prof.command(0.1 * k, line, 0.1 * k, 0.0)
+        assert w == 0.0  # at v = 0 no yaw rate is possible: the cap is v / R_min = 0
+
+
+def test_backstepping_never_overspeeds_past_the_profile() -> None:
+    # a vehicle 4 m behind the virtual reference (e_x = 4 m) at cruise speed: the law's
+    # v_r + k_x e_x = 3.5 m/s used to reach v_max = 2 m/s; now it is the profile's 1.5 m/s.
+    # Ahead of it (e_x < 0), the law slows the vehicle down
+    line = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0)
+    ctrl = Backstepping(ControllerConfig().backstepping, LIMITS)
+    ctrl.command(0.0, (0.0, 0.0, 0.0, 1.5, 0.0), line)
+    v, _ = ctrl.command(4.0 / 1.5, (0.0, 0.0, 0.0, 1.5, 0.0), line)
+    assert math.isclose(ctrl.last_errors[0], 4.0) and v == 1.5
+    ctrl.reset()
+    v, _ = ctrl.command(0.0, (10.0, 0.0, 0.3, 1.5, 0.0), line)
+    assert v < 1.5
 
 
 def test_backstepping_on_the_reference_commands_the_feed_forward() -> None:
@@ -216,38 +296,53 @@ def test_every_command_is_inside_eq11(
     poses: list[tuple[float, float, float, float, float]], latency: float, circle: bool
 ) -> None:
     # whatever the poses (jumping around, far off the path) and latency: eq. (11) holds,
-    # and the NURBS tracker's turning radius is >= R_min
+    # every controller's turning radius is >= R_min at the pose's speed (delay compensation
+    # keeps the speed) and the speed stays within the cruise cap
     ref: ArcLengthReference = (
         Circle(cx=0.0, cy=0.0, radius=8.0) if circle else StraightLine(x0=0, y0=0, x1=50, y1=5)
     )
     kinds: tuple[ControllerKind, ...] = ("nurbs", "backstepping", "fuzzy_pid")
     for kind in kinds:
-        ctrl = make_controller(ControllerConfig(kind=kind, compensate_baselines=True), LIMITS)
+        ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
         for k, pose in enumerate(poses):
             v, w = ctrl.command(0.1 * k, pose, ref, latency_s=latency)
-            assert LIMITS.v_min <= v <= LIMITS.v_max and LIMITS.w_min <= w <= LIMITS.w_max
-            if kind == "nurbs":
-                assert abs(w) <= v / LIMITS.r_min + 1e-12
+            assert LIMITS.v_min <= v <= ref.v_ref and LIMITS.w_min <= w <= LIMITS.w_max
+            assert abs(w) <= pose[3] / LIMITS.r_min + 1e-12
 
 
 def test_saturate_and_factory() -> None:
-    assert LIMITS.saturate(9.0, -9.0) == (LIMITS.v_max, LIMITS.w_min)
-    assert LIMITS.saturate(math.nan, 0.1) == (0.0, 0.0)  # a non-finite law output stops
-    cfg = ControllerConfig()
-    assert isinstance(make_controller(cfg, LIMITS), NurbsTracker)
-    bs = make_controller(ControllerConfig(kind="backstepping"), LIMITS)
-    fz = make_controller(ControllerConfig(kind="fuzzy_pid", compensate_baselines=True), LIMITS)
-    assert isinstance(bs, Backstepping) and not bs.compensate_delay
-    assert isinstance(fz, ImmuneFuzzyPid) and fz.compensate_delay
-    off = make_controller(ControllerConfig(delay_compensation=False), LIMITS)
-    assert isinstance(off, NurbsTracker) and not off.compensate_delay
+    # eq. (11), and |w| <= v_now / R_min at the vehicle's speed (not the commanded one)
+    assert LIMITS.saturate(9.0, -9.0, 9.0) == (LIMITS.v_max, LIMITS.w_min)
+    assert LIMITS.saturate(1.5, 0.4, 1.0) == (1.5, 1.0 / LIMITS.r_min)
+    assert LIMITS.saturate(1.5, -0.4, 0.0) == (1.5, 0.0)  # at rest: no turn at all
+    assert LIMITS.saturate(1.5, -0.4, math.nan) == (1.5, 0.0)
+    assert LIMITS.saturate(math.nan, 0.1, 1.0) == (0.0, 0.0)  # a non-finite law output stops
+    assert LIMITS.turn_cap(1.5) == 0.3 and LIMITS.turn_cap(-1.0) == 0.0
+    # delay compensation and the speed profile: one setting for every controller
+    for comp in (True, False):
+        speed = SpeedConfig(accel_mps2=0.1)
+        kinds: tuple[ControllerKind, ...] = ("nurbs", "backstepping", "fuzzy_pid")
+        built = [
+            make_controller(ControllerConfig(kind=k, delay_compensation=comp, speed=speed), LIMITS)
+            for k in kinds
+        ]
+        assert [type(c) for c in built] == [NurbsTracker, Backstepping, ImmuneFuzzyPid]
+        for c in built:
+            assert isinstance(c, NurbsTracker | Backstepping | ImmuneFuzzyPid)
+            assert c.compensate_delay is comp and c.speed.cfg is speed
 
 
 def test_config_validation_names_the_field() -> None:
     with pytest.raises(ValueError, match="^kind:"):
         ControllerConfig(kind="pid")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="^curvature_budget:"):
-        NurbsGains(curvature_budget=0.0)
+        SpeedConfig(curvature_budget=0.0)
+    with pytest.raises(ValueError, match="^accel_mps2:"):
+        SpeedConfig(accel_mps2=0.0)
+    with pytest.raises(ValueError, match="^decel_mps2:"):
+        SpeedConfig(decel_mps2=-1.0)
+    with pytest.raises(ValueError, match="^lookahead_m:"):
+        NurbsGains(lookahead_m=0.0)
     with pytest.raises(ValueError, match="^immune_eta:"):
         FuzzyPidGains(immune_eta=1.0)
     with pytest.raises(ValueError, match="^v_min_mps:"):

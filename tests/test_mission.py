@@ -1,5 +1,6 @@
-"""The AUV mission on configs/default.toml: every controller reaches the goal safely, and the
-distributed lockstep run reproduces the inproc trajectory bit for bit."""
+"""The AUV mission on configs/default.toml: every controller reaches the goal safely, within
+R_min and the shared cruise speed, and the distributed lockstep run reproduces the inproc
+trajectory bit for bit."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
+from common.messages import TruthState, VelocityCommand
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.model.inproc import run_inproc
 
@@ -26,6 +28,19 @@ def test_every_controller_reaches_the_goal_without_collision(controller: str) ->
     assert m["success"] is True and "first_contact_t_s" not in m
     assert m["hold_time_s"] == 0.0 and m["hold_distance_max_m"] == 0.0  # never blind
     assert m["travel_time_s"] < 120.0  # 90 m at ~1.5 m/s, with detours
+    # the turning radius holds in execution (eqs. (19)-(20)): |w| / v <= 1 / R_min from the
+    # vehicle's truth after the start-up second, whatever the controller
+    truth = [q for q in r.record.stream("vehicle", "truth") if isinstance(q, TruthState)]
+    moving = [q for q in truth if q.stamp >= 1.0 and q.v > 0.0]
+    assert (
+        moving and max(abs(q.w) / q.v for q in moving) <= 1.0 / s.vehicle.turn_radius_min_m + 1e-9
+    )
+    # one speed profile for all: no command above the cruise speed (backstepping's k_x e_x
+    # term took it to v_max = 2 m/s), and the vehicle's speed within its loop's 1 % overshoot
+    cruise = s.vehicle.cruise_speed_mps
+    cmds = [c for c in r.record.stream("planner", "cmd") if isinstance(c, VelocityCommand)]
+    assert cmds and max(c.v for c in cmds) <= cruise
+    assert max(q.v for q in truth) <= 1.01 * cruise
     # the network in the loop really was lossy
     cmd = r.record.stream("planner", "stats")[-1]
     link = {c.link: c for c in cmd.links}["planner/cmd->vehicle"]  # type: ignore[attr-defined]

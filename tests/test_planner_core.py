@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from common.config.scenario import load_scenario
@@ -66,36 +67,43 @@ def test_walled_off_goal_stops_the_vehicle_and_says_why() -> None:
     assert (cmd.v, cmd.w) == (0.0, 0.0)
 
 
-def test_a_start_in_contact_turns_on_the_spot_then_drives_out() -> None:
-    # issue 14 defect 5: x = 15.5 puts the hull 0.3 m into circle 1, heading into it; the
-    # planner used to answer NO_PATH with v = 0 forever
+def test_a_start_in_contact_drives_out_on_an_arc() -> None:
+    # issue 14 defect 5: x = 15.5 puts the hull 0.3 m into circle 1 (the planner used to
+    # answer NO_PATH with v = 0 forever). Heading north, along its surface, the way out is
+    # an arc to the left, away from it: the vehicle follows it at once, forward, as the
+    # plant allows (no turn on the spot, |w| <= v / R_min)
     core = _core(["world.start.x_m=15.5"])
-    core.deliver(_estimate(0.0, x=15.5))  # still under way at 1 m/s
+    est = StateEstimate(stamp=0.0, x=15.5, y=20.0, theta=1.5708, v=1.0, w=0.0, covariance=COV)
+    core.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.05))
     out = core.step(0.05)
     (path,) = [e.msg for e in out if e.stream == "path"]
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
     assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
     assert path.status == "OK" and "start in contact (hull clearance -0.30 m)" in path.reason
-    assert core.last_result is not None and core.last_result.turn_rad != 0.0
-    assert (cmd.v, cmd.w) == (0.0, 0.0)  # it stops straight before it turns
-    still = StateEstimate(stamp=0.1, x=15.5, y=20.0, theta=0.0, v=0.0, w=0.0, covariance=COV)
-    core.deliver(Delivery(source="estimator", stream="state", msg=still, t=0.15))
-    (cmd,) = _cmds(core.step(0.15))
-    assert cmd.v == 0.0 and cmd.w != 0.0  # turning on the spot, within eq. (11)
-    assert core.vehicle.w_min_rps <= cmd.w <= core.vehicle.w_max_rps
-    assert (cmd.w > 0.0) == (core.last_result.turn_rad > 0.0)
-    # once it faces the way out it follows the path: forward, and no replan meanwhile (the
-    # escape passes closer than rho0 by design; the replan policy must not call that infeasible)
-    heading = core.last_result.turn_rad
-    est = StateEstimate(stamp=1.0, x=15.5, y=20.0, theta=heading, v=0.0, w=0.0, covariance=COV)
-    core.deliver(Delivery(source="estimator", stream="state", msg=est, t=1.05))
-    out = core.step(1.05)
-    assert [e for e in out if e.stream == "path"] == []
+    assert core.last_result is not None and core.last_result.turn_rad > 0.0
+    assert cmd.v == 1.0  # the profile ramps from the vehicle's speed
+    assert 0.0 < cmd.w <= 1.0 / core.vehicle.turn_radius_min_m  # left, within R_min at 1 m/s
+    # along the way out, no replan (it passes closer than rho0 by design; the replan policy
+    # must not call that infeasible)
+    curve = core.last_result.curve()
+    for u in (0.005, 0.01, 0.02):
+        x, y = (float(c) for c in curve.evaluate(np.array([u]), 0)[0, 0])
+        assert not core.policy.check(
+            1.0, Pose2D(x=x, y=y, theta=1.7), core.goal, core._obstacles(1.0)
+        ).replan
+
+
+def test_a_start_in_contact_heading_into_the_obstacle_stops_and_says_why() -> None:
+    # heading east, into circle 1: every forward way out first goes deeper (no reverse, no
+    # turn on the spot): NO_PATH, and the vehicle is told to stop where it is
+    core = _core(["world.start.x_m=15.5"])
+    core.deliver(_estimate(0.0, x=15.5))
+    out = core.step(0.05)
+    (path,) = [e.msg for e in out if e.stream == "path"]
     (cmd,) = [e.msg for e in out if e.stream == "cmd"]
-    assert isinstance(cmd, VelocityCommand) and cmd.v > 0.0
-    assert not core.policy.check(
-        2.5, Pose2D(x=15.5, y=20.2, theta=heading), core.goal, core._obstacles(2.5)
-    ).replan
+    assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
+    assert path.status == "NO_PATH" and "in contact with an obstacle" in path.reason
+    assert (cmd.v, cmd.w) == (0.0, 0.0)
 
 
 def test_every_path_says_since_when_its_status_has_held() -> None:

@@ -1,4 +1,6 @@
-"""Escape from contact (issue 14, defect 5): a start whose hull touches an obstacle gets a path out.
+"""Escape from contact (issue 14, defect 5): a start whose hull touches an obstacle gets a path out
+that the vehicle can drive: forward, along its heading, on arcs no tighter than R_min (it can
+neither reverse nor turn on the spot), never deeper into contact; or NO_PATH, saying why.
 
 Oracles are independent of the planner's own clearance code: the world model's eq. (12)
 (`World.clearance`, the one the vehicle simulation and `tidelink check` use) on dense samples.
@@ -16,9 +18,7 @@ from common.config.planner import PlannerConfig
 from common.config.world import WorldConfig
 from common.world import ObstacleState, World
 from services.planner.clearance import StaticField
-from services.planner.controllers.base import Limits
-from services.planner.controllers.turn_on_spot import DONE_RAD, TurnOnSpot
-from services.planner.escape import find_escapes
+from services.planner.escape import Escape, find_escapes
 from services.planner.nurbs_curve import NurbsCurve, averaged_knots, curvature, join
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 
@@ -28,6 +28,7 @@ WORLD_CFG = SCENARIO.world
 WORLD = World(WorldConfig(circles=WORLD_CFG.circles, polygons=WORLD_CFG.polygons))
 R = SCENARIO.vehicle.radius_m  # 0.8 m
 R_MIN = SCENARIO.vehicle.turn_radius_min_m  # 5 m
+ARC = 1.2 * R_MIN  # the recoveries' arcs (recover.ARC_RADIUS_FACTOR)
 GOAL = Pose2D(x=95.0, y=20.0, theta=0.0)
 STATIC = Obstacles(circles=WORLD_CFG.circles, polygons=WORLD_CFG.polygons)
 # circle 1 is (20, 20) with radius 4: x = 15.5 puts the 0.8 m hull 0.3 m into it (issue 14)
@@ -59,16 +60,23 @@ def _hull_clearance(pts: np.ndarray) -> np.ndarray:
     return WORLD.clearance_many(pts[:, 0], pts[:, 1], R, 0.0)
 
 
+def _start_heading(res: PlanResult) -> float:
+    """The direction the planned curve leaves its start in (its first derivative there)."""
+    curve = res.curve()
+    d1 = curve.evaluate(np.array([curve.u_min]), 1)[1, 0]
+    return math.atan2(d1[1], d1[0])
+
+
 @pytest.mark.parametrize(
     ("theta", "turns"),
     [
-        pytest.param(math.pi / 2, False, id="heading along the surface: straight ahead"),
+        pytest.param(math.pi / 2, True, id="heading along the surface: an arc away"),
+        pytest.param(-math.pi / 2, True, id="along the surface the other way"),
+        pytest.param(2.5, True, id="heading away, askew: a small arc away"),
         pytest.param(math.pi, False, id="heading away: straight ahead"),
-        pytest.param(0.0, True, id="heading into the obstacle: turn on the spot first"),
-        pytest.param(-0.3, True, id="heading into it, askew"),
     ],
 )
-def test_a_start_in_contact_gets_a_path_out_that_never_goes_deeper(
+def test_a_start_in_contact_gets_a_drivable_path_out_that_never_goes_deeper(
     theta: float, turns: bool
 ) -> None:
     req = _request(*IN_CONTACT, theta)
@@ -78,25 +86,37 @@ def test_a_start_in_contact_gets_a_path_out_that_never_goes_deeper(
     assert "start in contact (hull clearance -0.30 m)" in res.reason
     pts, s, k = _dense(res)
     assert pts[0] == pytest.approx(IN_CONTACT, abs=1e-9)  # the path starts at the vehicle
+    # ... along its heading (no turn on the spot: the plant cannot turn at rest)
+    assert math.remainder(_start_heading(res) - theta, math.tau) == pytest.approx(0.0, abs=1e-6)
     d = _hull_clearance(pts)
     esc = s <= res.escape_m - 0.05
-    # the escape: straight (eq. (20) trivially), the hull never deeper, out within ~4 m
-    assert k[esc].max() < 1e-6
-    assert np.all(np.diff(d[esc]) >= -1e-9)
+    # the way out: an arc of 1.2 R_min, then straight; the hull never deeper, out within ~4 m
+    assert k[esc].max() == pytest.approx(1.0 / ARC if turns else 0.0, abs=1e-6)
+    assert d[esc].min() >= -0.3 - 1e-9
+    assert (res.turn_rad != 0.0) is turns
     assert 0.0 < res.escape_m < CFG.escape_len_m + CFG.rho0_m + 0.3 + 1e-9
     # past it, the plan keeps rho0 from every static obstacle (eq. (12)) ...
     assert d[s >= res.escape_m].min() >= CFG.rho0_m - 1e-6
     # ... and the whole path keeps the turning radius: kappa < 1 / R_min (eq. (20))
     assert k.max() < 1.0 / R_MIN
-    # the path leaves along the heading unless it had to turn on the spot first
-    leave = math.atan2(*(pts[1] - pts[0])[::-1])
-    assert (res.turn_rad != 0.0) is turns
-    assert math.remainder(leave - (theta + res.turn_rad), math.tau) == pytest.approx(0.0, abs=1e-6)
+    assert res.max_curvature == pytest.approx(max(k.max(), 1.0 / ARC if turns else 0.0), rel=0.01)
+
+
+@pytest.mark.parametrize("theta", [0.0, -0.3], ids=["bow-on", "askew"])
+def test_a_start_in_contact_heading_into_the_obstacle_has_no_way_out_and_says_why(
+    theta: float,
+) -> None:
+    # every forward way out (straight, or an arc no tighter than R_min) first takes the hull
+    # deeper: with no reverse and no turn on the spot, the vehicle stops where it is
+    res = plan_path(_request(*IN_CONTACT, theta), CFG)
+    assert res.status == "NO_PATH"
+    assert "in contact with an obstacle (hull clearance -0.30 m)" in res.reason
 
 
 def test_the_way_out_is_the_shortest_when_the_heading_does_not_matter() -> None:
-    # centre inside circle 1 (hull clearance -4.8 m): every direction is a normal; along the
-    # heading it takes r + rho0 + 4 m (+ 1 cm beyond) to leave the margin, with no turn
+    # centre inside circle 1 (hull clearance -4.8 m): every direction is a normal; straight
+    # along the heading it takes r + rho0 + 4 m (+ 1 cm beyond) to leave the margin, and any
+    # arc takes longer
     esc, *_ = find_escapes(
         Pose2D(x=20.0, y=20.0, theta=0.0),
         StaticField.build(WORLD_CFG.circles, WORLD_CFG.polygons),
@@ -104,7 +124,7 @@ def test_the_way_out_is_the_shortest_when_the_heading_does_not_matter() -> None:
         WORLD_CFG.area,
         r=R,
         rho0=CFG.rho0_m,
-        r_min=R_MIN,
+        radius_m=ARC,
         v_ref=1.5,
         accel_horizon_s=CFG.accel_horizon_s,
         max_len_m=10.0,
@@ -117,14 +137,14 @@ def test_the_way_out_is_the_shortest_when_the_heading_does_not_matter() -> None:
     assert WORLD.clearance(free.x, free.y, R, 0.0) == pytest.approx(esc.end_clearance_m)
 
 
-def test_a_way_out_avoids_what_lies_behind_the_obstacle() -> None:
-    # in contact with the lower circle, heading into it; a second circle sits 1.5 m above it,
-    # so the way straight out (up, the lower circle's normal) soon gets nearer the upper one
-    # than the vehicle was to the lower: the escape must go sideways, between the two
+def test_a_way_out_avoids_what_lies_beside_the_obstacle() -> None:
+    # in contact with the lower circle, heading along the gap between it and a second circle
+    # 1.5 m above: an arc away from the lower one (left) soon runs into the upper one, an arc
+    # right goes deeper into the lower one: the way out keeps to the gap, nearly straight
     lower = circle(id=1, x=50.0, y=16.0, radius=3.0)
     upper = circle(id=2, x=50.0, y=23.5, radius=3.0)
     static = StaticField.build((lower, upper), ())
-    start = Pose2D(x=50.0, y=19.5, theta=-math.pi / 2)  # hull 0.3 m into the lower circle
+    start = Pose2D(x=50.0, y=19.5, theta=0.0)  # hull 0.3 m into the lower circle
     escapes = find_escapes(
         start,
         static,
@@ -132,35 +152,92 @@ def test_a_way_out_avoids_what_lies_behind_the_obstacle() -> None:
         WORLD_CFG.area,
         r=R,
         rho0=CFG.rho0_m,
-        r_min=R_MIN,
+        radius_m=ARC,
         v_ref=1.5,
         accel_horizon_s=CFG.accel_horizon_s,
         max_len_m=6.0,
     )
     assert escapes
-    world = World(WorldConfig(circles=(lower, upper)))
+    below, above = World(WorldConfig(circles=(lower,))), World(WorldConfig(circles=(upper,)))
     for esc in escapes:
-        h = esc.heading
         s = np.linspace(0.0, esc.length_m, 200)
-        d = world.clearance_many(start.x + s * math.cos(h), start.y + s * math.sin(h), R, 0.0)
-        assert np.all(d >= d[0] - 1e-9)  # never deeper, whichever obstacle is nearer
-        assert d[-1] > 0.0  # and the hull is free at its end
+        xy = np.array([esc.point_at(si) for si in s])
+        d_low = below.clearance_many(xy[:, 0], xy[:, 1], R, 0.0)
+        d_up = above.clearance_many(xy[:, 0], xy[:, 1], R, 0.0)
+        assert np.all(d_low >= d_low[0] - 1e-9)  # never deeper into the lower one
+        assert np.all(d_up > 0.0)  # never into the upper one
+        assert min(d_low[-1], d_up[-1]) > 0.0  # and the hull is free at its end
     best = escapes[0]
-    assert abs(math.cos(best.heading)) > 0.9  # sideways
+    assert abs(math.cos(best.heading)) > 0.9  # along the gap
     assert best.end_clearance_m >= CFG.rho0_m  # out of the margin of both
 
 
-def test_a_start_heading_at_an_obstacle_turns_on_the_spot_instead_of_stopping_for_good() -> None:
-    # outside the margin (hull 1.03 m from circle 1) but heading at it: no curve within R_min
-    # leaves along that heading, so the plan turns on the spot first (it was NO_PATH forever)
-    req = _request(17.0, 15.0, 0.5)
+@pytest.mark.parametrize("degree", [2, 3, 5])
+@pytest.mark.parametrize("turn", [0.0, 0.7, -1.9, math.pi])
+def test_a_way_out_is_an_exact_arc_then_a_straight_run(degree: int, turn: float) -> None:
+    # the NURBS of a way out against the analytic arc: every curve point lies on the circle
+    # of radius 6 m through the start tangent to its heading (then on the tangent line), the
+    # curvature is 1 / radius on the arc and 0 after it, it ends at the free pose along
+    # the end heading
+    esc = Escape(
+        start=Pose2D(x=10.0, y=5.0, theta=0.4),
+        radius_m=6.0,
+        turn_rad=turn,
+        length_m=6.0 * abs(turn) + 2.5,
+        start_clearance_m=-0.1,
+        end_clearance_m=1.0,
+    )
+    curve = esc.curve(degree)
+    u = np.linspace(curve.u_min, curve.u_max, 4001)
+    pts, d1, d2 = curve.evaluate(u, 2)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    assert s[-1] == pytest.approx(esc.length_m, rel=1e-6)
+    want = np.array([esc.point_at(si) for si in s])
+    assert np.max(np.hypot(*(pts - want).T)) < 1e-6
+    k = curvature(d1, d2)
+    on_arc = s < esc.arc_m - 1e-3
+    if on_arc.any():
+        assert k[on_arc] == pytest.approx(1.0 / 6.0, rel=1e-9)
+    assert np.all(k[s > esc.arc_m + 1e-3] < 1e-9)
+    free = esc.free
+    assert pts[-1] == pytest.approx((free.x, free.y), abs=1e-12)
+    assert math.remainder(math.atan2(d1[-1, 1], d1[-1, 0]) - free.theta, math.tau) == (
+        pytest.approx(0.0, abs=1e-9)
+    )
+    assert math.atan2(d1[0, 1], d1[0, 0]) == pytest.approx(0.4)  # it leaves along the heading
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "theta"),
+    [
+        pytest.param(25.58, 18.08, -1.5, id="hull 1.1 m from circle 1, heading south"),
+        pytest.param(44.41, 19.72, 0.72, id="hull 1.6 m from the polygon, heading at it"),
+    ],
+)
+def test_a_start_heading_at_an_obstacle_turns_on_an_arc_instead_of_stopping_for_good(
+    x: float, y: float, theta: float
+) -> None:
+    # out of the margin but heading at an obstacle: no curve the refinement finds leaves
+    # along that heading within R_min, so the plan turns on an arc of 1.2 R_min first (it
+    # was NO_PATH forever; then a turn on the spot, which the plant no longer allows)
+    req = _request(x, y, theta)
     res = plan_path(req, CFG)
     assert res.ok, res.reason
-    assert res.turn_rad != 0.0 and "turn" in res.reason
+    assert res.turn_rad != 0.0 and "on a 6.0 m arc first" in res.reason
     pts, s, k = _dense(res)
-    assert pts[0] == pytest.approx((17.0, 15.0))
+    assert pts[0] == pytest.approx((x, y))
+    assert math.remainder(_start_heading(res) - theta, math.tau) == pytest.approx(0.0, abs=1e-6)
     assert k.max() < 1.0 / R_MIN
-    assert _hull_clearance(pts).min() >= CFG.rho0_m - 1e-6
+    d = _hull_clearance(pts)
+    assert d.min() > 0.0  # the arc may pass inside the margin, never into contact
+    assert d[s >= res.escape_m].min() >= CFG.rho0_m - 1e-6
+
+
+def test_a_start_too_near_an_obstacle_it_heads_at_is_no_path() -> None:
+    # hull 1.03 m from circle 1 heading at it: any arc of R_min (straight ahead, to either
+    # side) touches it, so there is no drivable path (it used to turn on the spot)
+    res = plan_path(_request(17.0, 15.0, 0.5), CFG)
+    assert res.status == "NO_PATH" and res.reason
 
 
 def test_a_walled_off_goal_from_a_start_in_contact_is_still_no_path_and_says_why() -> None:
@@ -186,28 +263,12 @@ def test_join_is_the_two_curves_one_after_the_other() -> None:
         join(b, a, 0.5)
 
 
-def test_turn_on_the_spot_reaches_the_heading_with_a_small_overshoot() -> None:
-    lim = Limits(v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5, r_min=R_MIN)
-    tau = SCENARIO.vehicle.yaw_tau_s
-    turn = TurnOnSpot(heading=math.pi / 2, limits=lim, yaw_tau_s=tau)
-    theta, w, dt, t = 0.0, 0.0, 0.01, 0.0
-    peak = 0.0
-    while (cmd := turn.command((0.0, 0.0, theta, 0.0, w))) is not None:
-        v_cmd, w_cmd = cmd
-        assert v_cmd == 0.0 and lim.w_min <= w_cmd <= lim.w_max  # eq. (11), on the spot
-        w += dt * (w_cmd - w) / tau  # the vehicle's first-order yaw response
-        theta += dt * w
-        peak = max(peak, theta)
-        t += dt
-        assert t < 30.0
-    assert abs(theta - math.pi / 2) <= DONE_RAD
-    # a 90 degree turn at up to 0.5 rad/s: a few seconds, not a spin
-    assert t < 8.0 and peak < math.pi / 2 + 0.05 * math.pi / 2
-
-
 def test_a_vehicle_that_coasted_out_of_the_area_is_led_back_in() -> None:
-    # hull 1.5 m beyond the southern edge, heading south-east (a hold that kept its heading)
-    req = _request(64.8, -0.7, -0.9)
+    # hull 1.5 m beyond the southern edge, heading east (a hold that kept its heading): an
+    # arc to the left brings it back in; heading south-east, farther out, there is no way back
+    # that does not first go farther out, and the plan says so
+    assert not plan_path(_request(64.8, -0.7, -0.9), CFG).ok
+    req = _request(64.8, -0.7, 0.0)
     res = plan_path(req, CFG)
     assert res.ok, res.reason
     assert "start outside the area (hull 1.50 m beyond its edge)" in res.reason
@@ -221,12 +282,13 @@ def test_a_vehicle_that_coasted_out_of_the_area_is_led_back_in() -> None:
 
 
 def test_a_way_out_is_never_empty_when_a_moving_obstacle_draws_off() -> None:
-    # a moving disc in contact, heading off at 1 m/s: during a turn on the spot it leaves,
-    # so a turned candidate is clear where it starts; the way out is still a segment
+    # a moving disc in contact, heading off at 2 m/s, faster than the vehicle's cruise: the
+    # vehicle, heading the same way, leaves contact straight ahead (the disc draws off); the
+    # way out is still a curve of positive length
     mover = ObstacleState(
-        id=9, x=50.0, y=22.5, vx=0.0, vy=1.0, ax=0.0, ay=0.0, radius=2.0, moving=True
+        id=9, x=50.0, y=22.5, vx=0.0, vy=2.0, ax=0.0, ay=0.0, radius=2.0, moving=True
     )
-    start = Pose2D(x=50.0, y=20.0, theta=math.pi / 2)  # heading into it, hull 0.3 m in
+    start = Pose2D(x=50.0, y=20.0, theta=math.pi / 2)  # heading after it, hull 0.3 m in
     escapes = find_escapes(
         start,
         StaticField.build((), ()),
@@ -234,7 +296,7 @@ def test_a_way_out_is_never_empty_when_a_moving_obstacle_draws_off() -> None:
         WORLD_CFG.area,
         r=R,
         rho0=CFG.rho0_m,
-        r_min=R_MIN,
+        radius_m=ARC,
         v_ref=1.5,
         accel_horizon_s=CFG.accel_horizon_s,
         max_len_m=5.0,
@@ -242,17 +304,6 @@ def test_a_way_out_is_never_empty_when_a_moving_obstacle_draws_off() -> None:
     assert escapes and all(e.length_m > 0.0 for e in escapes)
     req = _request(50.0, 20.0, math.pi / 2, Obstacles(moving=(mover,)))
     assert plan_path(req, CFG).ok
-
-
-def test_a_vehicle_still_under_way_stops_straight_before_it_turns() -> None:
-    lim = Limits(v_min=0.0, v_max=2.0, w_min=-0.5, w_max=0.5, r_min=R_MIN)
-    turn = TurnOnSpot(heading=math.pi, limits=lim, yaw_tau_s=0.5)
-    # turning at 1 m/s would sweep an arc of radius v / w: stop first (the hull is a disc,
-    # so only a turn in place cannot bring it nearer anything)
-    assert turn.command((0.0, 0.0, 0.0, 1.0, 0.0)) == (0.0, 0.0)
-    v, w = turn.command((0.0, 0.0, 0.0, 0.05, 0.0)) or (math.nan, math.nan)
-    assert v == 0.0 and w == lim.w_max
-    assert turn.command((0.0, 0.0, math.pi - 0.05, 1.0, 0.0)) is None  # facing it: done
 
 
 def _random_start(rng: np.random.Generator, kind: int) -> tuple[float, float]:
@@ -271,8 +322,10 @@ def _random_start(rng: np.random.Generator, kind: int) -> tuple[float, float]:
 
 def test_any_start_in_contact_in_the_margin_or_off_the_area_plans_safely_or_says_why() -> None:
     # seeded random starts of each kind, with a moving obstacle about: plan_path never
-    # raises, and an OK path starts at the vehicle, keeps rho0 past its escape (static
-    # obstacles, the world's eq. (12)), keeps the hull in the area and kappa < 1 / R_min
+    # raises, and an OK path starts at the vehicle along its heading, never takes the hull
+    # deeper into contact than it starts (none at all from a free start), keeps rho0 past
+    # its escape (static obstacles, the world's eq. (12)), keeps the hull in the area and
+    # kappa < 1 / R_min
     rng = np.random.default_rng(14)
     mover = ObstacleState(
         id=10, x=40.0, y=30.0, vx=0.0, vy=-0.5, ax=0.0, ay=0.0, radius=1.5, moving=True
@@ -282,17 +335,27 @@ def test_any_start_in_contact_in_the_margin_or_off_the_area_plans_safely_or_says
     ok = 0
     for i in range(36):
         x, y = _random_start(rng, i % 3)
-        res = plan_path(_request(x, y, rng.uniform(-math.pi, math.pi), obstacles), CFG)
+        theta = rng.uniform(-math.pi, math.pi)
+        res = plan_path(_request(x, y, theta, obstacles), CFG)
         if not res.ok:
             assert res.reason
             continue
         ok += 1
         pts, s, k = _dense(res)
         assert pts[0] == pytest.approx((x, y), abs=1e-9)
+        assert math.remainder(_start_heading(res) - theta, math.tau) == pytest.approx(0.0, abs=1e-6)
         after = s >= res.escape_m
+        c0 = WORLD.clearance(x, y, R, 0.0)
+        # between the escape's 5 cm samples a surface may come ~1e-4 m nearer
+        assert _hull_clearance(pts[~after]).min() >= min(c0, 0.0) - 1e-3
         assert _hull_clearance(pts[after]).min() >= CFG.rho0_m - 1e-6
         assert pts[after, 0].min() >= area.x_min_m + R - 1e-6
         assert pts[after, 1].min() >= area.y_min_m + R - 1e-6
         assert pts[after, 1].max() <= area.y_max_m - R + 1e-6
         assert k.max() < 1.0 / R_MIN
-    assert ok >= 34, ok  # 36 of 36 when written; none before (contact, off the area)
+    # 17 of 36 now; 36 of 36 while the vehicle could turn on the spot (none before issue 14).
+    # Over 100 starts of each kind (this generator, seed 14): 38 in contact, 53 in the margin,
+    # 38 off the area plan OK (99, 99, 100 with turns on the spot). The rest head into what
+    # they touch (or out of the area) or too near it to turn away within R_min: with no
+    # reverse, every way out would first take the hull deeper, and they stay NO_PATH
+    assert ok >= 15, ok

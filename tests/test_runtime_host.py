@@ -198,5 +198,9 @@ def test_in_virtual_time_the_delay_a_receiver_measures_is_the_modelled_one() -> 
     assert lossy, links  # the scenario models delay somewhere
     for name, v in links.items():
         for q in ("p50", "p95"):
-            # one histogram bin (1 %) apart at most: delivery times are whole microseconds
-            assert v[f"measured_delay_{q}_s"] == pytest.approx(v[f"delay_{q}_s"], rel=0.011), name
+            # delivery times are whole microseconds (1 % histogram bins), but the sender's
+            # last count has messages the receiver's has not had yet (in flight when it last
+            # counted: 1 of 126 fixes, 2 of 252 tracks), which moves a nearest rank by as many
+            # samples: measured up to 6 % at p95 of ~130 samples. A delivery one period late
+            # would be 100 % off.
+            assert v[f"measured_delay_{q}_s"] == pytest.approx(v[f"delay_{q}_s"], rel=0.1), name

@@ -1,13 +1,17 @@
-"""Path-tracking controller configuration: which controller, its gains, delay compensation.
+"""Path-tracking controller configuration: which controller, its gains, the shared speed
+profile, delay compensation.
 
 The eq. (11) bounds, R_min and the cruise speed are not here: they are the vehicle's
-(common/config/vehicle.py) and are handed to the controllers as `Limits`.
+(common/config/vehicle.py) and are handed to the controllers as `Limits`. A key that was
+removed is listed in its table's REMOVED_KEYS with the reason: a scenario that still sets it
+gets that reason as a config error (common/config/loader.py), not a bare "unknown key".
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 from common.config.checks import fraction, nonneg, positive
 from common.config.errors import ConfigValueError
@@ -22,16 +26,18 @@ class NurbsGains:
     lookahead_m: float = 3.0  # minimum look-ahead distance Delta of the approach angle
     lookahead_time_s: float = 1.5  # Delta = max(lookahead_m, lookahead_time_s * v)
     k_heading_ps: float = 1.2  # heading-error gain (1/s)
-    # share of the yaw-rate bound the feed-forward v*kappa may use; the rest is for feedback
-    curvature_budget: float = 0.7
-    preview_s: float = 3.0  # speed is reduced for the tightest curvature this far ahead
+
+    REMOVED_KEYS: ClassVar[Mapping[str, str]] = {
+        "curvature_budget": "the curvature slow-down is shared by every controller now: "
+        "use controller.speed.curvature_budget",
+        "preview_s": "the curvature slow-down is shared by every controller now: "
+        "use controller.speed.preview_s",
+    }
 
     def __post_init__(self) -> None:
         for name in ("lookahead_m", "k_heading_ps"):
             positive(name, getattr(self, name))
-        for name in ("lookahead_time_s", "preview_s"):
-            nonneg(name, getattr(self, name))
-        fraction("curvature_budget", self.curvature_budget)
+        nonneg("lookahead_time_s", self.lookahead_time_s)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,34 +71,71 @@ class FuzzyPidGains:
     immune_k1: float = 1.0  # immune gain K1
     immune_eta: float = 0.4  # suppression strength eta, < 1 keeps the gain positive
     immune_a: float = 0.01  # f(du) = 1 - exp(-du^2 / a), a in (rad/s)^2
-    slow_k: float = 1.0  # v = v_ref / (1 + slow_k |e|)
-    v_floor_ratio: float = 0.4  # ... but at least this share of v_ref
+
+    REMOVED_KEYS: ClassVar[Mapping[str, str]] = dict.fromkeys(
+        ("slow_k", "v_floor_ratio"),
+        "the speed law v = v_ref / (1 + slow_k |e|) is not from the immune fuzzy PID "
+        "literature and made travel times measure speed policy, not steering; every "
+        "controller follows the shared speed profile now (controller.speed)",
+    )
 
     def __post_init__(self) -> None:
         for name in ("kp_ps", "e_scale_rad", "de_scale_rps", "lookahead_m", "immune_k1"):
             positive(name, getattr(self, name))
-        for name in ("ki_ps2", "kd", "dkp_ps", "dki_ps2", "dkd", "de_filter_s", "slow_k"):
+        for name in ("ki_ps2", "kd", "dkp_ps", "dki_ps2", "dkd", "de_filter_s"):
             nonneg(name, getattr(self, name))
         positive("immune_a", self.immune_a)
         if not (0.0 <= self.immune_eta < 1.0):
             raise ConfigValueError("immune_eta", f"{self.immune_eta!r} is invalid, expected [0, 1)")
-        fraction("v_floor_ratio", self.v_floor_ratio)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpeedConfig:
+    """The speed profile every controller follows (services/planner/controllers/speed.py).
+
+    Cruise: the path's v_ref within eq. (11). Ramp: from the vehicle's speed when a path is
+    taken, the commanded speed rises at most accel_mps2. Slow-downs: v |kappa| <= budget *
+    w_max over the curvature preview window, and v <= sqrt(2 decel_mps2 d) with d the arc
+    length left to the end of the path (a stop at the goal).
+    """
+
+    # the commanded speed rises at most this fast; below the hull's 0.3 m/s^2 so that the
+    # speed loop follows the ramp instead of saturating behind it
+    accel_mps2: float = 0.2
+    decel_mps2: float = 0.2  # the stop at the end of the path: v <= sqrt(2 decel d_left)
+    # share of the eq. (11) yaw-rate bound the curvature feed-forward v |kappa| may take at
+    # the tightest curvature ahead; the rest is left to the feedback
+    curvature_budget: float = 0.7
+    preview_s: float = 3.0  # the curvature slow-down looks this far ahead (at cruise speed)
+
+    def __post_init__(self) -> None:
+        for name in ("accel_mps2", "decel_mps2"):
+            positive(name, getattr(self, name))
+        nonneg("preview_s", self.preview_s)
+        fraction("curvature_budget", self.curvature_budget)
 
 
 @dataclass(frozen=True, kw_only=True)
 class ControllerConfig:
-    """Which path-tracking controller the planner runs, and every controller's gains."""
+    """Which path-tracking controller the planner runs, what all share, and each one's gains.
+
+    Shared by every controller: the speed profile (`speed`) and the delay compensation, so
+    that the three differ in how they steer only.
+    """
 
     kind: ControllerKind = "nurbs"
-    # predict the pose forward by the measured estimate age + expected downlink delay
-    # before computing (the NURBS method's delay compensation)
+    # every controller predicts the pose forward by the measured estimate age + expected
+    # downlink delay before computing (on), or computes from the estimate as it is (off)
     delay_compensation: bool = True
-    # also give the two baselines that prediction (off: they run as published, which is the
-    # comparison the paper makes; on: isolates the control law from the compensation)
-    compensate_baselines: bool = False
+    speed: SpeedConfig = field(default_factory=SpeedConfig)  # shared by every controller
     nurbs: NurbsGains = field(default_factory=NurbsGains)
     backstepping: BacksteppingGains = field(default_factory=BacksteppingGains)
     fuzzy_pid: FuzzyPidGains = field(default_factory=FuzzyPidGains)
+
+    REMOVED_KEYS: ClassVar[Mapping[str, str]] = {
+        "compensate_baselines": "delay compensation is the same for every controller now: "
+        "use delay_compensation (on or off for all three)",
+    }
 
     def __post_init__(self) -> None:
         if self.kind not in ("nurbs", "backstepping", "fuzzy_pid"):

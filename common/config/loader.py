@@ -7,6 +7,7 @@ import math
 import tomllib
 import types
 import typing
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -30,13 +31,20 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 def build(cls: type[T], data: Any, *, file: str = "", path: KeyPath = ()) -> T:
     """Build dataclass `cls` (at key `path` of `file`) from a mapping; bad input raises ConfigError.
 
-    Unknown keys, wrong types and missing keys are found here; a bad value is found by the
-    dataclass's __post_init__, whose ConfigValueError names the field below `path`.
+    Unknown keys, removed keys (with the reason the table's REMOVED_KEYS gives), wrong types
+    and missing keys are found here; a bad value is found by the dataclass's __post_init__,
+    whose ConfigValueError names the field below `path`.
     """
     if not isinstance(data, dict):
         raise ConfigError(file, path, f"expected a table, got {_kind(data)}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+    # a key the table used to have says why it went (REMOVED_KEYS: key -> reason)
+    removed: Mapping[str, str] = getattr(cls, "REMOVED_KEYS", {})
+    gone = sorted(set(data) & set(removed))
+    if gone:
+        exc = ConfigValueError(gone[0], f"was removed: {removed[gone[0]]}")
+        raise ConfigError(file, (*path, *exc.key_path), exc.problem)
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise ConfigError(

@@ -114,8 +114,9 @@ class VehicleConfig:
     # eq. (12) r: radius of the vehicle's bounding circle in the plane (half the length)
     radius_m: float = 0.8
     # minimum turning radius R_min of eqs. (19)-(20); REMUS-100 turns in ~10 m diameter.
-    # Not enforced by the plant (eq. 11 does not contain it); the planner and the NURBS
-    # tracker respect it.
+    # The plant enforces it (|w| <= |v| / R_min at every instant: eq. (11)'s yaw-rate bound
+    # made physical, so the vehicle cannot turn at rest); the planner and every controller
+    # respect it.
     turn_radius_min_m: float = 5.0
     # hull (eq. 14): S = pi D L * wetted_fraction (the cylinder minus nose/tail taper)
     length_m: float = 1.6

@@ -19,11 +19,9 @@ from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
-from common.scalar import wrap_angle
 from common.world import ObstacleState
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.controllers.turn_on_spot import TurnOnSpot
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
@@ -63,7 +61,6 @@ class PlannerCore:
         )
         self.limits = Limits.from_vehicle(vehicle)
         self.controller = make_controller(controller, self.limits)
-        self.turn: TurnOnSpot | None = None  # a turn on the spot before the path (recover.py)
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
@@ -199,13 +196,11 @@ class PlannerCore:
             out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
         # delay compensation: the estimate's uplink age plus the expected downlink delay
         latency = max(0.0, t - s.stamp) + self.expected_downlink_s
-        turning = None if self.turn is None else self.turn.command(pose, latency)
         if self.ref is None:
             v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
-        elif turning is not None:
-            v, w = turning  # near an obstacle: face the way the path leaves, then follow it
         else:
-            self.turn = None
+            # every path leaves along the vehicle's heading, a way out of contact included
+            # (recover.py: arcs within R_min), so the controller follows it from the start
             v, w = self.controller.command(t, pose, self.ref, latency)
         self.last_cmd_t = t
         out.append(
@@ -230,18 +225,11 @@ class PlannerCore:
         self.policy.on_planned(t, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
-        self.turn = None
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
-            if result.turn_rad != 0.0:  # the path leaves other than along the heading
-                self.turn = TurnOnSpot(
-                    heading=wrap_angle(here.theta + result.turn_rad),
-                    limits=self.limits,
-                    yaw_tau_s=self.vehicle.yaw_tau_s,
-                )
             return PathMsg(
                 stamp=t,
                 path_id=self.path_id,

@@ -1,15 +1,18 @@
 """Recovering a plan near an obstacle, where no curve leaves the vehicle's pose as it is.
 
 Without this, the planner answered NO_PATH at every replan and the vehicle stopped for good
-(issue 14, defect 5: a silent deadlock). Two ways out, each followed by an ordinary plan
-(`plan`, the pipeline of plan.py, handed in):
+(issue 14, defect 5: a silent deadlock). Two ways out, each driven forward on arcs no
+tighter than R_min (the vehicle can neither turn on the spot nor reverse), each followed by
+an ordinary plan (`plan`, the pipeline of plan.py, handed in) joined to it:
 - turn_then_plan: the heading is what no curve can satisfy (eq. (10) with R_min, eqs.
-  (19)-(20): the vehicle faces an obstacle too near to turn away from). Turn on the spot to
-  the grid path's first leg, then plan from the same place.
+  (19)-(20): the vehicle faces an obstacle too near to turn away from within the margins the
+  refinement keeps). Turn on an arc (toward the grid path's first leg if it can), then plan
+  from there.
 - leave_then_plan: the start is in contact, outside the area (a vehicle that coasted out
-  of it) or deep in the margin: the shortest straight way out (escape.py), then the rest
-  planned from where it ends, joined to it.
-The turn on the spot itself is controllers/turn_on_spot.py's, commanded by the core.
+  of it) or deep in the margin: the way out escape.py finds, then the rest planned from
+  where it ends.
+The arcs have the radius ARC_RADIUS_FACTOR R_min: a controller that follows one keeps a
+sixth of the plant's yaw-rate bound v / R_min for its feedback.
 """
 
 from __future__ import annotations
@@ -18,52 +21,96 @@ import dataclasses
 import math
 from collections.abc import Callable
 
+import numpy as np
+
 from common.config.planner import PlannerConfig
 from common.scalar import wrap_angle
 from services.planner.clearance import StaticField
-from services.planner.controllers.turn_on_spot import DONE_RAD
-from services.planner.escape import find_escapes, prepend_escape
+from services.planner.escape import (
+    BEYOND_M,
+    DEPTH_STEP_M,
+    MAX_ESCAPES,
+    Escape,
+    find_escapes,
+    prepend_escape,
+    sweep,
+)
 from services.planner.result import PlanRequest, PlanResult
 
 Plan = Callable[[PlanRequest], PlanResult]  # the pipeline, with no further recovery
 
+MIN_TURN_RAD = 0.1  # ~6 degrees: a smaller turn cannot help the plan
+TURN_STEP_RAD = math.radians(15.0)  # the turns a recovery tries, either way
+ARC_RADIUS_FACTOR = 1.2  # a recovery's arcs are this much wider than R_min
+
 
 def turn_then_plan(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResult:
     """No curve leaves along the vehicle's heading (eq. (10) with R_min, near an obstacle the
-    vehicle heads for): turn on the spot to the grid path's first leg, and plan from there.
+    vehicle heads for): turn on an arc, and plan from its end.
 
-    The vehicle is commanded to stop on NO_PATH anyway; turning while it stops makes a path
-    exist instead of stopping for good (the turn on the spot is turn_on_spot.py's).
+    The arcs tried turn by multiples of TURN_STEP_RAD either way, up to a half turn, and by
+    exactly the turn onto the grid path's first leg; an arc must keep the hull free of every
+    obstacle (moving ones where they will be, their acceleration held over the turn, as
+    `ObstacleState.advanced` holds it) and in the area. It may pass nearer than the start,
+    inside the safety margin even (the replan policy does not count its stretch: escape_m),
+    the less the better: the arcs are tried by how much nearer than the start they take the
+    hull (in steps of DEPTH_STEP_M), then by how far their end heading is from the leg's; at
+    most MAX_ESCAPES of them.
     """
     lead = failed.grid_path[1] - failed.grid_path[0] if len(failed.grid_path) >= 2 else None
     if lead is None:
         return failed
-    theta = math.atan2(float(lead[1]), float(lead[0]))
-    turn = wrap_angle(theta - req.start.theta)
-    if abs(turn) <= DONE_RAD:  # the heading is already that: turning cannot help
-        return failed
-    dt = req.r_min_m * abs(turn) / req.v_ref_mps  # at an R_min turn's yaw rate, as escape.py
-    moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
-    turned = dataclasses.replace(
-        req,
-        start=dataclasses.replace(req.start, theta=theta),
-        obstacles=dataclasses.replace(req.obstacles, moving=moving),
+    want = wrap_angle(math.atan2(float(lead[1]), float(lead[0])) - req.start.theta)
+    turns = np.concatenate([[want], np.arange(-math.pi, math.pi + 1e-9, TURN_STEP_RAD)])
+    turns = turns[np.abs(turns) > MIN_TURN_RAD]  # a smaller turn cannot help the plan
+    radius, r = ARC_RADIUS_FACTOR * req.r_min_m, req.vehicle_radius_m
+    sw = sweep(
+        req.start,
+        turns,
+        radius,
+        radius * math.pi,
+        StaticField.build(req.obstacles.circles, req.obstacles.polygons),
+        req.obstacles.moving,
+        req.area,
+        v_ref=req.v_ref_mps,
+        accel_horizon_s=math.inf,
     )
-    again = plan(turned)
-    if not again.ok:
-        return failed
-    why = f"no curve leaves along the heading: turn {math.degrees(turn):+.0f} deg on the spot"
-    return dataclasses.replace(again, reason=why, turn_rad=turn)
+    end = np.minimum(np.searchsorted(sw.s, radius * np.abs(turns)), len(sw.s) - 1)  # (J,)
+    rows = np.arange(len(turns))
+    free = sw.deeper(r + BEYOND_M, r)[rows, end] <= 0.0  # hull free, in the area, to the end
+    depth = sw.deeper(math.inf, r)[rows, end]  # how much nearer than at the start
+    order = sorted(
+        np.flatnonzero(free),
+        key=lambda j: (round(depth[j] / DEPTH_STEP_M), abs(wrap_angle(turns[j] - want)), j),
+    )
+    for j in order[:MAX_ESCAPES]:
+        turn = float(turns[j])
+        esc = Escape(
+            start=req.start,
+            radius_m=radius,
+            turn_rad=turn,
+            length_m=radius * abs(turn),
+            start_clearance_m=sw.d0 - r,
+            end_clearance_m=float(sw.d[j, end[j]]) - r,
+        )
+        again = _plan_after(req, esc, plan)
+        if again.ok:
+            why = (
+                f"no curve leaves along the heading: turn {math.degrees(turn):+.0f} deg on a "
+                f"{radius:.1f} m arc first"
+            )
+            return dataclasses.replace(again, reason=why)
+    return failed
 
 
 def leave_then_plan(
     req: PlanRequest, cfg: PlannerConfig, static: StaticField, d_start: float, plan: Plan
 ) -> PlanResult | None:
-    """A start in contact, outside the area or deep in the margin: the shortest way out
+    """A start in contact, outside the area or deep in the margin: the best way out
     (escape.py) that a plan can continue from, joined to that plan; None if there is none.
 
-    The way out may be as long as leaving the margin (and coming back into the area) along
-    the normal, plus escape_len_m.
+    After its arc, the way out may run as far as leaving the margin (and coming back into
+    the area) along the normal, plus escape_len_m.
     Moving obstacles are planned for where they will be when the escape ends.
     """
     r, area, p = req.vehicle_radius_m, req.area, req.start
@@ -76,20 +123,26 @@ def leave_then_plan(
         req.area,
         r=r,
         rho0=cfg.rho0_m,
-        r_min=req.r_min_m,
+        radius_m=ARC_RADIUS_FACTOR * req.r_min_m,
         v_ref=req.v_ref_mps,
         accel_horizon_s=cfg.accel_horizon_s,
         max_len_m=max_len,
     )
     first: PlanResult | None = None
     for esc in escapes:
-        dt = esc.duration_s(req.r_min_m, req.v_ref_mps)
-        moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
-        rest = dataclasses.replace(
-            req, start=esc.free, obstacles=dataclasses.replace(req.obstacles, moving=moving)
-        )
-        res = prepend_escape(esc, plan(rest), req.goal)
+        res = _plan_after(req, esc, plan)
         if res.ok:
             return res
         first = first or res
     return first
+
+
+def _plan_after(req: PlanRequest, esc: Escape, plan: Plan) -> PlanResult:
+    """The way out joined to the plan from where it ends (moving obstacles advanced by the
+    time it takes at cruise speed)."""
+    dt = esc.duration_s(req.v_ref_mps)
+    moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
+    rest = dataclasses.replace(
+        req, start=esc.free, obstacles=dataclasses.replace(req.obstacles, moving=moving)
+    )
+    return prepend_escape(esc, plan(rest), req.goal)

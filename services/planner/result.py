@@ -89,7 +89,9 @@ class PlanResult:
     # the first escape_m of arc length may pass closer than r + rho0: a start inside the
     # margin leaves it within planner.escape_len_m; a start in contact first escapes it
     escape_m: float = 0.0
-    turn_rad: float = 0.0  # turn on the spot before following the curve (contact escape)
+    # the heading change of the arc a recovery starts with (recover.py; > 0 to the left):
+    # 0 when the curve leaves straight ahead
+    turn_rad: float = 0.0
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property

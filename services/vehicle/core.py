@@ -1,5 +1,9 @@
 """The vehicle service core: plant + current + watchdog behind the ServiceCore contract.
 
+The plant (dynamics.py) turns no tighter than the minimum turning radius, |w| <= v / R_min
+at every instant, whatever it is commanded: eq. (11)'s yaw-rate bound made physical with the
+R_min of eqs. (19)-(20), as a rudder-steered AUV is bound by it (and cannot turn at rest).
+
 Time handling: the plant is integrated with RK4 on a fixed absolute grid of dt_internal_s
 (cells [k dt, (k+1) dt]). Every accepted command becomes a command *schedule* in force from
 its exact delivery time; a cell is integrated once it is complete, split only where the

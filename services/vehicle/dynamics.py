@@ -2,6 +2,13 @@
 
 State (Fossen-style names in the comments): eta = (x, y, theta), nu = (v, w), plus the speed
 loop integrator z. Plain floats and `math` only: fast for scalar RK4 and bit-reproducible.
+
+Turning radius: a rudder-steered AUV turns by the lift its fins make in the flow, so it
+cannot turn tighter than its minimum radius R_min, whatever it is asked: |w| <= |v| / R_min
+holds at every instant of the simulated truth. This is eq. (11)'s yaw-rate bound made
+physical with the turning radius of eqs. (19)-(20) (the planner keeps its curves within
+kappa < 1 / R_min, the controllers their commands within it; the plant enforces it). At rest
+(v = 0) the vehicle cannot turn at all: there is no turning on the spot.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ class PlantParams:
     v_max: float
     w_min: float
     w_max: float
+    r_min: float  # minimum turning radius R_min (eqs. (19)-(20)): |w| <= |v| / R_min
 
     @staticmethod
     def from_config(cfg: VehicleConfig) -> PlantParams:
@@ -61,6 +69,7 @@ class PlantParams:
             v_max=cfg.v_max_mps,
             w_min=cfg.w_min_rps,
             w_max=cfg.w_max_rps,
+            r_min=cfg.turn_radius_min_m,
         )
 
 
@@ -105,8 +114,11 @@ def derivatives(
     # surge: m_eff dv/dt = T - R(v) (eq. 14), acceleration bounded
     t, dz = thrust_n(v_cmd, ff_n, v, z, p)
     dv = clamp((t - drag_n(v, p)) / p.mass_eff_kg, -p.accel_max, p.accel_max)
-    # yaw: first-order towards the command, yaw acceleration bounded
-    dw = clamp((w_cmd - w) / p.yaw_tau_s, -p.yaw_accel_max, p.yaw_accel_max)
+    # yaw: first-order towards the command, limited to what the fins can turn at this speed
+    # (|w| <= |v| / R_min; the bound is continuous in v, so the right-hand side stays
+    # continuous and RK4 keeps its order), yaw acceleration bounded
+    w_room = abs(v) / p.r_min
+    dw = clamp((clamp(w_cmd, -w_room, w_room) - w) / p.yaw_tau_s, -p.yaw_accel_max, p.yaw_accel_max)
     return dx, dy, w, dv, dw, dz
 
 
@@ -121,7 +133,10 @@ def rk4_step(
     """One classical RK4 step of length h with a command held over the step.
 
     `current` = (cx0, cy0, dcx/dt, dcy/dt): the current is linear in time over the step.
-    After the step, v and w are projected onto their eq. (11) bounds (v never reverses).
+    After the step, v and w are projected onto their eq. (11) bounds (v never reverses), and
+    w onto the turning-radius bound |w| <= v / R_min at the new speed (the yaw loop follows a
+    command already limited to it, so the projection only trims what a stage overshot or what
+    a falling speed took away).
     """
     cx0, cy0, dcx, dcy = current
     ff = drag_n(v_cmd, p)
@@ -136,7 +151,9 @@ def rk4_step(
         a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
         for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
     )
-    return x, y, theta, clamp(v, 0.0, p.v_max), clamp(w, p.w_min, p.w_max), z
+    v = clamp(v, 0.0, p.v_max)
+    w_room = v / p.r_min
+    return x, y, theta, v, clamp(w, max(p.w_min, -w_room), min(p.w_max, w_room)), z
 
 
 def _axpy(s: State, h: float, k: State) -> State:

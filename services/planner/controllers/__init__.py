@@ -1,4 +1,4 @@
-"""Path-tracking controllers: the NURBS tracker (the paper's method) and its two baselines."""
+"""Path-tracking controllers: the NURBS tracker and the paper's two baselines, one speed profile."""
 
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.backstepping import Backstepping
@@ -7,6 +7,7 @@ from services.planner.controllers.factory import make_controller
 from services.planner.controllers.fuzzy_pid import ImmuneFuzzyPid
 from services.planner.controllers.nurbs_tracker import NurbsTracker
 from services.planner.controllers.shapes import Circle, Polyline, StraightLine
+from services.planner.controllers.speed import SpeedProfile
 
 __all__ = [
     "Backstepping",
@@ -17,6 +18,7 @@ __all__ = [
     "NurbsTracker",
     "Polyline",
     "Pose",
+    "SpeedProfile",
     "ArcLengthReference",
     "StraightLine",
     "make_controller",

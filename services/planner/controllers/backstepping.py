@@ -17,40 +17,53 @@ k_x, k_y, k_theta > 0, v_r > 0). Gains (BacksteppingGains): k_x = 0.5 /s, k_y = 
 k_theta = 0.4 /m = 2 sqrt(k_y) (their critical-damping choice), giving a linearised natural
 frequency v_r sqrt(k_y) = 0.3 rad/s at v_r = 1.5 m/s.
 
+Speed: v_r is the shared speed profile (speed.py: cruise cap, ramp, curvature slow-down,
+stop at the end, evaluated where the vehicle projects on the path), as for the other two
+controllers, so that they differ in how they steer only. The law's own speed output
+v_r cos(e_theta) + k_x e_x may slow the vehicle down, never speed it up past the profile:
+it is capped at v_r (uncapped, the k_x e_x term chased a reference that ran ahead up to
+v_max).
+
 Virtual reference point: s_r starts at the projection of the first pose and advances at v_r
 with the caller's clock (Kanayama's time-parameterised reference), kept on a leash
 s_proj <= s_r <= s_proj + max_lead_m so that a vehicle slowed down (or cut off by a network
 outage) is not asked to chase a reference that ran away. At the end of the path v_r = 0.
 
-Delay compensation (off unless ControllerConfig.compensate_baselines): the pose is predicted
-forward by latency_s with eq. (7); the virtual point keeps running on the caller's clock and
-is not advanced further (the downlink part of latency_s is small next to the leash). Off by
-default because the paper compares the published laws; switching it on isolates the control
-law from the compensation in the experiments. Saturation: eq. (11) only (R_min is not part of
-this law).
+Delay compensation (ControllerConfig.delay_compensation, the same for every controller): the
+pose is predicted forward by latency_s with eq. (7); the virtual point keeps running on the
+caller's clock and is not advanced further (the downlink part of latency_s is small next to
+the leash). Saturation: eq. (11), and |w| <= v / R_min (eqs. 19-20) at the speed the
+(predicted) pose has, which the plant enforces anyway.
 """
 
 from __future__ import annotations
 
 import math
 
-from common.config.controller import BacksteppingGains
+from common.config.controller import BacksteppingGains, SpeedConfig
 from common.scalar import clamp, wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits, Pose, predict_pose
+from services.planner.controllers.speed import SpeedProfile
 
 
 class Backstepping:
-    """Kanayama tracking of a virtual point running along the path."""
+    """Kanayama tracking of a virtual point running along the path at the profile speed."""
 
     name = "backstepping"
 
     def __init__(
-        self, gains: BacksteppingGains, limits: Limits, *, compensate_delay: bool = False
+        self,
+        gains: BacksteppingGains,
+        limits: Limits,
+        *,
+        speed: SpeedConfig | None = None,
+        compensate_delay: bool = True,
     ) -> None:
         self.gains = gains
         self.limits = limits
         self.compensate_delay = compensate_delay
+        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
         self._s_r: float | None = None
         self._t_prev: float | None = None
         self._s_hint: float | None = None
@@ -60,19 +73,20 @@ class Backstepping:
         self._s_r = None
         self._t_prev = None
         self._s_hint = None
+        self.speed.reset()
         self.last_errors = (0.0, 0.0, 0.0)
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
-        """(v, w) from the Kanayama law, saturated to eq. (11)."""
-        g, lim = self.gains, self.limits
-        v_r = clamp(ref.v_ref, lim.v_min, lim.v_max)
+        """(v, w) from the Kanayama law at the profile speed, saturated to eq. (11) and R_min."""
+        g = self.gains
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
-        x, y, theta, _, _ = pose
+        x, y, theta, v_meas, _ = pose
         s_proj = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s_proj
+        v_r = v_profile = self.speed.command(t, ref, s_proj, v_meas)
         # the virtual reference: advanced at v_r by the caller's clock, on a leash
         if self._s_r is None or self._t_prev is None:
             s_r = s_proj
@@ -92,6 +106,7 @@ class Backstepping:
         e_y = -sn * (xr - x) + c * (yr - y)
         e_th = wrap_angle(th_r - theta)
         self.last_errors = (e_x, e_y, e_th)
-        v = v_r * math.cos(e_th) + g.k_x_ps * e_x
+        # Kanayama eq. 6; the speed may fall below the profile, never rise above it
+        v = min(v_r * math.cos(e_th) + g.k_x_ps * e_x, v_profile)
         w = w_r + v_r * (g.k_y_pm2 * e_y + g.k_theta_pm * math.sin(e_th))
-        return lim.saturate(v, w)
+        return self.limits.saturate(v, w, v_meas)

@@ -1,4 +1,4 @@
-"""What the tracking controllers share: eq. (11) limits, pose prediction, path-frame errors."""
+"""What the tracking controllers share: eq. (11) and R_min limits, pose prediction, path errors."""
 
 from __future__ import annotations
 
@@ -33,15 +33,33 @@ class Limits:
             r_min=cfg.turn_radius_min_m,
         )
 
-    def saturate(self, v: float, w: float) -> tuple[float, float]:
-        """eq. (11): clamp v to [v_min, v_max] and w to [w_min, w_max]; NaN becomes a stop."""
+    def turn_cap(self, v_now: float) -> float:
+        """The largest |w| (rad/s) a vehicle moving at v_now (m/s) can turn: v_now / R_min.
+
+        The plant enforces it (services/vehicle/dynamics.py: eqs. (19)-(20) made physical),
+        so every controller caps its yaw rate by the speed the vehicle has, not the speed it
+        is asked for: accelerating from rest, a cap from the commanded speed asks for turns
+        tighter than R_min that the vehicle cannot make.
+        """
+        return max(v_now, 0.0) / self.r_min if math.isfinite(v_now) else 0.0
+
+    def saturate(self, v: float, w: float, v_now: float) -> tuple[float, float]:
+        """eq. (11): clamp v to [v_min, v_max] and w to [w_min, w_max], and |w| to
+        turn_cap(v_now) (R_min at the vehicle's speed v_now); NaN becomes a stop."""
         if not (math.isfinite(v) and math.isfinite(w)):
             return max(0.0, self.v_min), 0.0
-        return clamp(v, self.v_min, self.v_max), clamp(w, self.w_min, self.w_max)
+        cap = self.turn_cap(v_now)
+        return clamp(v, self.v_min, self.v_max), clamp(
+            w, max(self.w_min, -cap), min(self.w_max, cap)
+        )
 
 
 class Controller(Protocol):
-    """A pure path-tracking controller: (time, pose, reference) -> saturated (v, w)."""
+    """A path-tracking controller: (time, pose, reference) -> saturated (v, w).
+
+    Its speed comes from the shared profile (speed.py) and its |w| is capped at the pose's
+    speed over R_min (`Limits.saturate`): the controllers differ in how they steer only.
+    """
 
     name: str
 

@@ -10,14 +10,16 @@ from services.planner.controllers.nurbs_tracker import NurbsTracker
 
 
 def make_controller(cfg: ControllerConfig, limits: Limits) -> Controller:
-    """The controller `cfg.kind` names, with its gains and delay-compensation setting.
-
-    Delay compensation is on for the NURBS method when `delay_compensation`, and for the
-    baselines only when `compensate_baselines` is also set.
-    """
-    baseline_comp = cfg.delay_compensation and cfg.compensate_baselines
+    """The controller `cfg.kind` names, with its gains; the speed profile and the delay
+    compensation are the same for every controller."""
     if cfg.kind == "nurbs":
-        return NurbsTracker(cfg.nurbs, limits, compensate_delay=cfg.delay_compensation)
+        return NurbsTracker(
+            cfg.nurbs, limits, speed=cfg.speed, compensate_delay=cfg.delay_compensation
+        )
     if cfg.kind == "backstepping":
-        return Backstepping(cfg.backstepping, limits, compensate_delay=baseline_comp)
-    return ImmuneFuzzyPid(cfg.fuzzy_pid, limits, compensate_delay=baseline_comp)
+        return Backstepping(
+            cfg.backstepping, limits, speed=cfg.speed, compensate_delay=cfg.delay_compensation
+        )
+    return ImmuneFuzzyPid(
+        cfg.fuzzy_pid, limits, speed=cfg.speed, compensate_delay=cfg.delay_compensation
+    )

@@ -21,23 +21,29 @@ with du the last change of the output (the suppressor signal grows with how hard
 is moving), so K in (K1 (1 - eta), K1]: full gain when the command is steady, less gain when
 it is changing fast, which damps oscillation.
 
-Output w = K (Kp e + Ki int e dt + Kd de/dt), saturated to eq. (11) (conditional integration:
-the integral only grows when the output is not saturated in the error's direction).
-Speed: v = v_ref / (1 + slow_k |e|), at least v_floor_ratio * v_ref. No curvature
-feed-forward (the integral carries the steady turn on curves), no R_min constraint: this is
-the published baseline. Gains in FuzzyPidGains; delay compensation only if asked (see
-Backstepping for why it is off by default).
+Output w = K (Kp e + Ki int e dt + Kd de/dt), saturated to eq. (11) and to |w| <= v / R_min
+(eqs. 19-20) at the speed the (predicted) pose has, which the plant enforces anyway
+(conditional integration: the integral only grows when the output is not saturated in the
+error's direction). No curvature feed-forward (the integral carries the steady turn on
+curves): this is the published baseline.
+
+Speed: the shared profile (speed.py: cruise cap, ramp, curvature slow-down, stop at the end),
+as for the other two controllers, so that they differ in how they steer only (a former
+v_ref / (1 + |e|) slow-down was tidelink's, not the literature's, and is gone). Gains in
+FuzzyPidGains; delay compensation as for every controller (ControllerConfig.
+delay_compensation).
 """
 
 from __future__ import annotations
 
 import math
 
-from common.config.controller import FuzzyPidGains
-from common.scalar import clamp, wrap_angle
+from common.config.controller import FuzzyPidGains, SpeedConfig
+from common.scalar import wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
 from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
+from services.planner.controllers.speed import SpeedProfile
 
 _TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
 
@@ -48,14 +54,21 @@ class ImmuneFuzzyPid:
     name = "fuzzy_pid"
 
     def __init__(
-        self, gains: FuzzyPidGains, limits: Limits, *, compensate_delay: bool = False
+        self,
+        gains: FuzzyPidGains,
+        limits: Limits,
+        *,
+        speed: SpeedConfig | None = None,
+        compensate_delay: bool = True,
     ) -> None:
         self.gains = gains
         self.limits = limits
         self.compensate_delay = compensate_delay
+        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
         self.reset()
 
     def reset(self) -> None:
+        self.speed.reset()
         self._s_hint: float | None = None
         self._t_prev: float | None = None
         self._e_prev = 0.0
@@ -68,11 +81,12 @@ class ImmuneFuzzyPid:
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
-        """(v, w) from the immune fuzzy PID, saturated to eq. (11)."""
-        g, lim = self.gains, self.limits
+        """(v, w): the profile speed and the immune fuzzy PID's yaw rate, saturated to eq. (11)
+        and R_min."""
+        g = self.gains
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
-        x, y, theta, _, _ = pose
+        x, y, theta, v_meas, _ = pose
         s = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
@@ -92,9 +106,7 @@ class ImmuneFuzzyPid:
         k_imm = g.immune_k1 * (1.0 - g.immune_eta * f)
         integral = self._integral + e * dt
         u = k_imm * (kp * e + ki * integral + kd * self._de)
-        v_ref = clamp(ref.v_ref, lim.v_min, lim.v_max)
-        v = max(g.v_floor_ratio * v_ref, v_ref / (1.0 + g.slow_k * abs(e)))
-        v, w = lim.saturate(v, u)
+        v, w = self.limits.saturate(self.speed.command(t, ref, s, v_meas), u, v_meas)
         if w == u or (u > w) != (e > 0.0):  # conditional integration (anti-windup)
             self._integral = integral
         self._du_prev = w - self._u_prev

@@ -1,4 +1,8 @@
-"""The NURBS tracking controller (the paper's method): curvature feed-forward, delay-aware.
+"""The NURBS tracking controller: curvature feed-forward and look-ahead feedback, delay-aware.
+
+The paper's method is the planner (cost map, graph path, a NURBS path within R_min), which
+all three controllers share; it gives no tracking law. This one is tidelink's design: it
+follows the NURBS path with the path's own curvature as feed-forward.
 
 Law (Serret-Frenet path following, e.g. Samson 1995; Lekkas & Fossen 2012 for the
 look-ahead form). With s the projection of the (predicted) pose on the path, e_y the
@@ -15,28 +19,28 @@ exactly, and with z = 0 the cross-track error obeys de_y/dt = -v e_y / sqrt(Delt
 (V = e_y^2 / 2 decreases). That is a cascade of two stable systems, the e_y part being
 input-to-state stable in z (|sin(chi + z) - sin(chi)| <= |z|), so both errors converge.
 
-Speed: v_ref, reduced so that the feed-forward for the tightest curvature within
-preview_s ahead uses at most `curvature_budget` of the eq. (11) yaw-rate bound; the rest is
-left to the feedback. Turning radius: |w| <= v_cmd / R_min (eqs. 19-20) on top of eq. (11).
+Speed: the shared profile (speed.py: cruise cap, ramp, curvature slow-down, stop at the end),
+as for the two baselines; what sets this controller apart is its steering. Turning radius:
+|w| <= v / R_min (eqs. 19-20) at the speed the (predicted) pose has, as the plant enforces,
+on top of eq. (11).
 
-Delay compensation: before computing, the pose is predicted forward by `latency_s` (the
-estimate's age plus the expected downlink delay, supplied by the caller) with the unicycle
-model, eq. (7), at constant (v, w).
+Delay compensation (ControllerConfig.delay_compensation, the same for every controller):
+before computing, the pose is predicted forward by `latency_s` (the estimate's age plus the
+expected downlink delay, supplied by the caller) with the unicycle model, eq. (7), at
+constant (v, w).
 
-Gains (common/config/controller.py NurbsGains): Delta = max(3 m, 1.5 s * v), k_h = 1.2 /s,
-budget 0.7, preview 3 s.
+Gains (common/config/controller.py NurbsGains): Delta = max(3 m, 1.5 s * v), k_h = 1.2 /s.
 """
 
 from __future__ import annotations
 
 import math
 
-from common.config.controller import NurbsGains
-from common.scalar import clamp, wrap_angle
+from common.config.controller import NurbsGains, SpeedConfig
+from common.scalar import wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
-
-_PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
+from services.planner.controllers.speed import SpeedProfile
 
 
 class NurbsTracker:
@@ -44,30 +48,25 @@ class NurbsTracker:
 
     name = "nurbs"
 
-    def __init__(self, gains: NurbsGains, limits: Limits, *, compensate_delay: bool = True):
+    def __init__(
+        self,
+        gains: NurbsGains,
+        limits: Limits,
+        *,
+        speed: SpeedConfig | None = None,
+        compensate_delay: bool = True,
+    ) -> None:
         self.gains = gains
         self.limits = limits
         self.compensate_delay = compensate_delay
+        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
         self._s_hint: float | None = None
         self.last_errors = (0.0, 0.0)  # (e_y, e_theta) of the last call, for logs and tests
 
     def reset(self) -> None:
         self._s_hint = None
+        self.speed.reset()
         self.last_errors = (0.0, 0.0)
-
-    def speed_for(self, ref: ArcLengthReference, s: float) -> float:
-        """v_ref reduced so that v |kappa| <= budget * w_max over the preview window."""
-        lim, g = self.limits, self.gains
-        v = min(ref.v_ref, lim.v_max)
-        horizon = min(ref.length, s + v * g.preview_s)
-        k_max = 0.0
-        for i in range(_PREVIEW_SAMPLES):
-            si = s + (horizon - s) * i / (_PREVIEW_SAMPLES - 1)
-            k_max = max(k_max, abs(ref.curvature_at_s(si)))
-        w_room = g.curvature_budget * min(lim.w_max, -lim.w_min)
-        if k_max * v > w_room:
-            v = w_room / k_max
-        return clamp(v, lim.v_min, lim.v_max)
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
@@ -76,13 +75,13 @@ class NurbsTracker:
         if self.compensate_delay and latency_s > 0.0:
             pose = predict_pose(pose, latency_s)
         x, y, theta, v_meas, _ = pose
-        lim, g = self.limits, self.gains
+        g = self.gains
         s = ref.closest_s(x, y, self._s_hint)
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
         kappa = ref.curvature_at_s(s)
-        v_cmd = self.speed_for(ref, s)
+        v_cmd = self.speed.command(t, ref, s, v_meas)
         # kinematic terms use the measured speed: the vehicle turns at w / v_actual
         v_k = max(v_meas, 0.0)
         delta = max(g.lookahead_m, g.lookahead_time_s * v_cmd)
@@ -91,7 +90,5 @@ class NurbsTracker:
         w_ff = kappa * v_k * math.cos(e_th) / denom  # curvature feed-forward
         dchi = -delta / (delta * delta + e_y * e_y) * v_k * math.sin(e_th)
         w = w_ff + dchi - g.k_heading_ps * wrap_angle(e_th - chi)
-        # turning radius >= R_min (eqs. 19-20), then eq. (11)
-        w_r = v_cmd / lim.r_min
-        w = clamp(w, -w_r, w_r)
-        return lim.saturate(v_cmd, w)
+        # eq. (11), and the turning radius >= R_min (eqs. 19-20) at the pose's speed
+        return self.limits.saturate(v_cmd, w, v_meas)

@@ -1,0 +1,78 @@
+"""The speed profile every tracking controller follows: cruise cap, one ramp, the slow-downs.
+
+Speed is shared so that the three controllers differ only in how they steer: a travel time
+or a control count then measures steering, not a speed policy of each controller's own (the
+baselines' literature has none to offer: Kanayama's law takes the reference speed v_r as
+given, and the immune fuzzy PID steers only).
+
+The target at arc length s (the vehicle's projection on the path, L the path's length):
+
+    v_target(s) = min(v_cruise, v_curv(s), v_stop(s))
+    v_cruise    = v_ref within eq. (11)
+    v_curv(s)   = budget * w_max / max |kappa(s')|,  s' in [s, s + v_cruise * preview_s]
+    v_stop(s)   = sqrt(2 decel (L - s))
+
+v_curv keeps the curvature feed-forward v |kappa| within `budget` of eq. (11)'s yaw-rate
+bound over the preview window, leaving the rest to the feedback (it was the NURBS tracker's
+own rule); v_stop brakes to a stop at the end of the path at a constant deceleration.
+
+The command follows the target through one ramp: v_k = min(v_target, v_{k-1} + accel dt),
+starting from the vehicle's own speed when a path is taken (`reset`, then the first
+command). Decreases are not rate-limited: the preview and the stop anticipate them, and the
+hull brakes within its own acceleration bound.
+"""
+
+from __future__ import annotations
+
+import math
+
+from common.config.controller import SpeedConfig
+from common.scalar import clamp
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Limits
+
+_PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
+
+
+def cruise_speed(ref: ArcLengthReference, limits: Limits) -> float:
+    """The cruise cap: the path's v_ref within eq. (11) (m/s)."""
+    return clamp(ref.v_ref, limits.v_min, limits.v_max)
+
+
+def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Limits) -> float:
+    """v_target(s) of the module docstring (m/s), before the ramp."""
+    v = cruise_speed(ref, limits)
+    horizon = min(ref.length, s + v * cfg.preview_s)
+    k_max = 0.0
+    for i in range(_PREVIEW_SAMPLES):
+        si = s + (horizon - s) * i / (_PREVIEW_SAMPLES - 1)
+        k_max = max(k_max, abs(ref.curvature_at_s(si)))
+    w_room = cfg.curvature_budget * min(limits.w_max, -limits.w_min)
+    if k_max * v > w_room:
+        v = w_room / k_max
+    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(ref.length - s, 0.0)))
+    return clamp(v, limits.v_min, limits.v_max)
+
+
+class SpeedProfile:
+    """The ramped speed command along one path: `reset` when a path is taken, then `command`."""
+
+    def __init__(self, cfg: SpeedConfig, limits: Limits) -> None:
+        self.cfg = cfg
+        self.limits = limits
+        self.reset()
+
+    def reset(self) -> None:
+        self._v: float | None = None  # the last command; None: ramp from the vehicle's speed
+        self._t = 0.0
+
+    def command(self, t: float, ref: ArcLengthReference, s: float, v_now: float) -> float:
+        """The speed to command at time t (s) for a vehicle at arc length s moving at v_now."""
+        target = target_speed(ref, s, self.cfg, self.limits)
+        if self._v is None:
+            base = max(v_now, 0.0)  # a path taken under way does not restart from rest
+        else:
+            base = self._v + self.cfg.accel_mps2 * max(0.0, t - self._t)
+        v = clamp(min(target, base), self.limits.v_min, self.limits.v_max)
+        self._v, self._t = v, t
+        return v
