@@ -54,6 +54,10 @@ class PlannerConfig:
     corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
+    # the first plan waits (holding the vehicle still) until the estimator's tracks hold a
+    # track, i.e. reflect at least one sonar scan, so eq. (12)-(13) see the moving obstacles
+    # in view; from this mission time on it plans with what it has
+    first_plan_wait_s: float = 2.0
     # --- networked loop
     # an estimate older than this (uplink outage) makes the planner stop commanding, so the
     # vehicle's watchdog holds it instead of it steering on a pose extrapolated too far
@@ -66,7 +70,12 @@ class PlannerConfig:
             nonneg(name, getattr(self, name))
         for name in ("penalty_clearance", "penalty_curvature", "clearance_margin_m"):
             nonneg(name, getattr(self, name))
-        for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
+        for name in (
+            "corridor_halfwidth_m",
+            "deviation_threshold_m",
+            "min_replan_interval_s",
+            "first_plan_wait_s",
+        ):
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)
         positive("max_estimate_age_s", self.max_estimate_age_s)
