@@ -144,7 +144,9 @@ def test_paper_field_from_varied_starts() -> None:
         req = _paper_request(start=start)
         res = plan_path(req, CFG)
         _verify(req, res)
-        assert res.length_m <= 1.05 * _optimal_grid_length(req)
+        # eq. (19) f_R in the objective trades a little length for less turning: the worst
+        # of these starts is 4.7 % over without it, 5.4 % with it (penalty_turn = 1)
+        assert res.length_m <= 1.06 * _optimal_grid_length(req)
 
 
 def test_random_fields_never_yield_a_colliding_path() -> None:

@@ -261,6 +261,7 @@ def _fit_and_check(
         c_k=cfg.penalty_curvature,
         clear_margin_m=cfg.clearance_margin_m,
         k_target=cfg.curvature_margin / prob.r_min_m,
+        c_r=cfg.penalty_turn,
     )
     curve = initial_curve(prob, waypoints, spacing, cfg.nurbs_degree)
     for rnd in range(cfg.refine_rounds):
@@ -288,5 +289,6 @@ def _fit_and_check(
             c_k=wts.c_k * 10.0,
             clear_margin_m=wts.clear_margin_m * 1.5 + 0.05,
             k_target=wts.k_target * 0.9,
+            c_r=wts.c_r,  # a cost, not a constraint: it keeps its weight
         )
     return curve, chk, cfg.refine_rounds, met_moving
