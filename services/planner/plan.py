@@ -4,6 +4,9 @@
 fill the timing breakdown), no randomness. A walled-off or unsafe goal, or a curve that
 cannot be made to satisfy eq. (12)-(13) and (20), yields status NO_PATH with a reason,
 never a colliding path. A start inside the safety margin may leave it within escape_len_m.
+Moving obstacles block the search grid around where they are predicted (prediction.py);
+when that walls the start off (the vehicle near an obstacle's track) the search runs on the
+static field and the refinement and check, exact in time, judge eq. (12)-(13) alone.
 Near an obstacle, where no curve leaves the vehicle's pose, the plan recovers (recover.py):
 a start in contact first takes the shortest straight way out; a heading no curve can leave
 along is turned on the spot first.
@@ -168,7 +171,8 @@ def _plan(
     rounds = 0
     waypoints = np.zeros((0, 2))
     chk: CurveCheck | None = None
-    for attempt in range(2):
+    unswept = passed = False  # each retry below is made at most once (3 searches at most)
+    for _ in range(3):
         cmap = build_costmap(area, static, discs, r, cfg)
         escape = cfg.escape_len_m if d_start < d_req else None
         cmap = _unblock_start_goal(cmap, req.start, req.goal, r, escape)
@@ -179,6 +183,14 @@ def _plan(
         path = shortest_path(cmap, start_i, goal_i, cfg.connectivity, cfg.search)
         if path is None:
             clk.lap("search_s")
+            if len(discs) and not unswept:
+                # the swept discs block where a moving obstacle may be over a window of
+                # time: a conservative stand-in for eq. (13) that walls the start off when
+                # the vehicle is near an obstacle's track (it would pass behind it, or let
+                # it pass). Search the static field then: the refinement and the check
+                # judge eq. (12)-(13) at the times the curve passes.
+                discs, unswept = np.zeros((0, 3)), True
+                continue
             moving = " and moving ones where predicted" if len(discs) else ""
             return _no_path(
                 f"goal unreachable: static obstacles{moving}, inflated by r + rho0, wall it off "
@@ -223,8 +235,9 @@ def _plan(
                 timing=clk.timing(),
                 escape_m=cfg.escape_len_m if d_start < d_req else 0.0,
             )
-        if attempt > 0 or met_moving is None:
+        if passed or met_moving is None:
             break
+        passed = True
         # a curve met a moving obstacle at a time the grid did not predict: block each
         # obstacle around the time that curve passes it, and search again
         discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)])
