@@ -15,7 +15,7 @@ from services.planner.clearance import StaticField
 from services.planner.costmap import build_costmap
 from services.planner.fit import FitProblem, initial_curve
 from services.planner.nurbs_curve import NurbsCurve, curvature
-from services.planner.plan import PlanRequest, plan_path
+from services.planner.plan import PlanRequest, fit_problem, plan_path
 from services.planner.refine import Objective, RefineWeights, gauss_legendre
 from services.planner.turning import K_SMOOTH_PER_M, turn_cost, turn_penalty
 
@@ -86,22 +86,8 @@ def _problem() -> tuple[FitProblem, NurbsCurve, NurbsCurve]:
     res = plan_path(req, cfg)
     assert res.ok
     static = StaticField.build(obs.circles, obs.polygons)
-    prob = FitProblem(
-        start=start,
-        goal=goal,
-        fix_goal_heading=True,
-        area=req.area,
-        static=static,
-        moving=obs.moving,
-        vehicle_radius_m=v.radius_m,
-        r_min_m=v.turn_radius_min_m,
-        v_ref_mps=v.cruise_speed_mps,
-        d_req_m=v.radius_m + cfg.rho0_m,
-        escape_len_m=cfg.escape_len_m,
-        start_inside=False,
-        accel_horizon_s=cfg.accel_horizon_s,
-        grid=build_costmap(req.area, static, np.zeros((0, 3)), v.radius_m, cfg),
-    )
+    grid = build_costmap(req.area, static, np.zeros((0, 3)), v.radius_m, cfg)
+    prob = fit_problem(req, cfg, static, grid, start_inside=False)
     first = initial_curve(prob, res.grid_path, cfg.ctrl_spacing_m, cfg.nurbs_degree)
     return prob, res.curve(), first
 

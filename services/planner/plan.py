@@ -108,6 +108,30 @@ def _unblock_start_goal(
     return dataclasses.replace(cmap, blocked=blocked)
 
 
+def fit_problem(
+    req: PlanRequest, cfg: PlannerConfig, static: StaticField, grid: CostMap, *, start_inside: bool
+) -> FitProblem:
+    """What the curve of a plan for `req` must satisfy (its refinement uses `grid`'s static
+    clearance; `start_inside`: the start lies within r + rho0 of an obstacle)."""
+    r = req.vehicle_radius_m
+    return FitProblem(
+        start=req.start,
+        goal=req.goal,
+        fix_goal_heading=req.fix_goal_heading,
+        area=req.area,
+        static=static,
+        moving=req.obstacles.moving,
+        vehicle_radius_m=r,
+        r_min_m=req.r_min_m,
+        v_ref_mps=req.v_ref_mps,
+        d_req_m=r + cfg.rho0_m,  # eq. (12)-(13): centre-to-surface r + rho0 (r_k in geometry)
+        escape_len_m=cfg.escape_len_m,
+        start_inside=start_inside,
+        accel_horizon_s=cfg.accel_horizon_s,
+        grid=grid,
+    )
+
+
 def plan_path(
     req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None = None
 ) -> PlanResult:
@@ -199,22 +223,7 @@ def _plan(
             )
         waypoints = prune_path(cmap, path, s_xy, g_xy)
         clk.lap("search_s")
-        prob = FitProblem(
-            start=req.start,
-            goal=req.goal,
-            fix_goal_heading=req.fix_goal_heading,
-            area=area,
-            static=static,
-            moving=obs.moving,
-            vehicle_radius_m=r,
-            r_min_m=req.r_min_m,
-            v_ref_mps=req.v_ref_mps,
-            d_req_m=d_req,
-            escape_len_m=cfg.escape_len_m,
-            start_inside=d_start < d_req,
-            accel_horizon_s=cfg.accel_horizon_s,
-            grid=cmap,
-        )
+        prob = fit_problem(req, cfg, static, cmap, start_inside=d_start < d_req)
         curve, chk, n, met_moving = _fit_and_check(prob, waypoints, cfg, clk)
         rounds += n
         if chk.ok:
