@@ -35,6 +35,8 @@ def test_defaults_are_valid_and_documented_values() -> None:
         ("corridor_halfwidth_m", -1.0),
         ("deviation_threshold_m", float("nan")),
         ("min_replan_interval_s", float("inf")),
+        ("first_plan_wait_s", -1.0),
+        ("first_plan_wait_s", float("nan")),
         ("penalty_clearance", -1.0),
         ("period_s", 0.0),
     ],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,11 @@ COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
 COV6 = tuple(0.01 if i % 7 == 0 else 0.0 for i in range(36))
 
 
-def _core(overrides: list[str] | None = None) -> PlannerCore:
-    s, _ = load_scenario(DEFAULT, overrides)
+def _core(overrides: list[str] | None = None, *, wait_for_tracks: bool = False) -> PlannerCore:
+    """The default scenario's planner; most tests here are about planning, not about the first
+    plan's wait for the obstacle tracks (tested on its own below), so they switch it off."""
+    wait = [] if wait_for_tracks else ["planner.first_plan_wait_s=0"]
+    s, _ = load_scenario(DEFAULT, [*wait, *(overrides or [])])
     return PlannerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
@@ -204,3 +208,61 @@ def test_an_estimate_from_the_future_cannot_hold_the_place_of_later_ones() -> No
     core.deliver(_estimate(1.1, x=6.5))
     core.deliver(_estimate(0.9, x=4.0))  # late and older: not taken over the newer one
     assert core.state is not None and (core.state.stamp, core.state.x) == (1.1, 6.5)
+
+
+# --- the first plan waits for the first obstacle tracks (issue 15, finding 5) ---------------
+
+
+def _tracks(stamp: float, *tracks: Track) -> Delivery:
+    msg = ObstacleTracks(stamp=stamp, tracks=tracks)
+    return Delivery(source="estimator", stream="tracks", msg=msg, t=stamp + 0.05)
+
+
+def test_the_first_plan_waits_for_tracks_then_sees_the_moving_obstacle() -> None:
+    core = _core(wait_for_tracks=True)
+    # the estimator publishes (empty) tracks from its first period on, before any scan
+    for k in range(6):
+        t = 0.05 + 0.1 * k
+        core.deliver(_estimate(t - 0.05))
+        core.deliver(_tracks(t - 0.05))
+        out = core.step(t)
+        assert _paths(out) == []  # no plan yet: the vehicle is told to stay still
+        (cmd,) = _cmds(out)
+        assert (cmd.v, cmd.w) == (0.0, 0.0)
+    # the first scan is fused: a moving obstacle parked on the straight way at x = 12
+    parked = Track(
+        id=40, x=12.0, y=20.0, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=1.5, covariance=COV6
+    )
+    core.deliver(_estimate(0.6))
+    core.deliver(_tracks(0.6, parked))
+    (path,) = _paths(core.step(0.65))
+    assert path.status == "OK"
+    assert core.last_result is not None
+    # eq. (12)-(13): the plan keeps r + rho0 from the track it waited for
+    assert core.last_result.min_clearance_m >= core.cfg.rho0_m
+
+
+def test_without_tracks_the_first_plan_comes_after_the_bounded_wait_and_says_why(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    core = _core(["planner.first_plan_wait_s=1.0"], wait_for_tracks=True)
+    planned_at = []
+    with caplog.at_level(logging.INFO, logger="tidelink.planner"):
+        for k in range(20):
+            t = 0.05 + 0.1 * k
+            core.deliver(_estimate(t - 0.05))
+            core.deliver(_tracks(t - 0.05))  # nothing in sonar range: always empty
+            if _paths(core.step(t)):
+                planned_at.append(t)
+    # the wait is bounded by mission time first_plan_wait_s: one plan, at the first step after
+    assert planned_at == [pytest.approx(1.05)]
+    (why,) = [r.getMessage() for r in caplog.records if "first plan" in r.getMessage()]
+    assert "first_plan_wait_s" in why and "hold none" in why
+
+
+def test_a_planner_restarted_mid_mission_does_not_wait_for_tracks() -> None:
+    core = _core(wait_for_tracks=True)
+    core.deliver(_estimate(40.0, x=30.0, y=14.0))
+    core.deliver(_tracks(40.0))  # nothing in sonar range just now
+    (path,) = _paths(core.step(40.05))
+    assert path.status == "OK"

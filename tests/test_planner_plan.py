@@ -144,7 +144,9 @@ def test_paper_field_from_varied_starts() -> None:
         req = _paper_request(start=start)
         res = plan_path(req, CFG)
         _verify(req, res)
-        assert res.length_m <= 1.05 * _optimal_grid_length(req)
+        # eq. (19) f_R in the objective trades a little length for less turning: the worst
+        # of these starts is 4.7 % over without it, 5.4 % with it (penalty_turn = 1)
+        assert res.length_m <= 1.06 * _optimal_grid_length(req)
 
 
 def test_random_fields_never_yield_a_colliding_path() -> None:
@@ -275,4 +277,20 @@ def test_moving_obstacle_met_at_an_unpredicted_time_is_avoided() -> None:
     req = _paper_request(obstacles=obs)
     res = plan_path(req, CFG)
     v = _verify(req, res)
+    assert v["moving"] >= CFG.rho0_m
+
+
+def test_a_start_beside_a_moving_obstacles_track_is_not_walled_off() -> None:
+    # the crossing scenario, 19 s in: the vehicle 3 m west of obstacle 10's track, which
+    # crosses southwards ahead of it. Its swept discs (where it may be over +-3 s) enclose
+    # the start, and the planner answered NO_PATH ("goal unreachable") and stopped the
+    # vehicle; the curve that lets the obstacle pass first keeps rho0 at every time
+    crossing = moving_circle(id=10, x=30.0, y=21.4, vx=0.0, vy=-0.5, radius=1.5)
+    req = _paper_request(
+        start=Pose2D(x=27.3, y=18.2, theta=-0.39),
+        obstacles=Obstacles(moving=(crossing,)),
+        r_min_m=SCENARIO.vehicle.turn_radius_min_m,
+    )
+    res = plan_path(req, CFG)
+    v = _verify(req, res)  # eq. (12)-(13) at t = s / v_ref, independently
     assert v["moving"] >= CFG.rho0_m

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from helpers.planner_world import circle, default_scenario, moving_circle
 
@@ -67,6 +69,16 @@ def test_static_obstacle_on_the_path_ahead_makes_it_infeasible() -> None:
     assert d.replan and d.reason == "infeasible"
     behind = Obstacles(circles=(circle(x=8.0, y=20.5, radius=0.5),))  # already passed
     assert not pol.check(10.0, _on_path(10.0), GOAL, behind).replan
+
+
+def test_a_plan_with_an_escape_in_a_field_without_static_obstacles() -> None:
+    # a plan leaving the margin of a moving obstacle has escape_m > 0; with no static
+    # obstacle the policy's static distances are empty, which the escape mask must allow for
+    # (it raised a broadcast error mid-mission on the crossing scenario)
+    _, res = _planned()
+    pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
+    pol.on_planned(0.0, dataclasses.replace(res, escape_m=3.0), GOAL, NONE)
+    assert not pol.check(2.0, _on_path(2.0), GOAL, NONE).replan
 
 
 def test_moving_obstacle_predicted_on_the_path_makes_it_infeasible() -> None:

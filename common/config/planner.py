@@ -46,7 +46,11 @@ class PlannerConfig:
     refine_max_iter: int = 12  # solver iterations per refinement round
     refine_rounds: int = 3  # rounds (tighter penalties, more control points) before NO_PATH
     penalty_clearance: float = 1.0e3  # eq. (9) c_n for obstacle constraints (12)-(13)
-    penalty_curvature: float = 3.0e2  # eq. (9) c_n for the turning constraint (11)/(19)
+    penalty_curvature: float = 3.0e2  # eq. (9) c_n for the turning constraint (11)/(20)
+    # eq. (19) f_R in the refinement objective, as F_R = int ds / (r - R_min) over arc length
+    # (sample-count independent; ~ the total turning in rad on gentle bends): its weight in
+    # metres of path length per unit of F_R; 0 leaves f_R out
+    penalty_turn: float = 1.0
     clearance_margin_m: float = 0.15  # refinement aims this far beyond the required clearance
     curvature_margin: float = 0.85  # refinement aims at k <= curvature_margin / R_min
     n_samples_check: int = 2000  # dense samples of the final checks, eq. (12)-(13), (20)
@@ -54,6 +58,10 @@ class PlannerConfig:
     corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
+    # the first plan waits (holding the vehicle still) until the estimator's tracks hold a
+    # track, i.e. reflect at least one sonar scan, so eq. (12)-(13) see the moving obstacles
+    # in view; from this mission time on it plans with what it has
+    first_plan_wait_s: float = 2.0
     # --- networked loop
     # an estimate older than this (uplink outage) makes the planner stop commanding, so the
     # vehicle's watchdog holds it instead of it steering on a pose extrapolated too far
@@ -64,9 +72,19 @@ class PlannerConfig:
             positive(name, getattr(self, name))
         for name in ("rho0_m", "moving_window_s", "accel_horizon_s", "escape_len_m"):
             nonneg(name, getattr(self, name))
-        for name in ("penalty_clearance", "penalty_curvature", "clearance_margin_m"):
+        for name in (
+            "penalty_clearance",
+            "penalty_curvature",
+            "penalty_turn",
+            "clearance_margin_m",
+        ):
             nonneg(name, getattr(self, name))
-        for name in ("corridor_halfwidth_m", "deviation_threshold_m", "min_replan_interval_s"):
+        for name in (
+            "corridor_halfwidth_m",
+            "deviation_threshold_m",
+            "min_replan_interval_s",
+            "first_plan_wait_s",
+        ):
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)
         positive("max_estimate_age_s", self.max_estimate_age_s)

@@ -13,6 +13,7 @@ from services.planner.clearance import moving_distance
 from services.planner.fit import FitProblem
 from services.planner.nurbs_curve import NurbsCurve, curvature
 from services.planner.refine import gauss_legendre
+from services.planner.turning import turn_penalty
 
 FailKind = Literal["", "curvature", "static", "moving", "area"]
 
@@ -30,7 +31,7 @@ class CurveCheck:
     # samples far from every obstacle report the grid's lower bound, not the exact distance
     min_static_clearance_m: float
     min_moving_clearance_m: float
-    turn_penalty: float  # eq. (19) f_R = sum 1 / (r_k - R_min) (inf if any r_k < R_min)
+    turn_penalty: float  # eq. (19) f_R as F_R = int ds / (r - R_min) (inf if any r <= R_min)
 
 
 def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
@@ -39,15 +40,6 @@ def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, Float
     half = 0.5 * np.diff(brk)
     u = (0.5 * (brk[:-1] + brk[1:]))[:, None] + half[:, None] * xg[None, :]
     return u.ravel(), (half[:, None] * wg[None, :]).ravel()
-
-
-def turn_penalty(k: FloatArray, r_min_m: float) -> float:
-    """Eq. (19): sum over samples of 1 / (r_k - R_min), r_k = 1 / k; infinite if r_k < R_min."""
-    kk = k[k > 1e-12]  # straight samples have r_k = inf and contribute 0
-    r = 1.0 / kk
-    if np.any(r <= r_min_m):
-        return math.inf
-    return float(np.sum(1.0 / (r - r_min_m)))
 
 
 def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveCheck:
@@ -59,10 +51,17 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
     s = np.concatenate([[0.0], np.cumsum(0.5 * du * (speed[1:] + speed[:-1]))])
     # reported length by Gauss-Legendre on every knot span (eq. (16)/(18) for the curve)
     uq, wq = _gauss_legendre(curve.knots, 6)
-    dq = curve.evaluate(uq, n_ders=1)[1]
-    length = float(wq @ np.hypot(dq[:, 0], dq[:, 1]))
+    _, dq1, dq2 = curve.evaluate(uq, n_ders=2)
+    ds = wq * np.hypot(dq1[:, 0], dq1[:, 1])
+    length = float(np.sum(ds))
     k = curvature(d1, d2)
     k_max = float(np.max(k))
+    # eq. (19) on the same quadrature; infinite if the dense samples break eq. (20) already
+    f_r = (
+        turn_penalty(curvature(dq1, dq2), ds, prob.r_min_m)
+        if k_max * prob.r_min_m < 1.0
+        else math.inf
+    )
     # exact static distances only where the grid cannot vouch for the sample: the bilinear
     # clearance is within resolution * sqrt(2) of the exact one (1-Lipschitz, lower-bound grid)
     d_static, _ = prob.grid.static_clearance_at(c)
@@ -115,5 +114,5 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         min_clearance_m=min(min_static, min_moving),
         min_static_clearance_m=min_static,
         min_moving_clearance_m=min_moving,
-        turn_penalty=turn_penalty(k, prob.r_min_m),
+        turn_penalty=f_r,
     )

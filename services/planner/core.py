@@ -182,7 +182,11 @@ class PlannerCore:
         here = Pose2D(x=s.x, y=s.y, theta=s.theta)
         obstacles = self._obstacles(t)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
-        if math.isfinite(gap) and gap > self.resume_after_s:
+        if self.path_id == 0 and self._awaiting_tracks(t):
+            decision = ReplanDecision(
+                replan=False, detail="the first plan waits for the first obstacle tracks"
+            )
+        elif math.isfinite(gap) and gap > self.resume_after_s:
             # no command for so long that the vehicle's watchdog has made it hold: it has
             # coasted off the plan while the planner was stopped or its uplink was out. The
             # plan and the controller's state are stale: before commanding again, plan
@@ -210,6 +214,35 @@ class PlannerCore:
             )
         )
         return out
+
+    def _awaiting_tracks(self, t: float) -> bool:
+        """Should the first plan wait longer for the first obstacle tracks?
+
+        The estimator publishes tracks every period from the start, empty until it has fused
+        a sonar scan that detected something: a track exists only after a detection. So the
+        tracks are "in" once a message holding at least one track has arrived (charted static
+        obstacles count: the scan that saw them could see a moving one in view too). An empty
+        message cannot tell "no scan yet" from "nothing in view", so the wait is bounded by
+        mission time first_plan_wait_s: then the planner plans with what it has (a field with
+        nothing in sonar range still starts) and says why. A planner restarted later in the
+        mission (its estimator has long fused scans) plans at once.
+        """
+        if self.tracks is not None and self.tracks.tracks:
+            return False
+        if t < self.cfg.first_plan_wait_s:
+            return True
+        # reached once: the plan is made in this step
+        log.info(
+            "t=%.2f s: first plan without obstacle tracks (none by planner.first_plan_wait_s "
+            "= %.2f s): %s",
+            t,
+            self.cfg.first_plan_wait_s,
+            "no tracks message arrived"
+            if self.tracks is None
+            else f"the newest tracks (stamp {self.tracks.stamp:.2f} s) hold none: "
+            "no scan fused yet, or nothing in sonar range",
+        )
+        return False
 
     def _replan(self, t: float, here: Pose2D, obstacles: Obstacles, why: str) -> PathMsg:
         req = PlanRequest(

@@ -2,17 +2,20 @@
 
 Over the free control points x (see fit.Layout) we minimise
 
-    F(x) = L(P) + c_k sum_j max(0, k_j - k_t)^2 + c_d sum_j max(0, d_t,j - d_j)^2
+    F(x) = L(P) + c_r F_R(P) + c_k sum_j max(0, k_j - k_t)^2 + c_d sum_j max(0, d_t,j - d_j)^2
 
 L is the curve length (eq. (8): a quadrature of |C'|, here Gauss-Legendre on each knot
-span), k_j the curvature at sample j (turning constraint eq. (11) with w_max / v = 1 / R_min,
-eq. (19)-(20)), d_j the clearance to static obstacles (eq. (12)) and to moving ones where
-they are when the vehicle passes, t_j = s_j / v_ref (eq. (13)). Eq. (9)'s hinge max(0, .) is
-squared so F is smooth; the targets k_t < 1/R_min and d_t > r + rho0 carry margins so the
-dense final check passes strictly. Knots and weights stay fixed: C, C', C'' are linear in P.
+span), F_R eq. (19)'s turning cost sum 1 / (r_k - R_min) as an integral over arc length on
+the same quadrature (turning.py: independent of the sample count), k_j the curvature at
+sample j (turning constraint eq. (11) with w_max / v = 1 / R_min, eq. (20)), d_j the
+clearance to static obstacles (eq. (12)) and to moving ones where they are when the vehicle
+passes, t_j = s_j / v_ref (eq. (13)). Eq. (9)'s hinge max(0, .) is squared so F is smooth;
+the targets k_t < 1/R_min and d_t > r + rho0 carry margins so the dense final check passes
+strictly. Knots and weights stay fixed: C, C', C'' are linear in P.
 
 Default solver: Levenberg-Marquardt on F with a Gauss-Newton Hessian for the squared hinges
-and the majoriser w/|C'| (C'^T C') of the length (the IRLS view of |v|), which gives the flat
+and F_R (each sample's term as the square of its root: the IRLS view of g ~ |k|) and the
+majoriser w/|C'| (C'^T C') of the length (the IRLS view of |v|), which gives the flat
 "slide along the curve" directions of L the curvature L-BFGS lacks; a step is kept only if
 it lowers the true F. scipy's L-BFGS-B on the same F and gradient is the alternative.
 """
@@ -28,10 +31,12 @@ from scipy.optimize import minimize
 from common.world.geometry import FloatArray
 from services.planner.fit import FitProblem, Layout
 from services.planner.nurbs_curve import NurbsCurve, rational_basis
+from services.planner.turning import turn_cost
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
 _BAND_K = 0.1  # curvature hinges within this fraction of the target do too
 _LBFGS_STEP_M = 0.05  # L-BFGS-B variable scale: its first step moves the points ~5 cm
+_TURN_K_FLOOR = 0.01  # eq. (19) Hessian model: curvature floored here (1/m; r = 100 m)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,6 +47,7 @@ class RefineWeights:
     c_k: float  # curvature penalty (m^3)
     clear_margin_m: float  # aim this far beyond the required clearance
     k_target: float  # aim at curvature <= this (1/m), below 1/R_min
+    c_r: float = 0.0  # eq. (19) turning cost: metres of length per unit of F_R
 
 
 @lru_cache(maxsize=16)
@@ -70,6 +76,18 @@ def quadrature(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray
     u_all, w_all = np.append(u_all, brk[-1]), np.append(w_all, 0.0)
     order = np.argsort(u_all, kind="stable")
     return u_all[order], w_all[order]
+
+
+def _rows(*terms: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """Jacobian rows (m, 2 n) of m sample quantities, each sum_t b_t . (R_t P): for every
+    term a (m, 2) weight b and an (m, n) basis matrix R; columns are x0, y0, x1, y1, ..."""
+    b0, r0 = terms[0]
+    out = np.empty((len(b0), r0.shape[1], 2))  # filled in place: no (m, n, 2) temporaries
+    for d in (0, 1):
+        np.multiply(b0[:, d, None], r0, out=out[:, :, d])
+        for b, r in terms[1:]:
+            out[:, :, d] += b[:, d, None] * r
+    return out.reshape(len(b0), -1)
 
 
 class Objective:
@@ -114,6 +132,19 @@ class Objective:
         dk2 = np.stack([-sg * v1[:, 1], sg * v1[:, 0]], axis=1)
         g1 += (2.0 * wts.c_k * vk)[:, None] * dk1
         g2 = (2.0 * wts.c_k * vk)[:, None] * dk2
+        # eq. (19): c_r F_R, F_R = int g(k) ds with ds = |C'| du (turn_cost)
+        turn_rows = None
+        if wts.c_r > 0.0:
+            gk, dgk = turn_cost(k, self.prob.r_min_m, wts.k_target)
+            ws = wts.c_r * self.wq
+            fr = ws * sp * gk
+            f += float(np.sum(fr))
+            a1 = (ws * gk / sp)[:, None] * v1 + (ws * sp * dgk)[:, None] * dk1
+            a2 = (ws * sp * dgk)[:, None] * dk2
+            g1 += a1
+            g2 += a2
+            if hessian:
+                turn_rows = (fr, a1, a2)
         # eq. (12)-(13): clearance to static (bilinear grid) and moving (exact) obstacles
         dist, grad = self.prob.grid.static_clearance_at(c)
         dists, dirs = [dist], [grad]
@@ -139,23 +170,29 @@ class Objective:
         hp = np.zeros((2 * n, 2 * n))
         hp[0::2, 0::2] = kmat
         hp[1::2, 1::2] = kmat
-        # Gauss-Newton rows sqrt(2c) dv/dP of the hinges, (m_act, n, 2). Hinges within a
-        # small band of becoming active are included too: the model then "sees" a wall the
-        # step is about to hit instead of overshooting into it and being rejected.
+        # Gauss-Newton rows sqrt(2c) dv/dP of the hinges. Hinges within a small band of
+        # becoming active are included too: the model then "sees" a wall the step is about
+        # to hit instead of overshooting into it and being rejected.
         rows = []
         act = k > wts.k_target * (1.0 - _BAND_K)
         if act.any():
-            jk = (
-                dk1[act, None, :] * self.r1[act, :, None]
-                + dk2[act, None, :] * self.r2[act, :, None]
-            )
-            rows.append(np.sqrt(2.0 * wts.c_k) * jk)
+            ck = np.sqrt(2.0 * wts.c_k)
+            rows.append(_rows((ck * dk1[act], self.r1[act]), (ck * dk2[act], self.r2[act])))
         for dist_m, dd in zip(dists, dirs, strict=True):
             act = dist_m < self.d_t + _BAND_M
             if act.any():
-                rows.append(np.sqrt(2.0 * wts.c_d) * dd[act, None, :] * self.r0[act, :, None])
+                rows.append(_rows((np.sqrt(2.0 * wts.c_d) * dd[act], self.r0[act])))
+        if turn_rows is not None:
+            # Gauss-Newton on f_j = (sqrt f_j)^2: rows grad f_j / sqrt(2 f_j), the IRLS
+            # majoriser of g ~ |k|; the floor keeps nearly straight samples from freezing
+            fr, a1, a2 = turn_rows
+            floor = wts.c_r * self.wq * sp * _TURN_K_FLOOR
+            sc = np.divide(
+                1.0, np.sqrt(2.0 * np.maximum(fr, floor)), where=floor > 0.0, out=np.zeros_like(fr)
+            )
+            rows.append(_rows((sc[:, None] * a1, self.r1), (sc[:, None] * a2, self.r2)))
         if rows:
-            jac = np.concatenate(rows).reshape(-1, 2 * n)
+            jac = np.concatenate(rows)
             hp += jac.T @ jac
         return f, gx, self.lay.m.T @ hp @ self.lay.m
 

@@ -122,7 +122,7 @@ class ReplanPolicy:
         d_req = self.r + self.cfg.rho0_m
         ahead = self.pts[i_now:]
         d = self._static_distance(obstacles)[i_now:]
-        if self.escape_m > 0.0:  # the plan checked that stretch against them itself
+        if self.escape_m > 0.0 and len(d):  # the plan checked that stretch against them itself
             d = np.where(self.s[i_now:] < self.escape_m, np.inf, d)
         if len(d):
             j = int(np.argmin(d))

@@ -1,0 +1,30 @@
+"""Smoke test of scripts/bench_nurbs_weights.py (the experiment behind fit.py's fixed weights)."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_weights_experiment_compares_points_only_with_points_and_weights(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "bench_nurbs_weights", ROOT / "scripts" / "bench_nurbs_weights.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, bench)  # its dataclasses look their module up
+    spec.loader.exec_module(bench)
+    (row,) = bench.main(n_varied=0, n_fields=0, max_iter=3)  # the default plan only
+    assert row.plan.ok and all(math.isfinite(v.f) for v in (row.plan, row.points, row.joint))
+    # more refinement never makes F worse than the plan's, and the weights stay in bounds
+    assert row.points.f <= row.plan.f and row.joint.f <= row.plan.f + 1e-9
+    assert 0.2 - 1e-9 <= row.w_range[0] <= row.w_range[1] <= 5.0 + 1e-9
+    assert "gain in F" in capsys.readouterr().out
