@@ -8,8 +8,8 @@ Moving obstacles block the search grid around where they are predicted (predicti
 when that walls the start off (the vehicle near an obstacle's track) the search runs on the
 static field and the refinement and check, exact in time, judge eq. (12)-(13) alone.
 Near an obstacle, where no curve leaves the vehicle's pose, the plan recovers (recover.py):
-a start in contact first takes the shortest straight way out; a heading no curve can leave
-along is turned on the spot first.
+a start in contact first drives out (straight or on an arc within R_min, never deeper); a
+heading no curve can leave along first turns away on an arc that keeps the hull free.
 """
 
 from __future__ import annotations
@@ -182,7 +182,7 @@ def _plan(
                 if outside
                 else f"in contact with an obstacle (hull clearance {d_start - r:.2f} m)"
             )
-            return _no_path(f"start is {where} and no straight way out is clear", clk)
+            return _no_path(f"start is {where} and no way out within R_min is clear", clk)
         return escaped
     t_max = (
         2.0
@@ -256,7 +256,7 @@ def _plan(
     if not may_escape:
         return failed
     # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
-    # turn on the spot first; inside the margin, failing that, leave it straight first
+    # turn away on an arc within R_min first; inside the margin, failing that, drive out first
     turned = turn_then_plan(req, failed, rest)
     if turned.ok or d_start >= d_req:
         return turned
