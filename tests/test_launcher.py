@@ -18,6 +18,7 @@ from helpers.launch_proc import (
     REPO,
     Tidelink,
     alive,
+    judged_exit,
     kill_recorded,
     processes_mentioning,
     wait_dead,
@@ -248,18 +249,19 @@ def test_services_started_elsewhere_join_before_the_clock_starts(tmp_path: Path,
 
 
 def test_launch_runs_the_auv_mission_and_plots_it(tmp_path: Path, out: Path) -> None:
-    # the default scenario (lossy network) with a nearer goal, to keep the test short
-    short = ("world.goal.x_m=42.0", "world.goal.y_m=12.0", "run.max_time_s=60.0")
-    sets = [a for s in short for a in ("--set", s)]
+    # the default mission as shipped (lossy network), at 4x: the whole mission, not a nearer
+    # goal (a goal at (42, 12) makes the planner loop on NO_PATH in realtime since the plant
+    # enforces R_min: a known defect, reported with issue 15)
+    short: tuple[str, ...] = ()
     scenario = REPO / "configs" / "default.toml"
-    with Tidelink("launch", str(scenario), "--time-scale", "4", "--out", str(out), *sets) as t:
-        assert t.wait(WAIT_S) == 0, t.stderr
+    with Tidelink("launch", str(scenario), "--time-scale", "4", "--out", str(out)) as t:
+        assert t.wait(WAIT_S) == judged_exit(out), t.stderr
     m = _metrics(out)
     summary = {k: v for k, v in m.items() if k != "link_stats"}
     assert m["end_reason"] == "goal" and m["reached_goal"] is True, f"{t.stderr}\n{summary}"
     assert m["collisions"] == 0
     cmd = m["link_stats"]["planner/cmd->vehicle"]
-    # 5 % loss on ~250 commands: none lost has a probability of about 3e-6
+    # 5 % loss on ~700 commands: none lost has a probability of about 3e-16
     assert cmd["dropped_loss"] > 0
     drops = cmd["dropped_loss"] + cmd["dropped_outage"] + cmd["dropped_queue"]
     assert cmd["sent"] == cmd["delivered"] + drops

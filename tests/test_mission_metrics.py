@@ -175,3 +175,12 @@ def test_a_turn_on_the_spot_is_above_the_bound_and_rest_is_not() -> None:
     w = np.where(i < 20, 0.2, 0.0)  # turning on the spot for 1 s, then 3 s at rest
     m = _metrics(24.0, v=v, w=w)
     assert m["time_above_curvature_limit_s"] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_the_words_survive_null_metrics() -> None:
+    # a field without obstacles writes min_clearance_m as null (infinite): the summary line
+    # of a launch must still be printed (it once raised and turned a success into exit 1)
+    m = {"outcome": "success", "reached_goal": True, "travel_time_s": None, "min_clearance_m": None}
+    assert describe(m).startswith("goal reached in 0.00 s")
+    m = {"outcome": "rho0_breach", "reached_goal": True, "rho0_breach_m": None, "rho0_m": 1.0}
+    assert "inside the safety distance rho0 = 1.0 m" in describe(m)

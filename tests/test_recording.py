@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from helpers.launch_proc import Tidelink, kill_recorded
+from helpers.launch_proc import Tidelink, judged_exit, kill_recorded
 from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, make_reader
 
@@ -69,7 +69,7 @@ def lockstep_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     args = ("launch", str(SCENARIO), "--runtime", "lockstep", "--out", str(out), "--no-plot")
     try:
         with Tidelink(*args, "--record") as t:
-            assert t.wait(WAIT_S) == 0, t.stderr
+            assert t.wait(WAIT_S) == judged_exit(out), t.stderr
             assert f"recording: {out / 'run.mcap'}" in t.stdout
         yield out
     finally:
@@ -271,7 +271,7 @@ def realtime_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealtimeR
         mid_run = launch.proc.poll() is None
         os.killpg(rec["killed"].proc.pid, signal.SIGKILL)
         rec["stopped"].signal(signal.SIGTERM)
-        assert launch.wait(WAIT_S) == 0, launch.stderr
+        assert launch.wait(WAIT_S) == judged_exit(out), launch.stderr
         for p in (rec["full"], rec["killed"], rec["stopped"], vehicle):
             p.wait(WAIT_S)
         yield RealtimeRun(out, rec["full"], rec["killed"], rec["stopped"], files, mid_run)

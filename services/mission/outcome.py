@@ -39,6 +39,12 @@ def outcome_of(m: dict[str, Any]) -> Outcome | None:
     return classify(reached_goal=bool(m.get("reached_goal")), contact=contact, below_rho0=True)
 
 
+def _num(m: dict[str, Any], key: str, default: float = float("nan")) -> float:
+    """A numeric metric, `default` when missing or null (a run cut short has no value)."""
+    v = m.get(key)
+    return default if v is None else float(v)
+
+
 def describe(m: dict[str, Any]) -> str:
     """The outcome in words, e.g. "goal reached, but 0.33 m inside the safety distance rho0
     = 1.0 m for 2.1 s (min clearance 0.67 m)"; "" if the mission does not judge runs."""
@@ -49,8 +55,8 @@ def describe(m: dict[str, Any]) -> str:
         rho0 = m.get("rho0_m")
         kept = "" if rho0 is None else f", never inside the safety distance rho0 = {float(rho0)} m"
         return (
-            f"goal reached in {m.get('travel_time_s') or 0.0:.2f} s{kept} "
-            f"(min clearance {m.get('min_clearance_m', float('nan')):.2f} m)"
+            f"goal reached in {_num(m, 'travel_time_s', 0.0):.2f} s{kept} "
+            f"(min clearance {_num(m, 'min_clearance_m'):.2f} m)"
         )
     if outcome == "rho0_breach":
         return "goal reached, but " + _inside_rho0(m)
@@ -58,7 +64,7 @@ def describe(m: dict[str, Any]) -> str:
     if outcome == "collision":
         first = m.get("first_contact_t_s")
         contact = f"contact at t={first:.2f} s " if first is not None else "contact "
-        contact += f"(min clearance {m['min_clearance_m']:.3g} m)"
+        contact += f"(min clearance {_num(m, 'min_clearance_m'):.3g} m)"
         if m.get("time_in_contact_s") is not None:
             contact += f", in contact for {m['time_in_contact_s']:.2f} s"
         why.append(contact)
@@ -78,6 +84,6 @@ def _inside_rho0(m: dict[str, Any]) -> str:
     rho0 = m.get("rho0_m")
     what = "the safety distance" + ("" if rho0 is None else f" rho0 = {float(rho0)} m")
     return (
-        f"{m['rho0_breach_m']:.2f} m inside {what} for {m.get('time_below_rho0_s', 0.0):.1f} s "
-        f"(min clearance {m['min_clearance_m']:.2f} m)"
+        f"{_num(m, 'rho0_breach_m'):.2f} m inside {what} for "
+        f"{_num(m, 'time_below_rho0_s', 0.0):.1f} s (min clearance {_num(m, 'min_clearance_m'):.2f} m)"
     )

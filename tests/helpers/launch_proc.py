@@ -178,3 +178,14 @@ def kill_recorded(pid_file: Path) -> None:
                     os.killpg(pid, signal.SIGKILL)
                 except (ProcessLookupError, PermissionError):
                     pass
+
+
+def judged_exit(out: Path) -> int:
+    """The exit code a finished `run`/`launch` owes its metrics.json: 0 when the mission
+    succeeded, 3 when it was judged failed (contact, inside rho0, goal not reached). For tests
+    whose subject is not the mission's outcome (recording, monitoring, placement): they check
+    that the run ended as its own metrics say, whichever way the mission went."""
+    import json
+
+    m = json.loads((out / "metrics.json").read_text())
+    return 0 if m.get("success", True) else 3
