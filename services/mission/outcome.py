@@ -85,5 +85,6 @@ def _inside_rho0(m: dict[str, Any]) -> str:
     what = "the safety distance" + ("" if rho0 is None else f" rho0 = {float(rho0)} m")
     return (
         f"{_num(m, 'rho0_breach_m'):.2f} m inside {what} for "
-        f"{_num(m, 'time_below_rho0_s', 0.0):.1f} s (min clearance {_num(m, 'min_clearance_m'):.2f} m)"
+        f"{_num(m, 'time_below_rho0_s', 0.0):.1f} s "
+        f"(min clearance {_num(m, 'min_clearance_m'):.2f} m)"
     )
