@@ -41,6 +41,7 @@ def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
     assert {r["case"] for r in res.sweep.rows} == {c.label for c in CASES}
     comp = {r["case"]: r for r in res.sweep.rows if r["controller"] == "backstepping"}
     assert res.tuning is not None and set(res.tuning.best) == {"nurbs", "backstepping", "fuzzy_pid"}
+    assert res.tuning.rounds == dict.fromkeys(TUNED_GAINS, 1)
     chosen = json.loads((tmp_path / "runs" / "tuning" / "chosen.json").read_text())
     assert chosen["seeds"] == [101] and set(chosen["chosen"]) == set(TUNED_GAINS)
     assert res.report == tmp_path / "report" / "REPORT.md"
@@ -74,10 +75,10 @@ def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
 def test_the_gain_grid_is_the_same_for_every_controller() -> None:
     s, _ = load_scenario(SMALL)
     box = Box()
-    grid = [candidate_gains(s, pt, 2.0) for pt in box.points()]
-    assert len(grid) == 9
-    base = candidate_gains(s, (0, 0), 2.0)
     for ctrl, (a, b) in TUNED_GAINS.items():
+        grid = [candidate_gains(s, ctrl, pt, 2.0) for pt in box.points()]
+        assert len(grid) == 9 and all(set(g) == {a, b} for g in grid)  # its own gains only
+        base = candidate_gains(s, ctrl, (0, 0), 2.0)
         ratios = sorted((g[a] / base[a], g[b] / base[b]) for g in grid)
         assert ratios == sorted((fa, fb) for fa in (0.5, 1.0, 2.0) for fb in (0.5, 1.0, 2.0)), ctrl
 

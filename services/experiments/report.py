@@ -60,7 +60,7 @@ class ReportInputs:
     crossing: str = ""  # the crossing scenario, "" when not run
     tuning: Tuning | None = None
     tune_step: float = 2.0
-    tune_limit: int = 4
+    tune_limit: int = 6
     tune_seeds: list[int] = field(default_factory=list)
     same_first_plan: dict[str, bool] = field(default_factory=dict)
     replan: bool = False  # whether the planner could replan (else the first plan is kept)
@@ -110,35 +110,38 @@ def _gains_section(inp: ReportInputs) -> list[str]:
             "The scenario's gains for all three controllers (no search was run: "
             "`--no-tune`; by default `tidelink reproduce` runs the same search for each)."
         ]
-    box: Box = t.box
+    step = inp.tune_step
     lines = [
         "Chosen by the same search for every controller (services/experiments/tuning.py): its "
-        "two principal path-following gains, each scaled by powers of "
-        f"{inp.tune_step:g} around the scenario's values, on a perfect network, tuning seeds "
-        f"{inp.tune_seeds} (disjoint from the evaluation seeds), with the comparison's pipeline "
-        "and speed profile. Rule: highest success rate (goal, no contact, never inside rho0), "
-        "then lowest RMS cross-track error to the path in force (the controller's own tracking "
-        "error), then shortest travel time. The grid started at factors "
-        f"{_factor(-1, inp.tune_step)}..{_factor(1, inp.tune_step)} and was widened for all "
-        "controllers alike wherever a choice lay on its edge "
-        f"({t.rounds} rounds; final factors a: {_factor(box.a_lo, inp.tune_step)}.."
-        f"{_factor(box.a_hi, inp.tune_step)}, b: {_factor(box.b_lo, inp.tune_step)}.."
-        f"{_factor(box.b_hi, inp.tune_step)}; limit {_factor(-inp.tune_limit, inp.tune_step)}.."
-        f"{_factor(inp.tune_limit, inp.tune_step)}).",
+        f"two principal path-following gains, each scaled by powers of {step:g} around the "
+        f"scenario's values, on a perfect network, tuning seeds {inp.tune_seeds} (disjoint "
+        "from the evaluation seeds), with the comparison's pipeline and speed profile. Rule: "
+        "highest success rate (goal, no contact, never inside rho0), then lowest RMS "
+        "cross-track error to the path in force (the controller's own tracking error), then "
+        "shortest travel time. Each grid starts at factors "
+        f"{_factor(-1, step)}..{_factor(1, step)} and grows in any direction where the "
+        "choice lies on its edge, up to "
+        f"{_factor(-inp.tune_limit, step)}..{_factor(inp.tune_limit, step)}; a point the "
+        "configuration refuses (e.g. a gain below its validated minimum) counts as no run.",
         "",
-        "| controller | gains searched | candidates | chosen | interior? | success | "
-        "XTE to path in force, RMS (m) |",
-        "|---|---|---|---|---|---|---|",
+        "| controller | gains searched | rounds | final grid (factors a; b) | candidates run | "
+        "chosen | interior? | success | XTE to path in force, RMS (m) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for ctrl, best in t.best.items():
-        n = sum(1 for c in t.candidates if c.controller == ctrl)
+        box: Box = t.boxes[ctrl]
+        n = sum(1 for c in t.candidates if c.controller == ctrl and c.runs)
         gains = ", ".join(f"`{k.rsplit('.', 1)[-1]}` = {v:.4g}" for k, v in best.gains.items())
         searched = ", ".join(k.rsplit(".", 1)[-1] for k in TUNED_GAINS[ctrl])
+        grid = (
+            f"{_factor(box.a_lo, step)}..{_factor(box.a_hi, step)}; "
+            f"{_factor(box.b_lo, step)}..{_factor(box.b_hi, step)}"
+        )
         edges = box.edges(best)
         interior = "yes" if not edges else f"no: {', '.join(edges)} at the search limit"
         lines.append(
-            f"| {NAMES[ctrl]} | {searched} | {n} | {best.label}: {gains} | {interior} | "
-            f"{100 * best.success_rate:.0f} % | {best.xte_rms_m:.3f} |"
+            f"| {NAMES[ctrl]} | {searched} | {t.rounds[ctrl]} | {grid} | {n} | {best.label}: "
+            f"{gains} | {interior} | {100 * best.success_rate:.0f} % | {best.xte_rms_m:.3f} |"
         )
     return lines
 

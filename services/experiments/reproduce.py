@@ -101,7 +101,7 @@ class ReproduceOptions:
     tune_first_seed: int = 101  # disjoint from the evaluation seeds
     tune_box: Box = Box()  # the first box of the search (exponents of tune_step)
     tune_step: float = 2.0
-    tune_limit: int = 4  # the box never goes beyond factors tune_step**-4 .. tune_step**4
+    tune_limit: int = 6  # a box never goes beyond factors tune_step**-6 .. tune_step**6
     replan: bool = False  # False: every controller follows the first plan (the paper's setup)
     rich: bool | None = None
     command: str = ""
@@ -121,12 +121,12 @@ class ReproduceResult:
 
 @dataclass(frozen=True, kw_only=True)
 class Tuning:
-    """The outcome of the gain search: every candidate, the choices and the final box."""
+    """The outcome of the gain search: every candidate, the choices, each final box."""
 
     best: dict[str, Candidate]
     candidates: list[Candidate]
-    box: Box
-    rounds: int
+    boxes: dict[str, Box]
+    rounds: dict[str, int]
 
 
 def _sweep(opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = False) -> SweepReport:
@@ -150,33 +150,44 @@ def _base_overrides(opts: ReproduceOptions) -> dict[str, SetValue]:
 
 
 def tune(opts: ReproduceOptions) -> Tuning:
-    """The gain search (tuning.py): run the box, widen it while a choice lies on its edge.
-
-    Each round runs only the points not yet run (the sweep resumes in DIR/tuning)."""
+    """The gain search (tuning.py), the same procedure for each controller: run its box,
+    widen it while its choice lies on the edge. Each round runs only the points not yet run
+    (the sweep resumes in DIR/tuning/<controller>)."""
     scenario, _ = load_scenario(opts.scenario)
-    box, rounds = opts.tune_box, 0
-    while True:
-        rounds += 1
-        exp = tuning_experiment(
-            str(opts.scenario.resolve()),
-            scenario,
-            box=box,
-            step=opts.tune_step,
-            seeds=opts.tune_seeds,
-            first_seed=opts.tune_first_seed,
-            extra=_base_overrides(opts),
-        )
-        rep = _sweep(opts, exp, opts.out / "tuning")
-        candidates = score(rep.rows, exp, box, opts.tune_step)
-        best = choose(candidates)
-        wider = box.widened(best, opts.tune_limit)
-        if wider is None:
-            break
-        print(f"reproduce: a choice lies on the edge of the gain grid: widening it to {wider}")
-        box = wider
+    best: dict[str, Candidate] = {}
+    candidates: list[Candidate] = []
+    boxes: dict[str, Box] = {}
+    rounds: dict[str, int] = {}
+    for ctrl in CONTROLLERS:
+        box, n = opts.tune_box, 0
+        while True:
+            n += 1
+            exp = tuning_experiment(
+                str(opts.scenario.resolve()),
+                scenario,
+                ctrl,
+                box=box,
+                step=opts.tune_step,
+                seeds=opts.tune_seeds,
+                first_seed=opts.tune_first_seed,
+                extra=_base_overrides(opts),
+            )
+            rep = _sweep(opts, exp, opts.out / "tuning" / ctrl)
+            scored = score(rep.rows, exp, ctrl, box, opts.tune_step)
+            choice = choose(scored)
+            wider = box.widened(choice, opts.tune_limit)
+            if wider is None:
+                break
+            print(
+                f"reproduce: {ctrl}'s choice lies on the edge of its gain grid: widening to {wider}"
+            )
+            box = wider
+        best |= choice
+        candidates += scored
+        boxes[ctrl], rounds[ctrl] = box, n
     seeds = list(range(opts.tune_first_seed, opts.tune_first_seed + opts.tune_seeds))
-    save_choice(opts.out / "tuning" / "chosen.json", best, box, opts.tune_step, seeds)
-    return Tuning(best=best, candidates=candidates, box=box, rounds=rounds)
+    save_choice(opts.out / "tuning" / "chosen.json", best, boxes, opts.tune_step, seeds)
+    return Tuning(best=best, candidates=candidates, boxes=boxes, rounds=rounds)
 
 
 def comparison_experiment(opts: ReproduceOptions, gains: dict[str, SetValue]) -> Experiment:

@@ -2,18 +2,18 @@
 
 Every controller gets the same procedure: its two principal path-following gains, each
 scaled by powers of one step (x2 by default) around the scenario's values, run on a perfect
-network with seeds disjoint from the evaluation seeds. It starts with the 3 x 3 box of
-factors 1/2, 1, 2 and widens the box, for every controller alike, in each direction where
-some controller's choice lies on its edge, until every choice is interior or the box reaches
-the search limit (factors 1/16 to 16 by default): a choice on the edge of its grid says only
-that the grid was too small. The chosen candidate has the highest success rate (goal
-reached, no contact, never inside rho0), then the lowest RMS cross-track error to the path
-in force at each moment, then the shortest travel time. The error to the path in force is
-the controller's own tracking error; the error to the first ("optimal") plan, which the
-report judges accuracy by, also counts the planner's decision to re-route around an
-obstacle on its other side, which one or two tuning seeds make a noisy criterion. No
-candidate is chosen to make a baseline fail: the baselines get exactly the search the NURBS
-tracker gets.
+network with seeds disjoint from the evaluation seeds, each run setting only that
+controller's gains. Each controller's search starts with the 3 x 3 box of factors 1/2, 1, 2
+and widens its box in each direction where its choice lies on the edge, until the choice is
+interior or the box reaches the search limit (factors 1/64 to 64 by default): a choice on
+the edge of its grid says only that the grid was too small. The chosen candidate has the
+highest success rate (goal reached, no contact, never inside rho0), then the lowest RMS
+cross-track error to the path in force at each moment, then the shortest travel time. The
+error to the path in force is the controller's own tracking error; the error to the first
+("optimal") plan, which the report judges accuracy by, also counts the planner's decision to
+re-route around an obstacle on its other side, which one or two tuning seeds make a noisy
+criterion. No candidate is chosen to make a baseline fail: the baselines get exactly the
+search the NURBS tracker gets.
 """
 
 from __future__ import annotations
@@ -119,19 +119,19 @@ def point_label(point: Point, step: float) -> str:
     return f"a{step ** point[0]:g}_b{step ** point[1]:g}"
 
 
-def candidate_gains(scenario: Scenario, point: Point, step: float) -> dict[str, float]:
-    """A point of the grid: every controller's pair scaled by (step**i_a, step**i_b)."""
-    fa, fb = step ** point[0], step ** point[1]
-    g: dict[str, float] = {}
-    for a, b in TUNED_GAINS.values():
-        g[a] = fa * gain_value(scenario, a)
-        g[b] = fb * gain_value(scenario, b)
-    return g
+def candidate_gains(scenario: Scenario, ctrl: str, point: Point, step: float) -> dict[str, float]:
+    """A point of a controller's grid: its pair scaled by (step**i_a, step**i_b)."""
+    a, b = TUNED_GAINS[ctrl]
+    return {
+        a: step ** point[0] * gain_value(scenario, a),
+        b: step ** point[1] * gain_value(scenario, b),
+    }
 
 
 def tuning_experiment(
     scenario_path: str,
     scenario: Scenario,
+    ctrl: ControllerKind,
     *,
     box: Box,
     step: float,
@@ -139,61 +139,58 @@ def tuning_experiment(
     first_seed: int,
     extra: dict[str, SetValue] | None = None,
 ) -> Experiment:
-    """The search as a sweep: axis 'gains' (the box's points) x controllers, perfect network.
+    """One controller's search as a sweep: axis 'gains' (the box's points), perfect network.
 
-    `extra` are overrides for every run (the comparison's planning mode and pipeline).
-    """
+    Each run sets only that controller's gains (another's limits never refuse a point of
+    this one's grid); `extra` are overrides for every run (the comparison's pipeline)."""
     values = tuple(
-        AxisValue(label=point_label(pt, step), set=dict(candidate_gains(scenario, pt, step)))
+        AxisValue(label=point_label(pt, step), set=dict(candidate_gains(scenario, ctrl, pt, step)))
         for pt in box.points()
     )
     return Experiment(
-        name="tune",
+        name=f"tune-{ctrl}",
         scenario=scenario_path,
         seeds=seeds,
         first_seed=first_seed,
-        controllers=CONTROLLERS,
+        controllers=(ctrl,),
         set={**PERFECT_NETWORK, **(extra or {})},
         axes=(Axis(name="gains", values=values, x_label="gain factors (a, b)"),),
     )
 
 
-def score(rows: list[dict[str, str]], exp: Experiment, box: Box, step: float) -> list[Candidate]:
-    """Every (controller, point of the box) with its success rate, mean xte and travel time;
-    `exp` is the tuning experiment of the box (its 'gains' axis holds each point's gains)."""
+def score(
+    rows: list[dict[str, str]], exp: Experiment, ctrl: str, box: Box, step: float
+) -> list[Candidate]:
+    """Every point of one controller's box with its success rate, mean xte and travel time;
+    `exp` is its tuning experiment (the 'gains' axis holds each point's gains)."""
     sets = {v.label: v.set for v in exp.axes[0].values}
+    keys = TUNED_GAINS[ctrl]
     out = []
-    for ctrl in CONTROLLERS:
-        keys = TUNED_GAINS[ctrl]
-        for pt in box.points():
-            label = point_label(pt, step)
-            gains = sets[label]
-            rs = [
-                r
-                for r in rows
-                if r.get("controller") == ctrl
-                and r.get("gains") == label
-                and r.get("status") == "ok"
-            ]
-            succ = [as_number(r.get("success")) for r in rs]
-            xte = [as_number(r.get(TUNING_XTE)) for r in rs]
-            tt = [
-                as_number(r.get("travel_time_s"))
-                for r in rs
-                if as_number(r.get("reached_goal")) == 1.0
-            ]
-            out.append(
-                Candidate(
-                    controller=ctrl,
-                    label=label,
-                    point=pt,
-                    gains={k: _number(gains[k]) for k in keys},
-                    runs=len(rs),
-                    success_rate=_mean(succ),
-                    xte_rms_m=_mean(xte),
-                    travel_time_s=_mean(tt),
-                )
+    for pt in box.points():
+        label = point_label(pt, step)
+        gains = sets[label]
+        rs = [
+            r
+            for r in rows
+            if r.get("controller") == ctrl and r.get("gains") == label and r.get("status") == "ok"
+        ]
+        succ = [as_number(r.get("success")) for r in rs]
+        xte = [as_number(r.get(TUNING_XTE)) for r in rs]
+        tt = [
+            as_number(r.get("travel_time_s")) for r in rs if as_number(r.get("reached_goal")) == 1.0
+        ]
+        out.append(
+            Candidate(
+                controller=ctrl,
+                label=label,
+                point=pt,
+                gains={k: _number(gains[k]) for k in keys},
+                runs=len(rs),
+                success_rate=_mean(succ),
+                xte_rms_m=_mean(xte),
+                travel_time_s=_mean(tt),
             )
+        )
     return out
 
 
@@ -236,19 +233,19 @@ def chosen_set(best: dict[str, Candidate]) -> dict[str, SetValue]:
 
 
 def save_choice(
-    path: Path, best: dict[str, Candidate], box: Box, step: float, seeds: list[int]
+    path: Path, best: dict[str, Candidate], boxes: dict[str, Box], step: float, seeds: list[int]
 ) -> None:
-    """DIR/tuning/chosen.json: the search box, the seeds and each controller's choice."""
+    """DIR/tuning/chosen.json: each controller's final box and choice, and the seeds."""
     doc = {
         "step": step,
-        "box": {"a": [box.a_lo, box.a_hi], "b": [box.b_lo, box.b_hi]},
         "seeds": seeds,
         "chosen": {
             k: {
                 "label": c.label,
                 "point": list(c.point),
+                "box": {"a": [boxes[k].a_lo, boxes[k].a_hi], "b": [boxes[k].b_lo, boxes[k].b_hi]},
                 "gains": c.gains,
-                "on_edge": box.edges(c),
+                "on_edge": boxes[k].edges(c),
                 "success_rate": c.success_rate,
                 TUNING_XTE: c.xte_rms_m,
             }
