@@ -23,12 +23,13 @@ from collections.abc import Callable
 import numpy as np
 
 from common.config.vehicle import VehicleConfig
+from common.control import Applied, Schedule
 from common.messages import TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
 from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
-from services.vehicle.watchdog import Applied, Schedule, Verdict, Watchdog
+from services.vehicle.watchdog import Verdict, Watchdog
 
 log = logging.getLogger("tidelink.vehicle")
 

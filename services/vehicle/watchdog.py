@@ -34,89 +34,25 @@ runtime clock; t_last = t_n, the start of the last entry, = stamp for a single c
   bounded, see WatchdogConfig);
 - from t_fail = t_last + failsafe_after_s the mode is FAILSAFE (same motion) until a fresh
   command.
+The command in force is kept as its Schedule (common/control/schedule.py), which the planner
+uses too, to model what the vehicle applies from the commands it has sent.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Literal, get_args
 
 from common.config.vehicle import WatchdogConfig
-from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS, VehicleMode
-from services.vehicle.delay import DelayMeter
+from common.control import Applied, DelayMeter, Schedule
+from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS
 
 Rejection = Literal[
     "non_finite", "wrong_source", "future", "malformed", "too_long", "out_of_order", "stale"
 ]
 Verdict = Literal["applied", Rejection]
 REJECTIONS: tuple[Rejection, ...] = get_args(Rejection)
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Applied:
-    """What the vehicle applies at one instant: mode, command (v, w) and command age."""
-
-    mode: VehicleMode
-    v: float
-    w: float
-    age_s: float
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Schedule:
-    """The command as a function of time until the next accepted command (immutable).
-
-    Before any command: IDLE, (0, 0). Then RUN with entry k, (vs[k], ws[k]), from starts[k]
-    (entry 0 also before its start) until t_hold, then HOLD from the last entry: the speed
-    command falls to v_floor at `decel` (inf: at once), w = 0 (FAILSAFE from t_fail). The
-    plant integrator keeps these per time window and splits its steps at the entry starts and
-    the mode changes (transitions_between), so a command's effect does not depend on when the
-    plant happens to be integrated.
-    """
-
-    starts: tuple[float, ...] = ()  # starts[k] = stamp + k * step_s; () before any command
-    vs: tuple[float, ...] = ()  # (n + 1,) clamped surge speeds (m/s)
-    ws: tuple[float, ...] = ()  # (n + 1,) clamped yaw rates (rad/s)
-    t_hold: float = math.inf  # starts[-1] + hold_after_s
-    t_fail: float = math.inf  # starts[-1] + failsafe_after_s
-    decel: float = 0.0
-    v_floor: float = 0.0
-
-    @property
-    def stamp(self) -> float | None:
-        """The stamp of the command this schedule comes from (None before any)."""
-        return self.starts[0] if self.starts else None
-
-    def at(self, t: float) -> Applied:
-        """The command in force at time t (held constant over an integration step from t)."""
-        if not self.starts:
-            return Applied(mode="IDLE", v=0.0, w=0.0, age_s=0.0)
-        # the entry that started last, at t (entry 0 also before its start)
-        k = max(0, bisect_right(self.starts, t) - 1) if len(self.starts) > 1 else 0
-        # the age of the entry in force; one from the future (clock skew) counts as fresh
-        age = max(0.0, t - self.starts[k])
-        if t < self.t_hold:
-            return Applied(mode="RUN", v=self.vs[k], w=self.ws[k], age_s=age)
-        # HOLD / FAILSAFE (k = n: t_hold is past the last start): lower the commanded speed
-        # from the last entry's, hold the heading (w = 0); an infinite rate drops it at once
-        # (inf * 0 would be NaN at t_hold itself)
-        v_last = self.vs[-1]
-        drop = math.inf if math.isinf(self.decel) else self.decel * (t - self.t_hold)
-        v = min(v_last, max(self.v_floor, v_last - drop))
-        mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
-        return Applied(mode=mode, v=v, w=0.0, age_s=age)
-
-    def transitions_between(self, t_a: float, t_b: float) -> list[float]:
-        """The times in (t_a, t_b) at which this schedule changes by itself: the starts of
-        entries 1..n, t_hold and t_fail."""
-        out = [x for x in (self.t_hold, self.t_fail) if t_a < x < t_b]
-        if len(self.starts) > 1:
-            i = max(1, bisect_right(self.starts, t_a))
-            out.extend(self.starts[i : bisect_left(self.starts, t_b)])
-        return out
 
 
 class Watchdog:
@@ -183,16 +119,7 @@ class Watchdog:
         if vs != (v, *v_next) or ws != (w, *w_next):
             self.clamped += 1
         self.applied += 1
-        starts = tuple(stamp + k * step_s for k in range(len(vs)))
-        self.schedule = Schedule(
-            starts=starts,
-            vs=vs,
-            ws=ws,
-            t_hold=starts[-1] + self._cfg.hold_after_s,
-            t_fail=starts[-1] + self._cfg.failsafe_after_s,
-            decel=self._cfg.hold_decel_mps2 or math.inf,  # 0: at once
-            v_floor=max(0.0, self._v_bounds[0]),
-        )
+        self.schedule = Schedule.of_command(stamp, step_s, vs, ws, self._cfg, self._v_bounds[0])
         return "applied"
 
     def _judge(

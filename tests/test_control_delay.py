@@ -1,11 +1,12 @@
-"""The vehicle's delay meter: median and MAD jitter of the last commands' delays."""
+"""The one-way delay meter (both ends of the command link): median and MAD jitter of the last
+delays."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from services.vehicle.delay import DelayMeter
+from common.control.delay import DelayMeter
 
 
 def test_a_constant_delay_is_measured_exactly_from_the_first_sample() -> None:

@@ -1,6 +1,8 @@
-"""The one-way delay the vehicle observes on commands: a running median and a robust jitter.
+"""The one-way delay a receiver observes on a stream: a running median and a robust jitter.
 
-Each sample is d = t_delivered - stamp (mission time). Over the last `window` samples:
+The vehicle measures it on commands (and reports it in its status); the planner on its
+estimate input (so that staleness is age beyond the delay it knows). Each sample is
+d = t_delivered - stamp (mission time). Over the last `window` samples:
 - delay  = median(d)
 - jitter = 1.4826 * median(|d - delay|)   (MAD; 1.4826 makes it the standard deviation of
   normal jitter, the consistency constant 1 / Phi^-1(3/4))

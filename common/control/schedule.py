@@ -1,0 +1,108 @@
+"""What a vehicle applies from one command: its entries in turn, then HOLD, then FAILSAFE.
+
+Both ends of the command link use it: the vehicle's watchdog (services/vehicle/watchdog.py)
+runs the schedule of the command in force, and the planner models with the same schedule
+what the vehicle will apply from the commands it has sent (services/planner/timeline.py), so
+the two cannot disagree on what a sequence means. A command carries entries k = 0..n (n = 0:
+a single command), entry k in force from stamp + k * step_s (packet-based predictive
+control); HOLD counts from the start of the last entry (hold_after_s), FAILSAFE likewise
+(failsafe_after_s); the rules are in the watchdog's docstring.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_left, bisect_right
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from common.config.vehicle import WatchdogConfig
+from common.messages import VehicleMode
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Applied:
+    """What the vehicle applies at one instant: mode, command (v, w) and command age."""
+
+    mode: VehicleMode
+    v: float
+    w: float
+    age_s: float
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Schedule:
+    """The command as a function of time until the next accepted command (immutable).
+
+    Before any command: IDLE, (0, 0). Then RUN with entry k, (vs[k], ws[k]), from starts[k]
+    (entry 0 also before its start) until t_hold, then HOLD from the last entry: the speed
+    command falls to v_floor at `decel` (inf: at once), w = 0 (FAILSAFE from t_fail). The
+    plant integrator keeps these per time window and splits its steps at the entry starts and
+    the mode changes (transitions_between), so a command's effect does not depend on when the
+    plant happens to be integrated.
+    """
+
+    starts: tuple[float, ...] = ()  # starts[k] = stamp + k * step_s; () before any command
+    vs: tuple[float, ...] = ()  # (n + 1,) clamped surge speeds (m/s)
+    ws: tuple[float, ...] = ()  # (n + 1,) clamped yaw rates (rad/s)
+    t_hold: float = math.inf  # starts[-1] + hold_after_s
+    t_fail: float = math.inf  # starts[-1] + failsafe_after_s
+    decel: float = 0.0
+    v_floor: float = 0.0
+
+    @property
+    def stamp(self) -> float | None:
+        """The stamp of the command this schedule comes from (None before any)."""
+        return self.starts[0] if self.starts else None
+
+    def at(self, t: float) -> Applied:
+        """The command in force at time t (held constant over an integration step from t)."""
+        if not self.starts:
+            return Applied(mode="IDLE", v=0.0, w=0.0, age_s=0.0)
+        # the entry that started last, at t (entry 0 also before its start)
+        k = max(0, bisect_right(self.starts, t) - 1) if len(self.starts) > 1 else 0
+        # the age of the entry in force; one from the future (clock skew) counts as fresh
+        age = max(0.0, t - self.starts[k])
+        if t < self.t_hold:
+            return Applied(mode="RUN", v=self.vs[k], w=self.ws[k], age_s=age)
+        # HOLD / FAILSAFE (k = n: t_hold is past the last start): lower the commanded speed
+        # from the last entry's, hold the heading (w = 0); an infinite rate drops it at once
+        # (inf * 0 would be NaN at t_hold itself)
+        v_last = self.vs[-1]
+        drop = math.inf if math.isinf(self.decel) else self.decel * (t - self.t_hold)
+        v = min(v_last, max(self.v_floor, v_last - drop))
+        mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
+        return Applied(mode=mode, v=v, w=0.0, age_s=age)
+
+    def transitions_between(self, t_a: float, t_b: float) -> list[float]:
+        """The times in (t_a, t_b) at which this schedule changes by itself: the starts of
+        entries 1..n, t_hold and t_fail."""
+        out = [x for x in (self.t_hold, self.t_fail) if t_a < x < t_b]
+        if len(self.starts) > 1:
+            i = max(1, bisect_right(self.starts, t_a))
+            out.extend(self.starts[i : bisect_left(self.starts, t_b)])
+        return out
+
+    @classmethod
+    def of_command(
+        cls,
+        stamp: float,
+        step_s: float,
+        vs: Sequence[float],
+        ws: Sequence[float],
+        cfg: WatchdogConfig,
+        v_min: float,
+    ) -> Schedule:
+        """The schedule of a command stamped `stamp` with entries (vs[k], ws[k]) every step_s
+        (already within the eq. (11) bounds), under the watchdog settings cfg and the
+        vehicle's least speed v_min (the HOLD floor is max(0, v_min))."""
+        starts = tuple(stamp + k * step_s for k in range(len(vs)))
+        return cls(
+            starts=starts,
+            vs=tuple(vs),
+            ws=tuple(ws),
+            t_hold=starts[-1] + cfg.hold_after_s,
+            t_fail=starts[-1] + cfg.failsafe_after_s,
+            decel=cfg.hold_decel_mps2 or math.inf,  # 0: at once
+            v_floor=max(0.0, v_min),
+        )
