@@ -39,10 +39,11 @@ class PathArcReference:
         self._yl: list[float] = self._y.tolist()
         self._headingl: list[float] = self._heading.tolist()
         self._kl: list[float] = self._k.tolist()
+        self._length = path.length
 
     @property
     def length(self) -> float:
-        return self.path.length
+        return self._length
 
     @property
     def v_ref(self) -> float:
