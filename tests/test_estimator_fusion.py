@@ -11,9 +11,17 @@ from hypothesis import strategies as st
 
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
-from common.messages import Detection, Message, NavFix, ObstacleDetections, TruthState
+from common.messages import (
+    Detection,
+    Message,
+    NavFix,
+    ObstacleDetections,
+    StateEstimate,
+    TruthState,
+)
 from common.runtime.model.core import Delivery
 from services.estimator import EstimatorCore
+from services.planner.controllers import predict_pose
 from services.sensor.models import nav_fix
 
 START = (5.0, 20.0, 0.0)
@@ -177,3 +185,20 @@ def test_estimate_is_predicted_to_step_time() -> None:
     truth6 = _truth(6.0)
     assert math.hypot(x6[0] - truth6.x, x6[1] - truth6.y) < 0.3
     assert x6[5] > x5[5]  # var(x) grew
+
+
+def test_an_estimate_says_how_far_it_was_carried_past_its_newest_fix() -> None:
+    # the planner goes back along that arc to the fix and predicts from there with the
+    # commands it sent (issue 16): a late fix is old information whatever the stamp says
+    core = EstimatorCore(EstimatorConfig(), START)
+    state = core.step(0.5)[0].msg
+    assert isinstance(state, StateEstimate) and state.predicted_s == 0.0  # no fix yet
+    for f in _fixes(31):  # up to 3.0 s
+        _deliver(core, f, f.stamp + 1.0)  # each a second late
+    state = core.step(4.0)[0].msg
+    assert isinstance(state, StateEstimate)
+    assert (state.stamp, state.predicted_s) == (4.0, pytest.approx(1.0))
+    # going back by predicted_s at its constant twist lands on the fused state at the fix
+    x, y, *_ = predict_pose((state.x, state.y, state.theta, state.v, state.w), -state.predicted_s)
+    fused = core.nav.state.x
+    assert (x, y) == pytest.approx((fused[0], fused[1]), abs=1e-3)

@@ -68,7 +68,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     Message: {"stamp": FINITE, "sent": FINITE, "seq": COUNT, "source": TEXT},
     NavFix: {"std_xy": NONNEG, "std_heading": NONNEG, "std_speed": NONNEG},
     Detection: {"id": COUNT, "radius": NONNEG, "std_xy": NONNEG, "std_radius": NONNEG},
-    StateEstimate: {"covariance": _cov(5)},
+    StateEstimate: {"covariance": _cov(5), "predicted_s": NONNEG},
     Track: {"id": COUNT, "radius": NONNEG, "covariance": _cov(6)},
     VelocityCommand: {"path_id": COUNT},
     VehicleStatus: {

@@ -9,7 +9,9 @@ from typing import Any
 
 import msgspec
 
-WIRE_VERSION = 5  # 5: VelocityCommand's future entries, VehicleStatus's delay figures
+# 5: VelocityCommand's future entries, VehicleStatus's delay figures; 6: StateEstimate's
+# predicted_s (how far the estimate was carried past its newest fix)
+WIRE_VERSION = 6
 
 
 class WireError(ValueError):

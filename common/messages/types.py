@@ -64,7 +64,14 @@ class ObstacleDetections(Message, frozen=True, kw_only=True):
 
 
 class StateEstimate(Message, frozen=True, kw_only=True):
-    """The estimated vehicle state (x, y, theta, v, w) and its 5x5 covariance, row-major."""
+    """The estimated vehicle state (x, y, theta, v, w) at `stamp` and its 5x5 covariance,
+    row-major.
+
+    `predicted_s` says how far the estimator carried its newest fused fix forward to `stamp`
+    (at constant speed and yaw rate, eq. (7)): the information in the estimate is that old on
+    top of its own age, and a receiver that knows more of the motion since (the commands
+    sent) can go back along that arc to the fix and predict from there. 0 before any fix.
+    """
 
     x: float
     y: float
@@ -72,9 +79,11 @@ class StateEstimate(Message, frozen=True, kw_only=True):
     v: float
     w: float
     covariance: tuple[float, ...]
+    predicted_s: float = 0.0  # s, >= 0
 
     def validate(self) -> None:
         _check_cov("covariance", self.covariance, 5)
+        check_range("predicted_s", self.predicted_s, 0.0)
 
 
 class Track(WireRecord, frozen=True, kw_only=True):

@@ -58,7 +58,8 @@ class VehicleBelief:
 
 class EstimatorCore:
     """Vehicle EKF/UKF over (prefiltered) fixes and per-id obstacle tracks, all fused at their
-    sampling stamps with roll-back for late arrivals; outputs are predicted to the step time.
+    sampling stamps with roll-back for late arrivals; outputs are predicted to the step time
+    (the state estimate says how far past its newest fix: predicted_s).
 
     Every input is judged first (common.guard): a stamp from the future or from long ago, a
     position outside the world, a speed or noise figure no sensor gives, a scan of more
@@ -194,25 +195,28 @@ class EstimatorCore:
             )
         return why
 
-    def belief_at(self, t: float) -> tuple[FloatArray, FloatArray]:
+    def belief_at(self, t: float) -> tuple[FloatArray, FloatArray, float]:
         """The vehicle belief (x, P) predicted from the last fused fix to time t (at most
-        MAX_PREDICT_S ahead; the fused belief itself if the prediction is not finite)."""
+        MAX_PREDICT_S ahead; the fused belief itself if the prediction is not finite), and
+        how far it was predicted (s)."""
         b = self.nav.state
         if b.stamp is None:
-            return b.x.copy(), b.P.copy()
+            return b.x.copy(), b.P.copy(), 0.0
+        dt = max(0.0, min(t - b.stamp, MAX_PREDICT_S))
         try:
-            x, P = self._filter.predict(b.x, b.P, min(t - b.stamp, MAX_PREDICT_S))
+            x, P = self._filter.predict(b.x, b.P, dt)
         except NUMERIC_ERRORS:
-            return b.x.copy(), b.P.copy()
+            return b.x.copy(), b.P.copy(), 0.0
         if not healthy(x, P):
-            return b.x.copy(), b.P.copy()
-        return x, P
+            return b.x.copy(), b.P.copy(), 0.0
+        return x, P, dt
 
     def step(self, t: float) -> list[Emit]:
         self._spent = dict.fromkeys(self._spent, 0)
-        x, P = self.belief_at(t)
+        x, P, predicted_s = self.belief_at(t)
         state = StateEstimate(
             stamp=t,
+            predicted_s=predicted_s,
             x=float(x[0]),
             y=float(x[1]),
             theta=float(x[2]),

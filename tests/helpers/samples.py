@@ -75,6 +75,7 @@ def one_of_each() -> list[Message]:
             v=1.25,
             w=-0.0625,
             covariance=_diag(5, 0.25),
+            predicted_s=0.125,
         ),
         ObstacleTracks(
             stamp=12.5,
