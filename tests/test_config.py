@@ -219,6 +219,22 @@ def test_an_override_creates_a_missing_section(tmp_path: Path) -> None:
         ("network.default.delay_s=-1", "network.default.delay_s", "expected a finite value >= 0"),
         ("run.bogus=1", "run.bogus", "unknown key"),
         ("runtime.kind=warp", "runtime.kind", "'warp' is not one of"),
+        # command sequences (issue 16): what the vehicle would refuse is a config error
+        ("controller.sequence.horizon_s=-1", "controller.sequence.horizon_s", ">= 0"),
+        ("controller.jitter_margin_k=-0.5", "controller.jitter_margin_k", ">= 0"),
+        ("planner.delay_window=0", "planner.delay_window", "[1, 10000]"),
+        (
+            "controller.sequence.horizon_s=25.0",
+            "controller.sequence.horizon_s",
+            "250 entries at planner.period_s 0.1, more than the vehicle accepts "
+            "(vehicle.watchdog.max_sequence_len = 200)",
+        ),
+        (
+            "vehicle.watchdog.max_horizon_s=5.0",
+            "controller.sequence.horizon_s",
+            "further than the vehicle accepts (vehicle.watchdog.max_horizon_s = 5.0)",
+        ),
+        ("planner.period_s=0.1005", "planner.period_s", "no whole number of milliseconds"),
     ],
 )
 def test_bad_overrides_are_reported_at_their_key(
@@ -227,6 +243,15 @@ def test_bad_overrides_are_reported_at_their_key(
     err = _error(_write(tmp_path, GOOD), [override])
     assert err.key == key
     assert needle in err.problem
+
+
+def test_single_commands_need_no_whole_millisecond_period(tmp_path: Path) -> None:
+    # without sequences (horizon 0, the ablation) the period is free, as it always was
+    path = _write(tmp_path, GOOD)
+    scenario, _ = load_scenario(
+        path, ["planner.period_s=0.1005", "controller.sequence.horizon_s=0"], check=check_scenario
+    )
+    assert scenario.controller.sequence.entries(scenario.planner.period_s) == 0
 
 
 @pytest.mark.parametrize(

@@ -85,7 +85,9 @@ def test_a_start_in_contact_drives_out_on_an_arc() -> None:
     assert isinstance(path, PathMsg) and isinstance(cmd, VelocityCommand)
     assert path.status == "OK" and "start in contact (hull clearance -0.30 m)" in path.reason
     assert core.last_result is not None and core.last_result.turn_rad > 0.0
-    assert cmd.v == 1.0  # the profile ramps from the vehicle's speed
+    # the profile ramps from the vehicle's speed: 1 m/s 50 ms ago, braking since (no command
+    # has reached it yet)
+    assert cmd.v == pytest.approx(1.0 - 0.05 * 0.3, abs=1e-3)
     assert 0.0 < cmd.w <= 1.0 / core.vehicle.turn_radius_min_m  # left, within R_min at 1 m/s
     # along the way out, no replan (it passes closer than rho0 by design; the replan policy
     # must not call that infeasible)
@@ -151,12 +153,16 @@ def _paths(out: list[Emit]) -> list[PathMsg]:
     return [e.msg for e in out if isinstance(e.msg, PathMsg)]
 
 
+@pytest.mark.parametrize("horizon_s", [0.0, 3.0], ids=["single commands", "sequences"])
 @pytest.mark.parametrize("stepped_in_the_gap", [True, False], ids=["uplink out", "SIGSTOP"])
 @pytest.mark.parametrize("backlog_order", [1, -1], ids=["backlog in order", "backlog reversed"])
 def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
-    stepped_in_the_gap: bool, backlog_order: int
+    stepped_in_the_gap: bool, backlog_order: int, horizon_s: float
 ) -> None:
-    core = _core(["world.start.y_m=14.0"])
+    # the estimates arrive 50 ms after their stamp: staleness is age beyond that, > 0.95 s
+    setup = ["world.start.y_m=14.0", "planner.max_estimate_age_s=0.95"]
+    setup.append(f"controller.sequence.horizon_s={horizon_s}")
+    core = _core(setup)
     k = 0
     for k in range(100):  # 10 s of normal operation at 10 Hz
         t = 0.05 + 0.1 * k
@@ -164,12 +170,16 @@ def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
         assert _cmds(core.step(t))
     last = 0.05 + 0.1 * k
     # 8 s without estimates: the planner either keeps stepping without fresh input (its
-    # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods)
+    # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods);
+    # 8 s is beyond what the vehicle runs on blind (its buffer of horizon_s, then hold_after_s),
+    # and the last command's buffer ran out more than the 1.5 s before the newest estimate
+    # that the planner looks back at the commands for the yaw rate (command_link.py)
+    assert core.resume_after_s == horizon_s + core.vehicle.watchdog.hold_after_s < 8.0
     if stepped_in_the_gap:
         for j in range(1, 81):
             cmds = _cmds(core.step(last + 0.1 * j))
             # commands from the last estimate while it is fresh, then none: the vehicle holds
-            assert bool(cmds) is (0.1 * j + 0.05 <= core.cfg.max_estimate_age_s)
+            assert bool(cmds) is (0.1 * j <= core.cfg.max_estimate_age_s)
         assert core.stale_skips == 71
     t_wake = last + 8.1
     # it wakes with the 8 s backlog of estimates, delivered before its next step
@@ -181,14 +191,21 @@ def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
     assert core.state is not None and core.state.stamp == newest
     (path,) = _paths(out)
     assert (path.status, path.reason) == ("OK", "resumed")
-    # the new path starts at the newest estimate, not where the old plan left off
-    assert path.control_points[:2] == pytest.approx((5.0 + 1.5 * newest, 14.0))
-    # and the command is exactly what a planner that knew only that estimate would send
-    fresh = _core(["world.start.y_m=14.0"])
+    # the new path starts at the newest estimate, not where the old plan left off; with
+    # sequences, where the vehicle will be when it takes effect: the estimate carried the
+    # 0.1 s to now, braking at 0.3 m/s^2 from its 1 m/s under HOLD, 0.0985 m further east
+    ahead = 0.0985 if horizon_s else 0.0
+    assert path.control_points[:2] == pytest.approx((5.0 + 1.5 * newest + ahead, 14.0), abs=1e-3)
+    # and the command is what a planner that knew only that estimate would send (to float
+    # noise with sequences: the two predictions pass through different schedules' cuts)
+    fresh = _core(setup)
     fresh.deliver(_along(newest))
     (expected,) = _cmds(fresh.step(t_wake))
     (cmd,) = _cmds(out)
-    assert (cmd.v, cmd.w) == (expected.v, expected.w)
+    assert (cmd.v, cmd.w) == pytest.approx((expected.v, expected.w), abs=1e-12)
+    assert cmd.v_next == pytest.approx(expected.v_next, abs=1e-3)  # quantised: one unit
+    assert cmd.w_next == pytest.approx(expected.w_next, abs=1e-3)
+    assert len(cmd.v_next) == round(horizon_s / core.cfg.period_s)
 
 
 def test_a_restarted_planner_plans_from_the_estimate_not_from_the_scenario_start() -> None:
@@ -196,7 +213,8 @@ def test_a_restarted_planner_plans_from_the_estimate_not_from_the_scenario_start
     assert core.step(40.0) == []  # nothing to plan from until an estimate comes
     core.deliver(_estimate(40.0, x=30.0, y=14.0))
     (path,) = _paths(core.step(40.05))
-    assert path.control_points[:2] == pytest.approx((30.0, 14.0))
+    # from the estimate carried the 50 ms to now (heading east at 1 m/s)
+    assert path.control_points[:2] == pytest.approx((30.05, 14.0), abs=2e-3)
 
 
 def test_an_estimate_from_the_future_cannot_hold_the_place_of_later_ones() -> None:

@@ -1,5 +1,5 @@
 """Path-tracking controller configuration: which controller, its gains, the shared speed
-profile, delay compensation.
+profile, delay compensation and predictive command sequences.
 
 The eq. (11) bounds, R_min and the cruise speed are not here: they are the vehicle's
 (common/config/vehicle.py) and are handed to the controllers as `Limits`. A key that was
@@ -116,17 +116,41 @@ class SpeedConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SequenceConfig:
+    """Packet-based predictive commands (services/planner/sequence.py): every command carries
+    the controller's commands for the times ahead, one per control period (planner.period_s),
+    computed on the state predicted along them; the vehicle applies the one for its time."""
+
+    # how far ahead a command reaches (s); 0 = off: single commands, each computed from the
+    # estimate as before sequences existed (the ablation). 10 s of buffer carry the vehicle
+    # through a 10 s outage on the path it was following (at 0.1 s, 100 entries, ~0.4 kB)
+    horizon_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        nonneg("horizon_s", self.horizon_s)
+
+    def entries(self, period_s: float) -> int:
+        """Future entries n of a command at control period period_s (0: off)."""
+        return int(self.horizon_s / period_s + 1e-9)
+
+
+@dataclass(frozen=True, kw_only=True)
 class ControllerConfig:
     """Which path-tracking controller the planner runs, what all share, and each one's gains.
 
-    Shared by every controller: the speed profile (`speed`) and the delay compensation, so
-    that the three differ in how they steer only.
+    Shared by every controller: the speed profile (`speed`), the delay compensation and the
+    predictive command sequences (`sequence`), so that the three differ in how they steer only.
     """
 
     kind: ControllerKind = "nurbs"
-    # every controller predicts the pose forward by the measured estimate age + expected
-    # downlink delay before computing (on), or computes from the estimate as it is (off)
+    # every controller works on the state predicted to the time its command takes effect, the
+    # estimate's age plus the downlink delay on (on), or on the estimate as it is (off)
     delay_compensation: bool = True
+    # the downlink delay compensated: the vehicle's measured median one-way command delay
+    # plus this many of its measured jitters (1.4826 MAD, VehicleStatus); the network's
+    # configured delay of planner/cmd until the vehicle has measured one
+    jitter_margin_k: float = 1.0
+    sequence: SequenceConfig = field(default_factory=SequenceConfig)  # shared by every controller
     speed: SpeedConfig = field(default_factory=SpeedConfig)  # shared by every controller
     nurbs: NurbsGains = field(default_factory=NurbsGains)
     backstepping: BacksteppingGains = field(default_factory=BacksteppingGains)
@@ -138,6 +162,7 @@ class ControllerConfig:
     }
 
     def __post_init__(self) -> None:
+        nonneg("jitter_margin_k", self.jitter_margin_k)
         if self.kind not in ("nurbs", "backstepping", "fuzzy_pid"):
             raise ConfigValueError(
                 "kind", f"{self.kind!r} is unknown, expected 'nurbs', 'backstepping' or 'fuzzy_pid'"

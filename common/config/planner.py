@@ -64,8 +64,11 @@ class PlannerConfig:
     first_plan_wait_s: float = 2.0
     # --- networked loop
     # an estimate older than this (uplink outage) makes the planner stop commanding, so the
-    # vehicle's watchdog holds it instead of it steering on a pose extrapolated too far
+    # vehicle's watchdog holds it (after its buffer of commands) instead of it steering on a
+    # pose extrapolated too far; older *beyond* the delay measured on the estimate input (the
+    # median age of the last delay_window estimates as they arrived): a known delay is no outage
     max_estimate_age_s: float = 1.0
+    delay_window: int = 31
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):
@@ -99,6 +102,7 @@ class PlannerConfig:
                 "resolution_m", f"{self.resolution_m!r} is too coarse, expected <= 5"
             )
         int_range("smoothing_len", self.smoothing_len, 0, 20)
+        int_range("delay_window", self.delay_window, 1, 10_000)
         if self.search not in ("dijkstra", "astar"):
             raise ConfigValueError(
                 "search", f"{self.search!r} is unknown, expected 'dijkstra' or 'astar'"

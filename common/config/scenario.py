@@ -14,14 +14,16 @@ from typing import Any
 
 from common.config.bus import BusConfig
 from common.config.controller import ControllerConfig
+from common.config.errors import ConfigValueError
 from common.config.estimator import EstimatorConfig
 from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
 from common.config.network import NetworkConfig
 from common.config.planner import PlannerConfig
 from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
-from common.config.vehicle import VehicleConfig
+from common.config.vehicle import VehicleConfig, WatchdogConfig
 from common.config.world import WorldConfig
+from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS
 
 # A check run after a scenario is built: (scenario, file) -> None, raising ConfigError.
 ScenarioCheck = Callable[["Scenario", str], None]
@@ -41,6 +43,42 @@ class Scenario:
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+
+    def __post_init__(self) -> None:
+        _check_sequence(self.controller, self.planner.period_s, self.vehicle.watchdog)
+
+
+def _check_sequence(ctrl: ControllerConfig, period_s: float, wd: WatchdogConfig) -> None:
+    """A command sequence the vehicle would refuse (too many entries, too long a horizon, a
+    step that is no whole number of milliseconds) is a config error, not a mission spent in
+    HOLD with every command rejected."""
+    n = ctrl.sequence.entries(period_s)
+    if n == 0:
+        return
+    key = ("controller", "sequence", "horizon_s")
+    step_ms = period_s * 1000
+    if abs(step_ms - round(step_ms)) > 1e-6 or not (
+        SEQUENCE_STEP_MIN_MS <= round(step_ms) <= SEQUENCE_STEP_MAX_MS
+    ):
+        raise ConfigValueError(
+            ("planner", "period_s"),
+            f"{period_s!r} is no whole number of milliseconds in [{SEQUENCE_STEP_MIN_MS}, "
+            f"{SEQUENCE_STEP_MAX_MS}] ms, as the step of a command sequence must be (or set "
+            "controller.sequence.horizon_s = 0)",
+        )
+    if n > wd.max_sequence_len:
+        raise ConfigValueError(
+            key,
+            f"{ctrl.sequence.horizon_s!r} s is {n} entries at planner.period_s {period_s!r}, "
+            f"more than the vehicle accepts (vehicle.watchdog.max_sequence_len = "
+            f"{wd.max_sequence_len})",
+        )
+    if n * period_s > wd.max_horizon_s + 1e-9:
+        raise ConfigValueError(
+            key,
+            f"{ctrl.sequence.horizon_s!r} s reaches further than the vehicle accepts "
+            f"(vehicle.watchdog.max_horizon_s = {wd.max_horizon_s!r})",
+        )
 
 
 def load_scenario(

@@ -96,6 +96,12 @@ class Plausibility:
         """Acceleration components (m/s^2)."""
         return _within(values, -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2)
 
+    def delay(self, *values: float) -> Reason | None:
+        """One-way delays or their spread (s): each in [-max_future_s, max_age_s] (a sender's
+        clock may run up to max_future_s ahead; a delay beyond max_age_s says nothing of now,
+        and compensating it would cost work in proportion)."""
+        return _within(values, -self.max_future_s, self.max_age_s)
+
     def angle(self, *values: float) -> Reason | None:
         """Angles (rad): any finite value (they are wrapped where used)."""
         return None if all(math.isfinite(v) for v in values) else "non_finite"

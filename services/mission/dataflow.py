@@ -2,8 +2,9 @@
 
     sensor    --nav, obstacles-->  estimator  --state, tracks-->  planner
     planner   --cmd------------->  vehicle    --truth---------->  sensor
-    (planner/path, vehicle/status and every <service>/stats are published for the record,
-     monitors and metrics; no service reads them)
+    vehicle   --status---------->  planner    (the one-way delay measured on commands)
+    (planner/path and every <service>/stats are published for the record, monitors and
+     metrics; no service reads them)
 
 Each service's core is built by a factory with one signature, `(ctx: CoreContext) -> core`;
 the factory takes from the scenario only what its core needs.
@@ -69,6 +70,15 @@ def auv_dataflow(s: Scenario) -> Dataflow:
             inputs=(
                 Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
                 Input(source="estimator", stream="tracks", msg_type=ObstacleTracks, policy=NEWEST),
+                # the delay the vehicle measures on commands: compensated instead of a guess.
+                # 20 Hz: room for 12 s of them in flight (the planner keeps only the newest)
+                Input(
+                    source="vehicle",
+                    stream="status",
+                    msg_type=VehicleStatus,
+                    policy=NEWEST,
+                    max_queued=256,
+                ),
             ),
             outputs=(
                 Output(stream="path", msg_type=PathMsg),
@@ -106,6 +116,7 @@ def make_estimator(ctx: CoreContext) -> EstimatorCore:
 def make_planner(ctx: CoreContext) -> PlannerCore:
     s = ctx.scenario
     # delay compensation starts from the downlink's modelled delay (planner/cmd -> vehicle)
+    # until the vehicle reports the delay it measures
     down = profile_for(s.network, link_name("planner", "cmd", "vehicle"))
     return PlannerCore(
         s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=down.delay_s

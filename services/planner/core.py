@@ -1,8 +1,10 @@
 """The planner service core: replans on events and tracks the path with the chosen controller.
 
 The command it sends crosses the modelled network to the vehicle, so the network sits inside
-the control loop. Static obstacles come from the chart (the scenario's world); moving ones
-from the estimator's tracks, predicted with their velocity and acceleration (paper §2).
+the control loop; the planner measures the delays, predicts the vehicle to the time its
+command takes effect and sends sequences of commands over a horizon (command_link.py).
+Static obstacles come from the chart (the scenario's world); moving ones from the
+estimator's tracks, predicted with their velocity and acceleration (paper §2).
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
-from common.messages import ObstacleTracks, PathMsg, StateEstimate, VelocityCommand
+from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
 from common.runtime.model.core import Delivery, Emit
 from common.world import ObstacleState
+from services.planner.command_link import CommandLink
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.path_arc_reference import PathArcReference
@@ -36,7 +39,8 @@ def _flat(a: np.ndarray) -> tuple[float, ...]:
 
 
 class PlannerCore:
-    """Consumes estimator/state and estimator/tracks; publishes path (on replans) and cmd."""
+    """Consumes estimator/state, estimator/tracks and vehicle/status (the delay the vehicle
+    measures on commands); publishes path (on replans) and cmd."""
 
     def __init__(
         self,
@@ -51,7 +55,10 @@ class PlannerCore:
         self.vehicle = vehicle
         self.world = world
         self.kind = controller.kind
-        self.expected_downlink_s = expected_downlink_s
+        # delays measured, the state predicted, commands (sequences) sent: command_link.py
+        self.link = CommandLink(
+            planner, controller, vehicle, expected_downlink_s=expected_downlink_s
+        )
         self.goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
             p.id for p in world.polygons
@@ -75,8 +82,11 @@ class PlannerCore:
         self._judge = Plausibility.of_area(world.area)
         self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
-        # a longer silence than this makes the vehicle hold (and the estimate stale)
-        self.resume_after_s = max(planner.max_estimate_age_s, vehicle.watchdog.hold_after_s)
+        # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
+        # its last command's entries (the sequence's horizon), then hold_after_s on the last
+        self.resume_after_s = max(
+            planner.max_estimate_age_s, self.link.horizon_s + vehicle.watchdog.hold_after_s
+        )
 
     def deliver(self, d: Delivery) -> list[Emit]:
         """Keep the newest estimate and tracks by stamp, unless implausible: a stamp from the
@@ -90,6 +100,8 @@ class PlannerCore:
             stream, why = "state", self._judge_state(msg, d.t)
         elif isinstance(msg, ObstacleTracks):
             stream, why = "tracks", self._judge_tracks(msg, d.t)
+        elif isinstance(msg, VehicleStatus):
+            stream, why = "status", self._judge_status(msg, d.t)
         else:
             return []
         if why is not None:
@@ -105,8 +117,11 @@ class PlannerCore:
                 msg.seq,
             )
         elif isinstance(msg, StateEstimate):
+            self.link.on_estimate(d.t, msg)  # late ones too: their delay is real
             if self.state is None or msg.stamp >= self.state.stamp:
                 self.state = msg
+        elif isinstance(msg, VehicleStatus):
+            self.link.on_status(msg)
         elif self.tracks is None or msg.stamp >= self.tracks.stamp:
             self.tracks = msg
         return []
@@ -116,6 +131,10 @@ class PlannerCore:
         return first_reason(
             j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
         )
+
+    def _judge_status(self, m: VehicleStatus, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(j.stamp(m.stamp, now), j.delay(m.delay_s, m.delay_jitter_s))
 
     def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
         j = self._judge
@@ -160,27 +179,24 @@ class PlannerCore:
         if self.state is None:
             return []
         s = self.state
-        pose = (s.x, s.y, s.theta, s.v, s.w)
         out: list[Emit] = []
         if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
             self.arrived = True
-        if t - s.stamp > self.cfg.max_estimate_age_s:
-            # the uplink is out: commanding from a pose extrapolated this far would steer
-            # blind, so send nothing and let the vehicle's watchdog hold (and count it)
+        if self.link.stale(t, s):
+            # the uplink is out (the estimate is older than its measured delay explains):
+            # commanding from a pose extrapolated this far would steer blind, so send nothing;
+            # the vehicle runs out its buffer of commands, then its watchdog holds (and counts)
             self.stale_skips += 1
             return []
+        # where the vehicle is now and will be when this step's command takes effect
+        pred = self.link.predict(t, s)
         if self.arrived:
-            self.last_cmd_t = t
-            return [
-                Emit(
-                    stream="cmd",
-                    msg=VelocityCommand(
-                        stamp=t, v=0.0, w=0.0, path_id=self.path_id, controller=self.kind
-                    ),
-                )
-            ]
-        here = Pose2D(x=s.x, y=s.y, theta=s.theta)
-        obstacles = self._obstacles(t)
+            return [self._command(t, pred.effect_t, *self.link.stop())]
+        here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
+        # a plan made now starts where the vehicle will be when it takes effect, among the
+        # obstacles as they will be then
+        t_plan = pred.effect_t
+        obstacles = self._obstacles(t_plan)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
         if self.path_id == 0 and self._awaiting_tracks(t):
             decision = ReplanDecision(
@@ -195,25 +211,24 @@ class PlannerCore:
                 replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
             )
         else:
-            decision = self.policy.check(t, here, self.goal, obstacles)
+            decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
-            out.append(Emit(stream="path", msg=self._replan(t, here, obstacles, decision.reason)))
-        # delay compensation: the estimate's uplink age plus the expected downlink delay
-        latency = max(0.0, t - s.stamp) + self.expected_downlink_s
+            path = self._replan(t, t_plan, here, obstacles, decision.reason)
+            out.append(Emit(stream="path", msg=path))
         if self.ref is None:
-            v, w = 0.0, 0.0  # no feasible path: stop safely rather than drive into something
+            # no feasible path: stop safely rather than drive into something
+            vs, ws = self.link.stop()
         else:
             # every path leaves along the vehicle's heading, a way out of contact included
             # (recover.py: arcs within R_min), so the controller follows it from the start
-            v, w = self.controller.command(t, pose, self.ref, latency)
-        self.last_cmd_t = t
-        out.append(
-            Emit(
-                stream="cmd",
-                msg=VelocityCommand(stamp=t, v=v, w=w, path_id=self.path_id, controller=self.kind),
-            )
-        )
+            vs, ws = self.link.control(t, self.controller, self.ref, s, pred)
+        out.append(self._command(t, pred.effect_t, vs, ws))
         return out
+
+    def _command(self, t: float, effect_t: float, vs: list[float], ws: list[float]) -> Emit:
+        self.last_cmd_t = t
+        msg = self.link.send(t, effect_t, vs, ws, path_id=self.path_id, controller=self.kind)
+        return Emit(stream="cmd", msg=msg)
 
     def _awaiting_tracks(self, t: float) -> bool:
         """Should the first plan wait longer for the first obstacle tracks?
@@ -244,7 +259,11 @@ class PlannerCore:
         )
         return False
 
-    def _replan(self, t: float, here: Pose2D, obstacles: Obstacles, why: str) -> PathMsg:
+    def _replan(
+        self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles, why: str
+    ) -> PathMsg:
+        """Plan from `here`, the pose at t_plan (the obstacles as they are then); the path
+        message is stamped t, when it is sent."""
         req = PlanRequest(
             start=here,
             goal=self.goal,
@@ -255,7 +274,7 @@ class PlannerCore:
             v_ref_mps=self.vehicle.cruise_speed_mps,
         )
         result = plan_path(req, self.cfg)
-        self.policy.on_planned(t, result, self.goal, obstacles)
+        self.policy.on_planned(t_plan, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
         if result.status != self.path_status:

@@ -71,13 +71,14 @@ class Controller(Protocol):
 
 
 def predict_pose(pose: Pose, horizon_s: float) -> Pose:
-    """eq. (7) integrated exactly for a constant twist (v, w) over horizon_s (an arc).
+    """eq. (7) integrated exactly for a constant twist (v, w) over horizon_s (an arc; back
+    along it for horizon_s < 0).
 
     This is the delay compensation: the pose the vehicle will have when the command computed
     from this (horizon_s old) estimate takes effect.
     """
     x, y, th, v, w = pose
-    if horizon_s <= 0.0:
+    if horizon_s == 0.0:
         return pose
     dth = w * horizon_s
     if abs(dth) < 1e-9:  # straight: avoid v/w with w -> 0

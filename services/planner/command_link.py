@@ -1,0 +1,187 @@
+"""The planner's end of the networked loop: delays measured, the state predicted, commands sent.
+
+Issue 16, the planner side:
+- delays measured, not assumed: the uplink delay is the median age of the estimates as they
+  arrive (common/control/delay.py); the downlink delay is the vehicle's own measurement on
+  commands (VehicleStatus: median + jitter_margin_k x jitter), the network's configured delay
+  of planner/cmd until the vehicle has measured one;
+- staleness is age *beyond* the uplink delay: an estimate is stale when t - stamp - uplink
+  delay > max_estimate_age_s, so a steady 1 s delay is not an outage, a silence still is;
+- with command sequences on (controller.sequence.horizon_s > 0): the state is predicted from
+  the estimate with the commands already sent, in flight included (timeline.py, the vehicle
+  modelled by response.py), to now and to the time this command takes effect (now + the
+  downlink delay), and each command carries the controller's commands over the horizon
+  (sequence.py);
+- with them off (the ablation): single commands, each computed as before sequences existed,
+  the controller predicting the estimate forward with its constant twist over the estimate's
+  age plus the downlink delay.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from common.config.controller import ControllerConfig
+from common.config.planner import PlannerConfig
+from common.config.vehicle import VehicleConfig
+from common.control import DelayMeter
+from common.messages import StateEstimate, VehicleStatus, VelocityCommand
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Controller, predict_pose
+from services.planner.response import Pose, ResponseModel
+from services.planner.sequence import command_sequence
+from services.planner.timeline import CommandTimeline
+
+# the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
+YAW_SETTLE_TAUS = 3.0
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Prediction:
+    """The vehicle's state now, and at the time a command sent now takes effect (`effect_t`)."""
+
+    now: Pose
+    effect_t: float
+    at_effect: Pose
+
+
+class CommandLink:
+    """Measured delays, staleness, prediction along the commands sent, and the commands."""
+
+    def __init__(
+        self,
+        planner: PlannerConfig,
+        controller: ControllerConfig,
+        vehicle: VehicleConfig,
+        *,
+        expected_downlink_s: float = 0.0,
+    ) -> None:
+        self.max_estimate_age_s = planner.max_estimate_age_s
+        self.configured_downlink_s = expected_downlink_s
+        self.jitter_margin_k = controller.jitter_margin_k
+        self.compensate = controller.delay_compensation
+        self.entries = controller.sequence.entries(planner.period_s)  # n; 0: single commands
+        self.step_s = round(planner.period_s * 1000) / 1000  # the wire's whole milliseconds
+        self.model = ResponseModel.from_vehicle(vehicle)
+        self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps)
+        self.uplink = DelayMeter(planner.delay_window)  # ages of the estimates as they arrive
+        self.status: VehicleStatus | None = None  # the vehicle's newest status (by stamp)
+
+    @property
+    def horizon_s(self) -> float:
+        """How far past its stamp a command reaches (s)."""
+        return self.entries * self.step_s
+
+    def on_estimate(self, t: float, est: StateEstimate) -> None:
+        """An estimate delivered at t: the age of its information then is a sample of the
+        uplink delay."""
+        self.uplink.add(t - basis_time(est))
+
+    def on_status(self, status: VehicleStatus) -> None:
+        if self.status is None or status.stamp >= self.status.stamp:
+            self.status = status
+
+    @property
+    def downlink_s(self) -> float:
+        """The downlink delay to compensate (s): measured by the vehicle plus the jitter
+        margin, or the configured one until the vehicle has measured any."""
+        st = self.status
+        if st is None or st.delay_samples == 0:
+            return self.configured_downlink_s
+        return max(0.0, st.delay_s + self.jitter_margin_k * st.delay_jitter_s)
+
+    def age_beyond_delay(self, t: float, est: StateEstimate) -> float:
+        """How much older the estimate's information is at t than the uplink delay makes it
+        anyway (s)."""
+        return t - basis_time(est) - max(0.0, self.uplink.delay_s)
+
+    def stale(self, t: float, est: StateEstimate) -> bool:
+        return self.age_beyond_delay(t, est) > self.max_estimate_age_s
+
+    def predict(self, t: float, est: StateEstimate) -> Prediction:
+        """The state now and when a command sent now takes effect. Sequences on and delay
+        compensated: carried forward from the estimate with the commands sent; otherwise the
+        estimate as it is (without sequences the controller compensates on its own)."""
+        pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
+        t_b = basis_time(est)
+        settle = YAW_SETTLE_TAUS * self.model.tau_w_s
+        self.timeline.forget_before(t_b - settle)
+        if not (self.entries and self.compensate):
+            return Prediction(now=pose, effect_t=t, at_effect=pose)
+        # the estimator carried its newest fused fix to the stamp at constant twist: back along
+        # that arc to the fix, then forward with the commands the vehicle was applying since
+        x, y, th, v, w = predict_pose(pose, -est.predicted_s)
+        # the yaw rate there: the filter's is noisy (~0.1 rad/s rms, a differenced compass),
+        # while the yaw loop follows the commands: run it over the commands of the last
+        # YAW_SETTLE_TAUS time constants, from the filter's rate (left with e^-3 of its error)
+        w = self.timeline.predict(pose, t_b - settle, t_b, self.model)[4]
+        now = self.timeline.predict((x, y, th, v, w), t_b, t, self.model)
+        effect_t = t + self.downlink_s
+        at_effect = self.timeline.predict(now, t, effect_t, self.model)
+        return Prediction(now=now, effect_t=effect_t, at_effect=at_effect)
+
+    def control(
+        self,
+        t: float,
+        controller: Controller,
+        ref: ArcLengthReference,
+        est: StateEstimate,
+        pred: Prediction,
+    ) -> tuple[list[float], list[float]]:
+        """The commands (vs, ws), each (n + 1,), for t, t + step_s, ..., t + n step_s."""
+        if not self.entries:  # as before sequences: the controller compensates the latency
+            latency = max(0.0, t - est.stamp) + self.downlink_s
+            v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
+            return [v], [w]
+        return command_sequence(
+            controller,
+            ref,
+            t,
+            pred.now,
+            n=self.entries,
+            step_s=self.step_s,
+            arrival=pred.effect_t,
+            timeline=self.timeline,
+            model=self.model,
+        )
+
+    def stop(self) -> tuple[list[float], list[float]]:
+        """Commands that stop the vehicle (and keep it stopped over the horizon)."""
+        zeros = [0.0] * (self.entries + 1)
+        return zeros, list(zeros)
+
+    def send(
+        self,
+        t: float,
+        effect_t: float,
+        vs: list[float],
+        ws: list[float],
+        *,
+        path_id: int,
+        controller: str,
+    ) -> VelocityCommand:
+        """The command message for (vs, ws), recorded as sent (expected at the vehicle at
+        effect_t) for the predictions to come."""
+        if not self.entries:
+            return VelocityCommand(
+                stamp=t, v=vs[0], w=ws[0], path_id=path_id, controller=controller
+            )
+        msg = VelocityCommand.predictive(
+            stamp=t,
+            v=vs[0],
+            w=ws[0],
+            path_id=path_id,
+            controller=controller,
+            step_s=self.step_s,
+            v_next=vs[1:],
+            w_next=ws[1:],
+        )
+        # as the vehicle will read them: the future entries quantised on the wire
+        self.timeline.add(t, effect_t, self.step_s, (msg.v, *msg.v_next), (msg.w, *msg.w_next))
+        return msg
+
+
+def basis_time(est: StateEstimate) -> float:
+    """The time of the information in an estimate: its newest fused fix (the estimator
+    predicted it from there to the stamp)."""
+    return est.stamp - est.predicted_s

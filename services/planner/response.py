@@ -1,0 +1,89 @@
+"""The planner's model of how the vehicle responds to a velocity command: eq. (7) with lags.
+
+The planner predicts the vehicle forward (to the time a command takes effect, and along a
+command sequence's horizon) with this model; it does not import the vehicle's plant (a
+service never imports another), and needs less: the state is the pose and twist
+(x, y, theta, v, w) of an estimate, and under a command (v_c, w_c) held over a step
+
+    speed  dv/dt = clamp((v_c - v) / tau_v, -a_max, a_max)            the speed loop
+    yaw    dw/dt = clamp((w_c' - w) / tau_w, -alpha_max, alpha_max),  w_c' = clamp(w_c, +-v/R_min)
+    pose   x' = v cos(theta), y' = v sin(theta), theta' = w           eq. (7)
+
+with |w| <= v / R_min at every instant (the plant enforces it: eq. (11)'s yaw-rate bound with
+the R_min of eqs. (19)-(20)) and v within eq. (11). tau_v = m_eff / k_p is the speed loop's
+time constant before its limits (common/config/vehicle.py: ~1 s), tau_w the yaw loop's.
+Measured against the plant (scripts/bench_sequence.py --model): over the 1-2 s a command
+spends in flight at 1 s of delay the lags matter (a speed step takes ~2 s), so they are in.
+
+Each step of at most MAX_STEP_S moves the twist by one Euler step of its (clamped) rate (a
+lag shorter than the step reaches its goal within it) and the pose along the exact arc of
+the step's mean twist: a few microseconds a step, and the same floats in every runtime.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from common.config.vehicle import VehicleConfig
+from common.scalar import clamp
+
+Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (m, m, rad, m/s, rad/s)
+
+MAX_STEP_S = 0.05  # the integration step (s): a tenth of the yaw loop's time constant
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ResponseModel:
+    """First-order speed and yaw loops with their rate bounds, R_min and eq. (7)."""
+
+    tau_v_s: float
+    accel_max_mps2: float
+    tau_w_s: float
+    yaw_accel_max_rps2: float
+    r_min_m: float
+    v_max_mps: float
+    w_min_rps: float
+    w_max_rps: float
+
+    @staticmethod
+    def from_vehicle(cfg: VehicleConfig) -> ResponseModel:
+        return ResponseModel(
+            tau_v_s=cfg.mass_eff_kg / cfg.speed_kp_npmps,
+            accel_max_mps2=cfg.accel_max_mps2,
+            tau_w_s=cfg.yaw_tau_s,
+            yaw_accel_max_rps2=cfg.yaw_accel_max_rps2,
+            r_min_m=cfg.turn_radius_min_m,
+            v_max_mps=cfg.v_max_mps,
+            w_min_rps=cfg.w_min_rps,
+            w_max_rps=cfg.w_max_rps,
+        )
+
+    def advance(self, pose: Pose, v_c: float, w_c: float, dt: float) -> Pose:
+        """The state dt seconds on under the command (v_c, w_c) held throughout."""
+        n = math.ceil(dt / MAX_STEP_S - 1e-9)
+        if n <= 0:
+            return pose
+        h = dt / n
+        # a lag shorter than the step reaches its goal within the step, never beyond it
+        gain_v, gain_w = 1.0 / max(self.tau_v_s, h), 1.0 / max(self.tau_w_s, h)
+        a_max, alpha_max = self.accel_max_mps2, self.yaw_accel_max_rps2
+        x, y, th, v, w = pose
+        for _ in range(n):
+            v1 = clamp(v + h * clamp((v_c - v) * gain_v, -a_max, a_max), 0.0, self.v_max_mps)
+            room = v1 / self.r_min_m  # the turn the fins allow at this speed
+            dw = clamp((clamp(w_c, -room, room) - w) * gain_w, -alpha_max, alpha_max)
+            w1 = clamp(w + h * dw, max(self.w_min_rps, -room), min(self.w_max_rps, room))
+            # eq. (7) along the arc of the step's mean twist
+            vm, wm = 0.5 * (v + v1), 0.5 * (w + w1)
+            dth = wm * h
+            if abs(dth) < 1e-9:
+                x += vm * h * math.cos(th)
+                y += vm * h * math.sin(th)
+            else:
+                r = vm / wm
+                x += r * (math.sin(th + dth) - math.sin(th))
+                y -= r * (math.cos(th + dth) - math.cos(th))
+            th += dth
+            v, w = v1, w1
+        return x, y, th, v, w

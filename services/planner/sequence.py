@@ -1,0 +1,68 @@
+"""Packet-based predictive commands: the controller rolled forward over a horizon on a copy.
+
+Networked predictive control (G. P. Liu, Y. Xia, J. Chen, D. Rees, W. Hu, "Networked
+predictive control of systems with random network delays in both forward and feedback
+channels", IEEE Trans. Ind. Electron. 54(3), 2007); packet-based control: the controller
+sends, in one packet, the controls u(t | t), u(t + T | t), ..., u(t + nT | t) it predicts
+for the times ahead, and the actuator applies the one for its current time from the newest
+packet it holds. Here, at the planner's step t with control period T:
+
+    x(t | t)          the state predicted for now: the estimate carried forward with the
+                      commands already sent (timeline.py), in flight included
+    u_k = C(x(t + kT | t)),  k = 0..n             the controller C on the predicted state
+    x(t + (k+1)T | t) = f(x(t + kT | t), applied)  response.py; `applied` is what the vehicle
+                      will apply: the commands sent before this one until this one arrives
+                      (t + the expected downlink delay), then u_k
+
+So entry 0 is the command for now, and an entry for time tau is the controller's answer to
+the state predicted for tau: whatever the delay turns out to be, the vehicle's watchdog picks
+the entry for its own time, and during a loss or an outage it keeps consuming the buffer.
+
+The controllers are stateful (the fuzzy PID's integral and filtered derivative, the
+backstepping virtual reference, the speed ramp): entry 0 comes from the controller itself,
+which is advanced once per step as without sequences, and entries 1..n from a deep copy of it,
+which is thrown away: the real controller's state never sees a predicted pose, and the whole
+computation is a function of the planner's inputs (the same floats in every runtime).
+"""
+
+from __future__ import annotations
+
+import copy
+
+from services.planner.controllers.arc_reference import ArcLengthReference
+from services.planner.controllers.base import Controller
+from services.planner.response import Pose, ResponseModel
+from services.planner.timeline import CommandTimeline
+
+
+def command_sequence(
+    controller: Controller,
+    ref: ArcLengthReference,
+    t: float,
+    pose: Pose,
+    *,
+    n: int,
+    step_s: float,
+    arrival: float,
+    timeline: CommandTimeline,
+    model: ResponseModel,
+) -> tuple[list[float], list[float]]:
+    """(vs, ws), each (n + 1,): the commands for t, t + step_s, ..., t + n step_s, from the
+    state `pose` predicted for t, the new command expected at the vehicle at `arrival`."""
+    v, w = controller.command(t, pose, ref)
+    vs, ws = [v], [w]
+    if n <= 0:
+        return vs, ws
+    roll = copy.deepcopy(controller)  # the real controller's state must not see predictions
+    for k in range(1, n + 1):
+        t_a, t_b = t + (k - 1) * step_s, t + k * step_s
+        if t_a < arrival:  # until this command arrives, the vehicle applies the ones before it
+            mid = min(arrival, t_b)
+            pose = timeline.predict(pose, t_a, mid, model)
+            t_a = mid
+        if t_a < t_b:  # then entry k - 1 of this one
+            pose = model.advance(pose, vs[-1], ws[-1], t_b - t_a)
+        v, w = roll.command(t_b, pose, ref)
+        vs.append(v)
+        ws.append(w)
+    return vs, ws

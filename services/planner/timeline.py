@@ -1,0 +1,99 @@
+"""What the vehicle applies, as the planner expects it: the commands sent and when each arrives.
+
+The planner keeps a short history of the commands it has sent, each with the time it expects
+the vehicle to receive it (its stamp plus the expected downlink delay when it was sent). At
+time tau the vehicle applies, by its watchdog's rules, the newest command (by stamp) it has
+received: the entry of that command's schedule for tau, HOLD after its last entry
+(common/control/schedule.py, the vehicle's own code for it), IDLE (0, 0) before any. So the
+state at the time a new command takes effect is predicted from the estimate with the commands
+still in flight, not with a constant twist (issue 16's forward prediction).
+
+Pruning: once a command is expected to have arrived by the newest estimate's stamp, every
+older one is superseded for all later times, so it is dropped. What stays is the commands in
+flight around the estimate's age plus the downlink delay: ~(age + delay) / period of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from common.config.vehicle import WatchdogConfig
+from common.control import Schedule
+from services.planner.response import Pose, ResponseModel
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Sent:
+    """One command as sent: its expected arrival at the vehicle and its schedule there."""
+
+    arrival: float
+    schedule: Schedule
+
+    @property
+    def stamp(self) -> float:
+        return self.schedule.starts[0]
+
+
+class CommandTimeline:
+    """The commands sent, their expected arrivals, and the vehicle's state predicted under them."""
+
+    def __init__(self, watchdog: WatchdogConfig, v_min: float) -> None:
+        self._watchdog = watchdog
+        self._v_min = v_min
+        self.sent: list[Sent] = []  # in the order sent (stamps non-decreasing)
+
+    def add(
+        self,
+        stamp: float,
+        arrival: float,
+        step_s: float,
+        vs: Sequence[float],
+        ws: Sequence[float],
+    ) -> None:
+        """Record a command stamped `stamp` with entries (vs[k], ws[k]) every step_s (the values
+        as the vehicle will read them off the wire), expected at the vehicle at `arrival`."""
+        sched = Schedule.of_command(stamp, step_s, vs, ws, self._watchdog, self._v_min)
+        self.sent.append(Sent(arrival=arrival, schedule=sched))
+
+    def _in_force(self, t: float) -> Sent | None:
+        """The newest command (by stamp) expected to have arrived by time t, if any."""
+        best: Sent | None = None
+        for s in self.sent:
+            if s.arrival <= t and (best is None or s.stamp > best.stamp):
+                best = s
+        return best
+
+    def schedule_at(self, t: float) -> Schedule:
+        """The schedule in force at the vehicle at time t (IDLE before any command)."""
+        cur = self._in_force(t)
+        return Schedule() if cur is None else cur.schedule
+
+    def forget_before(self, t: float) -> None:
+        """Drop the commands superseded at the vehicle by time t (t: the estimate's stamp)."""
+        cur = self._in_force(t)
+        if cur is not None:
+            self.sent = [s for s in self.sent if s.stamp >= cur.stamp]
+
+    def clear(self) -> None:
+        self.sent.clear()
+
+    def predict(self, pose: Pose, t_a: float, t_b: float, model: ResponseModel) -> Pose:
+        """The state at t_b from `pose` at t_a, the vehicle applying the commands sent."""
+        t = t_a
+        while t < t_b:
+            cur = self._in_force(t)
+            # the command in force lasts until a newer one arrives
+            newer = [
+                s.arrival
+                for s in self.sent
+                if s.arrival > t and (cur is None or s.stamp > cur.stamp)
+            ]
+            end = min([t_b, *newer])
+            sched = Schedule() if cur is None else cur.schedule
+            # within, the applied command changes only at the schedule's own transitions
+            for c in sorted({end, *sched.transitions_between(t, end)}):
+                a = sched.at(t)
+                pose = model.advance(pose, a.v, a.w, c - t)
+                t = c
+        return pose
