@@ -235,6 +235,11 @@ def test_an_override_creates_a_missing_section(tmp_path: Path) -> None:
             "further than the vehicle accepts (vehicle.watchdog.max_horizon_s = 5.0)",
         ),
         ("planner.period_s=0.1005", "planner.period_s", "no whole number of milliseconds"),
+        (
+            "controller.sequence.horizon_s=4.0",
+            "controller.sequence.horizon_s",
+            "shorter than the stop tail needs to brake from cruise",
+        ),
     ],
 )
 def test_bad_overrides_are_reported_at_their_key(

@@ -125,6 +125,10 @@ class SequenceConfig:
     # estimate as before sequences existed (the ablation). 10 s of buffer carry the vehicle
     # through a 10 s outage on the path it was following (at 0.1 s, 100 entries, ~0.4 kB)
     horizon_s: float = 10.0
+    # the last entries bring the vehicle to rest on its path (speeds capped at the hull's
+    # acceleration bound times the time left in the horizon): a buffer that runs out leaves
+    # it stopped where its path goes, not running on blind then braking heading-held (HOLD)
+    stop_tail: bool = True
 
     def __post_init__(self) -> None:
         nonneg("horizon_s", self.horizon_s)

@@ -21,7 +21,7 @@ from common.config.network import NetworkConfig
 from common.config.planner import PlannerConfig
 from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
-from common.config.vehicle import VehicleConfig, WatchdogConfig
+from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS
 
@@ -45,16 +45,17 @@ class Scenario:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
 
     def __post_init__(self) -> None:
-        _check_sequence(self.controller, self.planner.period_s, self.vehicle.watchdog)
+        _check_sequence(self.controller, self.planner.period_s, self.vehicle)
 
 
-def _check_sequence(ctrl: ControllerConfig, period_s: float, wd: WatchdogConfig) -> None:
+def _check_sequence(ctrl: ControllerConfig, period_s: float, vehicle: VehicleConfig) -> None:
     """A command sequence the vehicle would refuse (too many entries, too long a horizon, a
     step that is no whole number of milliseconds) is a config error, not a mission spent in
-    HOLD with every command rejected."""
+    HOLD with every command rejected; so is a horizon too short for its stop tail."""
     n = ctrl.sequence.entries(period_s)
     if n == 0:
         return
+    wd = vehicle.watchdog
     key = ("controller", "sequence", "horizon_s")
     step_ms = period_s * 1000
     if abs(step_ms - round(step_ms)) > 1e-6 or not (
@@ -72,6 +73,15 @@ def _check_sequence(ctrl: ControllerConfig, period_s: float, wd: WatchdogConfig)
             f"{ctrl.sequence.horizon_s!r} s is {n} entries at planner.period_s {period_s!r}, "
             f"more than the vehicle accepts (vehicle.watchdog.max_sequence_len = "
             f"{wd.max_sequence_len})",
+        )
+    stop_s = vehicle.cruise_speed_mps / vehicle.accel_max_mps2
+    if ctrl.sequence.stop_tail and n * period_s < stop_s - 1e-9:
+        raise ConfigValueError(
+            key,
+            f"{ctrl.sequence.horizon_s!r} s is shorter than the stop tail needs to brake from "
+            f"cruise ({vehicle.cruise_speed_mps!r} m/s at vehicle.accel_max_mps2 "
+            f"{vehicle.accel_max_mps2!r}: {stop_s:.3g} s): the vehicle would never run at "
+            "cruise; lengthen it or set controller.sequence.stop_tail = false",
         )
     if n * period_s > wd.max_horizon_s + 1e-9:
         raise ConfigValueError(

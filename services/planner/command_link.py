@@ -63,6 +63,8 @@ class CommandLink:
         self.entries = controller.sequence.entries(planner.period_s)  # n; 0: single commands
         self.step_s = round(planner.period_s * 1000) / 1000  # the wire's whole milliseconds
         self.model = ResponseModel.from_vehicle(vehicle)
+        # the stop tail brakes at the hull's bound (sequence.py); 0: none
+        self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps)
         self.uplink = DelayMeter(planner.delay_window)  # ages of the estimates as they arrive
         self.status: VehicleStatus | None = None  # the vehicle's newest status (by stamp)
@@ -143,6 +145,7 @@ class CommandLink:
             arrival=pred.effect_t,
             timeline=self.timeline,
             model=self.model,
+            stop_mps2=self.stop_mps2,
         )
 
     def stop(self) -> tuple[list[float], list[float]]:

@@ -18,6 +18,14 @@ So entry 0 is the command for now, and an entry for time tau is the controller's
 the state predicted for tau: whatever the delay turns out to be, the vehicle's watchdog picks
 the entry for its own time, and during a loss or an outage it keeps consuming the buffer.
 
+The stop tail (controller.sequence.stop_tail): every entry's speed is capped at
+a_brake (t + nT - t_k), a_brake the hull's acceleration bound, so the last entries bring the
+vehicle to rest along its path. In normal operation only the first entries are ever applied
+(a newer command arrives every period); after a loss or an outage as long as the horizon the
+vehicle stops where its path goes, instead of running on blind with its last command and
+then braking heading-held (the watchdog's HOLD), which took it off a curve near an
+obstacle or the edge of the area.
+
 The controllers are stateful (the fuzzy PID's integral and filtered derivative, the
 backstepping virtual reference, the speed ramp): entry 0 comes from the controller itself,
 which is advanced once per step as without sequences, and entries 1..n from a deep copy of it,
@@ -46,11 +54,18 @@ def command_sequence(
     arrival: float,
     timeline: CommandTimeline,
     model: ResponseModel,
+    stop_mps2: float = 0.0,
 ) -> tuple[list[float], list[float]]:
     """(vs, ws), each (n + 1,): the commands for t, t + step_s, ..., t + n step_s, from the
-    state `pose` predicted for t, the new command expected at the vehicle at `arrival`."""
+    state `pose` predicted for t, the new command expected at the vehicle at `arrival`;
+    stop_mps2 > 0 brings the vehicle to rest at the end (the stop tail)."""
+    t_end = t + n * step_s
+
+    def tail(t_k: float, v: float) -> float:
+        return v if stop_mps2 <= 0.0 else min(v, stop_mps2 * max(0.0, t_end - t_k))
+
     v, w = controller.command(t, pose, ref)
-    vs, ws = [v], [w]
+    vs, ws = [tail(t, v)], [w]
     if n <= 0:
         return vs, ws
     roll = copy.deepcopy(controller)  # the real controller's state must not see predictions
@@ -63,6 +78,6 @@ def command_sequence(
         if t_a < t_b:  # then entry k - 1 of this one
             pose = model.advance(pose, vs[-1], ws[-1], t_b - t_a)
         v, w = roll.command(t_b, pose, ref)
-        vs.append(v)
+        vs.append(tail(t_b, v))
         ws.append(w)
     return vs, ws

@@ -1,0 +1,258 @@
+"""The planner's end of issue 16: the vehicle response model, the command timeline, command
+sequences, measured delays and staleness beyond them."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from common.config.controller import ControllerConfig
+from common.config.scenario import load_scenario
+from common.messages import StateEstimate, VehicleStatus, VelocityCommand, encode
+from common.runtime.model.core import Delivery
+from services.planner.controllers import Circle, Limits, make_controller
+from services.planner.core import PlannerCore
+from services.planner.response import ResponseModel
+from services.planner.sequence import command_sequence
+from services.planner.timeline import CommandTimeline
+from services.vehicle.dynamics import PlantParams, rk4_step
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+SCENARIO = load_scenario(DEFAULT)[0]
+MODEL = ResponseModel.from_vehicle(SCENARIO.vehicle)
+NO_CURRENT = (0.0, 0.0, 0.0, 0.0)
+
+
+def _core(overrides: list[str] | None = None, *, downlink_s: float = 0.0) -> PlannerCore:
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0", *(overrides or [])])
+    return PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=downlink_s)
+
+
+def _estimate(stamp: float, t: float, *, x: float = 5.0, v: float = 0.0) -> Delivery:
+    est = StateEstimate(stamp=stamp, x=x, y=20.0, theta=0.0, v=v, w=0.0, covariance=COV)
+    return Delivery(source="estimator", stream="state", msg=est, t=t)
+
+
+def _status(stamp: float, delay_s: float, jitter_s: float = 0.0, n: int = 10) -> Delivery:
+    st = VehicleStatus(
+        stamp=stamp,
+        mode="RUN",
+        v_applied=0.0,
+        w_applied=0.0,
+        command_age=0.0,
+        commands_applied=n,
+        commands_rejected=0,
+        commands_clamped=0,
+        delay_s=delay_s,
+        delay_jitter_s=jitter_s,
+        delay_samples=n,
+    )
+    return Delivery(source="vehicle", stream="status", msg=st, t=stamp + 0.05)
+
+
+def _cmd(core: PlannerCore, t: float) -> VelocityCommand:
+    (cmd,) = [e.msg for e in core.step(t) if isinstance(e.msg, VelocityCommand)]
+    return cmd
+
+
+# --- the vehicle response model (response.py) -----------------------------------------------
+
+
+def _plant(pose: tuple[float, ...], cmds: list[tuple[float, float]], step_s: float) -> tuple:
+    """The vehicle's own plant (an independent oracle) under a command every step_s."""
+    p = PlantParams.from_config(SCENARIO.vehicle)
+    s = (*pose, 0.0)
+    for v, w in cmds:
+        for _ in range(round(step_s / 0.01)):
+            s = rk4_step(s, 0.01, v, w, NO_CURRENT, p)
+    return s[:5]
+
+
+def test_the_model_follows_the_plant_within_centimetres_over_two_seconds() -> None:
+    # commands as the controllers give them: the speed ramped (0.2 m/s^2, the shared
+    # profile), the yaw rate anywhere within R_min, changing every 0.1 s
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        v0 = float(rng.uniform(0.3, 1.8))
+        pose = (0.0, 0.0, float(rng.uniform(-3, 3)), v0, float(rng.uniform(-0.8, 0.8)) * v0 / 5)
+        speeds = np.clip(v0 + np.cumsum(rng.uniform(-0.02, 0.02, 20)), 0.0, 1.8)
+        cmds = [(float(v), float(rng.uniform(-0.3, 0.3))) for v in speeds]
+        got = pose
+        for v, w in cmds:
+            got = MODEL.advance(got, v, w, 0.1)
+        want = _plant(pose, cmds, 0.1)
+        assert math.hypot(got[0] - want[0], got[1] - want[1]) < 0.02
+        assert abs(got[3] - want[3]) < 0.01 and abs(got[4] - want[4]) < 0.01
+
+
+def test_the_model_never_turns_tighter_than_r_min() -> None:
+    pose = (0.0, 0.0, 0.0, 0.2, 0.0)
+    for _ in range(100):  # accelerating from 0.2 m/s while asked for the tightest turn
+        pose = MODEL.advance(pose, 1.5, 0.5, 0.05)
+        assert abs(pose[4]) <= pose[3] / SCENARIO.vehicle.turn_radius_min_m + 1e-12
+
+
+# --- what the vehicle applies, as the planner expects it (timeline.py) ----------------------
+
+
+def _timeline() -> CommandTimeline:
+    return CommandTimeline(SCENARIO.vehicle.watchdog, SCENARIO.vehicle.v_min_mps)
+
+
+def test_the_newest_command_arrived_is_in_force_and_its_buffer_ends_in_hold() -> None:
+    tl = _timeline()
+    assert tl.schedule_at(1.0).at(1.0).mode == "IDLE"
+    tl.add(1.0, 2.0, 0.1, [1.0, 1.1, 1.2], [0.0, 0.1, 0.2])
+    tl.add(1.1, 1.9, 0.1, [0.5], [0.0])  # newer, expected earlier (the delay fell)
+    assert tl.schedule_at(1.85).stamp is None  # nothing has arrived yet
+    assert tl.schedule_at(1.95).stamp == 1.1
+    assert tl.schedule_at(2.05).stamp == 1.1  # the older one arrives later: overtaken
+    hold = SCENARIO.vehicle.watchdog.hold_after_s
+    assert tl.schedule_at(1.1 + hold + 0.01).at(1.1 + hold + 0.01).mode == "HOLD"
+
+
+def test_forgetting_what_is_superseded_changes_no_prediction() -> None:
+    tl = _timeline()
+    for k in range(40):  # a sequence every 0.1 s, 0.5 s in flight
+        t = 0.1 * k
+        tl.add(t, t + 0.5, 0.1, [1.0 + 0.01 * k] * 20, [0.1 * math.sin(k / 3)] * 20)
+    start = (0.0, 0.0, 0.0, 1.0, 0.0)
+    full = tl.predict(start, 3.0, 4.5, MODEL)
+    tl.forget_before(3.0)
+    assert len(tl.sent) == 15  # the one in force at 3.0 (stamp 2.5) and every later one
+    assert tl.predict(start, 3.0, 4.5, MODEL) == full
+
+
+# --- command sequences (sequence.py) ----------------------------------------------------------
+
+
+CIRCLE = Circle(cx=0.0, cy=10.0, radius=10.0, phase0=-0.5 * math.pi, turns=1.0)
+LIMITS = Limits.from_vehicle(SCENARIO.vehicle)
+
+
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_a_sequence_is_the_controller_rolled_on_a_copy(kind: str) -> None:
+    ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
+    pose = (0.5, -0.3, 0.1, 1.2, 0.05)
+    for k in range(5):  # some history: integrals, a virtual reference, a ramp
+        ctrl.command(0.1 * k, pose, CIRCLE)
+    alone = copy.deepcopy(ctrl)
+    tl = _timeline()
+    tl.add(0.2, 0.45, 0.1, [1.0] * 10, [0.08] * 10)  # in force at the vehicle until 0.75 s
+    t, arrival = 0.5, 0.75
+    vs, ws = command_sequence(
+        ctrl, CIRCLE, t, pose, n=30, step_s=0.1, arrival=arrival, timeline=tl, model=MODEL
+    )
+    assert len(vs) == len(ws) == 31  # now, and every step of the 3 s horizon
+    # entry 0 is the command for now: what the controller alone answers for that pose,
+    # and the controller's own state moved exactly as by that one call
+    assert (vs[0], ws[0]) == alone.command(t, pose, CIRCLE)
+    assert _state(ctrl) == _state(alone)
+    # entry k: the controller (a copy) on the state predicted for t + 0.1 k: the vehicle
+    # applies the command sent before until this one arrives, then this one's entries
+    p = tl.predict(pose, t, t + 0.1, MODEL)
+    assert (vs[1], ws[1]) == alone.command(t + 0.1, p, CIRCLE)
+    p = tl.predict(p, t + 0.1, t + 2 * 0.1, MODEL)
+    assert (vs[2], ws[2]) == alone.command(t + 2 * 0.1, p, CIRCLE)
+    p = tl.predict(p, t + 2 * 0.1, arrival, MODEL)  # then entry 2 from its arrival on
+    p = MODEL.advance(p, vs[2], ws[2], t + 3 * 0.1 - arrival)
+    assert (vs[3], ws[3]) == alone.command(t + 3 * 0.1, p, CIRCLE)
+    p = MODEL.advance(p, vs[3], ws[3], 0.1)
+    assert (vs[4], ws[4]) == alone.command(t + 4 * 0.1, p, CIRCLE)
+
+
+def _state(ctrl: object) -> dict[str, object]:
+    """A controller's mutable state, for comparison (its config objects are shared)."""
+    return {k: vars(v) if k == "speed" else v for k, v in vars(ctrl).items()}
+
+
+# --- the planner's commands --------------------------------------------------------------------
+
+
+def test_without_sequences_the_commands_are_todays_single_commands() -> None:
+    core = _core(["controller.sequence.horizon_s=0"], downlink_s=0.2)
+    core.deliver(_estimate(0.0, 0.03, v=0.8))
+    cmd = _cmd(core, 0.05)
+    assert (cmd.horizon, cmd.step_ms) == (0, 0)
+    # version 4's single command, byte for byte but the version
+    plain = VelocityCommand(stamp=0.05, v=cmd.v, w=cmd.w, path_id=1, controller="nurbs")
+    assert encode(cmd) == encode(plain)
+    # computed as before sequences: the controller's own constant-twist compensation over
+    # the estimate's age plus the configured downlink delay (no status has come yet)
+    assert core.ref is not None
+    fresh = make_controller(SCENARIO.controller, LIMITS)
+    pose = (5.0, 20.0, 0.0, 0.8, 0.0)
+    assert (cmd.v, cmd.w) == fresh.command(0.05, pose, core.ref, 0.05 + 0.2)
+
+
+def test_a_sequence_covers_the_horizon_and_its_first_entry_is_the_command_for_now() -> None:
+    core = _core(downlink_s=0.2)
+    core.deliver(_estimate(0.0, 0.03, v=0.8))
+    cmd = _cmd(core, 0.05)
+    n = round(SCENARIO.controller.sequence.horizon_s / SCENARIO.planner.period_s)
+    assert (cmd.horizon, cmd.step_s) == (n, SCENARIO.planner.period_s) == (100, 0.1)
+    # the command for now: the controller on the state predicted for now, the estimate
+    # carried 50 ms with what the vehicle applies (nothing sent yet: IDLE, braking)
+    assert core.ref is not None
+    now = MODEL.advance((5.0, 20.0, 0.0, 0.8, 0.0), 0.0, 0.0, 0.05)
+    fresh = make_controller(SCENARIO.controller, LIMITS)
+    assert (cmd.v, cmd.w) == fresh.command(0.05, now, core.ref)
+    # every entry within eq. (11), the speeds within the shared cruise speed
+    assert max(cmd.v_next) <= SCENARIO.vehicle.cruise_speed_mps
+    assert all(abs(w) <= SCENARIO.vehicle.w_max_rps for w in cmd.w_next)
+    # the planner expects it at the vehicle after the configured downlink delay
+    assert core.link.timeline.sent[-1].arrival == pytest.approx(0.05 + 0.2)
+
+
+def test_the_stop_tail_brings_the_vehicle_to_rest_at_the_end_of_the_buffer() -> None:
+    core = _core()
+    core.deliver(_estimate(0.0, 0.03, v=1.5))
+    cmd = _cmd(core, 0.05)
+    brake = SCENARIO.vehicle.accel_max_mps2  # the hull's bound
+    speeds = (cmd.v, *cmd.v_next)
+    assert speeds[-1] == 0.0 and max(speeds) == SCENARIO.vehicle.cruise_speed_mps
+    for k, v in enumerate(speeds):  # never faster than it can stop by the end
+        assert v <= brake * (10.0 - 0.1 * k) + 1e-3  # (quantised to mm/s on the wire)
+    # and without it the buffer ends at cruise speed (HOLD brakes from there, heading held)
+    core = _core(["controller.sequence.stop_tail=false"])
+    core.deliver(_estimate(0.0, 0.03, v=1.5))
+    assert _cmd(core, 0.05).v_next[-1] == SCENARIO.vehicle.cruise_speed_mps
+
+
+def test_the_downlink_delay_is_the_vehicles_measurement_plus_the_jitter_margin() -> None:
+    core = _core(["controller.jitter_margin_k=2"], downlink_s=0.2)
+    assert core.link.downlink_s == 0.2  # configured, until the vehicle has measured one
+    core.deliver(_status(1.0, 0.9, 0.05, n=0))  # no sample yet
+    assert core.link.downlink_s == 0.2
+    core.deliver(_status(2.0, 0.9, 0.05))
+    assert core.link.downlink_s == pytest.approx(0.9 + 2 * 0.05)
+    core.deliver(_status(1.5, 0.1))  # an older status arriving late changes nothing
+    assert core.link.downlink_s == pytest.approx(1.0)
+    core.deliver(_status(3.0, 1e6))  # absurd: rejected, counted
+    assert core.inputs_rejected == {"status.out_of_range": 1}
+    assert core.link.downlink_s == pytest.approx(1.0)
+
+
+def test_a_known_delay_is_no_outage_but_a_silence_is() -> None:
+    for delayed in (True, False):
+        core = _core()
+        if delayed:  # estimates have been arriving a second after their stamp
+            for k in range(20):
+                core.deliver(_estimate(0.1 * k, 0.1 * k + 1.0))
+        core.deliver(_estimate(2.0, 3.0 if delayed else 2.0))
+        # 1.9 s old: 0.9 s beyond the measured delay (fresh), or 1.9 s beyond none (stale)
+        out = core.step(3.9)
+        assert bool(out) is delayed
+    # a silence of more than max_estimate_age_s beyond the known delay is an outage
+    assert core.step(3.0 + 1.0 + 0.05) == []
+    core = _core()
+    for k in range(21):
+        core.deliver(_estimate(0.1 * k, 0.1 * k + 1.0))
+    assert core.step(2.0 + 1.0 + 0.95)  # 0.95 s beyond the second the estimates take
+    assert core.step(2.0 + 1.0 + 1.05) == []
+    assert core.stale_skips == 1

@@ -1,0 +1,27 @@
+"""Smoke test of scripts/bench_sequence.py: a few control steps at two horizons."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_bench_sequence_times_steps_and_sizes_commands(capsys: pytest.CaptureFixture[str]) -> None:
+    spec = importlib.util.spec_from_file_location(
+        "bench_sequence", ROOT / "scripts" / "bench_sequence.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    _, single = bench.bench_steps("nurbs", 0.0, 5)
+    times, sizes = bench.bench_steps("nurbs", 2.0, 5)
+    assert len(times) == len(sizes) == 5 and min(times) >= 0.0
+    # 20 future entries of 1-3 bytes each for v and w on top of the single command
+    assert min(sizes) >= max(single) + 2 * 20
+    bench.main_steps(3, [0.0, 1.0])
+    out = capsys.readouterr().out
+    assert "x bytes" in out and "fuzzy_pid" in out
