@@ -1,10 +1,9 @@
 """Benchmark command sequences (issue 16): message size and controller step time vs horizon.
 
 For each controller and horizon (0 = single commands, the baseline measured in the same run):
-a PlannerCore on the default mission's first plan is fed estimates of a vehicle following it
-(a slow lateral weave, no replans) and stepped at its control period; every step is timed on
-this thread's CPU clock (the planner's whole step: prediction, controller rollout, message)
-and every command encoded (the wire bytes, envelope included). Ratios are against horizon 0.
+the planner's control step on the default mission's first plan, timed on this thread's CPU
+clock, and its command's wire bytes (services/experiments/sequence_cost.py, which the
+networked-control report quotes too). Ratios are against the first horizon.
 
 --model adds the accuracy of the planner's vehicle model (services/planner/response.py)
 against the plant: on the default mission of each controller, the position predicted from
@@ -20,78 +19,15 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
-from common.config.scenario import Scenario, load_scenario
-from common.messages import StateEstimate, TruthState, VelocityCommand, encode
-from common.runtime.model.core import Delivery
+from common.config.scenario import load_scenario
+from common.messages import TruthState, VelocityCommand
 from common.runtime.model.inproc import run_inproc
+from services.experiments.sequence_cost import CONTROLLERS, DEFAULT_SCENARIO, cost_table
 from services.planner.controllers import predict_pose
-from services.planner.core import PlannerCore
 from services.planner.response import ResponseModel
-
-DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
-CONTROLLERS = ("nurbs", "backstepping", "fuzzy_pid")
-COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
-
-
-def _scenario(kind: str, horizon_s: float) -> Scenario:
-    s, _ = load_scenario(
-        DEFAULT_SCENARIO,
-        [
-            f'controller.kind="{kind}"',
-            f"controller.sequence.horizon_s={horizon_s}",
-            # off at every horizon: it costs one min() an entry, and horizons under the 5 s
-            # it needs to brake from cruise are refused with it (common/config/scenario.py)
-            "controller.sequence.stop_tail=false",
-            "planner.first_plan_wait_s=0",
-        ],
-    )
-    return s
-
-
-def bench_steps(kind: str, horizon_s: float, steps: int) -> tuple[list[float], list[int]]:
-    """(CPU seconds of each planner step, bytes of each command) along the first plan."""
-    s = _scenario(kind, horizon_s)
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=0.05)
-    start = s.world.start
-    est = StateEstimate(
-        stamp=0.0, x=start.x_m, y=start.y_m, theta=start.theta_rad, v=1.5, w=0.0, covariance=COV
-    )
-    core.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.0))
-    core.step(0.05)  # the first plan (not timed: a replan, not a control step)
-    ref = core.ref
-    assert ref is not None
-    times, sizes = [], []
-    period = s.planner.period_s
-    for k in range(1, steps + 1):
-        t = 0.05 + k * period
-        sk = min(1.5 * (t - 0.1), ref.length)
-        x, y = ref.point_at_s(sk)
-        th = ref.heading_at_s(sk)
-        off = 0.3 * math.sin(0.3 * t)  # a slow lateral weave the controller corrects
-        est = StateEstimate(
-            stamp=t - 0.1,
-            x=x - off * math.sin(th),
-            y=y + off * math.cos(th),
-            theta=th + 0.05 * math.cos(0.3 * t),
-            v=1.5,
-            w=1.5 * ref.curvature_at_s(sk),
-            covariance=COV,
-        )
-        core.deliver(Delivery(source="estimator", stream="state", msg=est, t=t - 0.05))
-        c0 = time.thread_time()
-        out = core.step(t)
-        dt = time.thread_time() - c0
-        if any(e.stream == "path" for e in out):
-            continue  # a replan's time is the planner benchmark's (scripts/bench_planner.py)
-        (cmd,) = [e.msg for e in out if isinstance(e.msg, VelocityCommand)]
-        times.append(dt)
-        sizes.append(len(encode(cmd, source="planner", seq=k, sent=t)))
-    return times, sizes
 
 
 def main_steps(steps: int, horizons: list[float]) -> None:
@@ -100,19 +36,11 @@ def main_steps(steps: int, horizons: list[float]) -> None:
         f"{'controller':13s} {'horizon s':>9s} {'entries':>7s} {'bytes':>6s} {'x bytes':>7s} "
         f"{'step p50 ms':>11s} {'p95 ms':>7s} {'x time':>7s}"
     )
-    for kind in CONTROLLERS:
-        base_t = base_b = math.nan
-        for h in horizons:
-            times, sizes = bench_steps(kind, h, steps)
-            p50, p95 = (1e3 * float(np.percentile(times, q)) for q in (50, 95))
-            size = float(np.median(sizes))
-            if h == horizons[0]:
-                base_t, base_b = p50, size
-            n = _scenario(kind, h).controller.sequence.entries(0.1)
-            print(
-                f"{kind:13s} {h:9.1f} {n:7d} {size:6.0f} {size / base_b:7.1f} "
-                f"{p50:11.2f} {p95:7.2f} {p50 / base_t:7.1f}"
-            )
+    for r in cost_table(steps, tuple(horizons)):
+        print(
+            f"{r.controller:13s} {r.horizon_s:9.1f} {r.entries:7d} {r.bytes:6.0f} "
+            f"{r.bytes_ratio:7.1f} {r.step_p50_ms:11.2f} {r.step_p95_ms:7.2f} {r.time_ratio:7.1f}"
+        )
 
 
 def _roll(

@@ -1,4 +1,5 @@
-"""Smoke test of scripts/bench_sequence.py: a few control steps at two horizons."""
+"""Smoke test of scripts/bench_sequence.py and its measurement (services/experiments/
+sequence_cost.py): a few control steps at two horizons."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import importlib.util
 from pathlib import Path
 
 import pytest
+
+from services.experiments.sequence_cost import bench_steps
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,8 +20,8 @@ def test_bench_sequence_times_steps_and_sizes_commands(capsys: pytest.CaptureFix
     assert spec is not None and spec.loader is not None
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    _, single = bench.bench_steps("nurbs", 0.0, 5)
-    times, sizes = bench.bench_steps("nurbs", 2.0, 5)
+    _, single = bench_steps("nurbs", 0.0, 5)
+    times, sizes = bench_steps("nurbs", 2.0, 5)
     assert len(times) == len(sizes) == 5 and min(times) >= 0.0
     # 20 future entries of 1-3 bytes each for v and w on top of the single command
     assert min(sizes) >= max(single) + 2 * 20

@@ -1,4 +1,5 @@
-"""The experiment sub-commands: sweep (a grid of runs) and reproduce (the paper's section 4)."""
+"""The experiment sub-commands: sweep (a grid of runs), reproduce (the paper's section 4) and
+network-report (the networked-control sweeps of issue 16)."""
 
 from __future__ import annotations
 
@@ -40,6 +41,22 @@ def _common(p: argparse.ArgumentParser, runtime: str = "lockstep") -> None:
         default="",
         metavar="ADDRESS",
         help="run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786",
+    )
+
+
+def _report_dirs(p: argparse.ArgumentParser, runs: str, docs: str) -> None:
+    """--out (the runs, resumable) and --report-dir (REPORT.md and figures/)."""
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("runs") / runs,
+        help=f"the runs (default runs/{runs}); rerun to resume",
+    )
+    p.add_argument(
+        "--report-dir",
+        type=Path,
+        default=Path("docs") / docs,
+        help=f"where REPORT.md and its figures go (default docs/{docs}, the committed report)",
     )
 
 
@@ -91,8 +108,47 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
     return 1 if errors else 0
 
 
+def _sweep_names(text: str) -> tuple[str, ...]:
+    from services.experiments.networked import SWEEPS
+
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    bad = [n for n in names if n not in SWEEPS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f"--sweeps: {', '.join(bad) or 'none'} unknown, expected some of {', '.join(SWEEPS)}"
+        )
+    return names
+
+
+def _seeds(text: str) -> int:
+    n = int(text)
+    if not 1 <= n <= 10_000:
+        raise argparse.ArgumentTypeError("--seeds must be in 1..10000")
+    return n
+
+
+def cmd_network_report(a: argparse.Namespace) -> int:
+    from services.experiments.networked import NetworkOptions, network_report
+
+    res = network_report(
+        NetworkOptions(
+            out=a.out,
+            report_dir=a.report_dir,
+            sweeps=a.sweeps,
+            seeds=a.seeds,
+            runtime=a.runtime,
+            jobs=a.jobs,
+            scheduler=a.scheduler,
+            cost_steps=a.cost_steps,
+            command="tidelink " + shlex.join(sys.argv[1:]),
+        )
+    )
+    print(f"network-report: {res.runs} runs ({res.errors} failed); report {res.report}")
+    return 1 if res.errors else 0
+
+
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add sweep and reproduce to the tidelink parser."""
+    """Add sweep, reproduce and network-report to the tidelink parser."""
     s = sub.add_parser("sweep", help="run an experiment grid (profiles x controllers x seeds)")
     s.add_argument(
         "experiment", type=Path, help="experiment TOML, e.g. configs/experiments/delay.toml"
@@ -123,15 +179,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=Path("configs/default.toml"),
         help="the scenario (default: configs/default.toml, the paper-like field)",
     )
-    r.add_argument(
-        "--out", type=Path, default=Path("runs/reproduce"), help="the runs (default runs/reproduce)"
-    )
-    r.add_argument(
-        "--report-dir",
-        type=Path,
-        default=Path("docs/reproduce"),
-        help="where REPORT.md and its figures go (default docs/reproduce, the committed report)",
-    )
+    _report_dirs(r, "reproduce", "reproduce")
     r.add_argument(
         "--crossing",
         type=Path,
@@ -154,3 +202,30 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "first plan, as in the paper)",
     )
     r.set_defaults(func=cmd_reproduce)
+
+    n = sub.add_parser(
+        "network-report",
+        help="the networked-control sweeps (delay, loss, bursts, outages x command sequences "
+        "on/off x controllers) and DIR/REPORT.md",
+    )
+    _report_dirs(n, "networked-control", "networked-control")  # runs: a folder per sweep
+    n.add_argument(
+        "--sweeps",
+        type=_sweep_names,
+        default=("delay", "loss", "burst", "outage"),
+        help="which of configs/experiments/networked/*.toml (default delay,loss,burst,outage)",
+    )
+    n.add_argument(
+        "--seeds",
+        type=_seeds,
+        default=None,
+        help="seeds per cell (default: the experiment files', 20)",
+    )
+    _common(n, runtime="inproc")
+    n.add_argument(
+        "--cost-steps",
+        type=int,
+        default=200,
+        help="planner steps timed per controller and horizon for the cost table (default 200)",
+    )
+    n.set_defaults(func=cmd_network_report)

@@ -30,10 +30,20 @@ def _estimate(c: CellStats, metric: str) -> Estimate | None:
 
 
 def plot_sweep(
-    out: Path, cells: list[CellStats], axis: Axis, grid: tuple[str, ...], title: str
+    out: Path,
+    cells: list[CellStats],
+    axis: Axis,
+    grid: tuple[str, ...],
+    title: str,
+    *,
+    metrics: dict[str, str] | None = None,
+    folder: str = "plots",
+    dash_axis: str = "",
 ) -> list[Path]:
-    """One PNG per metric in out/plots/; returns the files written."""
-    plots = out / "plots"
+    """One PNG per metric (PLOT_METRICS unless given: name -> y label) in out/<folder>/;
+    returns the files written. With dash_axis, a line whose value on that axis is not the
+    first one seen is dashed, in the colour of the line it differs from only there."""
+    plots = out / folder
     plots.mkdir(parents=True, exist_ok=True)
     order = [v.label for v in axis.values]
     xs = {v.label: (v.x if axis.numeric else float(i)) for i, v in enumerate(axis.values)}
@@ -42,8 +52,9 @@ def plot_sweep(
     for c in cells:
         name = ", ".join(c.labels[g] for g in others) or "all"
         lines.setdefault(name, []).append(c)
+    styles = _styles(lines, others, dash_axis) if dash_axis in others else {}
     written = []
-    for metric, ylabel in PLOT_METRICS.items():
+    for metric, ylabel in (PLOT_METRICS if metrics is None else metrics).items():
         if not any(_estimate(c, metric) is not None for c in cells):
             continue
         fig = Figure(figsize=(7.0, 4.2), layout="constrained")
@@ -61,7 +72,10 @@ def plot_sweep(
             if not pts2:
                 continue
             x = [p[0] for p in pts2]
-            (ln,) = ax.plot(x, [e.mean for _, e in pts2], marker="o", label=name)
+            colour, dash = styles.get(name, (None, "-"))
+            (ln,) = ax.plot(
+                x, [e.mean for _, e in pts2], marker="o", label=name, color=colour, linestyle=dash
+            )
             band = [(xx, e.low, e.high) for xx, e in pts2 if math.isfinite(e.low)]
             if band:
                 ax.fill_between(
@@ -84,3 +98,21 @@ def plot_sweep(
         fig.savefig(path, dpi=110)
         written.append(path)
     return written
+
+
+def _styles(
+    lines: dict[str, list[CellStats]], others: tuple[str, ...], dash_axis: str
+) -> dict[str, tuple[str, str]]:
+    """Line name -> (colour, line style): a colour per value of the other axes, dashed for
+    every value of dash_axis but the first seen."""
+    palette = [f"C{i}" for i in range(10)]
+    colours: dict[tuple[str, ...], str] = {}
+    first = ""
+    out = {}
+    for name, cs in lines.items():
+        labels = cs[0].labels
+        key = tuple(labels[g] for g in others if g != dash_axis)
+        colour = colours.setdefault(key, palette[len(colours) % len(palette)])
+        first = first or labels[dash_axis]
+        out[name] = (colour, "-" if labels[dash_axis] == first else "--")
+    return out
