@@ -215,6 +215,12 @@ class PlannerCore:
         if decision.replan:
             path = self._replan(t, t_plan, here, obstacles, decision.reason)
             out.append(Emit(stream="path", msg=path))
+        elif math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:
+            # steps were skipped (the estimate was stale): the vehicle ran on its buffer
+            # meanwhile and the plan still holds, but the controller's own state (backstepping's
+            # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
+            # the silence: restart it from where the vehicle is
+            self.controller.reset()
         if self.ref is None:
             # no feasible path: stop safely rather than drive into something
             vs, ws = self.link.stop()
