@@ -11,7 +11,7 @@ from services.experiments.claims import NAMES
 from services.experiments.schema import Axis, AxisValue
 from services.experiments.sequence_cost import CostRow
 from services.experiments.stats import Estimate
-from services.experiments.summary import CellStats
+from services.experiments.summary import FAILURES, CellStats
 
 GOAL = 0.95  # the issue's success target
 CONTROLLERS = ("nurbs", "backstepping", "fuzzy_pid")
@@ -97,6 +97,13 @@ def cliff(sw: SweepCells, ctrl: str, mech: str) -> str:
     return f"≥ 95 % throughout (to {last.label})" if last else "–"
 
 
+def pooled(sw: SweepCells, ctrl: str, mech: str) -> str:
+    """Success over every level of a sweep, as a percentage of the runs judged."""
+    cs = [c for v in sw.axis.values if (c := sw.cell(v.label, mech, ctrl)) is not None]
+    n = sum(c.n_judged for c in cs)
+    return f"{100 * sum(c.outcomes.get('success', 0) for c in cs) / n:.0f} %" if n else "–"
+
+
 def _worst(sw: SweepCells, levels: list[AxisValue], mech: str) -> str:
     """The NURBS method's lowest success over the levels, and where."""
     judged = [
@@ -132,6 +139,11 @@ def _goal_rows(sweeps: dict[str, SweepCells]) -> list[str]:
     return lines
 
 
+def _count(outcome: str) -> Callable[[CellStats], str]:
+    """A cell's number of runs that ended in `outcome`, as text."""
+    return lambda c: str(c.outcomes.get(outcome, 0))
+
+
 def _pair(on: CellStats | None, off: CellStats | None, f: Callable[[CellStats], str]) -> str:
     return " / ".join("–" if c is None else f(c) for c in (on, off))
 
@@ -150,21 +162,22 @@ def _sweep_section(sw: SweepCells) -> list[str]:
         lines.append(f"| {NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | {cliff(sw, ctrl, 'off')} |")
     lines += ["", *(f"![{f}]({f})" for f in sw.figures), ""]
     lines += [
-        "Per cell, sequences on / off: success (goal, no contact, never inside rho0); runs "
-        "with contact; mean minimum clearance (m); mean cross-track error to the path in force "
-        "(RMS, m); mean time in HOLD or FAILSAFE (s).",
+        "Per cell, sequences on / off: success (goal, no contact, never inside rho0); the "
+        "failed runs by outcome (goal reached but inside rho0 / contact / goal not reached); "
+        "mean minimum clearance (m); mean cross-track error to the path in force (RMS, m); "
+        "mean time in HOLD or FAILSAFE (s).",
         "",
-        f"| {sw.axis.name} | controller | success | contact | min clearance | XTE | "
-        "HOLD/FAILSAFE |",
-        "|---|---|---|---|---|---|---|",
+        f"| {sw.axis.name} | controller | success | inside rho0 | contact | not reached | "
+        "min clearance | XTE | HOLD/FAILSAFE |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for v in sw.axis.values:
         for ctrl in CONTROLLERS:
             on, off = sw.cell(v.label, "on", ctrl), sw.cell(v.label, "off", ctrl)
             lines.append(
                 f"| {v.label} | {NAMES[ctrl]} | {_pair(on, off, _rate)} | "
-                f"{_pair(on, off, lambda c: str(c.outcomes.get('collision', 0)))} | "
-                f"{_pair(on, off, lambda c: _m(c, 'min_clearance_m'))} | "
+                + " | ".join(_pair(on, off, _count(o)) for o in FAILURES)
+                + f" | {_pair(on, off, lambda c: _m(c, 'min_clearance_m'))} | "
                 f"{_pair(on, off, lambda c: _m(c, 'xte_planned_rms_m'))} | "
                 f"{_pair(on, off, lambda c: _m(c, 'blind_time_s', 1))} |"
             )
@@ -238,16 +251,17 @@ def write_report(
         "## Where each controller's cliff is",
         "",
         "The last fault level up to which a controller succeeds in ≥ 95 % of the runs, and "
-        "the first where it does not.",
+        "the first where it does not; and its success over every level of the sweep.",
         "",
-        "| sweep | controller | sequences on | sequences off |",
-        "|---|---|---|---|",
+        "| sweep | controller | sequences on | sequences off | all levels, on / off |",
+        "|---|---|---|---|---|",
     ]
     for sw in sweeps:
         for ctrl in CONTROLLERS:
             lines.append(
                 f"| {sw.name} | {NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | "
-                f"{cliff(sw, ctrl, 'off')} |"
+                f"{cliff(sw, ctrl, 'off')} | {pooled(sw, ctrl, 'on')} / "
+                f"{pooled(sw, ctrl, 'off')} |"
             )
     lines.append("")
     for sw in sweeps:
