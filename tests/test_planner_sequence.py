@@ -33,8 +33,10 @@ def _core(overrides: list[str] | None = None, *, downlink_s: float = 0.0) -> Pla
     return PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=downlink_s)
 
 
-def _estimate(stamp: float, t: float, *, x: float = 5.0, v: float = 0.0) -> Delivery:
-    est = StateEstimate(stamp=stamp, x=x, y=20.0, theta=0.0, v=v, w=0.0, covariance=COV)
+def _estimate(
+    stamp: float, t: float, *, x: float = 5.0, v: float = 0.0, y: float = 20.0
+) -> Delivery:
+    est = StateEstimate(stamp=stamp, x=x, y=y, theta=0.0, v=v, w=0.0, covariance=COV)
     return Delivery(source="estimator", stream="state", msg=est, t=t)
 
 
@@ -256,3 +258,25 @@ def test_a_known_delay_is_no_outage_but_a_silence_is() -> None:
     assert core.step(2.0 + 1.0 + 0.95)  # 0.95 s beyond the second the estimates take
     assert core.step(2.0 + 1.0 + 1.05) == []
     assert core.stale_skips == 1
+
+
+def test_after_skipped_steps_the_controller_restarts_from_where_the_vehicle_is() -> None:
+    # backstepping's virtual reference runs on by the clock: after 3 s without a step, the
+    # vehicle stopped on its buffer, it would wait at its 5 m leash ahead, and with the
+    # speed capped at the profile it never comes back: the controller restarts instead (the
+    # plan holds: no replan)
+    core = _core(['controller.kind="backstepping"', "world.start.y_m=14.0"])
+    for k in range(30):  # 3 s along y = 14 at 1.5 m/s (clear of the obstacles), 50 ms old
+        t = 0.05 + 0.1 * k
+        core.deliver(_estimate(t - 0.05, t - 0.02, x=5.0 + 1.5 * (t - 0.05), v=1.5, y=14.0))
+        assert core.step(t)
+    paths = core.path_id
+    for k in range(30, 60):  # 3 s of silence: stale after 1 s, the vehicle on its buffer
+        core.step(0.05 + 0.1 * k)
+    assert core.stale_skips > 0
+    # meanwhile the vehicle ran its buffer out and stopped (the stop tail) 2 m further on
+    t = 0.05 + 0.1 * 60
+    core.deliver(_estimate(t - 0.05, t - 0.02, x=5.0 + 1.5 * 2.95 + 2.0, y=14.0))
+    assert core.step(t) and core.path_id == paths
+    e_x, _, _ = core.controller.last_errors  # type: ignore[attr-defined]
+    assert abs(e_x) < 0.5  # the reference restarted at the vehicle's projection, not 5 m on
