@@ -223,7 +223,7 @@ inproc, every controller on equal terms:
   its age plus the downlink delay).
 
 Both measure the delay instead of assuming it (the downlink from the vehicle's status:
-median + 1 x jitter; staleness is the estimate's age beyond the delay it arrives with), so
+its median; staleness is the estimate's age beyond the delay it arrives with), so
 the 'off' columns are not the old code: before issue 16 a 1 s delay made every estimate
 stale and the vehicle never moved. Success = reached the goal without contact and never
 inside the safety distance rho0; with 20 seeds, 95 % allows one failed run (the Wilson 95 %
