@@ -54,7 +54,9 @@ def test_a_start_in_contact_heading_into_the_obstacle_stays_put() -> None:
     assert r.reason == "max_time" and m["reached_goal"] is False
     paths = r.record.stream("planner", "path")
     assert paths and all(p.status == "NO_PATH" for p in paths)  # type: ignore[attr-defined]
-    assert "in contact with an obstacle (hull clearance -0.30 m)" in paths[0].reason  # type: ignore[attr-defined]
+    # the hull clearance of the estimate the plan starts from (a noisy fix of the -0.30 m)
+    why = paths[0].reason  # type: ignore[attr-defined]
+    assert re.search(r"in contact with an obstacle \(hull clearance -0\.[2-4]\d m\)", why), why
     truth = r.record.stream("vehicle", "truth")
     assert max(q.v for q in truth) == 0.0  # type: ignore[attr-defined]
     assert m["min_clearance_m"] == pytest.approx(-0.3)

@@ -14,6 +14,7 @@ from services.experiments.claims import (
     fmt,
     paper_table,
     time_ratios,
+    verdict_summary,
     verdict_table,
 )
 from services.experiments.summary import CellStats, success_text
@@ -263,6 +264,7 @@ def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
 
 def write_report(path: Path, inp: ReportInputs) -> None:
     cells = _by_cell(inp)
+    judged = [c for c in EQUAL_TERMS if any(k[0] == c for k in cells)]
     nets_text = "; ".join(f"**{k}**: {v}" for k, v in inp.networks.items())
     crossing = f", and `{inp.crossing}` (moving obstacles across the path)" if inp.crossing else ""
     lines = [
@@ -297,7 +299,11 @@ def write_report(path: Path, inp: ReportInputs) -> None:
         "both with 95 % intervals apart; in the means: on the claimed side, intervals "
         "overlap; in part: against one baseline only):",
         "",
-        *verdict_table(cells, [c for c in EQUAL_TERMS if any(k[0] == c for k in cells)]),
+        *verdict_table(cells, judged),
+        "",
+        "In plain words:",
+        "",
+        *verdict_summary(cells, judged),
         "",
         "Hard constraints in execution (all equal-terms cases):",
         "",

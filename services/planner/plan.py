@@ -257,7 +257,7 @@ def _plan(
         return failed
     # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
     # turn away on an arc within R_min first; inside the margin, failing that, drive out first
-    turned = turn_then_plan(req, failed, rest)
+    turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok or d_start >= d_req:
         return turned
     escaped = leave_then_plan(req, cfg, static, d_start, rest)

@@ -44,7 +44,9 @@ TURN_STEP_RAD = math.radians(15.0)  # the turns a recovery tries, either way
 ARC_RADIUS_FACTOR = 1.2  # a recovery's arcs are this much wider than R_min
 
 
-def turn_then_plan(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResult:
+def turn_then_plan(
+    req: PlanRequest, failed: PlanResult, plan: Plan, rho0_m: float = 0.0
+) -> PlanResult:
     """No curve leaves along the vehicle's heading (eq. (10) with R_min, near an obstacle the
     vehicle heads for): turn on an arc, and plan from its end.
 
@@ -53,9 +55,10 @@ def turn_then_plan(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResu
     obstacle (moving ones where they will be, their acceleration held over the turn, as
     `ObstacleState.advanced` holds it) and in the area. It may pass nearer than the start,
     inside the safety margin even (the replan policy does not count its stretch: escape_m),
-    the less the better: the arcs are tried by how much nearer than the start they take the
-    hull (in steps of DEPTH_STEP_M), then by how far their end heading is from the leg's; at
-    most MAX_ESCAPES of them.
+    the less the better: arcs that keep the margin rho0_m (never below min(start, r + rho0))
+    come first, then they are tried by how much nearer than the start they take the hull (in
+    steps of DEPTH_STEP_M), then by how far their end heading is from the leg's; at most
+    MAX_ESCAPES of them.
     """
     lead = failed.grid_path[1] - failed.grid_path[0] if len(failed.grid_path) >= 2 else None
     if lead is None:
@@ -78,10 +81,18 @@ def turn_then_plan(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResu
     end = np.minimum(np.searchsorted(sw.s, radius * np.abs(turns)), len(sw.s) - 1)  # (J,)
     rows = np.arange(len(turns))
     free = sw.deeper(r + BEYOND_M, r)[rows, end] <= 0.0  # hull free, in the area, to the end
+    # eq. (12)-(13): an arc that keeps the safety margin (never below min(start, r + rho0))
+    # comes before any that enters it; a start outside the margin then stays outside
+    kept = sw.deeper(r + rho0_m, r)[rows, end] <= 0.0
     depth = sw.deeper(math.inf, r)[rows, end]  # how much nearer than at the start
     order = sorted(
         np.flatnonzero(free),
-        key=lambda j: (round(depth[j] / DEPTH_STEP_M), abs(wrap_angle(turns[j] - want)), j),
+        key=lambda j: (
+            not kept[j],
+            round(depth[j] / DEPTH_STEP_M),
+            abs(wrap_angle(turns[j] - want)),
+            j,
+        ),
     )
     for j in order[:MAX_ESCAPES]:
         turn = float(turns[j])
