@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import os
+import threading
+import time
 import traceback
 import uuid
 from collections.abc import Callable, Sequence
@@ -33,11 +36,29 @@ def run_serial(specs: Sequence[RunSpec], on_done: OnDone) -> None:
         on_done(spec, execute_run(spec))
 
 
+def _exit_with(parent_pid: int, poll_s: float = 0.5) -> None:
+    """Pool initializer: the worker ends itself once the sweep that started it is gone."""
+
+    # A killed sweep (SIGKILL, SIGTERM, a closed terminal) cannot shut its pool down; its
+    # workers would run on, unseen, for minutes, taking the cores from the next sweep.
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-sweep", daemon=True).start()
+
+
 def run_pool(specs: Sequence[RunSpec], on_done: OnDone, jobs: int) -> None:
     """A local process pool; each outcome is handed to on_done as soon as it finishes."""
     # spawn, not fork: the parent may hold threads (progress bar) that fork would not copy
     ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=max(1, min(jobs, len(specs))), mp_context=ctx)
+    pool = ProcessPoolExecutor(
+        max_workers=max(1, min(jobs, len(specs))),
+        mp_context=ctx,
+        initializer=_exit_with,
+        initargs=(os.getpid(),),
+    )
     try:
         futures: dict[Future[RunOutcome], RunSpec] = {pool.submit(execute_run, s): s for s in specs}
         for fut in as_completed(futures):
