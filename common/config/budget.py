@@ -17,6 +17,7 @@ from common.config.run import RunConfig
 from common.config.sensor import SensorConfig
 from common.config.work import (
     RECORD_BYTES_PER_MESSAGE,
+    RECORD_BYTES_PER_SEQUENCE_ENTRY,
     RK4_STEP_S,
     SERVICE_STEP_S,
     Estimate,
@@ -101,9 +102,8 @@ def check_budget(s: Scenario, file: str = "", budget: Budget = DEFAULT_BUDGET) -
             _path(key),
             f"{_cause(s, key, message_rate_hz(s), 'messages', est.messages)}, all kept in the "
             f"run's record (~{format_bytes(est.record_bytes)} at ~{RECORD_BYTES_PER_MESSAGE} B "
-            "each); "
-            f"the budget is {format_bytes(budget.record_bytes)} "
-            f"({budget.record_bytes / RECORD_BYTES_PER_MESSAGE:.3g} messages): shorten "
+            f"each{_sequence_share(est)}); "
+            f"the budget is {format_bytes(budget.record_bytes)}: shorten "
             "run.max_time_s or publish less often" + more,
         )
     if est.wall_s > budget.wall_s:
@@ -118,6 +118,17 @@ def check_budget(s: Scenario, file: str = "", budget: Budget = DEFAULT_BUDGET) -
             f"({s.runtime.kind}: {parts}); the budget is {format_duration(budget.wall_s)}: {fix}"
             + more,
         )
+
+
+def _sequence_share(est: Estimate) -> str:
+    """What the commands' sequences add to the record, if anything."""
+    if not est.sequence_entries:
+        return ""
+    extra = est.sequence_entries * RECORD_BYTES_PER_SEQUENCE_ENTRY
+    return (
+        f", ~{format_bytes(extra)} of it the {est.sequence_entries:.3g} entries of the commands' "
+        "sequences: controller.sequence.horizon_s"
+    )
 
 
 _TERM_NAMES = {

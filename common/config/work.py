@@ -41,6 +41,9 @@ GRID_BYTES_FIXED = {"dijkstra": 72, "astar": 260}
 GRID_BYTES_PER_ARC = {"dijkstra": 24, "astar": 99}
 # A message kept in the record (its decoded struct, arrays and the record's dict slot).
 RECORD_BYTES_PER_MESSAGE = 1040
+# Each future entry of a command's sequence kept in the record (two ints and their slots):
+# a 100-entry command keeps 6.1-6.9 kB against 0.23 kB for a single command.
+RECORD_BYTES_PER_SEQUENCE_ENTRY = 60
 # Wall seconds of one service period (its core's step, encoding, routing, recording),
 # averaged over the AUV mission's services: one process (inproc), or one process per
 # service ticked over Zenoh (lockstep; realtime runs the same processes).
@@ -63,6 +66,7 @@ class Estimate:
     grid_cells: float  # the planner's cost map, nx * ny (inf past float range)
     grid_bytes_per_cell: int  # at a replan's peak, for the configured search
     messages: float  # published over the run, all kept in the record
+    sequence_entries: float  # future entries of every command sent (controller.sequence)
     service_steps: float  # periods of every service, stats included
     rk4_steps: float  # the vehicle plant's integration steps
     predict_steps: float  # the estimator's prediction sub-steps
@@ -74,7 +78,10 @@ class Estimate:
 
     @property
     def record_bytes(self) -> float:
-        return self.messages * RECORD_BYTES_PER_MESSAGE
+        return (
+            self.messages * RECORD_BYTES_PER_MESSAGE
+            + self.sequence_entries * RECORD_BYTES_PER_SEQUENCE_ENTRY
+        )
 
     @property
     def wall_s(self) -> float:
@@ -124,6 +131,7 @@ def estimate(s: Scenario) -> Estimate:
         grid_cells=cells,
         grid_bytes_per_cell=per_cell,
         messages=t * message_rate_hz(s),
+        sequence_entries=t / p.period_s * s.controller.sequence.entries(p.period_s),
         service_steps=service_steps,
         rk4_steps=rk4_steps,
         predict_steps=predict_steps,
