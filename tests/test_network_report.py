@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from services.cli.sweep_commands import _regenerate_command
 from services.experiments.netreport import SweepCells, cliff
 from services.experiments.networked import NetworkOptions, network_report
 from services.experiments.schema import Axis, AxisValue
@@ -105,3 +106,20 @@ def _sweep(rates: list[int]) -> SweepCells:
 def test_the_cliff_is_the_first_level_below_95_percent(rates: list[int], text: str) -> None:
     assert cliff(_sweep(rates), "nurbs", "on") == text
     assert cliff(_sweep(rates), "nurbs", "off") == "–"  # no cells
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["reproduce", "--jobs", "2", "--out", "/tmp/r"], "tidelink reproduce --jobs 2"),
+        (["network-report", "--out=/tmp/n", "--seeds", "5"], "tidelink network-report --seeds 5"),
+        (
+            ["reproduce", "--scenario", "my field.toml"],
+            "tidelink reproduce --scenario 'my field.toml'",
+        ),
+    ],
+)
+def test_a_report_names_the_command_without_the_folder_its_runs_went_to(
+    argv: list[str], expected: str
+) -> None:
+    assert _regenerate_command(argv) == expected

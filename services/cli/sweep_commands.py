@@ -99,13 +99,30 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
         tune=a.tune,
         tune_seeds=a.tune_seeds,
         replan=a.replan,
-        command="tidelink " + shlex.join(sys.argv[1:]),
+        command=_regenerate_command(sys.argv[1:]),
     )
     res = reproduce(opts)
     errors = res.sweep.errors + (res.crossing.errors if res.crossing else 0)
     total = res.sweep.total + (res.crossing.total if res.crossing else 0)
     print(f"reproduce: {total} runs ({errors} failed); report {res.report}")
     return 1 if errors else 0
+
+
+def _regenerate_command(argv: list[str]) -> str:
+    """The command line a report says regenerates it, without where this run kept its runs.
+
+    --out only names a folder (a temporary one, often): the report is the same without it.
+    """
+    kept: list[str] = []
+    skip = False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--out":
+            skip = True
+        elif not arg.startswith("--out="):
+            kept.append(arg)
+    return "tidelink " + shlex.join(kept)
 
 
 def _sweep_names(text: str) -> tuple[str, ...]:
@@ -140,7 +157,7 @@ def cmd_network_report(a: argparse.Namespace) -> int:
             jobs=a.jobs,
             scheduler=a.scheduler,
             cost_steps=a.cost_steps,
-            command="tidelink " + shlex.join(sys.argv[1:]),
+            command=_regenerate_command(sys.argv[1:]),
         )
     )
     print(f"network-report: {res.runs} runs ({res.errors} failed); report {res.report}")
