@@ -21,6 +21,8 @@ from services.experiments.worker import execute_run, row_of
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "configs" / "default.toml"
+PLANNER_OUT_8_S = 'network.outages=[{start_s=20.0, end_s=28.0, service="planner"}]'
+SEQUENCES_OFF = "controller.sequence.horizon_s=0"
 # An obstacle overtaking the vehicle from behind at 3 m/s along its start line (faster than
 # v_max = 2 m/s, so no controller escapes it); it passes through and the vehicle goes on.
 RAMMED = 'world.moving=[{id=20, kind="line", radius_m=1.0, x0_m=0.0, y0_m=20.0, vx_mps=3.0}]'
@@ -143,12 +145,12 @@ def test_a_sweep_keeps_a_run_with_contact_as_data() -> None:
     assert row["collisions"] >= 1
 
 
-def test_losing_the_planner_for_8_s_is_a_short_reported_blind_run() -> None:
-    # the planner cut off from t = 20 s to 28 s: HOLD 2 s after its last command, the vehicle
-    # brakes at the hull's limit from at most cruise speed (1.5 m/s: 5.42 m to stop, see
-    # tests/test_vehicle_watchdog.py) until commands return; the metrics say how far it went
-    outage = 'network.outages=[{start_s=20.0, end_s=28.0, service="planner"}]'
-    s, _ = load_scenario(DEFAULT, [outage, 'runtime.kind="inproc"'])
+def test_losing_the_planner_for_8_s_without_sequences_is_a_short_reported_blind_run() -> None:
+    # the planner cut off from t = 20 s to 28 s with command sequences off (the ablation):
+    # HOLD 2 s after its last command, the vehicle brakes at the hull's limit from at most
+    # cruise speed (1.5 m/s: 5.42 m to stop, see tests/test_vehicle_watchdog.py) until commands
+    # return; the metrics say how far it went
+    s, _ = load_scenario(DEFAULT, [PLANNER_OUT_8_S, SEQUENCES_OFF, 'runtime.kind="inproc"'])
     m = run_inproc(s).metrics
     assert m["hold_time_s"] == pytest.approx(3.0) and m["failsafe_time_s"] > 0.0
     assert 4.0 < m["hold_distance_max_m"] <= 5.42 + 0.1
@@ -159,3 +161,13 @@ def test_losing_the_planner_for_8_s_is_a_short_reported_blind_run() -> None:
     inside = m["min_clearance_m"] < s.planner.rho0_m
     assert m["outcome"] == ("rho0_breach" if inside else "success")
     assert m["success"] is (not inside) and (m["time_below_rho0_s"] > 0.0) is inside
+
+
+def test_an_8_s_planner_outage_is_bridged_by_the_command_sequence() -> None:
+    # with the default 10 s sequence the vehicle keeps applying the last sequence it holds
+    # through the whole outage: never in HOLD, and the mission ends as it would have
+    s, _ = load_scenario(DEFAULT, [PLANNER_OUT_8_S, 'runtime.kind="inproc"'])
+    assert s.controller.sequence.horizon_s > 8.0
+    m = run_inproc(s).metrics
+    assert m["hold_time_s"] == 0.0 and m["failsafe_time_s"] == 0.0
+    assert m["reached_goal"] is True and m["collisions"] == 0 and m["success"] is True

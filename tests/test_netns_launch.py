@@ -131,7 +131,11 @@ def test_a_launch_across_namespaces_survives_a_link_outage(
                 launcher.wait_for(r"t=.* mode FAILSAFE", WAIT_S, start=mark)
             finally:
                 hosts.link("planner", "up")
-            launcher.wait_for(r"vehicle: mode FAILSAFE -> RUN", WAIT_S, start=mark)
+            try:
+                launcher.wait_for(r"vehicle: mode FAILSAFE -> RUN", WAIT_S, start=mark)
+            except AssertionError as exc:
+                why = f"{exc}\nthe planner's stderr:\n{services['planner'].stderr}"
+                raise AssertionError(why) from None
             assert launcher.wait(WAIT_S) == judged_exit(out), launcher.stderr
             for s, proc in services.items():  # each leaves by itself on the stop Tick
                 assert proc.wait(WAIT_S) == 0, f"{s}:\n{proc.stderr}"
@@ -141,7 +145,11 @@ def test_a_launch_across_namespaces_survives_a_link_outage(
     summary = {k: v for k, v in m.items() if k != "link_stats"}
     assert m["reached_goal"] is True and m["end_reason"] == "goal", summary
     assert m["hold_time_s"] > 0.0 and m["failsafe_time_s"] > 0.0, summary
-    assert m["commands_rejected_stale"] > 0, summary  # the backlog arrived too late to apply
+    # the router closes the cut-off planner's session once its queue has been full for a
+    # second (common/bus/session.py) and the planner reconnects; a shorter cut would have TCP
+    # deliver the backlog instead, too late to apply
+    rejoined = "service 'planner' rejoined" in launcher.stderr
+    assert rejoined or m["commands_rejected_stale"] > 0, summary
     for s in SERVICES:  # every service sent its traffic over its own veth link
         assert hosts.tx_bytes(s) > 10_000, s
     assert not [

@@ -15,6 +15,9 @@ if TYPE_CHECKING:
     from common.bus.certs import Credentials
 
 
+ROUTER_BLOCK_CLOSE_US = 1_000_000
+
+
 def zenoh_config(
     cfg: BusConfig,
     *,
@@ -39,6 +42,14 @@ def zenoh_config(
         # peers/routers: retry connecting so start order between processes does not matter
         conf.insert_json5("connect/timeout_ms", json.dumps(-1))
     conf.insert_json5("connect/exit_on_failure", json.dumps(False))
+    if cfg.mode == "router":
+        # a router forwards the control streams with congestion BLOCK: a client whose host
+        # is cut off fills its queue and would hold every other client's samples up to the
+        # default 5 s; close that session after 1 s instead (the client reconnects)
+        conf.insert_json5(
+            "transport/link/tx/queue/congestion_control/block/wait_before_close",
+            json.dumps(ROUTER_BLOCK_CLOSE_US),
+        )
     if cfg.secured:
         from common.bus.certs import tls_settings
 

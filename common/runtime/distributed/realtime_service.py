@@ -24,6 +24,12 @@ INBOX_MAX_PENDING = 1024
 # A delivery modelled further ahead than this (mission seconds) is no link's delay but a
 # forged routing: it would hold a queue slot until then.
 MAX_DELIVERY_AHEAD_S = 60.0
+# How long (wall seconds) a service waits for the mission clock's liveliness token to come
+# back before it stops. The token also vanishes when this service's own session is cut: a
+# router closes a client it could not reach (a host cut off for over a second, see
+# common/bus/session.py), the client reconnects and sees the token again within ~0.1 s
+# (measured in tests/test_netns_launch.py); a launcher that is really gone never returns.
+CLOCK_GRACE_S = 3.0
 
 
 class RealtimeService:
@@ -35,7 +41,8 @@ class RealtimeService:
     instead of replaying every period since 0. A step that falls behind by whole periods (a
     long replan, a descheduled process) skips the missed periods, as a real-time loop must:
     commands stamped in the past would only be rejected as stale. The service stops on a stop
-    Tick, or when the clock's liveliness token vanishes (its launcher is gone).
+    Tick, or when the clock's liveliness token stays gone for CLOCK_GRACE_S (its launcher is
+    gone, not merely this service's connection).
 
     A flood cannot stall the loop: the inbox sheds its oldest samples once INBOX_MAX_PENDING
     wait, each input holds at most its max_queued deliveries, and what is dropped or refused
@@ -52,6 +59,7 @@ class RealtimeService:
         self.t0: float | None = None
         self.ticks = 0
         self.skipped = 0  # periods skipped because the loop fell behind
+        self.clock_lost_at: float | None = None  # wall time the clock's token vanished
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -67,8 +75,11 @@ class RealtimeService:
                 if self.t0 is not None:
                     nxt = self.host.next_event_us()
                     timeout = max(0.0, (nxt - self.now_us()) / 1e6 / self.scale)
+                if self.clock_lost_at is not None:
+                    left = self.clock_lost_at + CLOCK_GRACE_S - time.monotonic()
+                    timeout = max(0.0, left if timeout is None else min(timeout, left))
                 ev = inbox.get(timeout=timeout)
-                if ev is not None and self._handle(ev):
+                if (ev is not None and self._handle(ev)) or self._clock_gone():
                     if self.t0 is not None:
                         # the final statistics, with source and seq like every message (a
                         # run's record refuses one without: anyone could have put it)
@@ -109,12 +120,28 @@ class RealtimeService:
             return
         self.host.count_dropped(service, stream, n, "inbox full (the loop fell behind)")
 
+    def _clock_gone(self) -> bool:
+        """Whether the clock's token has been gone for CLOCK_GRACE_S: the run is over."""
+        if self.clock_lost_at is None or time.monotonic() < self.clock_lost_at + CLOCK_GRACE_S:
+            return False
+        log.info("%s: the mission clock went away; stopping", self.name)
+        return True
+
     def _handle(self, ev: Received | Liveliness) -> bool:
         """Take one event; True when the run is over."""
         if isinstance(ev, Liveliness):
-            if not ev.alive:
-                log.info("%s: the mission clock went away; stopping", self.name)
-            return not ev.alive
+            if ev.alive:
+                if self.clock_lost_at is not None:
+                    log.info("%s: the mission clock is back", self.name)
+                self.clock_lost_at = None
+            elif self.clock_lost_at is None:
+                log.info(
+                    "%s: the mission clock's token vanished; waiting %.0f s for it",
+                    self.name,
+                    CLOCK_GRACE_S,
+                )
+                self.clock_lost_at = time.monotonic()
+            return False
         if self.keys.is_tick(ev.key):  # only the clock's keys carry ticks
             if not isinstance(ev.msg, Tick):
                 return False
