@@ -83,7 +83,14 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     LinkCounters: {
         **{
             k: COUNT
-            for k in ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue")
+            for k in (
+                "sent",
+                "delivered",
+                "dropped_loss",
+                "dropped_outage",
+                "dropped_queue",
+                "bytes_sent",
+            )
         },
         "duplicated": COUNT,
         "delay_p50": NONNEG,

@@ -18,6 +18,7 @@ from common.config.errors import ConfigValueError
 from common.config.estimator import EstimatorConfig
 from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
 from common.config.network import NetworkConfig
+from common.config.placement import PlacementConfig
 from common.config.planner import PlannerConfig
 from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
@@ -43,6 +44,7 @@ class Scenario:
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+    placement: PlacementConfig = field(default_factory=PlacementConfig)
 
     def __post_init__(self) -> None:
         _check_sequence(self.controller, self.planner.period_s, self.vehicle)

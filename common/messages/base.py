@@ -10,8 +10,8 @@ from typing import Any
 import msgspec
 
 # 5: VelocityCommand's future entries, VehicleStatus's delay figures; 6: StateEstimate's
-# predicted_s (how far the estimate was carried past its newest fix)
-WIRE_VERSION = 6
+# predicted_s (how far the estimate was carried past its newest fix); 7: LinkCounters.bytes_sent
+WIRE_VERSION = 7
 
 
 class WireError(ValueError):

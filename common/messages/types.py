@@ -345,9 +345,17 @@ class LinkCounters(WireRecord, frozen=True, kw_only=True):
     delay_p50: float  # modelled delay (the link model's decision), first copy
     delay_p95: float
     delay_p99: float
+    bytes_sent: int = 0  # encoded bytes of every message offered to the link
 
     def validate(self) -> None:
-        for name in ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue"):
+        for name in (
+            "sent",
+            "delivered",
+            "dropped_loss",
+            "dropped_outage",
+            "dropped_queue",
+            "bytes_sent",
+        ):
             check_range(f"link.{name}", getattr(self, name), 0)
         check_range("link.duplicated", self.duplicated, 0)
         for name in ("delay_p50", "delay_p95", "delay_p99"):

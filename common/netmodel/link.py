@@ -56,8 +56,24 @@ class Decision:
 _NO_WORDS = (0,) * N_DRAWS
 
 
-def _us(t: float) -> float:
+def us(t: float) -> float:
+    """t rounded to whole microseconds (runtimes keep integer-us clocks)."""
     return round(t * 1e6) / 1e6
+
+
+def check_send(
+    seq: int, send_time: float, size_bytes: int, last_seq: int, last_send: float
+) -> None:
+    """The contract of every link model's ``decide``: strictly increasing seq below 2**64,
+    finite non-decreasing send times, a size >= 0 (ValueError naming the argument)."""
+    if seq <= last_seq or seq >= 2**64:
+        raise ValueError(f"seq: {seq!r} is invalid, expected > {last_seq} and < 2**64")
+    if not (send_time >= last_send and math.isfinite(send_time)):
+        raise ValueError(
+            f"send_time: {send_time!r} is invalid, expected finite and >= {last_send!r}"
+        )
+    if size_bytes < 0:
+        raise ValueError(f"size_bytes: {size_bytes!r} is invalid, expected >= 0")
 
 
 class LinkModel:
@@ -101,18 +117,11 @@ class LinkModel:
 
     def decide(self, seq: int, send_time: float, size_bytes: int) -> Decision:
         """Decide the delivery of message ``seq`` (``size_bytes`` encoded) sent at ``send_time``."""
-        if seq <= self._last_seq or seq >= 2**64:
-            raise ValueError(f"seq: {seq!r} is invalid, expected > {self._last_seq} and < 2**64")
-        if not (send_time >= self._last_send and math.isfinite(send_time)):
-            raise ValueError(
-                f"send_time: {send_time!r} is invalid, expected finite and >= {self._last_send!r}"
-            )
-        if size_bytes < 0:
-            raise ValueError(f"size_bytes: {size_bytes!r} is invalid, expected >= 0")
+        check_send(seq, send_time, size_bytes, self._last_seq, self._last_send)
         self._last_seq = seq
         self._last_send = send_time
         decision = self._decide(seq, send_time, size_bytes)
-        self.stats.record(send_time, decision.delivered_at, decision.drop_cause)
+        self.stats.record(send_time, decision.delivered_at, decision.drop_cause, size_bytes)
         return decision
 
     def _decide(self, seq: int, t: float, size_bytes: int) -> Decision:
@@ -126,9 +135,9 @@ class LinkModel:
             return Decision(seq=seq, delivered_at=(), drop_cause="queue")
         if lost:
             return Decision(seq=seq, delivered_at=(), drop_cause="loss")
-        arrivals = [_us(t_tx + self._delay.sample(unit(w[U_DELAY]), seq, 0))]
+        arrivals = [us(t_tx + self._delay.sample(unit(w[U_DELAY]), seq, 0))]
         if self._dup_p > 0.0 and unit(w[U_DUPLICATE]) < self._dup_p:
-            arrivals.append(_us(t_tx + self._delay.sample(unit(w[U_DELAY_DUP]), seq, 1)))
+            arrivals.append(us(t_tx + self._delay.sample(unit(w[U_DELAY_DUP]), seq, 1)))
             arrivals.sort()
         delivered: list[float] = []
         for a in arrivals:

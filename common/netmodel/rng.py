@@ -26,6 +26,7 @@ U_GE_STATE = 1  # Gilbert-Elliott state transition (or the stationary initial st
 U_DUPLICATE = 2  # whether the message is duplicated
 U_DELAY = 3  # jitter of the original copy
 U_DELAY_DUP = 4  # jitter of the duplicate copy (independent of the original)
+U_FRAME_ERROR = 5  # an acoustic frame's bit errors (common/netmodel/acoustic_link.py)
 # words 5..7 are reserved
 
 _WORDS = struct.Struct("<8Q")

@@ -30,6 +30,7 @@ class LinkStatsSnapshot:
     delay_max_s: float  # exact maximum
     loss_bursts: int  # maximal runs of consecutive messages dropped by loss
     max_loss_burst: int
+    bytes_sent: int = 0  # encoded size of every message offered to the link
 
 
 class LinkStatsAccumulator:
@@ -42,6 +43,7 @@ class LinkStatsAccumulator:
         self.dropped_outage = 0
         self.dropped_queue = 0
         self.duplicated = 0
+        self.bytes_sent = 0
         self.loss_bursts = 0
         self.max_loss_burst = 0
         self._run = 0  # length of the current run of loss drops
@@ -49,9 +51,16 @@ class LinkStatsAccumulator:
         self._max_delay = 0.0
         self._bins = [0] * _N_BINS
 
-    def record(self, send_time: float, delivered_at: tuple[float, ...], cause: str | None) -> None:
-        """Count one decided message (its delivery times, or its drop cause)."""
+    def record(
+        self,
+        send_time: float,
+        delivered_at: tuple[float, ...],
+        cause: str | None,
+        size_bytes: int = 0,
+    ) -> None:
+        """Count one decided message (its delivery times, or its drop cause, and its size)."""
         self.sent += 1
+        self.bytes_sent += size_bytes
         if cause == "loss":
             self.dropped_loss += 1
             self._run += 1
@@ -108,6 +117,7 @@ class LinkStatsAccumulator:
             delay_max_s=self._max_delay,
             loss_bursts=self.loss_bursts,
             max_loss_burst=self.max_loss_burst,
+            bytes_sent=self.bytes_sent,
         )
 
 

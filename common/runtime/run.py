@@ -56,7 +56,9 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
             "ticks": result.ticks,
             "runtime": scenario.runtime.kind,
             "seed": scenario.run.seed,
-            "link_stats": link_stats(result.record),
+            "link_stats": (links := link_stats(result.record)),
+            # encoded size of a message per stream (what a thin link carries), in bytes
+            "bytes_per_message": stream_bytes(links),
             "unresponsive_s": unresponsive_s(
                 result.record,
                 thresholds(load_mission(scenario).dataflow, scenario.runtime.stats_period_s),
@@ -108,6 +110,8 @@ def link_stats(record: Record) -> dict[str, dict[str, Any]]:
                         "delay_p50_s": c.delay_p50,
                         "delay_p95_s": c.delay_p95,
                         "delay_p99_s": c.delay_p99,
+                        "bytes_sent": c.bytes_sent,
+                        "bytes_per_message": round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
                     }
                 )
             for d in msgs[-1].measured:
@@ -119,6 +123,17 @@ def link_stats(record: Record) -> dict[str, dict[str, Any]]:
                     }
                 )
     return out
+
+
+def stream_bytes(links: dict[str, dict[str, Any]]) -> dict[str, float]:
+    """Mean encoded bytes per message of every stream ('source/stream'), from its links
+    (each receiver's link sees the same messages: the busiest one counts)."""
+    out: dict[str, tuple[int, int]] = {}
+    for name, c in links.items():
+        stream = name.split("->", 1)[0]
+        if "sent" in c and c["sent"] > out.get(stream, (0, 0))[0]:
+            out[stream] = (c["sent"], c["bytes_sent"])
+    return {k: round(b / n, 1) for k, (n, b) in sorted(out.items())}
 
 
 def input_health(record: Record) -> dict[str, Any]:

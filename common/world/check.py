@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from common.config.budget import DEFAULT_BUDGET, Budget, check_budget
 from common.config.errors import ConfigError
+from common.config.placement import PlacementConfig
 from common.config.world import PoseConfig, WorldConfig
 from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
 from common.world.model import World
@@ -22,7 +23,36 @@ def check_scenario(scenario: Scenario, file: str = "", budget: Budget = DEFAULT_
         vehicle_radius_m=scenario.vehicle.radius_m,
         rho0_m=scenario.planner.rho0_m,
     )
+    check_stations(scenario.placement, scenario.world, file)
     check_budget(scenario, file, budget)  # the run's memory and time (common/config/budget.py)
+
+
+def check_stations(placement: PlacementConfig, cfg: WorldConfig, file: str = "") -> None:
+    """Raise ConfigError at `placement.stations[i]` for a station out of the water: beyond
+    placement.water_margin_m around the area, or inside a static obstacle (rock or land)."""
+    a, margin = cfg.area, placement.water_margin_m
+    world = World(cfg) if placement.stations else None
+    for i, st in enumerate(placement.stations):
+        where = ("placement", "stations", i)
+        outside = max(
+            a.x_min_m - st.x_m, st.x_m - a.x_max_m, a.y_min_m - st.y_m, st.y_m - a.y_max_m
+        )
+        if outside > margin:
+            raise ConfigError(
+                file,
+                where,
+                f"{st.name!r} at ({st.x_m}, {st.y_m}) lies {outside:.0f} m beyond world.area, "
+                f"outside the water (placement.water_margin_m = {margin:g} m)",
+            )
+        assert world is not None
+        oid, d = world.nearest(st.x_m, st.y_m, 0.0, 0.0, moving=False)
+        if d <= 0.0:
+            raise ConfigError(
+                file,
+                where,
+                f"{st.name!r} at ({st.x_m}, {st.y_m}) lies inside obstacle {oid}, expected "
+                "a station in open water",
+            )
 
 
 def check_world(

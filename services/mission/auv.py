@@ -12,6 +12,7 @@ from common.world import World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import auv_dataflow
 from services.mission.metrics import mission_metrics
+from services.mission.placed import placed
 
 
 class AuvMission:
@@ -20,7 +21,7 @@ class AuvMission:
     def __init__(self, scenario: Scenario) -> None:
         self.s = scenario
         self.max_time_s = scenario.run.max_time_s
-        self.dataflow = auv_dataflow(scenario)
+        self.dataflow = placed(auv_dataflow(scenario), scenario.placement)
         self.world = World(scenario.world)
         self.reach_mps = reach_mps(scenario.vehicle)
 

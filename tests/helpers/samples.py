@@ -172,6 +172,7 @@ def one_of_each() -> list[Message]:
                     delay_p50=0.05,
                     delay_p95=0.125,
                     delay_p99=0.25,
+                    bytes_sent=17480,
                 ),
             ),
             measured=(

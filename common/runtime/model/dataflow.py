@@ -44,6 +44,10 @@ class Input:
     # the step); beyond it the oldest are dropped and counted, so a flood costs neither
     # memory nor a step's time without bound. A normal run holds a handful.
     max_queued: int = 64
+    # a simulation tap: an ideal link (no modelled fault), read by the host for the link
+    # model's ranges (the vehicle's true position, common/netmodel/network.py), never seen
+    # by the core. Only placement adds taps, so a scenario without one declares none.
+    tap: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -20,7 +20,7 @@ import itertools
 from dataclasses import dataclass
 
 from common.config.network import link_name
-from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, encode
+from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, TruthState, encode
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
 from common.runtime.model.core import (
@@ -166,6 +166,11 @@ class Host:
                 later.append(item)
                 continue
             d_us, src, stream, _seq, copy, _tick, _arrival, msg = item
+            inp = self._inputs[(src, stream)]
+            if isinstance(msg, TruthState):  # where the vehicle is: acoustic ranges
+                self.net.observe_vehicle(msg.x, msg.y)
+                if inp.tap:
+                    continue
             d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
             self.delivered += 1
             if copy == 0:
@@ -173,7 +178,7 @@ class Host:
                 if acc is None:
                     acc = self._measured[(src, stream)] = LinkStatsAccumulator()
                 acc.record(msg.sent, (d.t,), None)
-            if self._inputs[(src, stream)].wake:
+            if inp.wake:
                 emits.extend(self.core.deliver(d))
             else:
                 self._ready.append(d)
@@ -240,8 +245,13 @@ class Host:
         seq = self._seq[stream]
         t = t_us / 1e6
         data = encode(msg, source=self.name, seq=seq, sent=t)
+        if isinstance(msg, TruthState):  # the vehicle's own host ranges from its own truth
+            self.net.observe_vehicle(msg.x, msg.y)
         schedule: dict[str, tuple[int, ...]] = {}
-        for receiver, _spec in self.flow.receivers.get((self.name, stream), ()):
+        for receiver, spec in self.flow.receivers.get((self.name, stream), ()):
+            if spec.tap:  # a simulation tap is no link: handed over at the next tick
+                schedule[receiver] = (t_us,)
+                continue
             dec = self.net.decide(self.name, stream, receiver, seq, t, len(data))
             schedule[receiver] = tuple(to_us(x) for x in dec.delivered_at)
         return Outgoing(stream, data, schedule)
@@ -275,6 +285,7 @@ class Host:
                 delay_p50=s.delay_p50_s,
                 delay_p95=s.delay_p95_s,
                 delay_p99=s.delay_p99_s,
+                bytes_sent=s.bytes_sent,
             )
             for name, s in self.net.snapshots().items()
         )

@@ -23,7 +23,12 @@ def build_host(scenario: Scenario, flow: Dataflow, name: str) -> Host:
         flow,
         name,
         flow.service(name).make_core(scenario),
-        NetworkModel(scenario.network, seed=scenario.run.seed),
+        NetworkModel(
+            scenario.network,
+            seed=scenario.run.seed,
+            placement=scenario.placement,
+            vehicle_start=(scenario.world.start.x_m, scenario.world.start.y_m),
+        ),
         stats_period_s=scenario.runtime.stats_period_s,
     )
 

@@ -1,0 +1,176 @@
+"""Placement: nodes, the medium between them, range taps, and what a bad placement says."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from helpers.launch_proc import REPO
+
+from common.config.errors import ConfigError
+from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
+from common.config.scenario import load_scenario
+from common.netmodel import NetworkModel
+from common.runtime.model.inproc import run_inproc
+from common.runtime.model.mission import load_mission
+from common.runtime.run import run_metrics
+from common.world.check import check_scenario
+
+DEFAULT = REPO / "configs" / "default.toml"
+# main's default mission before placement existed (d76261a): placement must not move it
+DEFAULT_SHA256 = "5eced5f3b20f081492f411f580d6399175523a067f360366f0437ec216c469f1"
+# a station 1 km west of the area (x_min = 0), the planner on it, over the acoustic medium
+TOPSIDE_1KM = (
+    'placement.stations=[{name="ship", x_m=-1000.0, y_m=20.0}]',
+    'placement.services={planner="ship"}',
+)
+
+
+def _load(*sets: str) -> object:
+    s, _ = load_scenario(DEFAULT, [*sets, 'runtime.kind="inproc"'], check=check_scenario)
+    return s
+
+
+def test_the_default_mission_is_unchanged_without_a_placement() -> None:
+    s, _ = load_scenario(DEFAULT, ['runtime.kind="inproc"'])
+    assert not s.placement.declared
+    assert run_inproc(s).metrics["trajectory_sha256"] == DEFAULT_SHA256
+
+
+def test_media_follow_the_nodes() -> None:
+    p = PlacementConfig(
+        stations=(
+            Station(name="ship", x_m=-500.0, y_m=0.0),
+            Station(name="buoy", x_m=-100.0, y_m=0.0, medium="generic"),
+        ),
+        services={"planner": "ship", "estimator": "buoy"},
+    )
+    assert p.node_of("vehicle") == VEHICLE_NODE and p.node_of("planner") == "ship"
+    assert p.link_medium("sensor", "vehicle") == "local"
+    assert p.link_medium("planner", "vehicle") == "acoustic"
+    assert p.link_medium("vehicle", "estimator") == "generic"  # the buoy's radio
+    assert p.link_medium("estimator", "planner") == "generic"  # station to station
+    assert PlacementConfig().link_medium("planner", "vehicle") == "generic"  # no placement
+
+
+def test_an_acoustic_link_delays_by_range_over_sound_speed() -> None:
+    s = _load(*TOPSIDE_1KM)
+    net = NetworkModel(s.network, seed=1, placement=s.placement, vehicle_start=(0.0, 20.0))
+    a = s.placement.acoustic
+    d1 = net.decide("planner", "cmd", "vehicle", 1, 0.0, 100)
+    net.observe_vehicle(500.0, 20.0)  # the vehicle moved 500 m further from the ship
+    d2 = net.decide("planner", "cmd", "vehicle", 2, 100.0, 100)
+    frame_s = 8 * (100 + a.header_bytes) / a.bit_rate_bps
+    for d, r in ((d1, 1000.0), (d2, 1500.0)):
+        if d.delivered_at:  # a frame error is a legitimate outcome; the delay is the point
+            t0 = 0.0 if d is d1 else 100.0
+            want = a.modem_latency_s + frame_s + r / a.sound_speed_mps
+            assert d.delivered_at[0] - t0 == pytest.approx(want, abs=2e-6)
+    # services on one node: ideal
+    local = net.decide("sensor", "nav", "estimator", 1, 0.0, 100)
+    assert local.delivered_at == (0.0,)
+
+
+def test_a_sender_over_an_acoustic_link_gets_a_range_tap_its_core_never_sees() -> None:
+    s = _load(*TOPSIDE_1KM)
+    flow = load_mission(s).dataflow
+    tapped = {
+        n: [(i.source, i.stream) for i in flow.service(n).inputs if i.tap] for n in flow.names
+    }
+    # the planner (commands down) and the estimator (estimates up) send over the water; the
+    # vehicle ranges from its own truth, the sensor sends only on the vehicle's node
+    assert tapped == {
+        "planner": [("vehicle", "truth")],
+        "estimator": [("vehicle", "truth")],
+        "vehicle": [],
+        "sensor": [],
+    }
+
+
+def test_topside_commands_over_1_kbit_s_at_1_km_degrade_the_mission() -> None:
+    # the planner (with the controller) on a ship 1 km away: its ~0.6 kB command sequences
+    # take ~5 s each at 1 kbit/s, the modem queue overflows and the vehicle runs on stale
+    # commands or holds: measurably worse than the same mission on a generic link
+    s = _load(*TOPSIDE_1KM, "placement.acoustic.bit_rate_bps=1000.0")
+    m = run_metrics(run_inproc(s), s, wall_s=None)
+    cmd = m["link_stats"]["planner/cmd->vehicle"]
+    assert cmd["dropped_queue"] > 0 and cmd["bytes_per_message"] > 100
+    assert m["bytes_per_message"]["planner/cmd"] == cmd["bytes_per_message"]
+    assert cmd["delay_p50_s"] > 1000.0 / s.placement.acoustic.sound_speed_mps
+    assert m["success"] is False or m["hold_time_s"] > 0.0
+
+
+@pytest.mark.parametrize(
+    ("sets", "where", "says"),
+    [
+        (
+            ('placement.services={planner="moon"}',),
+            "placement.services.planner",
+            "'moon' is an unknown node",
+        ),
+        (
+            ('placement.stations=[{name="ship", x_m=-20000.0, y_m=20.0}]',),
+            "placement.stations[0]",
+            "outside the water",
+        ),
+        (
+            (
+                'placement.stations=[{name="ship", x_m=-100.0, y_m=20.0}]',
+                "placement.acoustic.bit_rate_bps=1e7",
+            ),
+            "placement.acoustic.bit_rate_bps",
+            "",
+        ),
+        (
+            (
+                'placement.stations=[{name="ship", x_m=-100.0, y_m=20.0}]',
+                "placement.acoustic.frequency_khz=1000.0",
+            ),
+            "placement.acoustic.frequency_khz",
+            "",
+        ),
+    ],
+)
+def test_a_bad_placement_names_its_key(sets: tuple[str, ...], where: str, says: str) -> None:
+    with pytest.raises(ConfigError) as exc:
+        _load(*sets)
+    assert exc.value.key == where and says in exc.value.problem
+
+
+def test_a_station_inside_an_obstacle_is_refused() -> None:
+    s, _ = load_scenario(DEFAULT)
+    c = s.world.circles[0]
+    with pytest.raises(ConfigError) as exc:
+        _load(f'placement.stations=[{{name="rock", x_m={c.x_m}, y_m={c.y_m}}}]')
+    assert exc.value.key == "placement.stations[0]" and "inside obstacle" in exc.value.problem
+
+
+def test_placing_an_unknown_service_is_refused_by_name() -> None:
+    s = _load('placement.services={navigator="auv"}')
+    with pytest.raises(ConfigError) as exc:
+        load_mission(s)
+    assert exc.value.key == "placement.services.navigator"
+    assert "not a service of this mission" in exc.value.problem
+
+
+def test_tidelink_check_exits_2_on_a_bad_placement(tmp_path: Path) -> None:
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.cli",
+            "check",
+            str(DEFAULT),
+            "--set",
+            'placement.services={planner="moon"}',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+        check=False,
+    )
+    assert res.returncode == 2, res.stderr
+    assert "placement.services.planner: 'moon' is an unknown node" in res.stderr
