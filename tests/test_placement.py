@@ -11,7 +11,7 @@ from helpers.launch_proc import REPO
 
 from common.config.errors import ConfigError
 from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
-from common.config.scenario import load_scenario
+from common.config.scenario import Scenario, load_scenario
 from common.netmodel import NetworkModel
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
@@ -28,7 +28,7 @@ TOPSIDE_1KM = (
 )
 
 
-def _load(*sets: str) -> object:
+def _load(*sets: str) -> Scenario:
     s, _ = load_scenario(DEFAULT, [*sets, 'runtime.kind="inproc"'], check=check_scenario)
     return s
 
