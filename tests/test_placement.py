@@ -13,6 +13,7 @@ from common.config.errors import ConfigError
 from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
 from common.config.scenario import Scenario, load_scenario
 from common.netmodel import NetworkModel
+from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.runtime.run import run_metrics
@@ -174,3 +175,49 @@ def test_tidelink_check_exits_2_on_a_bad_placement(tmp_path: Path) -> None:
     )
     assert res.returncode == 2, res.stderr
     assert "placement.services.planner: 'moon' is an unknown node" in res.stderr
+
+
+def test_the_onboard_tracker_follows_the_planners_path_to_the_goal() -> None:
+    # controller.placement = "onboard": the planner sends paths only, a fifth service on the
+    # vehicle's node commands from the onboard estimate with the same controller
+    s = _load('controller.placement="onboard"')
+    flow = load_mission(s).dataflow
+    assert flow.names == ("estimator", "planner", "sensor", "tracker", "vehicle")
+    assert [o.stream for o in flow.service("planner").outputs] == ["path"]
+    assert [i.source for i in flow.service("vehicle").inputs] == ["tracker"]
+    m = run_metrics(run_inproc(s), s, wall_s=None)
+    assert m["success"] is True and m["collisions"] == 0
+    assert m["control_actions"] > 500  # counted on tracker/cmd
+
+
+def test_over_1_kbit_s_at_1_km_paths_get_through_where_commands_do_not() -> None:
+    # static obstacles only, the planner on a ship 1 km away: with the controller topside
+    # its command sequences (~0.6 kB, ~5 s a frame) cannot keep the vehicle going; with the
+    # tracker onboard one ~1.5 kB path (12 s) is all the vehicle needs to reach the goal
+    base = (*TOPSIDE_1KM, "world.moving=[]", "placement.acoustic.bit_rate_bps=1000.0")
+    topside = _load(*base)
+    onboard = _load(*base, 'controller.placement="onboard"')
+    mt = run_metrics(run_inproc(topside), topside, wall_s=None)
+    mo = run_metrics(run_inproc(onboard), onboard, wall_s=None)
+    assert mt["reached_goal"] is False and mt["hold_time_s"] + mt["failsafe_time_s"] > 30.0
+    assert mo["success"] is True and mo["hold_time_s"] == 0.0
+    assert mo["link_stats"]["planner/path->tracker"]["delivered"] >= 1
+
+
+def test_a_bad_controller_placement_names_its_key() -> None:
+    with pytest.raises(ConfigError) as exc:
+        _load('controller.placement="ashore"')
+    assert exc.value.key == "controller.placement"
+
+
+@pytest.mark.slow
+def test_lockstep_equals_inproc_over_an_acoustic_link(tmp_path: Path) -> None:
+    # ranges come from the sender's known truth (range taps), the modem queue from its own
+    # sends: every process decides exactly as inproc does
+    sets = [*TOPSIDE_1KM, 'controller.placement="onboard"', "run.max_time_s=40.0"]
+    s, raw = load_scenario(DEFAULT, sets)
+    ref = run_inproc(s)
+    got = run_lockstep(s, raw, tmp_path / "logs")
+    assert got.metrics == ref.metrics
+    for key in ref.record.keys():
+        assert got.record.stream(*key) == ref.record.stream(*key)

@@ -147,6 +147,10 @@ class ControllerConfig:
     """
 
     kind: ControllerKind = "nurbs"
+    # where the controller runs: "planner" (with the planner, commands cross the network to
+    # the vehicle) or "onboard" (a tracker service on the vehicle's node follows the newest
+    # path the planner sent, from the onboard estimate: only paths cross the network)
+    placement: Literal["planner", "onboard"] = "planner"
     # every controller works on the state predicted to the time its command takes effect, the
     # estimate's age plus the downlink delay on (on), or on the estimate as it is (off)
     delay_compensation: bool = True
@@ -170,6 +174,10 @@ class ControllerConfig:
 
     def __post_init__(self) -> None:
         nonneg("jitter_margin_k", self.jitter_margin_k)
+        if self.placement not in ("planner", "onboard"):
+            raise ConfigValueError(
+                "placement", f"{self.placement!r} is unknown, expected 'planner' or 'onboard'"
+            )
         if self.kind not in ("nurbs", "backstepping", "fuzzy_pid"):
             raise ConfigValueError(
                 "kind", f"{self.kind!r} is unknown, expected 'nurbs', 'backstepping' or 'fuzzy_pid'"

@@ -84,7 +84,9 @@ def trajectory_of(result: RunResult) -> dict[str, np.ndarray]:
 
     rec = result.record
     truth = [m for m in rec.stream("vehicle", "truth") if isinstance(m, TruthState)]
-    cmds = [m for m in rec.stream("planner", "cmd") if isinstance(m, VelocityCommand)]
+    # the commander: the planner, or the onboard tracker (controller.placement)
+    source = "tracker" if ("tracker", "cmd") in rec.keys() else "planner"
+    cmds = [m for m in rec.stream(source, "cmd") if isinstance(m, VelocityCommand)]
     paths = [
         m for m in rec.stream("planner", "path") if isinstance(m, PathMsg) and m.status == "OK"
     ]

@@ -3,6 +3,8 @@
     sensor    --nav, obstacles-->  estimator  --state, tracks-->  planner
     planner   --cmd------------->  vehicle    --truth---------->  sensor
     vehicle   --status---------->  planner    (the one-way delay measured on commands)
+    with controller.placement = "onboard" a fifth service, on the vehicle's node:
+    planner   --path------------>  tracker    --cmd------------>  vehicle (status -> tracker)
     (planner/path and every <service>/stats are published for the record, monitors and
      metrics; no service reads them)
 
@@ -30,15 +32,48 @@ from common.world import World
 from services.estimator.core import EstimatorCore
 from services.planner.core import PlannerCore
 from services.sensor.core import SensorCore
+from services.tracker.core import TrackerCore
 from services.vehicle.core import VehicleCore
 
 NEWEST = QueuePolicy.NEWEST
-COMMANDER = "planner"  # the one service whose commands the vehicle applies
+# the delay the vehicle measures on commands, for whoever commands (issue 16). 20 Hz: room
+# for 12 s of them in flight (the commander keeps only the newest)
+STATUS = Input(
+    source="vehicle", stream="status", msg_type=VehicleStatus, policy=NEWEST, max_queued=256
+)
+
+
+def commander(s: Scenario) -> str:
+    """The one service whose commands the vehicle applies: the planner, or the onboard
+    tracker with controller.placement = "onboard"."""
+    return "tracker" if s.controller.placement == "onboard" else "planner"
 
 
 def auv_dataflow(s: Scenario) -> Dataflow:
-    """sensor -> estimator -> planner (+controller) -> vehicle -> (truth) -> sensor."""
-    return Dataflow.declare(
+    """sensor -> estimator -> planner (+controller) -> vehicle -> (truth) -> sensor; with
+    the controller onboard: planner --path--> tracker (+controller) --cmd--> vehicle."""
+    onboard = commander(s) == "tracker"
+    return Dataflow.declare(*_services(s), *((_tracker(s),) if onboard else ()))
+
+
+def _tracker(s: Scenario) -> Service:
+    return Service(
+        name="tracker",
+        factory=make_tracker,
+        period_s=s.planner.period_s,  # the controller's period, as in the planner
+        offset_s=s.planner.period_s / 2,
+        inputs=(
+            Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
+            Input(source="planner", stream="path", msg_type=PathMsg, policy=NEWEST),
+            STATUS,
+        ),
+        outputs=(Output(stream="cmd", msg_type=VelocityCommand),),
+    )
+
+
+def _services(s: Scenario) -> tuple[Service, ...]:
+    onboard = commander(s) == "tracker"
+    return (
         Service(
             name="sensor",
             factory=make_sensor,
@@ -70,26 +105,18 @@ def auv_dataflow(s: Scenario) -> Dataflow:
             inputs=(
                 Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
                 Input(source="estimator", stream="tracks", msg_type=ObstacleTracks, policy=NEWEST),
-                # the delay the vehicle measures on commands: compensated instead of a guess.
-                # 20 Hz: room for 12 s of them in flight (the planner keeps only the newest)
-                Input(
-                    source="vehicle",
-                    stream="status",
-                    msg_type=VehicleStatus,
-                    policy=NEWEST,
-                    max_queued=256,
-                ),
+                *(() if onboard else (STATUS,)),
             ),
             outputs=(
                 Output(stream="path", msg_type=PathMsg),
-                Output(stream="cmd", msg_type=VelocityCommand),
+                *(() if onboard else (Output(stream="cmd", msg_type=VelocityCommand),)),
             ),
         ),
         Service(
             name="vehicle",
             factory=make_vehicle,
             period_s=s.vehicle.period_s,
-            inputs=(Input(source=COMMANDER, stream="cmd", msg_type=VelocityCommand),),
+            inputs=(Input(source=commander(s), stream="cmd", msg_type=VelocityCommand),),
             outputs=(
                 Output(stream="truth", msg_type=TruthState),
                 Output(stream="status", msg_type=VehicleStatus),
@@ -119,8 +146,18 @@ def make_planner(ctx: CoreContext) -> PlannerCore:
     # until the vehicle reports the delay it measures
     down = profile_for(s.network, link_name("planner", "cmd", "vehicle"))
     return PlannerCore(
-        s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=down.delay_s
+        s.planner,
+        s.controller,
+        s.vehicle,
+        s.world,
+        expected_downlink_s=down.delay_s,
+        commands=commander(s) == "planner",
     )
+
+
+def make_tracker(ctx: CoreContext) -> TrackerCore:
+    s = ctx.scenario
+    return TrackerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
 def make_vehicle(ctx: CoreContext) -> VehicleCore:
@@ -131,5 +168,5 @@ def make_vehicle(ctx: CoreContext) -> VehicleCore:
         _start(s),
         ctx.rng,
         clearance=lambda x, y, t: world.clearance(x, y, r, t),
-        commander=COMMANDER,  # defence in depth: whatever the bus lets through
+        commander=commander(s),  # defence in depth: whatever the bus lets through
     )

@@ -13,9 +13,10 @@ from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, V
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
 from services.mission.continuity import follows, reach_mps
+from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.reentry import reentries
-from services.planner.nurbs_curve import NurbsCurve
+from services.planner.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
 # within this distance of the first planned path at the moment the command is issued.
@@ -34,8 +35,7 @@ YAW_RATE_TOL_RPS = 0.005
 
 def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
     """Dense samples of a planned NURBS path, (n, 2)."""
-    cp = np.asarray(p.control_points, dtype=np.float64).reshape(-1, 2)
-    curve = NurbsCurve(p.degree, cp, np.asarray(p.weights), np.asarray(p.knots))
+    curve = curve_of(p)
     u = np.linspace(curve.u_min, curve.u_max, n)
     return np.asarray(curve.evaluate(u, n_ders=0)[0])
 
@@ -83,7 +83,7 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     # paper §4 success, with eq. (6)'s safety distance as part of it
     m["success"] = m["outcome"] == "success"
     m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
-    m.update(_path_metrics(record, t, x, y, end))
+    m.update(_path_metrics(record, commander(s), t, x, y, end))
     m.update(_estimation_metrics(record, t, x, y))
     statuses: list[VehicleStatus] = _typed(record, "vehicle", "status", VehicleStatus)
     if statuses:
@@ -171,10 +171,10 @@ def _hold_distance_max(
 
 
 def _path_metrics(
-    record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray, end: int
+    record: Record, cmd_source: str, t: np.ndarray, x: np.ndarray, y: np.ndarray, end: int
 ) -> dict[str, Any]:
     paths: list[PathMsg] = _typed(record, "planner", "path", PathMsg)
-    cmds: list[VelocityCommand] = _typed(record, "planner", "cmd", VelocityCommand)
+    cmds: list[VelocityCommand] = _typed(record, cmd_source, "cmd", VelocityCommand)
     ok = [p for p in paths if p.status == "OK"]
     out: dict[str, Any] = {
         "replans": len(paths),

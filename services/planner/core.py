@@ -22,8 +22,8 @@ from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
 from common.runtime.model.core import Delivery, Emit
 from common.world import ObstacleState
-from services.planner.command_link import CommandLink
-from services.planner.controllers.base import Limits
+from services.planner.command_link import CommandLink, Prediction
+from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
@@ -32,6 +32,38 @@ from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 
 log = logging.getLogger("tidelink.planner")
+
+
+Commands = tuple[list[float], list[float]]  # speeds and yaw rates: now, then the sequence
+
+
+def judge_state(j: Plausibility, m: StateEstimate, now: float) -> Reason | None:
+    """Why an estimate is implausible (stamp, pose, speeds), or None."""
+    return first_reason(
+        j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
+    )
+
+
+def judge_status(j: Plausibility, m: VehicleStatus, now: float) -> Reason | None:
+    """Why a vehicle status is implausible (stamp, measured delay), or None."""
+    return first_reason(j.stamp(m.stamp, now), j.delay(m.delay_s, m.delay_jitter_s))
+
+
+def follow(
+    link: CommandLink,
+    controller: Controller,
+    ref: PathArcReference | None,
+    t: float,
+    s: StateEstimate,
+    pred: Prediction,
+) -> Commands:
+    """The controller's commands (sequence) on `ref`, or a stop without a feasible path
+    (rather than drive into something). Every path leaves along the vehicle's heading, a
+    way out of contact included (recover.py: arcs within R_min), so the controller follows
+    it from the start."""
+    if ref is None:
+        return link.stop()
+    return link.control(t, controller, ref, s, pred)
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -50,8 +82,11 @@ class PlannerCore:
         world: WorldConfig,
         *,
         expected_downlink_s: float = 0.0,
+        commands: bool = True,
     ) -> None:
         self.cfg = planner
+        # False: the controller runs onboard (services/tracker): this core only plans
+        self.commands = commands
         self.vehicle = vehicle
         self.world = world
         self.kind = controller.kind
@@ -127,14 +162,10 @@ class PlannerCore:
         return []
 
     def _judge_state(self, m: StateEstimate, now: float) -> Reason | None:
-        j = self._judge
-        return first_reason(
-            j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
-        )
+        return judge_state(self._judge, m, now)
 
     def _judge_status(self, m: VehicleStatus, now: float) -> Reason | None:
-        j = self._judge
-        return first_reason(j.stamp(m.stamp, now), j.delay(m.delay_s, m.delay_jitter_s))
+        return judge_status(self._judge, m, now)
 
     def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
         j = self._judge
@@ -191,7 +222,7 @@ class PlannerCore:
         # where the vehicle is now and will be when this step's command takes effect
         pred = self.link.predict(t, s)
         if self.arrived:
-            return [self._command(t, pred.effect_t, *self.link.stop())]
+            return [self._command(t, pred.effect_t, self.link.stop())] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -221,19 +252,17 @@ class PlannerCore:
             # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
             # the silence: restart it from where the vehicle is
             self.controller.reset()
-        if self.ref is None:
-            # no feasible path: stop safely rather than drive into something
-            vs, ws = self.link.stop()
-        else:
-            # every path leaves along the vehicle's heading, a way out of contact included
-            # (recover.py: arcs within R_min), so the controller follows it from the start
-            vs, ws = self.link.control(t, self.controller, self.ref, s, pred)
-        out.append(self._command(t, pred.effect_t, vs, ws))
+        if self.commands:
+            out.append(self._command(t, pred.effect_t, self._follow(t, s, pred)))
         return out
 
-    def _command(self, t: float, effect_t: float, vs: list[float], ws: list[float]) -> Emit:
+    def _follow(self, t: float, s: StateEstimate, pred: Prediction) -> Commands:
+        """The controller's commands on the path in force (a stop without one)."""
+        return follow(self.link, self.controller, self.ref, t, s, pred)
+
+    def _command(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         self.last_cmd_t = t
-        msg = self.link.send(t, effect_t, vs, ws, path_id=self.path_id, controller=self.kind)
+        msg = self.link.send(t, effect_t, *vs_ws, path_id=self.path_id, controller=self.kind)
         return Emit(stream="cmd", msg=msg)
 
     def _awaiting_tracks(self, t: float) -> bool:

@@ -8,12 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from common.messages import PathMsg
 from common.world.geometry import FloatArray
 from services.planner.nurbs_curve import NurbsCurve, curvature
 
 # 3-point Gauss-Legendre on [0, 1]: exact for polynomials of degree 5 between table points
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
+
+
+def curve_of(p: PathMsg) -> NurbsCurve:
+    """The NURBS curve a path message carries (status OK), exactly as it was planned."""
+    cp = np.asarray(p.control_points, dtype=np.float64).reshape(-1, 2)
+    return NurbsCurve(p.degree, cp, np.asarray(p.weights), np.asarray(p.knots))
 
 
 class PlannedPath:

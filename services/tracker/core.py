@@ -1,0 +1,130 @@
+"""The tracker core: follows the newest path the planner sent with the chosen controller, onboard.
+
+With ``controller.placement = "onboard"`` the planner (maybe at a topside station, across a
+thin acoustic link) sends paths only, and this core, on the vehicle's node, computes the
+commands from the onboard estimate: the same controller, speed profile, prediction and
+command sequences as the planner's own (services/planner/core.py `follow`,
+services/planner/command_link.py), on a link that is local. A late or lost path costs
+nothing but freshness: the tracker keeps following the last one it holds.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+from common.config.controller import ControllerConfig
+from common.config.planner import PlannerConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import WorldConfig
+from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
+from common.messages import PathMsg, StateEstimate, VehicleStatus
+from common.runtime.model.core import Delivery, Emit
+from services.planner.command_link import CommandLink
+from services.planner.controllers.base import Limits
+from services.planner.controllers.factory import make_controller
+from services.planner.core import follow, judge_state, judge_status
+from services.planner.path_arc_reference import PathArcReference
+from services.planner.planned_path import PlannedPath, curve_of
+
+log = logging.getLogger("tidelink.tracker")
+
+
+class TrackerCore:
+    """Consumes estimator/state, planner/path and vehicle/status; publishes cmd."""
+
+    def __init__(
+        self,
+        planner: PlannerConfig,
+        controller: ControllerConfig,
+        vehicle: VehicleConfig,
+        world: WorldConfig,
+    ) -> None:
+        self.period_s = planner.period_s
+        self.kind = controller.kind
+        self.world = world
+        self.link = CommandLink(planner, controller, vehicle)
+        self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
+        self.state: StateEstimate | None = None
+        self.ref: PathArcReference | None = None
+        self.path_id = 0  # of the path followed (0: none yet)
+        self.arrived = False
+        self.stale_skips = 0
+        self.last_cmd_t: float | None = None
+        self._judge = Plausibility.of_area(world.area)
+        self._rejects = RateLimitedLog(log)
+
+    @property
+    def inputs_rejected(self) -> dict[str, int]:
+        """Inputs rejected, by '<stream>.<reason>'."""
+        return dict(self._rejects.counts)
+
+    def deliver(self, d: Delivery) -> list[Emit]:
+        """Keep the newest estimate (by stamp) and the newest path (by path_id); implausible
+        inputs are rejected, counted and logged, as the planner does."""
+        msg = d.msg
+        why: Reason | None
+        if isinstance(msg, StateEstimate):
+            stream, why = "state", judge_state(self._judge, msg, d.t)
+        elif isinstance(msg, VehicleStatus):
+            stream, why = "status", judge_status(self._judge, msg, d.t)
+        elif isinstance(msg, PathMsg):
+            stream, why = "path", first_reason(self._judge.stamp(msg.stamp, d.t))
+        else:
+            return []
+        if why is not None:
+            self._rejects.warn(
+                f"{stream}.{why}",
+                d.t,
+                "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
+                d.t,
+                stream,
+                why,
+                msg.source,
+                msg.stamp,
+                msg.seq,
+            )
+        elif isinstance(msg, StateEstimate):
+            self.link.on_estimate(d.t, msg)
+            if self.state is None or msg.stamp >= self.state.stamp:
+                self.state = msg
+        elif isinstance(msg, VehicleStatus):
+            self.link.on_status(msg)
+        elif isinstance(msg, PathMsg) and msg.path_id > self.path_id:
+            self._take(msg)
+        return []
+
+    def _take(self, p: PathMsg) -> None:
+        """Follow path `p` from now on (a NO_PATH stops the vehicle)."""
+        self.path_id = p.path_id
+        if p.status != "OK":
+            self.ref = None
+            return
+        try:
+            curve = curve_of(p)
+        except ValueError as exc:  # well-formed on the wire, but no curve: keep stopping
+            self._rejects.warn("path.curve", p.stamp, "path %d has no curve: %s", p.path_id, exc)
+            self.ref = None
+            return
+        self.ref = PathArcReference(PlannedPath(curve), p.v_ref)
+        self.controller.reset()
+
+    def step(self, t: float) -> list[Emit]:
+        if self.state is None:
+            return []
+        s = self.state
+        g = self.world.goal
+        if math.hypot(s.x - g.x_m, s.y - g.y_m) <= self.world.goal_tolerance_m:
+            self.arrived = True
+        if self.link.stale(t, s):
+            self.stale_skips += 1
+            return []
+        pred = self.link.predict(t, s)
+        gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
+        if math.isfinite(gap) and gap > 1.5 * self.period_s:
+            self.controller.reset()  # steps were skipped: restart from where the vehicle is
+        ref = None if self.arrived else self.ref
+        vs, ws = follow(self.link, self.controller, ref, t, s, pred)
+        self.last_cmd_t = t
+        msg = self.link.send(t, pred.effect_t, vs, ws, path_id=self.path_id, controller=self.kind)
+        return [Emit(stream="cmd", msg=msg)]
