@@ -22,6 +22,10 @@ PLOT_METRICS = {
     "on_path_fraction": "share of control actions on the optimal path",
     "path_length_m": "executed path length (m)",
     "commands_rejected_stale": "commands rejected as stale",
+    "hold_time_s": "time in HOLD (s)",
+    "failsafe_time_s": "time in FAILSAFE (s)",
+    "net_delivery_ratio": "messages delivered / sent, every link",
+    "net_dropped_queue": "messages dropped by a full queue (modem), every link",
 }
 
 
