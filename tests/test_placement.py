@@ -221,3 +221,10 @@ def test_lockstep_equals_inproc_over_an_acoustic_link(tmp_path: Path) -> None:
     assert got.metrics == ref.metrics
     for key in ref.record.keys():
         assert got.record.stream(*key) == ref.record.stream(*key)
+
+
+def test_a_network_profile_for_an_acoustic_link_is_refused() -> None:
+    s = _load(*TOPSIDE_1KM, 'network.links=[{link="planner/cmd->vehicle", profile={delay_s=0.5}}]')
+    with pytest.raises(ConfigError) as exc:
+        load_mission(s)
+    assert exc.value.key == "network.links[0].link" and "acoustic medium" in exc.value.problem

@@ -21,7 +21,7 @@ class AuvMission:
     def __init__(self, scenario: Scenario) -> None:
         self.s = scenario
         self.max_time_s = scenario.run.max_time_s
-        self.dataflow = placed(auv_dataflow(scenario), scenario.placement)
+        self.dataflow = placed(auv_dataflow(scenario), scenario.placement, scenario.network)
         self.world = World(scenario.world)
         self.reach_mps = reach_mps(scenario.vehicle)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from common.config.errors import ConfigError
+from common.config.network import NetworkConfig, link_matches
 from common.config.placement import PlacementConfig
 from common.messages import TruthState
 from common.runtime.model.core import QueuePolicy
@@ -14,11 +15,16 @@ from common.runtime.model.dataflow import Dataflow, Input
 TRUTH = ("vehicle", "truth")
 
 
-def placed(flow: Dataflow, placement: PlacementConfig) -> Dataflow:
+def placed(
+    flow: Dataflow, placement: PlacementConfig, network: NetworkConfig | None = None
+) -> Dataflow:
     """`flow` with a placement applied: a service the placement names must exist (ConfigError
     at placement.services.<name>); every service that sends over an acoustic medium and does
     not already read the vehicle's truth gets a range tap on it (an ideal link the core never
-    sees: the host's link model needs where the vehicle is, the sender's known state)."""
+    sees: the host's link model needs where the vehicle is, the sender's known state). A
+    `network.links` profile for links that are all local or acoustic would have no effect:
+    ConfigError at network.links[i].link."""
+    network = network or NetworkConfig()
     for name in placement.services:
         if name not in flow.services:
             raise ConfigError(
@@ -26,6 +32,19 @@ def placed(flow: Dataflow, placement: PlacementConfig) -> Dataflow:
                 ("placement", "services", name),
                 f"{name!r} is not a service of this mission, expected one of "
                 f"{', '.join(map(repr, flow.names))}",
+            )
+    for i, o in enumerate(network.links):
+        covered = [lk for lk in flow.links if link_matches(o.link, lk.name)]
+        if covered and all(
+            placement.link_medium(lk.source, lk.receiver) != "generic" for lk in covered
+        ):
+            medium = placement.link_medium(covered[0].source, covered[0].receiver)
+            raise ConfigError(
+                "",
+                ("network", "links", i, "link"),
+                f"{o.link!r} runs over the {medium} medium of [placement] "
+                f"({covered[0].name}), where a network profile has no effect: set "
+                "placement.acoustic, or place the services so that the link is generic",
             )
     senders = {
         link.source
