@@ -44,7 +44,7 @@ def _fix(stamp: float, x: float = 20.0) -> bytes:
 def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -> None:
     out = tmp_path / "run"
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "4"]
+    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "8"]
     routed = encode_routing(0, {"estimator": (0,)})  # what a crafted client could attach
     variants = [
         (_fix(5.0), None),  # no routing: never reaches the core

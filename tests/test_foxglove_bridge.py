@@ -191,7 +191,7 @@ def test_a_foxglove_client_gets_a_launched_run_it_joined_late(out: Path) -> None
     router = f"tcp/127.0.0.1:{rp}"
     s, _ = load_scenario(DEFAULT)
     launch_args = ("launch", str(DEFAULT), "--listen", router, "--out", str(out), "--no-plot")
-    launch_args += ("--time-scale", "3", "--set", "run.max_time_s=40.0")
+    launch_args += ("--time-scale", "6", "--set", "run.max_time_s=40.0")
     with Tidelink(*launch_args) as launch:
         launch.wait_for(r"launch: t=\s*\d", WAIT_S)  # the mission is under way: join late
         with Tidelink("foxglove", "--connect", router, "--port", str(wp)) as bridge:
@@ -241,9 +241,9 @@ def test_a_foxglove_client_gets_a_launched_run_it_joined_late(out: Path) -> None
 
 
 def _run(name: str, router: str, out: Path, max_time_s: float) -> Tidelink:
-    """A realtime run at 4x whose own process is the router on `router`."""
+    """A realtime run at 8x whose own process is the router on `router`."""
     return Tidelink(
-        "run", str(DEFAULT), "--runtime", "realtime", "--time-scale", "4",
+        "run", str(DEFAULT), "--runtime", "realtime", "--time-scale", "8",
         "--out", str(out / name), "--set", f"run.name={name}",
         "--set", f"run.max_time_s={max_time_s}", "--set", f'bus.listen=["{router}"]',
     )  # fmt: skip

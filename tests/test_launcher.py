@@ -249,12 +249,12 @@ def test_services_started_elsewhere_join_before_the_clock_starts(tmp_path: Path,
 
 
 def test_launch_runs_the_auv_mission_and_plots_it(tmp_path: Path, out: Path) -> None:
-    # the default mission as shipped (lossy network), at 4x: the whole mission, not a nearer
+    # the default mission as shipped (lossy network), at 8x: the whole mission, not a nearer
     # goal (a goal at (42, 12) makes the planner loop on NO_PATH in realtime since the plant
     # enforces R_min: a known defect, reported with issue 15)
     short: tuple[str, ...] = ()
     scenario = REPO / "configs" / "default.toml"
-    with Tidelink("launch", str(scenario), "--time-scale", "4", "--out", str(out)) as t:
+    with Tidelink("launch", str(scenario), "--time-scale", "8", "--out", str(out)) as t:
         assert t.wait(WAIT_S) == judged_exit(out), t.stderr
     m = _metrics(out)
     summary = {k: v for k, v in m.items() if k != "link_stats"}

@@ -44,7 +44,7 @@ def test_a_monitor_joining_mid_run_gets_the_path_in_force_at_once_and_exits_at_t
     out: Path,
 ) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "4", "--out", str(out)]
+    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "8", "--out", str(out)]
     with Tidelink(*launch) as run:
         run.wait_for(r"mission clock started", WAIT_S)
         run.wait_for(r"t=\s*\d*[3-9]\.\d+ s of", WAIT_S)  # mid-run: the path was planned at t=0
@@ -120,7 +120,7 @@ def test_a_sigstopped_monitor_leaves_a_realtime_outcome_unchanged(
     tmp_path: Path, out: Path
 ) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "4", "--out", str(out)]
+    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "8", "--out", str(out)]
     code, err = _with_a_stopped_monitor(launch, endpoint)
     assert code == 0, err
     m = _metrics(out)

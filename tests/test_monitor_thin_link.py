@@ -29,7 +29,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.netns]
 
 PORT = 7447
 WAIT_S = 60.0
-RUN_S = 25.0  # mission seconds at time scale 1: ~50 monitor updates
+RUN_S = 14.0  # mission seconds at time scale 1: ~28 monitor updates
 SHAPER = ("64kbit", "4kb", "400ms")  # rate, burst, latency
 RATE_KBIT = 64.0
 TRUTH = "vehicle/truth"

@@ -24,9 +24,9 @@ pytestmark = [pytest.mark.slow, pytest.mark.netns]
 SERVICES = ("estimator", "planner", "sensor", "vehicle")
 PORT = 7447
 WAIT_S = 60.0
-SCALE = "4"
+SCALE = "8"
 # The default scenario (lossy network profile) in open water, with the goal 60 m east of the
-# start (reached at t ~ 42 s; at x4 ~ 11 s). Open water because of what a real partition does
+# start (reached at t ~ 42 s; at x8 ~ 5 s). Open water because of what a real partition does
 # that the modelled outages do not: TCP delivers the planner's backlog when the link returns,
 # and the last second of it (fresh enough for the watchdog) was computed from an estimate as
 # old as the outage; those commands may swerve the vehicle, harmless only away from rocks.

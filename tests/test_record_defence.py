@@ -59,7 +59,7 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     launch = ["launch", DEFAULT, "--runtime", runtime, "--listen", endpoint, "--no-plot"]
     try:
-        with Tidelink(*launch, "--time-scale", "4", "--out", str(out)) as run:
+        with Tidelink(*launch, "--time-scale", "8", "--out", str(out)) as run:
             run.wait_for(r"mission clock started", WAIT_S)
             rounds = _inject(endpoint, run)
             assert run.wait(WAIT_S) == 0, run.stderr

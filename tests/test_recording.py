@@ -243,7 +243,7 @@ KILL_AT_BYTES = 256 * 1024  # the killed recorder's file by then holds several c
 def realtime_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealtimeRun]:
     d = tmp_path_factory.mktemp("realtime")
     out, endpoint = d / "run", f"tcp/127.0.0.1:{free_port()}"
-    scale = ("--time-scale", "4")
+    scale = ("--time-scale", "8")
     files = {name: d / f"{name}.mcap" for name in ("full", "killed", "stopped")}
     with ExitStack() as stack:
         stack.callback(kill_recorded, out / "pids.json")

@@ -26,7 +26,7 @@ def test_a_flood_of_hostile_commands_is_rejected_by_reason_and_the_mission_ends_
 ) -> None:
     out = tmp_path / "run"
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "4"]
+    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "8"]
     try:
         with Tidelink(*launch, "--out", str(out), "--no-plot") as run:
             run.wait_for(r"mission clock started", WAIT_S)
