@@ -22,8 +22,8 @@ def placed(
     at placement.services.<name>); every service that sends over an acoustic medium and does
     not already read the vehicle's truth gets a range tap on it (an ideal link the core never
     sees: the host's link model needs where the vehicle is, the sender's known state). A
-    `network.links` profile for links that are all local or acoustic would have no effect:
-    ConfigError at network.links[i].link."""
+    `network.links` profile naming a link that is local or acoustic would have no effect:
+    ConfigError at network.links[i].link (patterns are broad defaults and pass)."""
     network = network or NetworkConfig()
     for name in placement.services:
         if name not in flow.services:
@@ -34,6 +34,8 @@ def placed(
                 f"{', '.join(map(repr, flow.names))}",
             )
     for i, o in enumerate(network.links):
+        if "*" in o.link:
+            continue  # a pattern is a broad default (configs/default.toml has 'vehicle/truth->*')
         covered = [lk for lk in flow.links if link_matches(o.link, lk.name)]
         if covered and all(
             placement.link_medium(lk.source, lk.receiver) != "generic" for lk in covered
