@@ -385,6 +385,12 @@ class Bus:
         sub = self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True)
         self._keep(sub)
 
+    def alive_now(self, key_expr: str, *, timeout_s: float = 1.0) -> list[str]:
+        """The liveliness tokens present on `key_expr` now (a query, answered within
+        timeout_s): what a tool that has just joined a run reports before any event."""
+        replies = self.session.liveliness().get(key_expr, timeout=timeout_s)
+        return sorted(str(r.ok.key_expr) for r in replies if r.ok is not None)
+
     def put_raw(self, key: str, data: bytes) -> None:
         """Publish raw bytes on a key (tools and tests that must send arbitrary payloads)."""
         self.session.put(key, data)

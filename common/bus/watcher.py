@@ -118,6 +118,16 @@ class Watcher:
         """The run's scenario (the raw dict it was launched with), or None if none answered."""
         return self._json(keys.scenario, timeout_s)
 
+    def alive(self, keys: Keys, *, timeout_s: float = 1.0) -> list[str]:
+        """The services of the run whose liveliness tokens are present now."""
+        out = []
+        for key in self.bus.alive_now(keys.all_alive, timeout_s=timeout_s):
+            try:
+                out.append(Keys.parse_alive(key)[2])
+            except ValueError:
+                continue
+        return out
+
     def dataflow(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
         """The run's declared dataflow (Dataflow.describe()), or None if none answered."""
         return self._json(keys.dataflow, timeout_s)

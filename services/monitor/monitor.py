@@ -238,6 +238,10 @@ class Monitor:
             # subscribe before asking for the latest frames: nothing falls in between
             for service, stream in [(CLOCK, END), *_event_streams(watcher.dataflow(keys))]:
                 self._follow(watcher, marks, keys, service, stream)
+        # the tokens present now: the first update names every live service, not only the one
+        # whose token made this run known (the others' events may still be queued)
+        for service in watcher.alive(keys):
+            state.liveliness(service, True, time.time())
         latest = watcher.latest(keys)
         for f in latest:
             self._polled(watcher, state, marks, f)
