@@ -28,6 +28,34 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(str(p), (), f"not valid TOML: {exc}") from None
 
 
+def read_scenario_toml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A scenario file's tables; with a top-level `extends = "other.toml"` (relative to the
+    file) the other scenario's tables with this file's merged over them, table by table (an
+    array, such as world.circles, is replaced whole)."""
+    p = Path(path).resolve()
+    if p in _seen:
+        chain = " -> ".join(q.name for q in (*_seen, p))
+        raise ConfigError(str(path), ("extends",), f"extends itself ({chain})")
+    raw = read_toml(path)
+    base = raw.pop("extends", None)
+    if base is None:
+        return raw
+    if not isinstance(base, str):
+        raise ConfigError(str(path), ("extends",), f"expected a file name, got {_kind(base)}")
+    parent: dict[str, Any] = read_scenario_toml(p.parent / base, (*_seen, p))
+    return dict(merge_tables(parent, raw))
+
+
+def merge_tables(base: Any, override: Any) -> Any:
+    """`override` over `base`, table by table (a non-table value replaces whatever was there)."""
+    if not isinstance(base, dict) or not isinstance(override, dict):
+        return override
+    out = dict(base)
+    for k, v in override.items():
+        out[k] = merge_tables(base[k], v) if k in base else v
+    return out
+
+
 def build(cls: type[T], data: Any, *, file: str = "", path: KeyPath = ()) -> T:
     """Build dataclass `cls` (at key `path` of `file`) from a mapping; bad input raises ConfigError.
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from common.config.budget import DEFAULT_BUDGET, Budget
-from common.config.loader import ConfigError, apply_override, read_toml
+from common.config.loader import ConfigError, apply_override, read_scenario_toml
 from common.config.scenario import scenario_from_raw
 from common.world.check import check_scenario
 from services.experiments.schema import Experiment, SetValue
@@ -83,7 +83,7 @@ def expand(
     Each cell is checked as `tidelink check` checks a scenario (geometry, and the work budget
     of one of its runs under this runtime) before any run starts.
     """
-    base = read_toml(exp.scenario)
+    base = read_scenario_toml(exp.scenario)
     axes = exp.all_axes
     where_base = [(f"set.{k}", k, v) for k, v in exp.set.items()]
     runs: list[RunSpec] = []
