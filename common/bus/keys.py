@@ -7,6 +7,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+# a service name may be a fleet vehicle's ("auv2.planner", common/runtime/model/dataflow.py)
+_SERVICE = re.compile(r"^[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+)?$")
 CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack
 WATCH = "watch"  # .../watch/<service>/<stream>: the monitoring copy of every stream
 END = "end"  # .../watch/runtime/end: the clock's RunEnd
@@ -48,9 +50,12 @@ class Keys:
         is for: on a lockstep run most ticks wake two or three services, not all of them.
         """
         names = sorted(recipients)
-        bad = [n for n in names if not _ID.match(n)]
+        bad = [n for n in names if not _SERVICE.match(n)]
         if not names or bad:
-            raise ValueError(f"a tick needs recipients named by letters, digits, '_' or '-': {bad}")
+            raise ValueError(
+                f"a tick needs recipients named by letters, digits, '_' or '-' (and one '.' "
+                f"after a fleet vehicle's id): {bad}"
+            )
         return f"{self.root}/{CLOCK}/tick/{'/'.join(names)}"
 
     def ticks_for(self, service: str) -> str:

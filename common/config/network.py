@@ -4,6 +4,10 @@ A *link* is one stream as seen by one receiving service, named ``"<source>/<stre
 (e.g. ``"sensor/nav->estimator"``). Overrides and outages name links exactly or by one of two
 patterns: ``"<source>/<stream>->*"`` (that stream, to every receiver) or ``"*-><receiver>"``
 (every stream into that receiver).
+
+In a fleet a service is named "<vehicle>.<service>" (auv2.planner): a name or pattern without
+a vehicle id covers that link of every vehicle and between vehicles ("planner/cmd->vehicle"
+covers "auv2.planner/cmd->auv2.vehicle"), a qualified one only the links it names, and wins.
 """
 
 from __future__ import annotations
@@ -57,16 +61,27 @@ def _check_link_pattern(field: str, pattern: str) -> None:
         )
 
 
-def link_matches(pattern: str, link: str) -> bool:
-    """Whether an exact link name, or a ``src/stream->*`` / ``*->dst`` pattern, covers ``link``."""
-    if pattern == link:
-        return True
+def _fleetless(name: str) -> str:
+    """A service name without its fleet vehicle's id: "auv2.planner" -> "planner"."""
+    return name.rpartition(".")[2]
+
+
+def _forms(link: str) -> tuple[tuple[str, str, str], ...]:
+    """(exact, 'src/stream->*', '*->dst') of a link, then of it without vehicle ids."""
     src, stream, dst = parse_link(link)
-    if pattern.endswith("->*"):
-        return pattern == f"{src}/{stream}->*"
-    if pattern.startswith("*->"):
-        return pattern == f"*->{dst}"
-    return False
+    out = [(link, f"{src}/{stream}->*", f"*->{dst}")]
+    bare_src, bare_dst = _fleetless(src), _fleetless(dst)
+    if (bare_src, bare_dst) != (src, dst):
+        out.append(
+            (f"{bare_src}/{stream}->{bare_dst}", f"{bare_src}/{stream}->*", f"*->{bare_dst}")
+        )
+    return tuple(out)
+
+
+def link_matches(pattern: str, link: str) -> bool:
+    """Whether an exact link name, or a ``src/stream->*`` / ``*->dst`` pattern, covers ``link``
+    (in a fleet also without the vehicle ids, see the module docstring)."""
+    return any(pattern in forms for forms in _forms(link))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -191,7 +206,7 @@ class Outage:
         if self.link:
             return link_matches(self.link, link)
         src, _, dst = parse_link(link)
-        return self.service in (src, dst)
+        return self.service in (src, dst, _fleetless(src), _fleetless(dst))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -224,10 +239,11 @@ class NetworkConfig:
 
 
 def profile_for(cfg: NetworkConfig, link: str) -> LinkProfile:
-    """Resolve a link's profile: exact name, then 'src/stream->*', then '*->dst', then default."""
-    src, stream, dst = parse_link(link)
+    """Resolve a link's profile: exact name, then 'src/stream->*', then '*->dst', then (in a
+    fleet) the same without vehicle ids, then default."""
     by_name = {o.link: o.profile for o in cfg.links}
-    for key in (link, f"{src}/{stream}->*", f"*->{dst}"):
-        if key in by_name:
-            return by_name[key]
+    for forms in _forms(link):
+        for key in forms:
+            if key in by_name:
+                return by_name[key]
     return cfg.default

@@ -69,6 +69,9 @@ class PlannerConfig:
     # median age of the last delay_window estimates as they arrived): a known delay is no outage
     max_estimate_age_s: float = 1.0
     delay_window: int = 31
+    # fleets: another vehicle's intent (its broadcast path, placed by its estimate) is used
+    # while that estimate is at most this old; then its sonar track takes over
+    intent_max_age_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):
@@ -91,6 +94,7 @@ class PlannerConfig:
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)
         positive("max_estimate_age_s", self.max_estimate_age_s)
+        positive("intent_max_age_s", self.intent_max_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):
             raise ConfigValueError(
                 "rho_m",

@@ -6,6 +6,7 @@ import dataclasses
 import typing
 from typing import Any
 
+from common.config.fleet import SECTIONS
 from common.config.scenario import Scenario
 
 
@@ -71,11 +72,32 @@ def markdown() -> str:
     parts = []
     for f in dataclasses.fields(Scenario):
         section = typing.get_type_hints(Scenario)[f.name]
+        if typing.get_origin(section) is tuple:  # [[vehicles]]: an array of tables
+            parts.extend(_fleet_rows(f.name, typing.get_args(section)[0]))
+            continue
         doc = (section.__doc__ or "").strip().splitlines()[0]
         parts.append(f"#### `[{f.name}]` — {doc}\n\n| key | type | default |\n|---|---|---|")
         parts.extend(f"| `{f.name}.{k}` | {t} | `{d}` |" for k, t, d in rows(section))
         parts.append("")
     return "\n".join(parts)
+
+
+def _fleet_rows(name: str, entry: type) -> list[str]:
+    """The `[[vehicles]]` table: id, start and goal, and the sections an entry overrides."""
+    doc = (entry.__doc__ or "").strip().splitlines()[0]
+    out = [f"#### `[[{name}]]` — {doc}\n\n| key | type | default |\n|---|---|---|"]
+    for k, t, d in rows(entry):
+        section = k.split(".")[0]
+        if section in SECTIONS:
+            if k == section + "." + next(iter(rows(SECTIONS[section])))[0]:
+                out.append(
+                    f"| `{name}[].{section}` | table: any `[{section}]` key, over the "
+                    f"scenario's | `{{}}` |"
+                )
+            continue
+        out.append(f"| `{name}[].{k}` | {t} | `{d}` |")
+    out.append("")
+    return out
 
 
 if __name__ == "__main__":

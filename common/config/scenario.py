@@ -7,6 +7,7 @@ it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,14 @@ from common.config.bus import BusConfig
 from common.config.controller import ControllerConfig
 from common.config.errors import ConfigValueError
 from common.config.estimator import EstimatorConfig
-from common.config.loader import ConfigError, apply_override, build, parse_override, read_toml
+from common.config.fleet import FleetVehicle, fleet_from_raw
+from common.config.loader import (
+    ConfigError,
+    apply_override,
+    build,
+    parse_override,
+    read_scenario_toml,
+)
 from common.config.network import NetworkConfig
 from common.config.placement import PlacementConfig
 from common.config.planner import PlannerConfig
@@ -45,9 +53,30 @@ class Scenario:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     placement: PlacementConfig = field(default_factory=PlacementConfig)
+    # a fleet ([[vehicles]], common/config/fleet.py); () is one vehicle, world.start to goal
+    vehicles: tuple[FleetVehicle, ...] = ()
 
     def __post_init__(self) -> None:
         _check_sequence(self.controller, self.planner.period_s, self.vehicle)
+
+    def member(self, v: FleetVehicle) -> Scenario:
+        """The scenario of one vehicle of the fleet: its start, goal and sections, the
+        scenario's everything else, and no fleet."""
+        return dataclasses.replace(
+            self,
+            world=dataclasses.replace(self.world, start=v.start, goal=v.goal),
+            vehicle=v.vehicle,
+            sensor=v.sensor,
+            estimator=v.estimator,
+            planner=v.planner,
+            controller=v.controller,
+            vehicles=(),
+        )
+
+    @property
+    def members(self) -> tuple[tuple[str, Scenario], ...]:
+        """(vehicle id, its scenario) of every vehicle of the fleet; () for one vehicle."""
+        return tuple((v.id, self.member(v)) for v in self.vehicles)
 
 
 def _check_sequence(ctrl: ControllerConfig, period_s: float, vehicle: VehicleConfig) -> None:
@@ -105,7 +134,7 @@ def load_scenario(
     The raw mapping is returned so it can be handed to child processes unchanged. Whoever
     loads a scenario to run it passes `check=common.world.check.check_scenario`.
     """
-    raw = read_toml(path)
+    raw = read_scenario_toml(path)
     for text in overrides or []:
         parts, value = parse_override(text)
         apply_override(raw, parts, value)
@@ -119,11 +148,20 @@ def scenario_from_raw(
 ) -> Scenario:
     """Validate a raw mapping (from TOML or a parent process) into a Scenario, then `check` it."""
     try:
-        scenario = build(Scenario, raw, file=file)
+        # [[vehicles]] override the scenario's sections key by key: merged, then built
+        scenario = build(Scenario, {k: v for k, v in raw.items() if k != "vehicles"}, file=file)
+        fleet = fleet_from_raw(raw, file)
     except ConfigError:
         raise
     except TypeError as exc:  # a programming error in a config dataclass, still say where
         raise ConfigError(file, (), str(exc)) from None
+    if fleet:
+        scenario = dataclasses.replace(scenario, vehicles=fleet)
+        for i, v in enumerate(fleet):
+            try:
+                scenario.member(v)
+            except ConfigValueError as exc:  # a member's sections that do not fit together
+                raise ConfigError(file, ("vehicles", i, *exc.key_path), exc.problem) from None
     if check is not None:
         check(scenario, file)
     return scenario

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from common.config.budget import DEFAULT_BUDGET, Budget, check_budget
@@ -24,7 +25,45 @@ def check_scenario(scenario: Scenario, file: str = "", budget: Budget = DEFAULT_
         rho0_m=scenario.planner.rho0_m,
     )
     check_stations(scenario.placement, scenario.world, file)
+    check_fleet(scenario, file)
     check_budget(scenario, file, budget)  # the run's memory and time (common/config/budget.py)
+
+
+def check_fleet(scenario: Scenario, file: str = "") -> None:
+    """Each vehicle of a fleet: its start and goal free of obstacles as world.start/goal are
+    (ConfigError at vehicles[i].start/goal), no two hulls touching at their starts or goals
+    (they would begin or end the mission in contact), and the placement left at its default
+    (per-vehicle placement is not supported yet)."""
+    if not scenario.vehicles:
+        return
+    if scenario.placement.stations or scenario.placement.services:
+        raise ConfigError(
+            file,
+            ("placement",),
+            "a fleet ([[vehicles]]) runs every service on its own vehicle's node: "
+            "[placement] stations and services are not supported with [[vehicles]] yet",
+        )
+    for i, (_, m) in enumerate(scenario.members):
+        try:
+            check_world(m.world, file, vehicle_radius_m=m.vehicle.radius_m, rho0_m=m.planner.rho0_m)
+        except ConfigError as exc:
+            key = exc.key_path[1:] if exc.key_path[:1] == ("world",) else exc.key_path
+            raise ConfigError(file, ("vehicles", i, *key), exc.problem) from None
+    for end in ("start", "goal"):
+        for i, a in enumerate(scenario.vehicles):
+            for j in range(i):
+                b = scenario.vehicles[j]
+                pa, pb = getattr(a, end), getattr(b, end)
+                gap = math.hypot(pa.x_m - pb.x_m, pa.y_m - pb.y_m) - (
+                    a.vehicle.radius_m + b.vehicle.radius_m
+                )
+                if gap <= 0.0:
+                    raise ConfigError(
+                        file,
+                        ("vehicles", i, end),
+                        f"{a.id!r} and {b.id!r} touch at their {end}s (hull to hull "
+                        f"{gap:.2f} m), expected apart",
+                    )
 
 
 def check_stations(placement: PlacementConfig, cfg: WorldConfig, file: str = "") -> None:

@@ -10,6 +10,7 @@ import numpy as np
 
 from common.config.scenario import Scenario
 from common.messages import Message, ObstacleTracks, PathMsg, StateEstimate, TruthState
+from common.runtime.model.dataflow import vehicle_of
 from common.runtime.model.record import Record
 from common.world import World
 from services.mission.metrics import path_points
@@ -17,9 +18,20 @@ from services.mission.metrics import path_points
 PATH_SAMPLES = 400  # points per planned path: smooth at this figure size
 
 
-def _of_type(record: Record, cls: type[Message]) -> list[Any]:
-    """Every recorded message of one type, whichever service published it, in stamp order."""
-    out = [m for key in record.keys() for m in record.stream(*key) if isinstance(m, cls)]
+# one colour per vehicle of a fleet (matplotlib's qualitative palette)
+FLEET_COLOURS = tuple(f"tab:{c}" for c in ("blue", "red", "green", "orange", "cyan", "brown"))
+
+
+def _of_type(record: Record, cls: type[Message], vehicle: str | None = None) -> list[Any]:
+    """Every recorded message of one type, whichever service published it (of one fleet
+    vehicle's services when `vehicle` is given; "" is the single vehicle's), by stamp."""
+    out = [
+        m
+        for key in record.keys()
+        if vehicle is None or vehicle_of(key[0]) == vehicle
+        for m in record.stream(*key)
+        if isinstance(m, cls)
+    ]
     return sorted(out, key=lambda m: m.stamp)
 
 
@@ -52,7 +64,7 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
             Polygon(np.asarray(p.vertices_m).reshape(-1, 2), closed=True, fc="0.75", ec="0.35")
         )
     truth: list[TruthState] = _of_type(record, TruthState)
-    t_end = truth[-1].stamp if truth else scenario.run.max_time_s
+    t_end = max((q.stamp for q in truth), default=scenario.run.max_time_s)
     world = World(w)
     times = np.linspace(0.0, t_end, 200)
     moving: dict[int, list[tuple[float, float]]] = {}
@@ -77,7 +89,47 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
     ty = [k.y for m in tracks for k in m.tracks]
     if tx:
         ax.scatter(tx, ty, s=2, color="tab:pink", alpha=0.5, label="obstacle tracks (estimator)")
-    paths = [p for p in _of_type(record, PathMsg) if p.status == "OK"]
+    if scenario.members:
+        for k, (vid, member) in enumerate(scenario.members):
+            _draw_vehicle(ax, record, member, vid, FLEET_COLOURS[k % len(FLEET_COLOURS)])
+    else:
+        _draw_vehicle(ax, record, scenario, "", "")
+    ax.set_aspect("equal")
+    ax.set_xlim(a.x_min_m - 2, a.x_max_m + 2)
+    ax.set_ylim(a.y_min_m - 2, a.y_max_m + 2)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(
+        title
+        or f"run {scenario.run.name}, seed {scenario.run.seed}, "
+        f"controller {scenario.controller.kind}"
+    )
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path
+
+
+def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour: str) -> None:
+    """One vehicle's planned paths, estimate, true trajectory, start and goal; a fleet
+    vehicle (vid) all in its own colour, labelled by its id."""
+    from matplotlib.patches import Circle
+
+    w = scenario.world
+    truth: list[TruthState] = _of_type(record, TruthState, vid)
+    paths = [p for p in _of_type(record, PathMsg, vid) if p.status == "OK"]
+    if vid:
+        for p in paths:
+            xy = path_points(p, PATH_SAMPLES)
+            ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=0.6, alpha=0.35)
+        if truth:
+            ax.plot(
+                [q.x for q in truth], [q.y for q in truth], "-", color=colour, lw=1.6, label=vid
+            )
+        ax.plot(w.start.x_m, w.start.y_m, "o", color=colour, ms=6)
+        ax.plot(w.goal.x_m, w.goal.y_m, "*", color=colour, ms=12)
+        return
     for i, p in enumerate(paths):
         xy = path_points(p, PATH_SAMPLES)
         first = i == 0
@@ -90,7 +142,7 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
             alpha=0.9 if first else 0.5,
             label="planned NURBS path" if first else ("replans" if i == 1 else None),
         )
-    est: list[StateEstimate] = _of_type(record, StateEstimate)
+    est: list[StateEstimate] = _of_type(record, StateEstimate, vid)
     if est:
         ax.plot(
             [e.x for e in est], [e.y for e in est], "--", color="tab:orange", lw=1, label="estimate"
@@ -109,18 +161,3 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
     ax.add_patch(
         Circle((w.goal.x_m, w.goal.y_m), w.goal_tolerance_m, fc="none", ec="tab:red", lw=0.8)
     )
-    ax.set_aspect("equal")
-    ax.set_xlim(a.x_min_m - 2, a.x_max_m + 2)
-    ax.set_ylim(a.y_min_m - 2, a.y_max_m + 2)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(
-        title
-        or f"run {scenario.run.name}, seed {scenario.run.seed}, "
-        f"controller {scenario.controller.kind}"
-    )
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=8, frameon=False)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path

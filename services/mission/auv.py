@@ -7,10 +7,13 @@ from typing import Any
 
 from common.config.scenario import Scenario
 from common.messages import TruthState
+from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record
 from common.world import World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import auv_dataflow
+from services.mission.fleet import fleet_dataflow
+from services.mission.fleet_metrics import fleet_metrics
 from services.mission.metrics import mission_metrics
 from services.mission.placed import placed
 
@@ -21,23 +24,36 @@ class AuvMission:
     def __init__(self, scenario: Scenario) -> None:
         self.s = scenario
         self.max_time_s = scenario.run.max_time_s
-        self.dataflow = placed(auv_dataflow(scenario), scenario.placement, scenario.network)
+        if scenario.vehicles:  # a fleet: services/mission/fleet.py
+            self.dataflow = fleet_dataflow(scenario)
+            self._vehicles = {qualified(vid, "vehicle"): m for vid, m in scenario.members}
+        else:
+            self.dataflow = placed(auv_dataflow(scenario), scenario.placement, scenario.network)
+            self._vehicles = {"vehicle": scenario}
         self.world = World(scenario.world)
-        self.reach_mps = reach_mps(scenario.vehicle)
+        self._arrived: set[str] = set()
 
     def observe(self, record: Record) -> str | None:
-        """'goal' once the true vehicle is within the goal tolerance, judged on the vehicle's
-        own truth stream (the record refuses another source and impossible seqs) and only by
-        a state that follows its predecessor (services/mission/continuity.py)."""
-        last = record.last("vehicle", "truth")
-        if not isinstance(last, TruthState):
-            return None
-        g = self.s.world.goal
-        if math.hypot(last.x - g.x_m, last.y - g.y_m) > self.s.world.goal_tolerance_m:
-            return None
-        if not follows(record.message("vehicle", "truth", last.seq - 1), last, self.reach_mps):
-            return None
-        return "goal"
+        """'goal' once every true vehicle has been within its goal tolerance, judged on each
+        vehicle's own truth stream (the record refuses another source and impossible seqs) and
+        only by a state that follows its predecessor (services/mission/continuity.py)."""
+        for name, s in self._vehicles.items():
+            if name not in self._arrived and _at_goal(record, name, s):
+                self._arrived.add(name)
+        return "goal" if len(self._arrived) == len(self._vehicles) else None
 
     def metrics(self, record: Record) -> dict[str, Any]:
+        if self.s.vehicles:
+            return fleet_metrics(record, self.s)
         return mission_metrics(record, self.s, self.world)
+
+
+def _at_goal(record: Record, vehicle: str, s: Scenario) -> bool:
+    """Is the newest truth of service `vehicle` within its goal tolerance, and plausible?"""
+    last = record.last(vehicle, "truth")
+    if not isinstance(last, TruthState):
+        return False
+    g = s.world.goal
+    if math.hypot(last.x - g.x_m, last.y - g.y_m) > s.world.goal_tolerance_m:
+        return False
+    return follows(record.message(vehicle, "truth", last.seq - 1), last, reach_mps(s.vehicle))

@@ -14,6 +14,8 @@ the factory takes from the scenario only what its core needs.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from common.config.network import link_name, profile_for
 from common.config.scenario import Scenario
 from common.messages import (
@@ -31,6 +33,7 @@ from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, 
 from common.world import World
 from services.estimator.core import EstimatorCore
 from services.planner.core import PlannerCore
+from services.planner.intent import FleetIntents
 from services.sensor.core import SensorCore
 from services.tracker.core import TrackerCore
 from services.vehicle.core import VehicleCore
@@ -130,9 +133,13 @@ def _start(s: Scenario) -> tuple[float, float, float]:
     return (st.x_m, st.y_m, st.theta_rad)
 
 
-def make_sensor(ctx: CoreContext) -> SensorCore:
+def make_sensor(
+    ctx: CoreContext, others: Mapping[str, tuple[int, float]] | None = None
+) -> SensorCore:
+    """The sensor; in a fleet `others` maps the other vehicles' truth sources to (obstacle
+    id, hull radius) (services/mission/fleet.py)."""
     s = ctx.scenario
-    return SensorCore(s.sensor, World(s.world), ctx.rng)
+    return SensorCore(s.sensor, World(s.world), ctx.rng, own=ctx.sibling("vehicle"), others=others)
 
 
 def make_estimator(ctx: CoreContext) -> EstimatorCore:
@@ -140,7 +147,11 @@ def make_estimator(ctx: CoreContext) -> EstimatorCore:
     return EstimatorCore(s.estimator, _start(s), area=s.world.area)
 
 
-def make_planner(ctx: CoreContext) -> PlannerCore:
+def make_planner(
+    ctx: CoreContext, others: Mapping[str, tuple[int, float]] | None = None
+) -> PlannerCore:
+    """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
+    radius), whose broadcast intents it plans around (services/planner/intent.py)."""
     s = ctx.scenario
     # delay compensation starts from the downlink's modelled delay (planner/cmd -> vehicle)
     # until the vehicle reports the delay it measures
@@ -152,6 +163,7 @@ def make_planner(ctx: CoreContext) -> PlannerCore:
         s.world,
         expected_downlink_s=down.delay_s,
         commands=commander(s) == "planner",
+        intents=None if others is None else FleetIntents(others, s.planner.intent_max_age_s),
     )
 
 
@@ -168,5 +180,5 @@ def make_vehicle(ctx: CoreContext) -> VehicleCore:
         _start(s),
         ctx.rng,
         clearance=lambda x, y, t: world.clearance(x, y, r, t),
-        commander=commander(s),  # defence in depth: whatever the bus lets through
+        commander=ctx.sibling(commander(s)),  # defence in depth: whatever the bus lets through
     )

@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
 from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
+from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import World
 from services.mission.continuity import follows, reach_mps
@@ -44,9 +45,15 @@ def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
     return [m for m in record.stream(service, stream) if isinstance(m, cls)]
 
 
-def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]:
-    """Every scalar metric of the run (the runtime adds end reason, link stats, timing)."""
-    truth: list[TruthState] = _typed(record, "vehicle", "truth", TruthState)
+def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = "") -> dict[str, Any]:
+    """Every scalar metric of the run (the runtime adds end reason, link stats, timing); of
+    one fleet vehicle's services ("<vehicle>.<service>") when `vehicle` is given, with `s`
+    that vehicle's scenario (Scenario.member)."""
+
+    def at(service: str) -> str:
+        return qualified(vehicle, service) if vehicle else service
+
+    truth: list[TruthState] = _typed(record, at("vehicle"), "truth", TruthState)
     m: dict[str, Any] = {
         "trajectory_sha256": trajectory_sha256(truth),
         "controller": s.controller.kind,
@@ -83,9 +90,9 @@ def mission_metrics(record: Record, s: Scenario, world: World) -> dict[str, Any]
     # paper §4 success, with eq. (6)'s safety distance as part of it
     m["success"] = m["outcome"] == "success"
     m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
-    m.update(_path_metrics(record, commander(s), t, x, y, end))
-    m.update(_estimation_metrics(record, t, x, y))
-    statuses: list[VehicleStatus] = _typed(record, "vehicle", "status", VehicleStatus)
+    m.update(_path_metrics(record, at("planner"), at(commander(s)), t, x, y, end))
+    m.update(_estimation_metrics(record, at("estimator"), t, x, y))
+    statuses: list[VehicleStatus] = _typed(record, at("vehicle"), "status", VehicleStatus)
     if statuses:
         last = statuses[-1]
         dt = s.vehicle.period_s
@@ -171,9 +178,15 @@ def _hold_distance_max(
 
 
 def _path_metrics(
-    record: Record, cmd_source: str, t: np.ndarray, x: np.ndarray, y: np.ndarray, end: int
+    record: Record,
+    planner: str,
+    cmd_source: str,
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    end: int,
 ) -> dict[str, Any]:
-    paths: list[PathMsg] = _typed(record, "planner", "path", PathMsg)
+    paths: list[PathMsg] = _typed(record, planner, "path", PathMsg)
     cmds: list[VelocityCommand] = _typed(record, cmd_source, "cmd", VelocityCommand)
     ok = [p for p in paths if p.status == "OK"]
     out: dict[str, Any] = {
@@ -219,9 +232,9 @@ def _path_metrics(
 
 
 def _estimation_metrics(
-    record: Record, t: np.ndarray, x: np.ndarray, y: np.ndarray
+    record: Record, estimator: str, t: np.ndarray, x: np.ndarray, y: np.ndarray
 ) -> dict[str, Any]:
-    est: list[StateEstimate] = _typed(record, "estimator", "state", StateEstimate)
+    est: list[StateEstimate] = _typed(record, estimator, "state", StateEstimate)
     est = [e for e in est if t[0] <= e.stamp <= t[-1]]
     if not est:
         return {}

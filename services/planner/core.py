@@ -21,10 +21,12 @@ from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
 from common.runtime.model.core import Delivery, Emit
+from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
 from services.planner.command_link import CommandLink, Prediction
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
+from services.planner.intent import FleetIntents
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.planned_path import PlannedPath
@@ -83,8 +85,11 @@ class PlannerCore:
         *,
         expected_downlink_s: float = 0.0,
         commands: bool = True,
+        intents: FleetIntents | None = None,
     ) -> None:
         self.cfg = planner
+        # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
+        self.intents = intents
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
         self.vehicle = vehicle
@@ -131,6 +136,11 @@ class PlannerCore:
         over: a backlog (a planner woken after a stall) or a reordering link may hand an older
         estimate over after a newer one."""
         msg = d.msg
+        other = vehicle_of(d.source)
+        if self.intents is not None and other in self.intents.vehicles:
+            if not isinstance(msg, StateEstimate) or self._judge_state(msg, d.t) is None:
+                self.intents.offer(other, msg)
+            return []
         if isinstance(msg, StateEstimate):
             stream, why = "state", self._judge_state(msg, d.t)
         elif isinstance(msg, ObstacleTracks):
@@ -184,11 +194,15 @@ class PlannerCore:
         return dict(self._rejects.counts)
 
     def _obstacles(self, t: float) -> Obstacles:
-        moving = []
+        moving: list[ObstacleState] = []
+        covered: frozenset[int] = frozenset()
+        if self.intents is not None:  # other vehicles' intents replace their sonar tracks
+            intents, covered = self.intents.obstacles(t)
+            moving.extend(intents)
         if self.tracks is not None:
             dt = max(0.0, t - self.tracks.stamp)  # predict the tracks to now (constant accel.)
             for k in self.tracks.tracks:
-                if k.id in self.static_ids:
+                if k.id in self.static_ids or k.id in covered:
                     continue  # charted static obstacles are planned from the chart
                 track = ObstacleState(
                     id=k.id,

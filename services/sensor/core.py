@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import logging
+import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -11,6 +13,7 @@ from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import TruthState
 from common.runtime.model.core import Delivery, Emit
 from common.world import World
+from common.world.model import ObstacleState
 from services.sensor.models import NAV_DRAWS, SCAN_DRAWS, nav_fix, scan
 
 log = logging.getLogger("tidelink.sensor")
@@ -22,12 +25,27 @@ class SensorCore:
     Each measurement samples the newest truth received and carries its stamp (the sampling
     time), so transport delay on vehicle/truth becomes measurement latency. A stream skips a
     step when the truth has not advanced since its last sample (no sample is taken twice).
+
+    In a fleet the other vehicles are obstacles like the world's moving ones: `others` maps
+    each other vehicle's truth source to (its obstacle id, its hull radius); the sonar sees
+    it where its newest truth, carried forward at its speed, puts it at the scan's time.
     """
 
-    def __init__(self, cfg: SensorConfig, world: World, rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        cfg: SensorConfig,
+        world: World,
+        rng: np.random.Generator,
+        *,
+        own: str = "vehicle",
+        others: Mapping[str, tuple[int, float]] | None = None,
+    ) -> None:
         self.cfg = cfg
         self.world = world
         self._rng = rng
+        self._own = own
+        self._others = dict(others or {})
+        self._other_truth: dict[str, TruthState] = {}
         base = cfg.base_rate_hz
         self._period_s = cfg.period_s
         self._nav_every = round(base / cfg.nav_rate_hz)
@@ -55,9 +73,39 @@ class SensorCore:
                 msg.stamp,
                 msg.seq,
             )
+        elif d.source in self._others:
+            seen = self._other_truth.get(d.source)
+            if seen is None or msg.stamp > seen.stamp:
+                self._other_truth[d.source] = msg
+        elif d.source != self._own:
+            return []  # the dataflow wires no other truth; never one's own pose from elsewhere
         elif self._truth is None or msg.stamp > self._truth.stamp:
             self._truth = msg
         return []
+
+    def _vehicles_at(self, t: float) -> tuple[ObstacleState, ...]:
+        """The other vehicles of a fleet at time t, as moving obstacles, by id."""
+        out = []
+        for src, (oid, radius) in sorted(self._others.items(), key=lambda kv: kv[1][0]):
+            q = self._other_truth.get(src)
+            if q is None:
+                continue
+            vx, vy = q.v * math.cos(q.theta), q.v * math.sin(q.theta)
+            dt = t - q.stamp
+            out.append(
+                ObstacleState(
+                    id=oid,
+                    x=q.x + vx * dt,
+                    y=q.y + vy * dt,
+                    vx=vx,
+                    vy=vy,
+                    ax=0.0,
+                    ay=0.0,
+                    radius=radius,
+                    moving=True,
+                )
+            )
+        return tuple(out)
 
     def _judge_truth(self, m: TruthState, now: float) -> Reason | None:
         j = self._judge
@@ -86,7 +134,7 @@ class SensorCore:
                 self.stale_skips += 1
         if k % self._obs_every == 0:
             if truth.stamp > self._last_scan:
-                obstacles = self.world.obstacles_at(truth.stamp)
+                obstacles = self.world.obstacles_at(truth.stamp) + self._vehicles_at(truth.stamp)
                 n = len(obstacles)
                 u = self._rng.random(n)
                 z = self._rng.standard_normal((n, SCAN_DRAWS))

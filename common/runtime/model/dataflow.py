@@ -25,6 +25,20 @@ if TYPE_CHECKING:
     from common.config.scenario import Scenario
 
 
+# a fleet's services are named "<vehicle id>.<service>" (services/mission/fleet.py)
+FLEET_SEP = "."
+
+
+def qualified(vehicle: str, service: str) -> str:
+    """The name of one fleet vehicle's service, e.g. ("auv2", "planner") -> "auv2.planner"."""
+    return f"{vehicle}{FLEET_SEP}{service}"
+
+
+def vehicle_of(service: str) -> str:
+    """The fleet vehicle a service belongs to ("auv2.planner" -> "auv2"); "" outside a fleet."""
+    return service.rpartition(FLEET_SEP)[0]
+
+
 class DataflowError(ValueError):
     """The declared inputs and outputs of the services do not fit together."""
 
@@ -70,6 +84,12 @@ class CoreContext:
         """The service's own generator, keyed by (seed, service name): independent, reproducible."""
         h = hashlib.blake2b(self.service.encode(), digest_size=8).digest()
         return np.random.default_rng([self.scenario.run.seed, int.from_bytes(h, "little")])
+
+    def sibling(self, name: str) -> str:
+        """The name of service `name` of this service's own vehicle: "auv2.vehicle" beside
+        "auv2.sensor" in a fleet, `name` itself otherwise."""
+        vehicle = vehicle_of(self.service)
+        return qualified(vehicle, name) if vehicle else name
 
 
 CoreFactory = Callable[[CoreContext], ServiceCore]

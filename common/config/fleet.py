@@ -1,0 +1,94 @@
+"""A fleet's `[[vehicles]]`: each AUV's id, start and goal, and its own overrides of the sections.
+
+An entry's `vehicle`, `sensor`, `estimator`, `planner` and `controller` tables override the
+scenario's tables key by key (what an entry leaves out stays the scenario's), so a fleet of
+identical vehicles needs only ids, starts and goals. Every merged section is checked where the
+entry wrote it: an error names `vehicles[i].planner.rho0_m`, not `planner.rho0_m`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from common.config.controller import ControllerConfig
+from common.config.errors import ConfigError
+from common.config.estimator import EstimatorConfig
+from common.config.loader import build, merge_tables
+from common.config.planner import PlannerConfig
+from common.config.sensor import SensorConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import PoseConfig
+
+MAX_VEHICLES = 16
+# a vehicle id qualifies its services' names ("auv2.planner") and is a key chunk: no '.'
+_ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+# the sections an entry may override, and the config each builds into
+SECTIONS: dict[str, type] = {
+    "vehicle": VehicleConfig,
+    "sensor": SensorConfig,
+    "estimator": EstimatorConfig,
+    "planner": PlannerConfig,
+    "controller": ControllerConfig,
+}
+ENTRY_KEYS = ("id", "start", "goal", *SECTIONS)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FleetVehicle:
+    """One AUV of a fleet: its id, start and goal, and its sections after its overrides."""
+
+    id: str
+    start: PoseConfig
+    goal: PoseConfig
+    vehicle: VehicleConfig
+    sensor: SensorConfig
+    estimator: EstimatorConfig
+    planner: PlannerConfig
+    controller: ControllerConfig
+
+
+def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, ...]:
+    """The `[[vehicles]]` of a raw scenario mapping, each section merged over the scenario's;
+    () when there are none. ConfigError names the entry and key of the first problem."""
+    entries = raw.get("vehicles", [])
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise ConfigError(file, ("vehicles",), "expected an array of tables ([[vehicles]])")
+    if len(entries) > MAX_VEHICLES:
+        raise ConfigError(
+            file, ("vehicles",), f"{len(entries)} vehicles, at most {MAX_VEHICLES} are supported"
+        )
+    seen: set[str] = set()
+    out = []
+    for i, e in enumerate(entries):
+        at = ("vehicles", i)
+        unknown = sorted(set(e) - set(ENTRY_KEYS))
+        if unknown:
+            raise ConfigError(
+                file, (*at, unknown[0]), f"unknown key (known keys: {', '.join(ENTRY_KEYS)})"
+            )
+        for key in ("id", "start", "goal"):
+            if key not in e:
+                raise ConfigError(file, (*at, key), "required key is missing")
+        vid = e["id"]
+        if not isinstance(vid, str) or not _ID.match(vid):
+            raise ConfigError(file, (*at, "id"), f"{vid!r} must be letters, digits, '_' or '-'")
+        if vid in seen:
+            raise ConfigError(file, (*at, "id"), f"{vid!r} is used twice, expected unique ids")
+        seen.add(vid)
+        sections: dict[str, Any] = {
+            name: build(
+                cls, merge_tables(raw.get(name, {}), e.get(name, {})), file=file, path=(*at, name)
+            )
+            for name, cls in SECTIONS.items()
+        }
+        out.append(
+            FleetVehicle(
+                id=vid,
+                start=build(PoseConfig, e["start"], file=file, path=(*at, "start")),
+                goal=build(PoseConfig, e["goal"], file=file, path=(*at, "goal")),
+                **sections,
+            )
+        )
+    return tuple(out)

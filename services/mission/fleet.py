@@ -1,0 +1,91 @@
+"""A fleet's dataflow: the AUV dataflow once per vehicle, plus the links between vehicles.
+
+Each vehicle's services are the single-vehicle ones named "<id>.<service>" (auv2.sensor,
+auv2.estimator, auv2.planner, auv2.vehicle), built from that vehicle's scenario (its start,
+goal and section overrides: Scenario.member). Between vehicles:
+
+    <other>.vehicle   --truth--> <id>.sensor   the sonar sees the other hulls (simulation: a
+                                             sensor samples what is physically there)
+    <other>.estimator --state--> <id>.planner  the other's intent: where it is and the path
+    <other>.planner   --path---> <id>.planner  it follows (services/planner/intent.py)
+
+so every vehicle is a moving obstacle to the others: with a known trajectory while its intent
+arrives (deconfliction by intent), else as the track its sonar contact gives (eq. (12)-(13)).
+The intent links are modelled links like any other: "estimator/state->planner" and
+"planner/path->planner" name them for every vehicle in network profiles.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import partial
+
+from common.config.scenario import Scenario
+from common.messages import Message, PathMsg, StateEstimate, TruthState
+from common.runtime.model.core import QueuePolicy, ServiceCore
+from common.runtime.model.dataflow import (
+    CoreContext,
+    CoreFactory,
+    Dataflow,
+    Input,
+    Service,
+    qualified,
+)
+from common.world import World
+from services.mission.dataflow import auv_dataflow, make_planner, make_sensor
+
+# what a planner hears of each other vehicle: its intent (services/planner/intent.py)
+INTENT: tuple[tuple[str, str, type[Message]], ...] = (
+    ("estimator", "state", StateEstimate),
+    ("planner", "path", PathMsg),
+)
+
+
+def fleet_obstacle_ids(s: Scenario) -> dict[str, int]:
+    """The obstacle id each vehicle has in the others' sonar scans: after every world id."""
+    first = max(World(s.world).obstacle_ids, default=-1) + 1
+    return {v.id: first + i for i, v in enumerate(s.vehicles)}
+
+
+def fleet_dataflow(s: Scenario) -> Dataflow:
+    """Every vehicle's AUV dataflow, qualified by its id, each sensor reading the others'
+    truth."""
+    ids = fleet_obstacle_ids(s)
+    radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
+    services: list[Service] = []
+    for vid, member in s.members:
+        others = {o: (ids[o], radius[o]) for o in ids if o != vid}
+        hulls = {qualified(o, "vehicle"): seen for o, seen in others.items()}
+        for svc in auv_dataflow(member).services.values():
+            factory: CoreFactory = svc.factory
+            inputs = tuple(
+                dataclasses.replace(i, source=qualified(vid, i.source)) for i in svc.inputs
+            )
+            if svc.name == "sensor":
+                factory = partial(make_sensor, others=hulls)
+                inputs += tuple(_newest(src, "truth", TruthState) for src in hulls)
+            elif svc.name == "planner":
+                factory = partial(make_planner, others=others)
+                inputs += tuple(
+                    _newest(qualified(o, source), stream, msg_type)
+                    for o in others
+                    for source, stream, msg_type in INTENT
+                )
+            services.append(
+                dataclasses.replace(
+                    svc,
+                    name=qualified(vid, svc.name),
+                    factory=partial(_as_member, factory, member),
+                    inputs=inputs,
+                )
+            )
+    return Dataflow.declare(*services)
+
+
+def _newest(source: str, stream: str, msg_type: type[Message]) -> Input:
+    return Input(source=source, stream=stream, msg_type=msg_type, policy=QueuePolicy.NEWEST)
+
+
+def _as_member(factory: CoreFactory, member: Scenario, ctx: CoreContext) -> ServiceCore:
+    """Build a vehicle's core from that vehicle's scenario (the runtime hands the fleet's)."""
+    return factory(dataclasses.replace(ctx, scenario=member))

@@ -1,0 +1,93 @@
+"""Metrics of a fleet run: each vehicle's, under its id, and the fleet's (all reached, makespan,
+separation between any two hulls, vehicle-vehicle collisions)."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+
+from common.config.scenario import Scenario
+from common.messages import TruthState
+from common.runtime.model.dataflow import qualified
+from common.runtime.model.record import Record
+from common.world import World
+from services.mission.metrics import mission_metrics
+from services.mission.outcome import classify
+
+
+def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
+    """The fleet's metrics; `vehicles` holds each vehicle's (services/mission/metrics.py)."""
+    per = {vid: mission_metrics(record, m, World(m.world), vehicle=vid) for vid, m in s.members}
+    truths = {
+        v.id: np.array(
+            [
+                (q.stamp, q.x, q.y)
+                for q in record.stream(qualified(v.id, "vehicle"), "truth")
+                if isinstance(q, TruthState)
+            ]
+        ).reshape(-1, 3)
+        for v in s.vehicles
+    }
+    radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
+    rho0 = max(v.planner.rho0_m for v in s.vehicles)
+    sep = _separation(truths, radius)
+    reached = all(m.get("reached_goal", False) for m in per.values())
+    arrivals = [m["travel_time_s"] for m in per.values() if m.get("reached_goal")]
+    out: dict[str, Any] = {
+        "trajectory_sha256": hashlib.sha256(
+            "".join(per[v]["trajectory_sha256"] for v in sorted(per)).encode()
+        ).hexdigest(),
+        "controller": ",".join(sorted({str(m.get("controller")) for m in per.values()})),
+        "fleet_size": len(per),
+        "reached_goal": reached,
+        "vehicles_reached": len(arrivals),
+        "makespan_s": max(arrivals) if reached and arrivals else None,
+        # what a run's outcome is told in (services/mission/outcome.py): the last arrival
+        "travel_time_s": max(arrivals, default=0.0),
+        "min_separation_m": sep["min_separation_m"],
+        "min_separation_pair": sep["pair"],
+        "vehicle_collisions": sep["collisions"],
+        "collisions": sum(int(m.get("collisions", 0)) for m in per.values()),
+        "min_clearance_m": min(
+            (m["min_clearance_m"] for m in per.values() if "min_clearance_m" in m),
+            default=math.nan,
+        ),
+        "rho0_m": rho0,
+        "rho0_breach_m": max(float(m.get("rho0_breach_m", 0.0)) for m in per.values()),
+        "hold_time_s": sum(float(m.get("hold_time_s", 0.0)) for m in per.values()),
+        "failsafe_time_s": sum(float(m.get("failsafe_time_s", 0.0)) for m in per.values()),
+    }
+    out["outcome"] = classify(
+        reached_goal=reached,
+        contact=out["collisions"] > 0 or out["vehicle_collisions"] > 0,
+        below_rho0=out["rho0_breach_m"] > 0.0 or out["min_separation_m"] < rho0,
+    )
+    out["success"] = out["outcome"] == "success"
+    out["vehicles"] = per
+    return out
+
+
+def _separation(truths: dict[str, np.ndarray], radius: dict[str, float]) -> dict[str, Any]:
+    """Smallest hull-to-hull distance between any two vehicles and how often two came into
+    contact; truths[id]: (n, 3) rows (t, x, y); the other's track is interpolated to each
+    stamp of one's, over the time both were published."""
+    best, pair, collisions = math.inf, "", 0
+    for a, b in itertools.combinations(sorted(truths), 2):
+        ta, tb = truths[a], truths[b]
+        if len(ta) < 2 or len(tb) < 2:
+            continue
+        both = (ta[:, 0] >= tb[0, 0]) & (ta[:, 0] <= tb[-1, 0])
+        t = ta[both, 0]
+        if not len(t):
+            continue
+        bx, by = np.interp(t, tb[:, 0], tb[:, 1]), np.interp(t, tb[:, 0], tb[:, 2])
+        gap = np.hypot(ta[both, 1] - bx, ta[both, 2] - by) - (radius[a] + radius[b])
+        touching = gap < 0.0
+        collisions += int(np.count_nonzero(touching[1:] & ~touching[:-1]) + int(touching[0]))
+        if float(gap.min()) < best:
+            best, pair = float(gap.min()), f"{a}-{b}"
+    return {"min_separation_m": best, "pair": pair, "collisions": collisions}

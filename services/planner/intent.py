@@ -1,0 +1,141 @@
+"""Other vehicles' intents: where a fleet's vehicles will be, from the paths they broadcast.
+
+Each vehicle of a fleet publishes its estimate (estimator/state) and its plan (planner/path);
+a planner that receives both from another vehicle knows that vehicle's trajectory: along its
+path from where its estimate puts it, at the path's reference speed, stopping at the path's
+end (its goal). That is a moving obstacle with a known trajectory alpha_k(t) for eq. (12)-(13)
+and for replanning, better than the constant-acceleration extrapolation of its sonar track,
+which cannot see a turn coming. An intent whose estimate is older than `max_age_s` (lost,
+late, or the vehicle's planner is dead) is dropped, and the vehicle's track takes over.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from common.messages import Message, PathMsg, StateEstimate
+from common.world import ObstacleState
+from common.world.geometry import FloatArray
+from services.planner.planned_path import curve_of
+
+# samples of a broadcast path: a route polyline fine enough for rho0 at the fleet's sizes
+ROUTE_SAMPLES = 400
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class IntentObstacle(ObstacleState):
+    """A vehicle following its broadcast route: alpha_k(t) = route(s0 + speed t), clamped at
+    the route's end; x, y, vx, vy are its state now (t = 0)."""
+
+    route: FloatArray = field(repr=False)  # (m, 2) points along the path
+    s_route: FloatArray = field(repr=False)  # (m,) arc length at each point, from 0
+    s0: float  # arc length now
+    speed: float  # m/s along the route
+
+    def centre_at(self, t_s: object, accel_horizon_s: float = np.inf) -> FloatArray:
+        """Centre (..., 2) t_s ahead along the route (accel_horizon_s is for extrapolations)."""
+        s = self.s0 + self.speed * np.maximum(np.asarray(t_s, dtype=np.float64), 0.0)
+        x = np.interp(s, self.s_route, self.route[:, 0])
+        y = np.interp(s, self.s_route, self.route[:, 1])
+        return np.stack([x, y], axis=-1)
+
+    def advanced(self, dt_s: float) -> IntentObstacle:
+        return along(self, self.s0 + self.speed * dt_s)
+
+
+def along(o: IntentObstacle, s0: float) -> IntentObstacle:
+    """The intent with the vehicle at arc length s0 (its velocity along the route there, zero
+    once at the route's end)."""
+    end = float(o.s_route[-1])
+    s0 = min(max(s0, 0.0), end)
+    p, ahead = _point(o, s0), _point(o, min(s0 + 0.5, end))
+    d = ahead - p
+    n = float(np.hypot(d[0], d[1]))
+    vx, vy = (o.speed * d[0] / n, o.speed * d[1] / n) if n > 1e-9 else (0.0, 0.0)
+    return dataclasses.replace(o, x=float(p[0]), y=float(p[1]), vx=float(vx), vy=float(vy), s0=s0)
+
+
+def _point(o: IntentObstacle, s: float) -> FloatArray:
+    return np.array(
+        [np.interp(s, o.s_route, o.route[:, 0]), np.interp(s, o.s_route, o.route[:, 1])]
+    )
+
+
+@dataclass
+class _Heard:
+    state: StateEstimate | None = None
+    path: PathMsg | None = None
+
+
+class FleetIntents:
+    """The newest estimate and path heard from each other vehicle, and their obstacles.
+
+    `vehicles` maps each other vehicle's id to (its obstacle id in sonar tracks, hull radius).
+    """
+
+    def __init__(self, vehicles: Mapping[str, tuple[int, float]], max_age_s: float) -> None:
+        self.vehicles = dict(vehicles)
+        self.max_age_s = max_age_s
+        self._heard = {v: _Heard() for v in self.vehicles}
+        self._routes: dict[int, tuple[FloatArray, FloatArray]] = {}  # by id(path message)
+
+    def offer(self, vehicle: str, msg: Message) -> bool:
+        """Keep `msg` if it is the newest estimate or OK path of another vehicle; False if
+        `vehicle` is none of them (the message is someone else's business)."""
+        heard = self._heard.get(vehicle)
+        if heard is None:
+            return False
+        if isinstance(msg, StateEstimate):
+            if heard.state is None or msg.stamp >= heard.state.stamp:
+                heard.state = msg
+        elif isinstance(msg, PathMsg) and msg.status == "OK":
+            if heard.path is None or msg.stamp >= heard.path.stamp:
+                heard.path = msg
+                self._routes.clear()
+        return True
+
+    def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
+        """The intents in force at time t as obstacles at t, and the obstacle ids they stand
+        for (whose sonar tracks they replace)."""
+        out = []
+        for vid, (oid, radius) in self.vehicles.items():
+            heard = self._heard[vid]
+            st, path = heard.state, heard.path
+            if st is None or path is None or t - st.stamp > self.max_age_s:
+                continue
+            route, s_route = self._route(path)
+            if len(route) < 2:
+                continue
+            i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
+            now = IntentObstacle(
+                id=oid,
+                x=st.x,
+                y=st.y,
+                vx=0.0,
+                vy=0.0,
+                ax=0.0,
+                ay=0.0,
+                radius=radius,
+                moving=True,
+                route=route,
+                s_route=s_route,
+                s0=float(s_route[i]),
+                speed=max(path.v_ref, 0.0),
+            )
+            out.append(along(now, float(s_route[i]) + now.speed * max(0.0, t - st.stamp)))
+        return tuple(out), frozenset(o.id for o in out)
+
+    def _route(self, path: PathMsg) -> tuple[FloatArray, FloatArray]:
+        """The path's polyline and arc lengths (computed once per path)."""
+        key = id(path)
+        if key not in self._routes:
+            curve = curve_of(path)
+            u = np.linspace(curve.u_min, curve.u_max, ROUTE_SAMPLES)
+            pts = np.asarray(curve.evaluate(u, n_ders=0)[0])
+            s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+            self._routes[key] = (pts, s)
+        return self._routes[key]

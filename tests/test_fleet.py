@@ -1,0 +1,283 @@
+"""Fleets: [[vehicles]] config, the fleet dataflow, seeing each other, intents, fleet metrics."""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from helpers.launch_proc import REPO
+
+from common.config.errors import ConfigError
+from common.config.fleet import MAX_VEHICLES
+from common.config.loader import read_scenario_toml
+from common.config.network import profile_for
+from common.config.scenario import Scenario, load_scenario, scenario_from_raw
+from common.messages import PathMsg, StateEstimate, TruthState
+from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.model.core import Delivery
+from common.runtime.model.inproc import run_inproc
+from common.runtime.model.mission import load_mission
+from common.world import World
+from common.world.check import check_scenario
+from services.mission.fleet import fleet_obstacle_ids
+from services.planner.intent import FleetIntents
+from services.sensor.core import SensorCore
+
+CONFIGS = REPO / "configs"
+FLEET4 = CONFIGS / "fleet4.toml"
+HEADON = CONFIGS / "fleet_headon.toml"
+
+
+def _raw(path: Path = FLEET4) -> dict[str, Any]:
+    return read_scenario_toml(path)
+
+
+def _fleet(raw: dict[str, Any]) -> Scenario:
+    return scenario_from_raw(raw, "fleet.toml", check=check_scenario)
+
+
+# -- config ----------------------------------------------------------------------------------
+
+
+def test_a_scenario_without_vehicles_is_the_single_auv() -> None:
+    s, _ = load_scenario(CONFIGS / "default.toml")
+    assert s.vehicles == () and s.members == ()
+    assert load_mission(s).dataflow.names == ("estimator", "planner", "sensor", "vehicle")
+
+
+def test_extends_merges_a_scenario_over_another() -> None:
+    raw = _raw()
+    base = read_scenario_toml(CONFIGS / "default.toml")
+    assert raw["world"]["circles"] == base["world"]["circles"]  # inherited
+    assert raw["run"]["name"] == "fleet4" and raw["run"]["seed"] == base["run"]["seed"]
+
+
+def test_an_entry_overrides_its_sections_key_by_key() -> None:
+    raw = _raw()
+    raw["vehicles"][1]["planner"] = {"rho0_m": 2.0}
+    raw["vehicles"][1]["vehicle"] = {"cruise_speed_mps": 1.2}
+    s = _fleet(raw)
+    one, two = s.members[0][1], s.members[1][1]
+    assert two.planner.rho0_m == 2.0 and one.planner.rho0_m == s.planner.rho0_m
+    # the keys the entry left out are the scenario's, not the dataclass defaults
+    assert two.planner.resolution_m == s.planner.resolution_m == 0.5
+    assert two.vehicle.cruise_speed_mps == 1.2 and two.vehicle.v_max_mps == s.vehicle.v_max_mps
+    assert two.world.start.x_m == 92.0 and two.world.goal.x_m == 8.0
+    assert two.world.circles == s.world.circles
+
+
+@pytest.mark.parametrize(
+    ("edit", "key", "words"),
+    [
+        (lambda v: v[0].update(colour="red"), "vehicles[0].colour", "unknown key"),
+        (lambda v: v[1].update(id="auv1"), "vehicles[1].id", "used twice"),
+        (lambda v: v[0].update(id="auv.1"), "vehicles[0].id", "letters, digits"),
+        (lambda v: v[2].pop("goal"), "vehicles[2].goal", "required"),
+        (lambda v: v[1].update(planner={"rho0_m": -1.0}), "vehicles[1].planner.rho0_m", ""),
+        (lambda v: v[3].update(start={"x_m": 500.0, "y_m": 5.0}), "vehicles[3].start", "area"),
+        # inside circle 1 of the default field (20, 20, r 4)
+        (lambda v: v[0].update(start={"x_m": 20.0, "y_m": 20.0}), "vehicles[0].start", "contact"),
+        (lambda v: v[1].update(start={"x_m": 8.3, "y_m": 8.0}), "vehicles[1].start", "touch"),
+        (lambda v: v.extend([dict(v[0], id=f"x{i}") for i in range(13)]), "vehicles", "at most"),
+    ],
+)
+def test_a_bad_vehicle_entry_names_its_key(edit: Any, key: str, words: str) -> None:
+    raw = _raw()
+    edit(raw["vehicles"])
+    with pytest.raises(ConfigError) as exc:
+        _fleet(raw)
+    assert exc.value.key == key, exc.value
+    assert words in exc.value.problem
+    assert MAX_VEHICLES == 16
+
+
+def test_a_fleet_refuses_a_placement() -> None:
+    raw = _raw()
+    raw["placement"] = {"services": {"planner": "ship"}}
+    raw["placement"]["stations"] = [{"name": "ship", "x_m": -100.0, "y_m": 20.0}]
+    with pytest.raises(ConfigError) as exc:
+        _fleet(raw)
+    assert exc.value.key == "placement"
+
+
+def test_tidelink_check_exits_2_on_a_bad_fleet(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        FLEET4.read_text()
+        .replace('id = "auv3"', 'id = "auv1"')
+        .replace('extends = "default.toml"', f'extends = "{CONFIGS / "default.toml"}"')
+    )
+    res = subprocess.run(
+        [sys.executable, "-m", "services.cli", "check", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+        check=False,
+    )
+    assert res.returncode == 2, res.stderr
+    assert "vehicles[2].id: 'auv1' is used twice" in res.stderr
+
+
+# -- dataflow and links ----------------------------------------------------------------------
+
+
+def test_the_fleet_dataflow_is_each_vehicles_plus_the_links_between_them() -> None:
+    s = _fleet(_raw())
+    flow = load_mission(s).dataflow
+    assert len(flow.names) == 16 and "auv3.planner" in flow.names
+    sensor = flow.service("auv2.sensor")
+    assert {i.source for i in sensor.inputs} == {f"auv{k}.vehicle" for k in (1, 2, 3, 4)}
+    planner = flow.service("auv2.planner")
+    heard = {(i.source, i.stream) for i in planner.inputs}
+    assert ("auv1.planner", "path") in heard and ("auv4.estimator", "state") in heard
+    assert ("auv2.estimator", "state") in heard and ("auv2.planner", "path") not in heard
+    assert flow.service("auv2.vehicle").inputs[0].source == "auv2.planner"
+    links = {lk.name for lk in flow.links}
+    assert "auv1.planner/path->auv2.planner" in links
+    assert "auv1.vehicle/truth->auv2.sensor" in links
+
+
+def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_wins() -> None:
+    raw = {
+        "default": {"delay_s": 0.05},
+        "links": [
+            {"link": "planner/path->planner", "profile": {"delay_s": 0.5}},
+            {"link": "auv2.planner/path->auv1.planner", "profile": {"delay_s": 0.9}},
+            {"link": "planner/cmd->*", "profile": {"delay_s": 0.2}},
+        ],
+    }
+    net = scenario_from_raw({"network": raw}).network
+    assert profile_for(net, "auv3.planner/path->auv1.planner").delay_s == 0.5
+    assert profile_for(net, "auv2.planner/path->auv1.planner").delay_s == 0.9
+    assert profile_for(net, "auv4.planner/cmd->auv4.vehicle").delay_s == 0.2
+    assert profile_for(net, "planner/cmd->vehicle").delay_s == 0.2
+    assert profile_for(net, "auv1.sensor/nav->auv1.estimator").delay_s == 0.05
+
+
+def _truth(source: str, x: float, y: float, theta: float = 0.0, v: float = 1.0) -> Delivery:
+    msg = TruthState(source=source, seq=1, stamp=1.0, x=x, y=y, theta=theta, v=v, w=0.0)
+    return Delivery(source=source, stream="truth", msg=msg, t=1.0)
+
+
+def test_a_sonar_sees_the_other_vehicles_and_takes_its_pose_only_from_its_own() -> None:
+    s = _fleet(_raw())
+    ids = fleet_obstacle_ids(s)
+    assert min(ids.values()) > max(World(s.world).obstacle_ids)
+    m = s.members[0][1]
+    core = SensorCore(
+        dataclasses.replace(m.sensor, p_detect=1.0, det_fov_half_angle_rad=np.pi),
+        World(m.world),
+        np.random.default_rng(1),
+        own="auv1.vehicle",
+        others={"auv2.vehicle": (ids["auv2"], 0.5)},
+    )
+    core.deliver(_truth("auv1.vehicle", 10.0, 10.0))
+    core.deliver(_truth("auv2.vehicle", 14.0, 10.0, theta=np.pi))
+    core.deliver(_truth("auv9.vehicle", 50.0, 10.0))  # wired to no one: ignored
+    scans = [e.msg for e in core.step(1.0) if e.stream == "obstacles"]
+    assert scans, "a scan at t = 1.0"
+    seen = {d.id: d for d in scans[0].detections}  # type: ignore[attr-defined]
+    assert ids["auv2"] in seen and abs(seen[ids["auv2"]].x - 14.0) < 2.0
+    navs = [e.msg for e in core.step(1.0) if e.stream == "nav"]
+    assert all(abs(n.x - 10.0) < 5.0 for n in navs)  # type: ignore[attr-defined]
+
+
+# -- intents ---------------------------------------------------------------------------------
+
+
+def _straight_path(stamp: float, x0: float, x1: float, y: float = 10.0) -> PathMsg:
+    """An OK path along y from x0 to x1 (degree-1 NURBS) at 1.5 m/s."""
+    return PathMsg(
+        source="auv2.planner",
+        seq=1,
+        stamp=stamp,
+        path_id=1,
+        status="OK",
+        reason="",
+        degree=1,
+        control_points=(x0, y, (x0 + x1) / 2, y, x1, y),
+        weights=(1.0, 1.0, 1.0),
+        knots=(0.0, 0.0, 0.5, 1.0, 1.0),
+        waypoints=(x0, y, x1, y),
+        length=abs(x1 - x0),
+        f_l=1.0,
+        max_curvature=0.0,
+        v_ref=1.5,
+    )
+
+
+def _estimate(stamp: float, x: float, y: float = 10.0) -> StateEstimate:
+    return StateEstimate(
+        source="auv2.estimator",
+        seq=1,
+        stamp=stamp,
+        x=x,
+        y=y,
+        theta=0.0,
+        v=1.5,
+        w=0.0,
+        covariance=(0.0,) * 25,
+    )
+
+
+def test_an_intent_is_the_other_vehicle_moving_along_its_path_until_it_goes_stale() -> None:
+    intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
+    assert intents.offer("auv2", _straight_path(0.0, 0.0, 30.0))
+    assert intents.offer("auv2", _estimate(1.0, 6.0))
+    assert not intents.offer("auv1", _estimate(1.0, 6.0))  # not another vehicle's
+    (o,), covered = intents.obstacles(2.0)
+    assert covered == {100} and o.radius == 0.5
+    assert o.x == pytest.approx(7.5, abs=0.2)  # 1 s after the estimate, at 1.5 m/s
+    assert o.vx == pytest.approx(1.5, abs=1e-6)
+    ahead = o.centre_at(np.array([2.0, 100.0]))  # at 1.5 m/s, then parked at the path's end
+    assert ahead.ravel().tolist() == pytest.approx([10.5, 10.0, 30.0, 10.0], abs=0.2)
+    assert o.advanced(2.0).x == pytest.approx(10.5, abs=0.2)
+    # an older estimate arriving late changes nothing; a stale one drops the intent
+    intents.offer("auv2", _estimate(0.5, 1.0))
+    assert intents.obstacles(2.0)[0][0].x == pytest.approx(7.5, abs=0.2)
+    assert intents.obstacles(2.9)[1] == {100}
+    assert intents.obstacles(3.2) == ((), frozenset())  # 2.2 s old: its track takes over
+
+
+def test_without_a_path_there_is_no_intent() -> None:
+    intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
+    intents.offer("auv2", _estimate(1.0, 6.0))
+    no_path = _straight_path(0.5, 0.0, 30.0)
+    intents.offer("auv2", PathMsg(**{**_fields(no_path), "status": "NO_PATH"}))
+    assert intents.obstacles(1.5) == ((), frozenset())
+
+
+def _fields(m: PathMsg) -> dict[str, Any]:
+    return {f: getattr(m, f) for f in m.__struct_fields__}
+
+
+# -- missions --------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
+    s, _ = load_scenario(HEADON, ['runtime.kind="inproc"'], check=check_scenario)
+    m = run_inproc(s).metrics
+    assert m["reached_goal"] and m["vehicles_reached"] == 2
+    assert m["vehicle_collisions"] == 0
+    assert m["min_separation_m"] >= s.planner.rho0_m  # hull to hull: r1 + r2 + rho0 centres
+    assert m["outcome"] == "success"
+    assert set(m["vehicles"]) == {"auv1", "auv2"}
+    assert all(v["outcome"] == "success" for v in m["vehicles"].values())
+
+
+@pytest.mark.slow
+def test_a_fleet_in_lockstep_equals_inproc(tmp_path: Path) -> None:
+    # 8 service processes and the clock over one Zenoh session each; 40 s of the head-on run
+    s, raw = load_scenario(HEADON, ["run.max_time_s=40.0"], check=check_scenario)
+    ref = run_inproc(s)
+    got = run_lockstep(s, raw, tmp_path / "logs")
+    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics == ref.metrics
+    assert got.record.stream("auv2.planner", "path") == ref.record.stream("auv2.planner", "path")
