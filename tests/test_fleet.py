@@ -24,6 +24,8 @@ from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.world import World
 from common.world.check import check_scenario
+from services.launcher.launch import select_services
+from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
 from services.planner.intent import FleetIntents
 from services.sensor.core import SensorCore
@@ -77,6 +79,7 @@ def test_an_entry_overrides_its_sections_key_by_key() -> None:
         (lambda v: v[0].update(colour="red"), "vehicles[0].colour", "unknown key"),
         (lambda v: v[1].update(id="auv1"), "vehicles[1].id", "used twice"),
         (lambda v: v[0].update(id="auv.1"), "vehicles[0].id", "letters, digits"),
+        (lambda v: v[0].update(id="other"), "vehicles[0].id", "reserved"),
         (lambda v: v[2].pop("goal"), "vehicles[2].goal", "required"),
         (lambda v: v[1].update(planner={"rho0_m": -1.0}), "vehicles[1].planner.rho0_m", ""),
         (lambda v: v[3].update(start={"x_m": 500.0, "y_m": 5.0}), "vehicles[3].start", "area"),
@@ -150,6 +153,8 @@ def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_
             {"link": "planner/path->planner", "profile": {"delay_s": 0.5}},
             {"link": "auv2.planner/path->auv1.planner", "profile": {"delay_s": 0.9}},
             {"link": "planner/cmd->*", "profile": {"delay_s": 0.2}},
+            {"link": "other.estimator/state->planner", "profile": {"delay_s": 0.7}},
+            {"link": "estimator/state->planner", "profile": {"delay_s": 0.1}},
         ],
     }
     net = scenario_from_raw({"network": raw}).network
@@ -158,6 +163,10 @@ def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_
     assert profile_for(net, "auv4.planner/cmd->auv4.vehicle").delay_s == 0.2
     assert profile_for(net, "planner/cmd->vehicle").delay_s == 0.2
     assert profile_for(net, "auv1.sensor/nav->auv1.estimator").delay_s == 0.05
+    # 'other.' names only the links from another vehicle: the intents, not one's own estimate
+    assert profile_for(net, "auv2.estimator/state->auv1.planner").delay_s == 0.7
+    assert profile_for(net, "auv1.estimator/state->auv1.planner").delay_s == 0.1
+    assert profile_for(net, "estimator/state->planner").delay_s == 0.1
 
 
 def _truth(source: str, x: float, y: float, theta: float = 0.0, v: float = 1.0) -> Delivery:
@@ -281,3 +290,31 @@ def test_a_fleet_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
     assert got.metrics == ref.metrics
     assert got.record.stream("auv2.planner", "path") == ref.record.stream("auv2.planner", "path")
+
+
+# -- launching -------------------------------------------------------------------------------
+
+
+def test_only_selects_a_vehicles_services_by_pattern() -> None:
+    names = load_mission(_fleet(_raw())).dataflow.names
+    auv2 = ("auv2.estimator", "auv2.planner", "auv2.sensor", "auv2.vehicle")
+    assert select_services(names, ("auv2/*",)) == auv2
+    assert select_services(names, ("auv2.*",)) == auv2
+    assert select_services(names, ("auv1/planner", "*.vehicle"))[:2] == (
+        "auv1.planner",
+        "auv1.vehicle",
+    )
+    assert select_services(names, ()) == ()
+    with pytest.raises(ValueError, match="'auv9/\\*' names no service"):
+        select_services(names, ("auv9/*",))
+
+
+def test_launch_progress_shows_every_vehicle() -> None:
+    s = _fleet(_raw())
+    view = MissionView(s)
+    assert set(view.vehicles) == {f"auv{k}.vehicle" for k in (1, 2, 3, 4)}
+    view.see("auv2.vehicle", "truth", _truth("auv2.vehicle", 92.0, 32.0).msg)
+    view.see("auv2.vehicle", "truth", _truth("auv2.vehicle", 50.0, 20.0).msg)
+    line = view.summary(1.0)
+    assert "auv2 44 m" in line and "auv1 ?" in line
+    assert 0.0 < view.fraction() < 0.25  # one of four vehicles half-way

@@ -16,6 +16,7 @@ from common.config.controller import ControllerConfig
 from common.config.errors import ConfigError
 from common.config.estimator import EstimatorConfig
 from common.config.loader import build, merge_tables
+from common.config.network import OTHER
 from common.config.planner import PlannerConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
@@ -74,6 +75,10 @@ def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, .
         vid = e["id"]
         if not isinstance(vid, str) or not _ID.match(vid):
             raise ConfigError(file, (*at, "id"), f"{vid!r} must be letters, digits, '_' or '-'")
+        if vid == OTHER:
+            raise ConfigError(
+                file, (*at, "id"), f"{vid!r} is reserved (network links name another vehicle so)"
+            )
         if vid in seen:
             raise ConfigError(file, (*at, "id"), f"{vid!r} is used twice, expected unique ids")
         seen.add(vid)

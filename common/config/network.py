@@ -7,7 +7,9 @@ patterns: ``"<source>/<stream>->*"`` (that stream, to every receiver) or ``"*-><
 
 In a fleet a service is named "<vehicle>.<service>" (auv2.planner): a name or pattern without
 a vehicle id covers that link of every vehicle and between vehicles ("planner/cmd->vehicle"
-covers "auv2.planner/cmd->auv2.vehicle"), a qualified one only the links it names, and wins.
+covers "auv2.planner/cmd->auv2.vehicle"), one with "other." as the sender's id only the links
+from another vehicle ("other.planner/path->planner": every vehicle's intent paths), a
+qualified one only the links it names; the most specific wins.
 """
 
 from __future__ import annotations
@@ -61,20 +63,28 @@ def _check_link_pattern(field: str, pattern: str) -> None:
         )
 
 
+# in a link name, "another vehicle of the fleet" ("other.planner/path->planner")
+OTHER = "other"
+
+
 def _fleetless(name: str) -> str:
     """A service name without its fleet vehicle's id: "auv2.planner" -> "planner"."""
     return name.rpartition(".")[2]
 
 
 def _forms(link: str) -> tuple[tuple[str, str, str], ...]:
-    """(exact, 'src/stream->*', '*->dst') of a link, then of it without vehicle ids."""
+    """(exact, 'src/stream->*', '*->dst') of a link, then (a link between two vehicles) with
+    'other.' for the sender's id, then without vehicle ids."""
     src, stream, dst = parse_link(link)
     out = [(link, f"{src}/{stream}->*", f"*->{dst}")]
     bare_src, bare_dst = _fleetless(src), _fleetless(dst)
-    if (bare_src, bare_dst) != (src, dst):
-        out.append(
-            (f"{bare_src}/{stream}->{bare_dst}", f"{bare_src}/{stream}->*", f"*->{bare_dst}")
-        )
+    if (bare_src, bare_dst) == (src, dst):
+        return tuple(out)
+    sender, receiver = src.rpartition(".")[0], dst.rpartition(".")[0]
+    if sender and receiver and sender != receiver:
+        other = f"{OTHER}.{bare_src}"
+        out.append((f"{other}/{stream}->{bare_dst}", f"{other}/{stream}->*", f"*->{bare_dst}"))
+    out.append((f"{bare_src}/{stream}->{bare_dst}", f"{bare_src}/{stream}->*", f"*->{bare_dst}"))
     return tuple(out)
 
 

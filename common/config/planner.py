@@ -72,6 +72,9 @@ class PlannerConfig:
     # fleets: another vehicle's intent (its broadcast path, placed by its estimate) is used
     # while that estimate is at most this old; then its sonar track takes over
     intent_max_age_s: float = 2.0
+    # who plans around whose intent (services/planner/intent.py): "priority", a vehicle gives
+    # way to those listed before it in [[vehicles]]; "mutual", to every other vehicle
+    deconfliction: Literal["priority", "mutual"] = "priority"
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):

@@ -99,8 +99,11 @@ class Estimate:
 
 
 def estimate(s: Scenario) -> Estimate:
-    """The scenario's run, estimated from the quantities its services allocate and loop over."""
-    p, t = s.planner, s.run.max_time_s
+    """The scenario's run, estimated from the quantities its services allocate and loop over
+    (a fleet's vehicles each run the services: its work in time is theirs times their number;
+    its planners replan one at a time, so the grid's peak is one planner's)."""
+    p = s.planner
+    t = s.run.max_time_s * max(1, len(s.vehicles))  # vehicle-seconds
     try:
         nx, ny = grid_shape(s.world.area, p.resolution_m)
         cells = float(nx * ny)
@@ -126,7 +129,7 @@ def estimate(s: Scenario) -> Estimate:
         "predict": predict_steps * PREDICT_STEP_S[s.estimator.vehicle_filter],
     }
     if kind == "realtime":
-        terms["realtime"] = t / s.runtime.time_scale
+        terms["realtime"] = s.run.max_time_s / s.runtime.time_scale  # the fleet's in parallel
     return Estimate(
         grid_cells=cells,
         grid_bytes_per_cell=per_cell,

@@ -48,16 +48,18 @@ def cmd_launch(a: argparse.Namespace) -> int:
     from common.runtime.processes.policy import RestartPolicy, policies_for
     from common.runtime.processes.signals import Interrupted
     from services.launcher import LaunchOptions, launch
+    from services.launcher.launch import select_services
     from services.launcher.progress import make_display
 
     scenario, raw = load_scenario(
         a.scenario, _runtime_overrides(a), a.seed, check=scenario_check(a)
     )
     names = load_mission(scenario).dataflow.names
+    only = None if a.only is None else tuple(n for n in a.only.split(",") if n.strip())
     check_exposure(a.listen, scenario.bus.secured, a.insecure)
     scenario.bus.router_on(tuple(a.listen))  # e.g. a tls/ endpoint without --certs: say so now
     if scenario.bus.secured:  # every identity this host presents, before any process starts
-        here = names if a.only is None else a.only.split(",")
+        here = names if only is None else select_services(names, only)
         check_credentials(scenario.bus, [ROUTER, LAUNCHER, *here])
     if a.restart and scenario.runtime.kind == "lockstep":
         raise ValueError(
@@ -65,7 +67,6 @@ def cmd_launch(a: argparse.Namespace) -> int:
             "state and the run its determinism); use --runtime realtime"
         )
     default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
-    only = None if a.only is None else tuple(n for n in a.only.split(",") if n.strip())
     out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
     recorders: list[TapRecorder] = []
 
@@ -178,8 +179,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--only",
         default=None,
         metavar="NAME,...",
-        help="start only these services here; the others join with `tidelink "
-        "service` (--only '' starts none: router and clock only)",
+        help="start only these services here, by name or pattern (a fleet vehicle's: "
+        "'auv2.*' or 'auv2/*'); the others join with `tidelink service` (--only '' starts "
+        "none: router and clock only)",
     )
     la.add_argument(
         "--listen",

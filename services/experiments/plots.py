@@ -26,6 +26,10 @@ PLOT_METRICS = {
     "failsafe_time_s": "time in FAILSAFE (s)",
     "net_delivery_ratio": "messages delivered / sent, every link",
     "net_dropped_queue": "messages dropped by a full queue (modem), every link",
+    # fleets (services/mission/fleet_metrics.py)
+    "min_separation_m": "minimum hull-to-hull separation between vehicles (m)",
+    "vehicle_collisions": "vehicle-vehicle contacts",
+    "vehicles_reached": "vehicles at their goals",
 }
 
 

@@ -26,6 +26,10 @@ KEY_METRICS = (
     "on_path_fraction",
     "commands_rejected_stale",
     "net_delivery_ratio",
+    # fleets (services/mission/fleet_metrics.py)
+    "vehicles_reached",
+    "min_separation_m",
+    "vehicle_collisions",
 )
 # eq. (21) travel time only means something for runs that arrived
 ON_GOAL_ONLY = frozenset({"travel_time_s", "mean_speed_mps"})

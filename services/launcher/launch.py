@@ -10,6 +10,7 @@ metrics (metrics.json) and plot (run.png) are written beside the per-service log
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import time
 from collections.abc import Callable
@@ -25,6 +26,7 @@ from common.runtime.distributed.bringup import RELEASE_S, ClockSide, clock_bus, 
 from common.runtime.distributed.lockstep import Coordinator
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
+from common.runtime.model.dataflow import FLEET_SEP
 from common.runtime.model.mission import Mission, load_mission
 from common.runtime.model.result import RunResult
 from common.runtime.model.silence import thresholds
@@ -45,6 +47,22 @@ SERVICE_MODULES = {
 # An in-process watcher of the run (e.g. services/recording's TapRecorder): entered with the
 # clock's bus, before any service starts, so it misses nothing; left before launch returns.
 Attach = Callable[[ClockSide], AbstractContextManager[object]]
+
+
+def select_services(names: tuple[str, ...], wanted: tuple[str, ...]) -> tuple[str, ...]:
+    """The services `wanted` names: exact names or glob patterns ("auv2.*"; "auv2/*" and
+    "auv2/planner" spell a fleet vehicle's services too), in dataflow order. ValueError for an
+    item that names no service (a typo would leave a service unstarted, the run waiting)."""
+    out: set[str] = set()
+    for item in wanted:
+        pattern = item.replace("/", FLEET_SEP)
+        hit = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        if not hit:
+            raise ValueError(
+                f"--only: {item!r} names no service; this mission has {', '.join(names)}"
+            )
+        out.update(hit)
+    return tuple(n for n in names if n in out)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,12 +99,7 @@ def launch(
         raise ValueError(f"runtime.kind: launch runs 'realtime' or 'lockstep', not {kind!r}")
     mission = load_mission(scenario)
     names = mission.dataflow.names
-    local = names if opts.only is None else opts.only
-    unknown = sorted(set(local) - set(names))
-    if unknown:
-        raise ValueError(
-            f"--only: unknown service(s) {', '.join(unknown)}; this mission has {', '.join(names)}"
-        )
+    local = names if opts.only is None else select_services(names, opts.only)
     out.mkdir(parents=True, exist_ok=True)
     scenario_json = out / "scenario.json"
     scenario_json.write_text(json.dumps(raw, indent=1))

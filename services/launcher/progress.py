@@ -5,34 +5,30 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Protocol
 
 from common.config.scenario import Scenario
 from common.messages import Message, PathMsg, TruthState, VehicleStatus
+from common.runtime.model.dataflow import qualified, vehicle_of
 from common.runtime.model.silence import SilenceWatch
 
 NO_PATH = "NO_PATH"  # PathMsg.status when the planner found no path
 NO_PATH_ALARM_S = 5.0  # a NO_PATH lasting this long (mission s) is an alarm, not a hiccup
-# the vehicle's true pose in any mission that has a vehicle (DESIGN.md: .../vehicle/truth);
-# without it, progress is the mission time used
+# the vehicle's true pose in any mission that has a vehicle (DESIGN.md: .../vehicle/truth; a
+# fleet's "<id>.vehicle"); without it, progress is the mission time used
 TRUTH = ("vehicle", "truth")
 
 
-class MissionView:
-    """The launcher's live picture of a run, built from the messages it records."""
+@dataclass
+class VehicleProgress:
+    """One vehicle's way to its goal, as the launcher sees it."""
 
-    def __init__(self, scenario: Scenario) -> None:
-        self.max_time_s = scenario.run.max_time_s
-        self.goal = (scenario.world.goal.x_m, scenario.world.goal.y_m)
-        self.t_sim = 0.0
-        self.pose: tuple[float, float] | None = None
-        self.d0: float | None = None  # distance to the goal at the first truth
-        self.mode = ""
-        self.path_status = ""
-        self.no_path_since: float | None = None  # a NO_PATH that has not been lifted since
-        self.no_path_reason = ""
-        self.no_path_alarmed = False
+    goal: tuple[float, float]
+    pose: tuple[float, float] | None = None
+    d0: float | None = None  # distance to the goal at the first truth
+    mode: str = ""
 
     @property
     def to_goal_m(self) -> float | None:
@@ -40,29 +36,64 @@ class MissionView:
             return None
         return math.hypot(self.pose[0] - self.goal[0], self.pose[1] - self.goal[1])
 
-    def fraction(self) -> float:
-        """Progress in [0, 1]: distance covered towards the goal, else time used."""
+    def fraction(self) -> float | None:
         d = self.to_goal_m
-        if d is not None and self.d0:
-            return min(1.0, max(0.0, 1.0 - d / self.d0))
+        if d is None or not self.d0:
+            return None
+        return min(1.0, max(0.0, 1.0 - d / self.d0))
+
+
+class MissionView:
+    """The launcher's live picture of a run (every vehicle of a fleet), from what it records."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.max_time_s = scenario.run.max_time_s
+        members = scenario.members or (("", scenario),)
+        # by the name of each vehicle service: "vehicle", or a fleet's "auv2.vehicle"
+        self.vehicles = {
+            (qualified(vid, TRUTH[0]) if vid else TRUTH[0]): VehicleProgress(
+                goal=(m.world.goal.x_m, m.world.goal.y_m)
+            )
+            for vid, m in members
+        }
+        self.t_sim = 0.0
+        self.path_status: dict[str, str] = {}  # by planner
+        self.no_path_since: float | None = None  # a NO_PATH that has not been lifted since
+        self.no_path_reason = ""
+        self.no_path_alarmed = False
+
+    @property
+    def to_goal_m(self) -> float | None:
+        """The distance left to the goal (of the vehicle furthest from its own)."""
+        left = [d for v in self.vehicles.values() if (d := v.to_goal_m) is not None]
+        return max(left) if left else None
+
+    def fraction(self) -> float:
+        """Progress in [0, 1]: distance covered towards the goal (the mean over a fleet's
+        vehicles), else time used."""
+        done = [f for v in self.vehicles.values() if (f := v.fraction()) is not None]
+        if done:
+            return sum(done) / len(self.vehicles)
         return min(1.0, self.t_sim / self.max_time_s)
 
     def see(self, service: str, stream: str, msg: Message) -> str | None:
         """Take one recorded message; returns a line worth reporting (a mode change), if any."""
         self.t_sim = max(self.t_sim, msg.stamp)
-        if isinstance(msg, TruthState) and (service, stream) == TRUTH:
-            self.pose = (msg.x, msg.y)
-            if self.d0 is None:
-                self.d0 = self.to_goal_m
-        elif isinstance(msg, VehicleStatus) and msg.mode != self.mode:
-            old, self.mode = self.mode, msg.mode
+        vehicle = self.vehicles.get(service)
+        if isinstance(msg, TruthState) and vehicle is not None and stream == TRUTH[1]:
+            vehicle.pose = (msg.x, msg.y)
+            if vehicle.d0 is None:
+                vehicle.d0 = vehicle.to_goal_m
+        elif isinstance(msg, VehicleStatus) and vehicle is not None and msg.mode != vehicle.mode:
+            old, vehicle.mode = vehicle.mode, msg.mode
             if old:
                 return f"{service}: mode {old} -> {msg.mode} at t={msg.stamp:.2f} s"
-        elif isinstance(msg, PathMsg) and msg.status != self.path_status:
-            old, self.path_status = self.path_status, msg.status
+        elif isinstance(msg, PathMsg) and msg.status != self.path_status.get(service, ""):
+            old = self.path_status.get(service, "")
+            self.path_status[service] = msg.status
             if msg.status == NO_PATH:
-                self.no_path_since, self.no_path_reason = msg.stamp, msg.reason
-            else:
+                self.no_path_since, self.no_path_reason = msg.stamp, f"{service}: {msg.reason}"
+            elif NO_PATH not in self.path_status.values():
                 self.no_path_since, self.no_path_alarmed = None, False
             if old:
                 return (
@@ -82,13 +113,20 @@ class MissionView:
         )
 
     def summary(self, t_sim: float) -> str:
-        d = self.to_goal_m
         parts = [f"t={t_sim:7.2f} s of {self.max_time_s:g}"]
-        if d is not None:
-            parts.append(f"to goal {d:6.1f} m")
+        if len(self.vehicles) == 1:
+            (v,) = self.vehicles.values()
+            if (d := v.to_goal_m) is not None:
+                parts.append(f"to goal {d:6.1f} m")
+            parts.append(f"{100 * self.fraction():3.0f}%")
+            if v.mode:
+                parts.append(f"mode {v.mode}")
+            return "  ".join(parts)
         parts.append(f"{100 * self.fraction():3.0f}%")
-        if self.mode:
-            parts.append(f"mode {self.mode}")
+        for name, v in self.vehicles.items():  # a fleet: every vehicle, distance and mode
+            d = v.to_goal_m
+            left = "?" if d is None else f"{d:.0f} m"
+            parts.append(f"{vehicle_of(name)} {left} {v.mode}".rstrip())
         return "  ".join(parts)
 
 

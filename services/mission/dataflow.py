@@ -148,10 +148,13 @@ def make_estimator(ctx: CoreContext) -> EstimatorCore:
 
 
 def make_planner(
-    ctx: CoreContext, others: Mapping[str, tuple[int, float]] | None = None
+    ctx: CoreContext,
+    others: Mapping[str, tuple[int, float]] | None = None,
+    earlier: frozenset[str] = frozenset(),
 ) -> PlannerCore:
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
-    radius), whose broadcast intents it plans around (services/planner/intent.py)."""
+    radius), whose broadcast intents it plans around (services/planner/intent.py): all of
+    them, or with planner.deconfliction = "priority" those `earlier` in [[vehicles]]."""
     s = ctx.scenario
     # delay compensation starts from the downlink's modelled delay (planner/cmd -> vehicle)
     # until the vehicle reports the delay it measures
@@ -163,7 +166,13 @@ def make_planner(
         s.world,
         expected_downlink_s=down.delay_s,
         commands=commander(s) == "planner",
-        intents=None if others is None else FleetIntents(others, s.planner.intent_max_age_s),
+        intents=None
+        if others is None
+        else FleetIntents(
+            others,
+            s.planner.intent_max_age_s,
+            earlier if s.planner.deconfliction == "priority" else None,
+        ),
     )
 
 

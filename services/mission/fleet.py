@@ -10,7 +10,8 @@ goal and section overrides: Scenario.member). Between vehicles:
     <other>.planner   --path---> <id>.planner  it follows (services/planner/intent.py)
 
 so every vehicle is a moving obstacle to the others: with a known trajectory while its intent
-arrives (deconfliction by intent), else as the track its sonar contact gives (eq. (12)-(13)).
+arrives (deconfliction by intent; who gives way: planner.deconfliction), else as the track its
+sonar contact gives (eq. (12)-(13)).
 The intent links are modelled links like any other: "estimator/state->planner" and
 "planner/path->planner" name them for every vehicle in network profiles.
 """
@@ -53,7 +54,8 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
     services: list[Service] = []
-    for vid, member in s.members:
+    for k, (vid, member) in enumerate(s.members):
+        earlier = frozenset(v.id for v in s.vehicles[:k])  # who it gives way to, by priority
         others = {o: (ids[o], radius[o]) for o in ids if o != vid}
         hulls = {qualified(o, "vehicle"): seen for o, seen in others.items()}
         for svc in auv_dataflow(member).services.values():
@@ -65,7 +67,7 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                 factory = partial(make_sensor, others=hulls)
                 inputs += tuple(_newest(src, "truth", TruthState) for src in hulls)
             elif svc.name == "planner":
-                factory = partial(make_planner, others=others)
+                factory = partial(make_planner, others=others, earlier=earlier)
                 inputs += tuple(
                     _newest(qualified(o, source), stream, msg_type)
                     for o in others

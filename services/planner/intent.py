@@ -7,6 +7,12 @@ end (its goal). That is a moving obstacle with a known trajectory alpha_k(t) for
 and for replanning, better than the constant-acceleration extrapolation of its sonar track,
 which cannot see a turn coming. An intent whose estimate is older than `max_age_s` (lost,
 late, or the vehicle's planner is dead) is dropped, and the vehicle's track takes over.
+
+Who gives way (planner.deconfliction): "mutual", every vehicle plans around every other's
+intent; "priority" (prioritized planning), a vehicle plans around the intents of the vehicles
+listed before it in [[vehicles]] and leaves those after it to plan around its own: while
+their intents are fresh it ignores their tracks too, so two vehicles never both swerve the
+same way at once. A vehicle whose intent goes stale is an obstacle to everyone again.
 """
 
 from __future__ import annotations
@@ -74,12 +80,19 @@ class _Heard:
 class FleetIntents:
     """The newest estimate and path heard from each other vehicle, and their obstacles.
 
-    `vehicles` maps each other vehicle's id to (its obstacle id in sonar tracks, hull radius).
+    `vehicles` maps each other vehicle's id to (its obstacle id in sonar tracks, hull radius);
+    `gives_way_to` names those whose intents this vehicle plans around (None: all of them).
     """
 
-    def __init__(self, vehicles: Mapping[str, tuple[int, float]], max_age_s: float) -> None:
+    def __init__(
+        self,
+        vehicles: Mapping[str, tuple[int, float]],
+        max_age_s: float,
+        gives_way_to: frozenset[str] | None = None,
+    ) -> None:
         self.vehicles = dict(vehicles)
         self.max_age_s = max_age_s
+        self.gives_way_to = frozenset(self.vehicles) if gives_way_to is None else gives_way_to
         self._heard = {v: _Heard() for v in self.vehicles}
         self._routes: dict[int, tuple[FloatArray, FloatArray]] = {}  # by id(path message)
 
@@ -99,9 +112,11 @@ class FleetIntents:
         return True
 
     def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
-        """The intents in force at time t as obstacles at t, and the obstacle ids they stand
-        for (whose sonar tracks they replace)."""
+        """The intents this vehicle gives way to at time t, as obstacles at t, and the obstacle
+        ids of every vehicle whose intent is fresh (whose sonar tracks they replace: the
+        vehicles it does not give way to plan around it)."""
         out = []
+        fresh = set()
         for vid, (oid, radius) in self.vehicles.items():
             heard = self._heard[vid]
             st, path = heard.state, heard.path
@@ -109,6 +124,9 @@ class FleetIntents:
                 continue
             route, s_route = self._route(path)
             if len(route) < 2:
+                continue
+            fresh.add(oid)
+            if vid not in self.gives_way_to:
                 continue
             i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
             now = IntentObstacle(
@@ -127,7 +145,7 @@ class FleetIntents:
                 speed=max(path.v_ref, 0.0),
             )
             out.append(along(now, float(s_route[i]) + now.speed * max(0.0, t - st.stamp)))
-        return tuple(out), frozenset(o.id for o in out)
+        return tuple(out), frozenset(fresh)
 
     def _route(self, path: PathMsg) -> tuple[FloatArray, FloatArray]:
         """The path's polyline and arc lengths (computed once per path)."""
