@@ -138,8 +138,9 @@ def test_the_fleet_dataflow_is_each_vehicles_plus_the_links_between_them() -> No
     assert {i.source for i in sensor.inputs} == {f"auv{k}.vehicle" for k in (1, 2, 3, 4)}
     planner = flow.service("auv2.planner")
     heard = {(i.source, i.stream) for i in planner.inputs}
-    assert ("auv1.planner", "path") in heard and ("auv4.estimator", "state") in heard
+    assert ("auv1.planner", "path") in heard and ("auv4.planner", "pose") in heard
     assert ("auv2.estimator", "state") in heard and ("auv2.planner", "path") not in heard
+    assert ("auv4.estimator", "state") not in heard
     assert flow.service("auv2.vehicle").inputs[0].source == "auv2.planner"
     links = {lk.name for lk in flow.links}
     assert "auv1.planner/path->auv2.planner" in links
@@ -153,8 +154,9 @@ def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_
             {"link": "planner/path->planner", "profile": {"delay_s": 0.5}},
             {"link": "auv2.planner/path->auv1.planner", "profile": {"delay_s": 0.9}},
             {"link": "planner/cmd->*", "profile": {"delay_s": 0.2}},
-            {"link": "other.estimator/state->planner", "profile": {"delay_s": 0.7}},
+            {"link": "other.planner/pose->planner", "profile": {"delay_s": 0.7}},
             {"link": "estimator/state->planner", "profile": {"delay_s": 0.1}},
+            {"link": "planner/pose->planner", "profile": {"delay_s": 0.3}},
         ],
     }
     net = scenario_from_raw({"network": raw}).network
@@ -163,8 +165,8 @@ def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_
     assert profile_for(net, "auv4.planner/cmd->auv4.vehicle").delay_s == 0.2
     assert profile_for(net, "planner/cmd->vehicle").delay_s == 0.2
     assert profile_for(net, "auv1.sensor/nav->auv1.estimator").delay_s == 0.05
-    # 'other.' names only the links from another vehicle: the intents, not one's own estimate
-    assert profile_for(net, "auv2.estimator/state->auv1.planner").delay_s == 0.7
+    # 'other.' names only the links from another vehicle
+    assert profile_for(net, "auv2.planner/pose->auv1.planner").delay_s == 0.7
     assert profile_for(net, "auv1.estimator/state->auv1.planner").delay_s == 0.1
     assert profile_for(net, "estimator/state->planner").delay_s == 0.1
 
@@ -318,3 +320,17 @@ def test_launch_progress_shows_every_vehicle() -> None:
     line = view.summary(1.0)
     assert "auv2 44 m" in line and "auv1 ?" in line
     assert 0.0 < view.fraction() < 0.25  # one of four vehicles half-way
+
+
+@pytest.mark.slow
+def test_a_vehicle_whose_planner_dies_holds_and_the_other_passes_it() -> None:
+    # auv1 (the one auv2 gives way to) loses its planner at t = 20 s for good (every link in
+    # and out of it down: a dead process, as the network model sees it): its vehicle holds,
+    # then fails safe; its intent goes stale and auv2 passes its sonar track
+    cut = 'network.outages=[{start_s=20.0, end_s=1000.0, service="auv1.planner"}]'
+    s, _ = load_scenario(HEADON, ['runtime.kind="inproc"', cut], check=check_scenario)
+    m = run_inproc(s).metrics
+    one, two = m["vehicles"]["auv1"], m["vehicles"]["auv2"]
+    assert not one["reached_goal"] and one["failsafe_time_s"] > 60.0
+    assert two["outcome"] == "success" and two["hold_time_s"] == 0.0
+    assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m

@@ -151,6 +151,7 @@ def make_planner(
     ctx: CoreContext,
     others: Mapping[str, tuple[int, float]] | None = None,
     earlier: frozenset[str] = frozenset(),
+    pose_every_s: float = 0.0,
 ) -> PlannerCore:
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
     radius), whose broadcast intents it plans around (services/planner/intent.py): all of
@@ -173,6 +174,7 @@ def make_planner(
             s.planner.intent_max_age_s,
             earlier if s.planner.deconfliction == "priority" else None,
         ),
+        pose_every_s=pose_every_s,
     )
 
 

@@ -6,14 +6,15 @@ goal and section overrides: Scenario.member). Between vehicles:
 
     <other>.vehicle   --truth--> <id>.sensor   the sonar sees the other hulls (simulation: a
                                              sensor samples what is physically there)
-    <other>.estimator --state--> <id>.planner  the other's intent: where it is and the path
-    <other>.planner   --path---> <id>.planner  it follows (services/planner/intent.py)
+    <other>.planner   --pose---> <id>.planner  the other's intent: the estimate its planner plans
+    <other>.planner   --path---> <id>.planner  from (every POSE_PERIOD_S while it is alive) and
+                                               the path it follows (services/planner/intent.py)
 
 so every vehicle is a moving obstacle to the others: with a known trajectory while its intent
 arrives (deconfliction by intent; who gives way: planner.deconfliction), else as the track its
 sonar contact gives (eq. (12)-(13)).
-The intent links are modelled links like any other: "estimator/state->planner" and
-"planner/path->planner" name them for every vehicle in network profiles.
+The intent links are modelled links like any other: "other.planner/pose->planner" and
+"other.planner/path->planner" name them for every vehicle in network profiles.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from common.runtime.model.dataflow import (
     CoreFactory,
     Dataflow,
     Input,
+    Output,
     Service,
     qualified,
 )
@@ -37,9 +39,10 @@ from services.mission.dataflow import auv_dataflow, make_planner, make_sensor
 
 # what a planner hears of each other vehicle: its intent (services/planner/intent.py)
 INTENT: tuple[tuple[str, str, type[Message]], ...] = (
-    ("estimator", "state", StateEstimate),
+    ("planner", "pose", StateEstimate),
     ("planner", "path", PathMsg),
 )
+POSE_PERIOD_S = 0.5  # a planner's intent pose: 2 Hz, a quarter of the state's rate
 
 
 def fleet_obstacle_ids(s: Scenario) -> dict[str, int]:
@@ -60,6 +63,7 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
         hulls = {qualified(o, "vehicle"): seen for o, seen in others.items()}
         for svc in auv_dataflow(member).services.values():
             factory: CoreFactory = svc.factory
+            outputs = svc.outputs
             inputs = tuple(
                 dataclasses.replace(i, source=qualified(vid, i.source)) for i in svc.inputs
             )
@@ -67,7 +71,10 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                 factory = partial(make_sensor, others=hulls)
                 inputs += tuple(_newest(src, "truth", TruthState) for src in hulls)
             elif svc.name == "planner":
-                factory = partial(make_planner, others=others, earlier=earlier)
+                factory = partial(
+                    make_planner, others=others, earlier=earlier, pose_every_s=POSE_PERIOD_S
+                )
+                outputs = (*outputs, Output(stream="pose", msg_type=StateEstimate))
                 inputs += tuple(
                     _newest(qualified(o, source), stream, msg_type)
                     for o in others
@@ -79,6 +86,7 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                     name=qualified(vid, svc.name),
                     factory=partial(_as_member, factory, member),
                     inputs=inputs,
+                    outputs=outputs,
                 )
             )
     return Dataflow.declare(*services)

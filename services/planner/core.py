@@ -86,10 +86,13 @@ class PlannerCore:
         expected_downlink_s: float = 0.0,
         commands: bool = True,
         intents: FleetIntents | None = None,
+        pose_every_s: float = 0.0,
     ) -> None:
         self.cfg = planner
         # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
         self.intents = intents
+        self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
+        self._next_pose_t = 0.0
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
         self.vehicle = vehicle
@@ -221,6 +224,15 @@ class PlannerCore:
         )
 
     def step(self, t: float) -> list[Emit]:
+        out = self._step(t)
+        # a fleet's planner broadcasts the estimate it plans from: others take it, with its
+        # path, as its intent while it comes (a dead planner's vehicle is a track again)
+        if self.pose_every_s > 0.0 and self.state is not None and t >= self._next_pose_t:
+            self._next_pose_t = t + self.pose_every_s - 1e-9
+            out.append(Emit(stream="pose", msg=self.state))
+        return out
+
+    def _step(self, t: float) -> list[Emit]:
         if self.state is None:
             return []
         s = self.state

@@ -1,12 +1,13 @@
 """Other vehicles' intents: where a fleet's vehicles will be, from the paths they broadcast.
 
-Each vehicle of a fleet publishes its estimate (estimator/state) and its plan (planner/path);
-a planner that receives both from another vehicle knows that vehicle's trajectory: along its
-path from where its estimate puts it, at the path's reference speed, stopping at the path's
-end (its goal). That is a moving obstacle with a known trajectory alpha_k(t) for eq. (12)-(13)
-and for replanning, better than the constant-acceleration extrapolation of its sonar track,
-which cannot see a turn coming. An intent whose estimate is older than `max_age_s` (lost,
-late, or the vehicle's planner is dead) is dropped, and the vehicle's track takes over.
+Each planner of a fleet publishes the estimate it plans from (planner/pose, while it is alive)
+and its plan (planner/path); a planner that receives both from another vehicle knows that
+vehicle's trajectory: along its path from where its estimate puts it, at the speed the
+estimate gives (a stopped vehicle stays put), stopping at the path's end (its goal). That is a
+moving obstacle with a known trajectory alpha_k(t) for eq. (12)-(13) and for replanning,
+better than the constant-acceleration extrapolation of its sonar track, which cannot see a
+turn coming. An intent whose estimate is older than `max_age_s` (lost, late, or the vehicle's
+planner is dead) is dropped, and the vehicle's track takes over.
 
 Who gives way (planner.deconfliction): "mutual", every vehicle plans around every other's
 intent; "priority" (prioritized planning), a vehicle plans around the intents of the vehicles
@@ -142,7 +143,7 @@ class FleetIntents:
                 route=route,
                 s_route=s_route,
                 s0=float(s_route[i]),
-                speed=max(path.v_ref, 0.0),
+                speed=max(st.v, 0.0),
             )
             out.append(along(now, float(s_route[i]) + now.speed * max(0.0, t - st.stamp)))
         return tuple(out), frozenset(fresh)
