@@ -136,8 +136,10 @@ class RunState:
                     {"measured_p50_s": d.delay_p50, "measured_p95_s": d.delay_p95}
                 )
         elif isinstance(msg, RunEnd):
+            # heard once on its subscription and again in the final poll: one event
+            if self.end is None:
+                self._event(wall, "end", f"run ended at t={msg.stamp:.2f} s: {msg.reason}")
             self.end = msg
-            self._event(wall, "end", f"run ended at t={msg.stamp:.2f} s: {msg.reason}")
 
     def _see_truth(self, msg: TruthState) -> None:
         if self.truth is None or msg.stamp >= self.truth.stamp:
