@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers.launch_proc import tidelink_check
 
 from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
@@ -384,7 +385,7 @@ def test_geometry_is_checked_after_loading(
     assert needle in err.problem
 
 
-def test_the_shipped_scenarios_pass_the_geometric_check() -> None:
+def test_the_shipped_scenarios_pass_the_geometrictidelink_check() -> None:
     paths = sorted((REPO / "configs").glob("**/*.toml"))
     scenarios = [p for p in paths if "axes" not in p.read_text()]  # the rest are experiments
     assert len(scenarios) >= 2 and len(paths) > len(scenarios)
@@ -415,20 +416,9 @@ def test_config_does_not_import_the_world() -> None:
 # --- the `tidelink check` command, as a user runs it ---------------------------------------------
 
 
-def _check(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "services.cli", "check", *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO,
-        check=False,
-    )
-
-
 def test_check_accepts_a_good_file(tmp_path: Path) -> None:
     path = _write(tmp_path, GOOD)
-    res = _check(str(path))
+    res = tidelink_check(str(path))
     assert res.returncode == 0, res.stderr
     assert f"{path}: OK" in res.stdout
     assert "services ctrl, filter, plant, sensor" in res.stdout
@@ -436,7 +426,7 @@ def test_check_accepts_a_good_file(tmp_path: Path) -> None:
 
 def test_check_rejects_a_broken_file_with_the_message(tmp_path: Path) -> None:
     path = _write(tmp_path, GOOD.replace("loss_p = 0.25", "loss_p = -0.25"))
-    res = _check(str(path))
+    res = tidelink_check(str(path))
     assert res.returncode != 0
     assert res.stdout == ""
     assert f"{path}: network.links[0].profile.loss_p: -0.25 is not a probability" in res.stderr
@@ -444,7 +434,7 @@ def test_check_rejects_a_broken_file_with_the_message(tmp_path: Path) -> None:
 
 def test_check_applies_set_overrides(tmp_path: Path) -> None:
     path = _write(tmp_path, GOOD)
-    res = _check(str(path), "--set", "network.default.jitter_s=-1")
+    res = tidelink_check(str(path), "--set", "network.default.jitter_s=-1")
     assert res.returncode != 0
     assert "network.default.jitter_s" in res.stderr
     assert "expected a finite value >= 0" in res.stderr
@@ -452,13 +442,13 @@ def test_check_applies_set_overrides(tmp_path: Path) -> None:
 
 def test_check_rejects_a_mission_that_is_not_registered(tmp_path: Path) -> None:
     path = _write(tmp_path, GOOD.replace('mission = "testloop"', 'mission = "testloop:NoSuch"'))
-    res = _check(str(path))
+    res = tidelink_check(str(path))
     assert res.returncode == 2
     assert f"{path}: run.mission: 'testloop:NoSuch' is not a registered mission" in res.stderr
 
 
 def test_check_names_a_missing_file(tmp_path: Path) -> None:
-    res = _check(str(tmp_path / "gone.toml"))
+    res = tidelink_check(str(tmp_path / "gone.toml"))
     assert res.returncode != 0
     assert "gone.toml" in res.stderr
     assert "file not found" in res.stderr
@@ -467,7 +457,7 @@ def test_check_names_a_missing_file(tmp_path: Path) -> None:
 def test_check_reports_a_geometric_error(tmp_path: Path) -> None:
     text = GOOD + "\n[[world.circles]]\nid = 1\nx_m = 95.0\ny_m = 21.0\nradius_m = 2.0\n"
     path = _write(tmp_path, text)
-    res = _check(str(path))
+    res = tidelink_check(str(path))
     assert res.returncode == 2
     assert f"{path}: world.goal: (95.0, 20.0) puts the hull" in res.stderr
     assert "in contact with obstacle 1 at t = 0: clearance -1.80 m" in res.stderr
@@ -475,12 +465,12 @@ def test_check_reports_a_geometric_error(tmp_path: Path) -> None:
 
 def test_check_rejects_a_start_whose_hull_touches_an_obstacle() -> None:
     # issue 14: world.start.x_m=15.5 puts the 0.8 m hull 0.3 m into circle 1 (20, 20, r 4)
-    res = _check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.5")
+    res = tidelink_check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.5")
     assert res.returncode == 2 and res.stdout == ""
     assert (
         "configs/default.toml: world.start: (15.5, 20.0) puts the hull (radius 0.8 m, "
         "vehicle.radius_m) in contact with obstacle 1 at t = 0: clearance -0.30 m" in res.stderr
     )
     # one centimetre more and the hull is free: accepted
-    ok = _check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.19")
+    ok = tidelink_check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.19")
     assert ok.returncode == 0, ok.stderr

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from helpers.launch_proc import REPO
+from helpers.launch_proc import REPO, tidelink_check
 
 from common.config.errors import ConfigError
 from common.config.fleet import MAX_VEHICLES
@@ -115,14 +113,7 @@ def test_tidelink_check_exits_2_on_a_bad_fleet(tmp_path: Path) -> None:
         .replace('id = "auv3"', 'id = "auv1"')
         .replace('extends = "default.toml"', f'extends = "{CONFIGS / "default.toml"}"')
     )
-    res = subprocess.run(
-        [sys.executable, "-m", "services.cli", "check", str(bad)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO,
-        check=False,
-    )
+    res = tidelink_check(str(bad))
     assert res.returncode == 2, res.stderr
     assert "vehicles[2].id: 'auv1' is used twice" in res.stderr
 

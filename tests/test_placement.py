@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy
-from helpers.launch_proc import REPO
+from helpers.launch_proc import REPO, tidelink_check
 
 from common.config.errors import ConfigError
 from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
@@ -172,22 +170,7 @@ def test_placing_an_unknown_service_is_refused_by_name() -> None:
 
 
 def test_tidelink_check_exits_2_on_a_bad_placement(tmp_path: Path) -> None:
-    res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "services.cli",
-            "check",
-            str(DEFAULT),
-            "--set",
-            'placement.services={planner="moon"}',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO,
-        check=False,
-    )
+    res = tidelink_check(str(DEFAULT), "--set", 'placement.services={planner="moon"}')
     assert res.returncode == 2, res.stderr
     assert "placement.services.planner: 'moon' is an unknown node" in res.stderr
 

@@ -21,6 +21,18 @@ from typing import IO
 REPO = Path(__file__).resolve().parents[2]
 
 
+def tidelink_check(*args: str) -> subprocess.CompletedProcess[str]:
+    """`tidelink check ARGS` to its end (output captured): how a new user meets a bad config."""
+    return subprocess.run(
+        [sys.executable, "-m", "services.cli", "check", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+        check=False,
+    )
+
+
 class Tidelink:
     """`python -m services.cli ARGS` (optionally inside a network namespace)."""
 
