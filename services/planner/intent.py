@@ -76,6 +76,7 @@ def _point(o: IntentObstacle, s: float) -> FloatArray:
 class _Heard:
     state: StateEstimate | None = None
     path: PathMsg | None = None
+    route: tuple[FloatArray, FloatArray] | None = None  # the path's polyline, arc lengths
 
 
 class FleetIntents:
@@ -95,7 +96,6 @@ class FleetIntents:
         self.max_age_s = max_age_s
         self.gives_way_to = frozenset(self.vehicles) if gives_way_to is None else gives_way_to
         self._heard = {v: _Heard() for v in self.vehicles}
-        self._routes: dict[int, tuple[FloatArray, FloatArray]] = {}  # by id(path message)
 
     def offer(self, vehicle: str, msg: Message) -> bool:
         """Keep `msg` if it is the newest estimate or OK path of another vehicle; False if
@@ -108,8 +108,7 @@ class FleetIntents:
                 heard.state = msg
         elif isinstance(msg, PathMsg) and msg.status == "OK":
             if heard.path is None or msg.stamp >= heard.path.stamp:
-                heard.path = msg
-                self._routes.clear()
+                heard.path, heard.route = msg, _route_of(msg)
         return True
 
     def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
@@ -120,10 +119,10 @@ class FleetIntents:
         fresh = set()
         for vid, (oid, radius) in self.vehicles.items():
             heard = self._heard[vid]
-            st, path = heard.state, heard.path
-            if st is None or path is None or t - st.stamp > self.max_age_s:
+            st = heard.state
+            if st is None or heard.route is None or t - st.stamp > self.max_age_s:
                 continue
-            route, s_route = self._route(path)
+            route, s_route = heard.route
             if len(route) < 2:
                 continue
             fresh.add(oid)
@@ -148,13 +147,10 @@ class FleetIntents:
             out.append(along(now, float(s_route[i]) + now.speed * max(0.0, t - st.stamp)))
         return tuple(out), frozenset(fresh)
 
-    def _route(self, path: PathMsg) -> tuple[FloatArray, FloatArray]:
-        """The path's polyline and arc lengths (computed once per path)."""
-        key = id(path)
-        if key not in self._routes:
-            curve = curve_of(path)
-            u = np.linspace(curve.u_min, curve.u_max, ROUTE_SAMPLES)
-            pts = np.asarray(curve.evaluate(u, n_ders=0)[0])
-            s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-            self._routes[key] = (pts, s)
-        return self._routes[key]
+
+def _route_of(path: PathMsg) -> tuple[FloatArray, FloatArray]:
+    """The path's polyline (ROUTE_SAMPLES points) and the arc length at each."""
+    curve = curve_of(path)
+    u = np.linspace(curve.u_min, curve.u_max, ROUTE_SAMPLES)
+    pts = np.asarray(curve.evaluate(u, n_ders=0)[0])
+    return pts, np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
