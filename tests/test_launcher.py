@@ -169,9 +169,10 @@ def test_no_process_outlives_a_sigkilled_launcher(tmp_path: Path, out: Path) -> 
         t.wait_for(r"mission clock started", WAIT_S)
         t.signal(signal.SIGKILL)
         assert t.wait(WAIT_S) == -signal.SIGKILL
-    pids = [p for ps in _pids(out).values() for p in ps]
-    assert len(pids) == 5  # the router and four services
-    assert wait_dead(pids, WAIT_S) == [], "still running after the launcher was killed"
+    names = {p: name for name, ps in _pids(out).items() for p in ps}
+    assert len(names) == 5  # the router and four services
+    left = {names[p] for p in wait_dead(list(names), WAIT_S)}
+    assert not left, f"still running after the launcher was killed: {sorted(left)}"
 
 
 def test_a_killed_router_fails_the_run_saying_it_is_never_restarted(

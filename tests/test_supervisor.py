@@ -17,6 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from common.runtime.processes.policy import RestartPolicy, parse_restart, policies_for
+from common.runtime.processes.signals import STOP_DEADLINE_S
 from common.runtime.processes.supervisor import Exited, GaveUp, Restarted, Restarting, Supervisor
 
 WAIT_S = 15.0
@@ -186,3 +187,34 @@ def test_a_child_leads_its_own_process_group(tmp_path: Path) -> None:
     finally:
         sup.stop(grace_s=5.0)
     assert child.proc.returncode == -signal.SIGINT  # the first, polite signal was enough
+
+
+HANGING_STOP = """
+import sys, time
+from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
+install_shutdown_handlers()
+open(sys.argv[1], "w").write("ready\\n")
+try:
+    time.sleep(60)
+except Shutdown:
+    time.sleep(60)  # an orderly stop that hangs, as a Zenoh close with its router gone did
+"""
+
+
+@pytest.mark.slow  # a real child process (no Zenoh), ~5 s: the deadline itself
+def test_an_orderly_stop_that_hangs_ends_at_its_deadline(tmp_path: Path) -> None:
+    """One SIGTERM is all a child gets when its parent dies (the parent-death signal): a
+    stop that hangs must still end the process, by the kernel, STOP_DEADLINE_S later."""
+    fifo = tmp_path / "ready"
+    os.mkfifo(fifo)
+    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
+    sup = Supervisor(tmp_path)
+    child = sup.start("hanging", ["-c", HANGING_STOP, str(fifo)])
+    try:
+        ready, _, _ = select.select([reader], [], [], WAIT_S)
+        assert ready, "the child never installed its handlers"
+        child.proc.send_signal(signal.SIGTERM)
+        assert child.proc.wait(STOP_DEADLINE_S + WAIT_S) == -signal.SIGALRM
+    finally:
+        os.close(reader)
+        sup.stop(grace_s=0.1)

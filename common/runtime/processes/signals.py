@@ -26,12 +26,23 @@ class Shutdown(BaseException):
     """
 
 
+# How long an orderly stop may take before the kernel ends the process (SIGALRM's default
+# action): a stop that hangs (a Zenoh close with its router gone, a callback thread never
+# undeclared) must not leave the process behind when nobody will send a second signal, as
+# when the kernel's parent-death signal is the only one it gets. Seen once in CI: a service
+# outlived a SIGKILLed launcher by more than 45 s.
+STOP_DEADLINE_S = 5.0
+
+
 def install_shutdown_handlers() -> None:
-    """SIGTERM and SIGINT raise Shutdown in the main thread (once; a second one kills)."""
+    """SIGTERM and SIGINT raise Shutdown in the main thread (once; a second one kills, and so
+    does an orderly stop still running STOP_DEADLINE_S later)."""
 
     def handler(signum: int, frame: FrameType | None) -> None:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        signal.setitimer(signal.ITIMER_REAL, STOP_DEADLINE_S)
         raise Shutdown(signal.Signals(signum).name)
 
     signal.signal(signal.SIGTERM, handler)
