@@ -262,6 +262,7 @@ def _fields(m: PathMsg) -> dict[str, Any]:
 # -- missions --------------------------------------------------------------------------------
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     s, _ = load_scenario(HEADON, ['runtime.kind="inproc"'], check=check_scenario)
@@ -274,6 +275,7 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     assert all(v["outcome"] == "success" for v in m["vehicles"].values())
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_a_fleet_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     # 8 service processes and the clock over one Zenoh session each; 40 s of the head-on run

@@ -216,6 +216,7 @@ def test_a_frozen_service_raises_an_alarm_and_counts_in_the_metrics(
     assert "ALARM: ctrl unresponsive" in (out / "logs" / "launch.log").read_text()
 
 
+@pytest.mark.deterministic
 def test_lockstep_launch_reproduces_inproc(testloop_toml: Path, tmp_path: Path, out: Path) -> None:
     ref = run_inproc(load_scenario(testloop_toml)[0])
     with Tidelink(

@@ -69,6 +69,7 @@ def test_a_one_second_delay_no_longer_stops_the_vehicle() -> None:
     assert status[-1].delay_s == pytest.approx(1.0)  # what the planner compensated
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_lockstep_equals_inproc_with_command_sequences(tmp_path: Path) -> None:
     # the default mission runs sequences too (test below); here delay, jitter and loss make
@@ -84,6 +85,7 @@ def test_lockstep_equals_inproc_with_command_sequences(tmp_path: Path) -> None:
     assert got.record.stream("planner", "cmd") == ref.record.stream("planner", "cmd")
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_default_mission_lockstep_equals_inproc(seed: int, tmp_path: Path) -> None:

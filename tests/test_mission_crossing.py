@@ -68,6 +68,7 @@ def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
     assert events & {"corridor", "infeasible"}, [p.reason for p in paths]
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_crossing_lockstep_equals_inproc(tmp_path: Path) -> None:
     s, raw = load_scenario(CROSSING)

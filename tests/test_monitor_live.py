@@ -103,6 +103,7 @@ def _with_a_stopped_monitor(launch: list[str], endpoint: str) -> tuple[int, str]
         return code, run.stderr
 
 
+@pytest.mark.deterministic
 def test_a_sigstopped_monitor_leaves_a_lockstep_trajectory_bit_identical(
     tmp_path: Path, out: Path
 ) -> None:

@@ -208,6 +208,7 @@ def test_a_bad_controller_placement_names_its_key() -> None:
     assert exc.value.key == "controller.placement"
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_lockstep_equals_inproc_over_an_acoustic_link(tmp_path: Path) -> None:
     # ranges come from the sender's known truth (range taps), the modem queue from its own

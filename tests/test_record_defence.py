@@ -51,7 +51,9 @@ def _inject(endpoint: str, run: Tidelink) -> int:
     return rounds
 
 
-@pytest.mark.parametrize("runtime", ["lockstep", "realtime"])
+@pytest.mark.parametrize(
+    "runtime", [pytest.param("lockstep", marks=pytest.mark.deterministic), "realtime"]
+)
 def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
     runtime: str, tmp_path: Path
 ) -> None:

@@ -29,6 +29,7 @@ def cli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_a_rogue_with_a_monitor_certificate_changes_nothing(certs: Path, tmp_path: Path) -> None:
     """Lockstep under mTLS + access control, with a rogue putting commands (source
