@@ -13,8 +13,6 @@ from common.world import World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import auv_dataflow
 from services.mission.fleet import fleet_dataflow
-from services.mission.fleet_metrics import fleet_metrics
-from services.mission.metrics import mission_metrics
 from services.mission.placed import placed
 
 
@@ -43,6 +41,11 @@ class AuvMission:
         return "goal" if len(self._arrived) == len(self._vehicles) else None
 
     def metrics(self, record: Record) -> dict[str, Any]:
+        # imported here: only a run's driver computes metrics, and they need the planner's
+        # curves and scipy.spatial, which a service process would otherwise load for nothing
+        from services.mission.fleet_metrics import fleet_metrics
+        from services.mission.metrics import mission_metrics
+
         if self.s.vehicles:
             return fleet_metrics(record, self.s)
         return mission_metrics(record, self.s, self.world)

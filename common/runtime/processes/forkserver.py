@@ -30,6 +30,12 @@ PRELOAD = (
     "common.runtime.distributed.lockstep_service",
     "common.runtime.distributed.realtime_service",
     "services.mission.auv",
+    # each service's core (the mission's factories import them lazily, see its dataflow)
+    "services.estimator.core",
+    "services.planner.core",
+    "services.sensor.core",
+    "services.tracker.core",
+    "services.vehicle.core",
 )
 
 
