@@ -13,7 +13,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -204,13 +204,20 @@ def _run(
                 return result
             finally:
                 side.bus.close()  # our clock token goes: lockstep services are released
-                sup.wait_exited(list(local), RELEASE_S)
+                sup.wait_exited(_joined(local, coord.alive), RELEASE_S)
         driver = RealtimeDriver(ctx)
         result = _until_interrupted(driver, side, view)
         side.announce_end(result)
     # the services leave on the stop Tick: let them close their sessions before any signal
-    sup.wait_exited(list(local), RELEASE_S)
+    sup.wait_exited(_joined(local, driver.alive), RELEASE_S)
     return result
+
+
+def _joined(local: Sequence[str], alive: set[str]) -> list[str]:
+    """The local services that joined the run: only they hear its end and leave by
+    themselves (one still starting when a launch is interrupted is stopped at once, instead
+    of after RELEASE_S of waiting for nothing)."""
+    return [n for n in local if n in alive]
 
 
 def _until_interrupted(driver: Driver, side: ClockSide, view: MissionView) -> RunResult:
