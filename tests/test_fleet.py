@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from helpers.launch_proc import REPO, tidelink_check
+from helpers.launch_proc import REPO, tidelink_check, tidelink_cli
 
 from common.config.errors import ConfigError
 from common.config.fleet import MAX_VEHICLES
@@ -290,6 +291,30 @@ def test_a_fleet_in_lockstep_equals_inproc(tmp_path: Path) -> None:
 # -- launching -------------------------------------------------------------------------------
 
 
+def test_service_vehicle_names_one_vehicles_service_and_refuses_what_is_not_there() -> None:
+    from common.config.errors import ConfigValueError
+    from services.cli.launch_commands import service_name
+
+    fleet, _ = load_scenario(HEADON)
+    single, _ = load_scenario(REPO / "configs" / "default.toml")
+    assert service_name("planner", "auv2", fleet) == "auv2.planner"
+    assert service_name("auv1.vehicle", None, fleet) == "auv1.vehicle"
+    assert service_name("planner", None, single) == "planner"
+    for name, vehicle, s, words in (
+        ("planner", "auv9", fleet, "its vehicles are auv1, auv2"),
+        ("planner", "auv1", single, "it has no [[vehicles]]"),
+        ("planner", None, fleet, "auv1.estimator, auv1.planner"),
+        ("pilot", "auv1", fleet, "no service 'auv1.pilot'"),
+    ):
+        with pytest.raises(ConfigValueError, match=re.escape(words)):
+            service_name(name, vehicle, s)
+    # as a user meets it: exit 2 at once, not after waiting for a router that is not there
+    r = tidelink_cli(
+        "service", "planner", str(HEADON), "--vehicle", "auv9", "--connect", "tcp/127.0.0.1:9"
+    )
+    assert r.returncode == 2 and "its vehicles are auv1, auv2" in r.stderr, r.stderr
+
+
 def test_only_selects_a_vehicles_services_by_pattern() -> None:
     names = load_mission(_fleet(_raw())).dataflow.names
     auv2 = ("auv2.estimator", "auv2.planner", "auv2.sensor", "auv2.vehicle")
@@ -315,6 +340,7 @@ def test_launch_progress_shows_every_vehicle() -> None:
     assert 0.0 < view.fraction() < 0.25  # one of four vehicles half-way
 
 
+@pytest.mark.deterministic
 @pytest.mark.slow
 def test_a_vehicle_whose_planner_dies_holds_and_the_other_passes_it() -> None:
     # auv1 (the one auv2 gives way to) loses its planner at t = 20 s for good (every link in

@@ -24,6 +24,7 @@ from services.cli.core_commands import (
 
 if TYPE_CHECKING:
     from common.config.bus import BusConfig
+    from common.config.scenario import Scenario
     from common.runtime.distributed.bringup import ClockSide
     from services.recording.tap_recorder import TapRecorder
 
@@ -123,11 +124,12 @@ def cmd_service(a: argparse.Namespace) -> int:
     from services.launcher.router import wait_for_endpoint
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    name = service_name(a.name, a.vehicle, scenario)
     if scenario.bus.secured:
-        check_credentials(scenario.bus, [a.name])
+        check_credentials(scenario.bus, [name])
     root = logging.getLogger()
     for h in root.handlers:
-        h.setFormatter(logging.Formatter(f"%(asctime)s {a.name} %(levelname)s %(message)s"))
+        h.setFormatter(logging.Formatter(f"%(asctime)s {name} %(levelname)s %(message)s"))
     if not a.verbose:
         root.setLevel(logging.INFO)
     install_shutdown_handlers()
@@ -138,13 +140,32 @@ def cmd_service(a: argparse.Namespace) -> int:
             log.info("waiting up to %g s for the router at %s", timeout_s, a.connect)
             if not wait_for_endpoint(a.connect, timeout_s):
                 raise TimeoutError(f"no router at {a.connect} after {timeout_s:g} s")
-        setup = ServiceSetup.of(a.name, raw, a.connect)  # unknown NAME: SystemExit naming all
+        setup = ServiceSetup.of(name, raw, a.connect)
         if a.runtime == "lockstep":
             return LockstepService(setup).run()
         return RealtimeService(setup).run()
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0
+
+
+def service_name(name: str, vehicle: str | None, scenario: Scenario) -> str:
+    """The service `tidelink service NAME [--vehicle ID]` runs, checked against the mission
+    before any wait for the router: an unknown one is a config error naming those there are."""
+    from common.config.errors import ConfigValueError
+    from common.runtime.model.dataflow import qualified
+    from common.runtime.model.mission import load_mission
+
+    if vehicle is not None:
+        ids = [v.id for v in scenario.vehicles]
+        if vehicle not in ids:
+            there = f"its vehicles are {', '.join(ids)}" if ids else "it has no [[vehicles]]"
+            raise ConfigValueError("--vehicle", f"{vehicle!r} is not in this scenario: {there}")
+        name = qualified(vehicle, name)
+    names = load_mission(scenario).dataflow.names
+    if name not in names:
+        raise ConfigValueError("NAME", f"no service {name!r} in this mission: {', '.join(names)}")
+    return name
 
 
 def check_credentials(bus: BusConfig, identities: list[str]) -> None:
@@ -214,8 +235,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     la.set_defaults(func=cmd_launch)
 
     sv = sub.add_parser("service", help="run one service of a launched mission (any host)")
-    sv.add_argument("name", help="the service, e.g. planner")
+    sv.add_argument("name", help="the service, e.g. planner (in a fleet: auv2.planner)")
     scenario_args(sv)
+    sv.add_argument(
+        "--vehicle",
+        default=None,
+        metavar="ID",
+        help="in a fleet, the vehicle whose service this is: NAME planner --vehicle auv2 "
+        "is auv2.planner",
+    )
     sv.add_argument(
         "--connect",
         required=True,

@@ -23,8 +23,13 @@ REPO = Path(__file__).resolve().parents[2]
 
 def tidelink_check(*args: str) -> subprocess.CompletedProcess[str]:
     """`tidelink check ARGS` to its end (output captured): how a new user meets a bad config."""
+    return tidelink_cli("check", *args)
+
+
+def tidelink_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """`tidelink ARGS` to its end (output captured, 60 s at most)."""
     return subprocess.run(
-        [sys.executable, "-m", "services.cli", "check", *args],
+        [sys.executable, "-m", "services.cli", *args],
         capture_output=True,
         text=True,
         timeout=60,
