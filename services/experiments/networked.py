@@ -18,7 +18,7 @@ from services.experiments.netreport import SweepCells, write_report
 from services.experiments.plots import plot_sweep
 from services.experiments.results import as_number
 from services.experiments.schema import load_experiment
-from services.experiments.sequence_cost import CostRow, cost_table
+from services.experiments.sequence_cost import HORIZONS_S, CostRow, cost_table
 from services.experiments.summary import aggregate
 from services.experiments.sweep import SweepOptions, run_sweep
 
@@ -48,6 +48,7 @@ class NetworkOptions:
     jobs: int = 1
     scheduler: str = ""
     cost_steps: int = 200  # planner steps timed per (controller, horizon)
+    cost_horizons: tuple[float, ...] = HORIZONS_S  # the first is the ratios' baseline
     rich: bool | None = None
     command: str = ""  # the command line, for the report
 
@@ -117,7 +118,7 @@ def run_sweeps(opts: NetworkOptions) -> list[SweepCells]:
 def network_report(opts: NetworkOptions) -> NetworkResult:
     """Run the sweeps, measure the sequences' cost, write REPORT_DIR/REPORT.md."""
     sweeps = run_sweeps(opts)
-    cost: list[CostRow] = cost_table(opts.cost_steps)
+    cost: list[CostRow] = cost_table(opts.cost_steps, opts.cost_horizons)
     opts.report_dir.mkdir(parents=True, exist_ok=True)
     path = opts.report_dir / "REPORT.md"
     write_report(path, sweeps, cost, runtime=opts.runtime, command=opts.command)
