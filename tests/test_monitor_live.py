@@ -125,10 +125,10 @@ def test_a_sigstopped_monitor_leaves_a_realtime_outcome_unchanged(
     code, err = _with_a_stopped_monitor(launch, endpoint)
     assert code == 0, err
     m = _metrics(out)
-    s, _ = load_scenario(DEFAULT)
-    expected = run_inproc(s).metrics
-    assert m["end_reason"] == "goal" and m["reached_goal"] is expected["reached_goal"] is True
-    assert m["collisions"] == expected["collisions"] == 0
+    # unchanged: the undisturbed default mission reaches its goal without contact in every
+    # runtime (test_mission.py), and so does this one with a frozen watcher on the bus
+    assert m["end_reason"] == "goal" and m["reached_goal"] is True
+    assert m["collisions"] == 0
 
 
 def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_another(
