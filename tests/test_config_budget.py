@@ -6,12 +6,12 @@ import dataclasses
 import importlib.util
 import math
 import subprocess
-import sys
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.launch_proc import tidelink_cli
 from helpers.planner_world import default_obstacles, default_start_goal
 
 from common.config.budget import DEFAULT_BUDGET, check_budget
@@ -205,14 +205,7 @@ def test_a_scaled_budget_admits_what_the_default_refuses() -> None:
 
 
 def _tidelink(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "services.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-        check=False,
-    )
+    return tidelink_cli(*args, timeout_s=120.0)
 
 
 def test_check_prints_the_estimate_and_takes_a_budget_factor() -> None:

@@ -150,11 +150,17 @@ def _ends_within(pid: int, timeout_s: float) -> bool:
         os.close(fd)
 
 
-@pytest.mark.slow  # real child processes (no Zenoh), ~1 s in all
-def test_stop_escalates_to_sigkill_for_the_whole_group(tmp_path: Path) -> None:
+def _ready_fifo(tmp_path: Path) -> tuple[Path, int]:
+    """A FIFO the child writes once it is ready, and our non-blocking end of it (select on
+    it instead of sleeping)."""
     fifo = tmp_path / "ready"
     os.mkfifo(fifo)
-    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
+    return fifo, os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
+
+
+@pytest.mark.slow  # real child processes (no Zenoh), ~1 s in all
+def test_stop_escalates_to_sigkill_for_the_whole_group(tmp_path: Path) -> None:
+    fifo, reader = _ready_fifo(tmp_path)
     sup = Supervisor(tmp_path)
     child = sup.start("stubborn", ["-c", STUBBORN, str(fifo)])
     try:
@@ -205,9 +211,7 @@ except Shutdown:
 def test_an_orderly_stop_that_hangs_ends_at_its_deadline(tmp_path: Path) -> None:
     """One SIGTERM is all a child gets when its parent dies (the parent-death signal): a
     stop that hangs must still end the process, by the kernel, STOP_DEADLINE_S later."""
-    fifo = tmp_path / "ready"
-    os.mkfifo(fifo)
-    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
+    fifo, reader = _ready_fifo(tmp_path)
     sup = Supervisor(tmp_path)
     child = sup.start("hanging", ["-c", HANGING_STOP, str(fifo)])
     try:

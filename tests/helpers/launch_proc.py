@@ -26,13 +26,13 @@ def tidelink_check(*args: str) -> subprocess.CompletedProcess[str]:
     return tidelink_cli("check", *args)
 
 
-def tidelink_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    """`tidelink ARGS` to its end (output captured, 60 s at most)."""
+def tidelink_cli(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+    """`tidelink ARGS` to its end (output captured, timeout_s at most)."""
     return subprocess.run(
         [sys.executable, "-m", "services.cli", *args],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=timeout_s,
         cwd=REPO,
         check=False,
     )
