@@ -222,3 +222,41 @@ def test_an_orderly_stop_that_hangs_ends_at_its_deadline(tmp_path: Path) -> None
     finally:
         os.close(reader)
         sup.stop(grace_s=0.1)
+
+
+SIGNAL_ON_ANOTHER_THREAD = """
+import sys, threading, signal, time
+from common.runtime.processes.signals import Shutdown, install_shutdown_handlers, wait_for_stop
+install_shutdown_handlers()
+main = threading.main_thread().native_id
+waiting = threading.Event()
+
+def elsewhere() -> None:
+    waiting.wait()
+    # until the main thread sleeps (in wait_for_stop's select), polling its state in /proc
+    while open(f"/proc/self/task/{main}/stat").read().rsplit(")", 1)[1].split()[0] != "S":
+        time.sleep(0.01)
+    # as the kernel may deliver a process-wide SIGTERM to one of Zenoh's threads
+    signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+
+try:
+    threading.Thread(target=elsewhere, daemon=True).start()
+    waiting.set()
+    wait_for_stop()
+except Shutdown:
+    sys.exit(3)
+"""
+
+
+@pytest.mark.slow  # a real child process (no Zenoh), well under a second
+def test_a_stop_signal_taken_by_another_thread_still_wakes_the_main_thread(
+    tmp_path: Path,
+) -> None:
+    """signal.pause() in the main thread never returned when another thread took the signal
+    (a router outlived its SIGKILLed launcher); wait_for_stop() wakes on it."""
+    sup = Supervisor(tmp_path)
+    child = sup.start("waiter", ["-c", SIGNAL_ON_ANOTHER_THREAD])
+    try:
+        assert child.proc.wait(WAIT_S) == 3, child.describe_exit()
+    finally:
+        sup.stop(grace_s=0.1)

@@ -8,7 +8,6 @@ import json
 import logging
 import math
 import os
-import signal
 import sys
 import threading
 import time
@@ -255,7 +254,11 @@ def cmd_router(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import BusConfig
     from common.config.errors import ConfigError
-    from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
+    from common.runtime.processes.signals import (
+        Shutdown,
+        install_shutdown_handlers,
+        wait_for_stop,
+    )
 
     check_exposure(a.listen, a.certs is not None, a.insecure)
     acl = None if a.acl is None else _read_acl(a.acl)
@@ -273,8 +276,7 @@ def cmd_router(a: argparse.Namespace) -> int:
         try:
             where = ", ".join(cfg.endpoint(e) for e in a.listen)
             print(f"zenoh router listening on {where}; Ctrl-C to stop", flush=True)
-            while True:
-                signal.pause()  # the router works on Zenoh's threads; we only wait for a signal
+            wait_for_stop()  # the router works on Zenoh's threads; we only wait for a signal
         except Shutdown:
             # closing a router while its clients drop away can take Zenoh long (seen: > 10 s
             # after a SIGKILLed launcher); a router keeps nothing worth waiting for

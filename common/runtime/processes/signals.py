@@ -8,6 +8,8 @@ is never cut short half-way.
 
 from __future__ import annotations
 
+import os
+import select
 import signal
 import threading
 from collections.abc import Iterator
@@ -47,6 +49,29 @@ def install_shutdown_handlers() -> None:
 
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGINT, handler)
+
+
+def wait_for_stop() -> None:
+    """Block the main thread until SIGTERM or SIGINT raises Shutdown in it.
+
+    Not `signal.pause()`: the kernel delivers a process-wide signal (the parent-death one
+    included) to any thread that does not block it, often one of Zenoh's, and pause() in the
+    main thread then never returns; Python only runs the handler when the main thread runs.
+    CPython's C-level handler writes to the wakeup fd in whichever thread it runs, so a
+    select on it wakes the main thread, which then runs the handler. Seen in CI: a router
+    that outlived its SIGKILLed launcher by more than 10 s.
+    """
+    r, w = os.pipe()
+    os.set_blocking(w, False)
+    previous = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    try:
+        while True:
+            select.select([r], [], [])
+            os.read(r, 64)  # the handler runs before the next bytecode: Shutdown propagates
+    finally:
+        signal.set_wakeup_fd(previous)
+        os.close(r)
+        os.close(w)
 
 
 class Interrupted(Exception):
