@@ -181,16 +181,22 @@ def test_stop_escalates_to_sigkill_for_the_whole_group(tmp_path: Path) -> None:
 
 @pytest.mark.slow  # real child processes (no Zenoh), ~1 s in all
 def test_a_child_leads_its_own_process_group(tmp_path: Path) -> None:
+    fifo, reader = _ready_fifo(tmp_path)
     sup = Supervisor(tmp_path)
     # Python's own SIGINT handler, set explicitly: a suite started in the background by a
-    # shell inherits SIGINT ignored, and so would this child (then SIGTERM ends it)
+    # shell inherits SIGINT ignored, and so would this child (then SIGTERM ends it); the
+    # stop waits until it is set (a SIGINT before it was ignored, seen in such a suite)
     quiet = (
-        "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); signal.pause()"
+        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "open(sys.argv[1], 'w').write('ready\\n'); signal.pause()"
     )
-    child = sup.start("quiet", ["-c", quiet])
+    child = sup.start("quiet", ["-c", quiet, str(fifo)])
     try:
         assert os.getpgid(child.proc.pid) == child.proc.pid != os.getpgid(0)
+        ready, _, _ = select.select([reader], [], [], WAIT_S)
+        assert ready, "the child never set its SIGINT handler"
     finally:
+        os.close(reader)
         sup.stop(grace_s=5.0)
     assert child.proc.returncode == -signal.SIGINT  # the first, polite signal was enough
 
