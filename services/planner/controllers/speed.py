@@ -32,6 +32,7 @@ from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Limits
 
 _PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
+_PREVIEW_STEPS = tuple(range(_PREVIEW_SAMPLES))
 
 
 def cruise_speed(ref: ArcLengthReference, limits: Limits) -> float:
@@ -43,10 +44,12 @@ def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Li
     """v_target(s) of the module docstring (m/s), before the ramp."""
     v = cruise_speed(ref, limits)
     horizon = min(ref.length, s + v * cfg.preview_s)
+    curvature_at_s, span = ref.curvature_at_s, horizon - s
     k_max = 0.0
-    for i in range(_PREVIEW_SAMPLES):
-        si = s + (horizon - s) * i / (_PREVIEW_SAMPLES - 1)
-        k_max = max(k_max, abs(ref.curvature_at_s(si)))
+    for i in _PREVIEW_STEPS:
+        k = abs(curvature_at_s(s + span * i / (_PREVIEW_SAMPLES - 1)))
+        if k > k_max:
+            k_max = k
     w_room = cfg.curvature_budget * min(limits.w_max, -limits.w_min)
     if k_max * v > w_room:
         v = w_room / k_max
