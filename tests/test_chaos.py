@@ -5,7 +5,6 @@ where the fault is survivable). `scripts/chaos` runs the whole matrix."""
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
@@ -22,13 +21,14 @@ REPO = Path(__file__).resolve().parents[1]
 # at the CLI's 4x: at 8x a restarted planner rejoins ~16 mission seconds after its kill (the
 # buffer lasts 10) and the case once ended 0.21 m inside rho0 (a fresh clone, 1 run of 2)
 SETUP = CaseSetup(scenario=REPO / "configs" / "default.toml")
-# a restarted planner rejoins after its process start and imports, seconds of wall time: at
-# 4x on a slow machine that was ~12 mission seconds, past the 10 s command buffer, and the case
-# ended 0.03 m in contact (a fresh clone, 1 run); at 2x the same start costs half the mission
-RESTART_SETUP = dataclasses.replace(SETUP, time_scale=2.0)
+# the restart case restarts the estimator: a restarted planner rejoins after its process start
+# and imports, seconds of wall time: at 4x on a slow machine that was ~12 mission seconds, past
+# the 10 s command buffer, and the case ended 0.03 m in contact (a fresh clone, 1 run); at 2x it
+# passes but is the suite's longest test (40 s). The planner's own restart stays in the CLI's
+# matrix (`tidelink chaos`), which runs every service's.
 CASES = [
     Fault("kill", "planner"),
-    Fault("kill", "planner", restart=True),
+    Fault("kill", "estimator", restart=True),
     Fault("stop", "planner"),
     Fault("kill", "router"),
     Fault("kill_launcher"),
@@ -41,8 +41,7 @@ CASES = [
 def test_a_fault_case_keeps_every_invariant(fault: Fault, tmp_path: Path) -> None:
     scenario, _ = load_scenario(SETUP.scenario, [], None)
     flow = load_mission(scenario).dataflow
-    setup = RESTART_SETUP if fault.restart else SETUP
-    outcome = run_case(setup, fault, tmp_path / "case", run_keys(scenario), flow)
+    outcome = run_case(SETUP, fault, tmp_path / "case", run_keys(scenario), flow)
     assert problems(outcome) == [], table([outcome])
 
 
