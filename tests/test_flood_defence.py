@@ -12,7 +12,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from helpers.launch_proc import Tidelink, judged_exit, kill_recorded
+from helpers.launch_proc import REPO, Tidelink, judged_exit, kill_recorded
 
 from common.bus import Bus, Keys
 from common.config.bus import BusConfig
@@ -22,6 +22,7 @@ from common.runtime.processes.children import free_port
 pytestmark = pytest.mark.slow
 
 WAIT_S = 120.0
+SMALL = REPO / "configs" / "experiments" / "scenarios" / "small.toml"
 # 30 000 at 4x, not 60 000 at 8x: the flood's wall time (the estimator decodes every routed
 # copy) is mission time scaled by the time scale; at 8x on a loaded CI machine the vehicle
 # sat in HOLD long enough for a moving obstacle to touch it (2 contacts, 1 run).
@@ -47,7 +48,8 @@ def _fix(stamp: float, x: float = 20.0) -> bytes:
 def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -> None:
     out = tmp_path / "run"
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", "configs/default.toml", "--listen", endpoint, "--time-scale", "4"]
+    # the small smoke mission (~35 s to its goal): the estimator's defence is the same
+    launch = ["launch", str(SMALL), "--listen", endpoint, "--time-scale", "4"]
     routed = encode_routing(0, {"estimator": (0,)})  # what a crafted client could attach
     variants = [
         (_fix(5.0), None),  # no routing: never reaches the core
@@ -57,7 +59,7 @@ def test_a_flood_on_an_input_key_costs_samples_not_the_mission(tmp_path: Path) -
     try:
         with Tidelink(*launch, "--out", str(out), "--no-plot") as run:
             run.wait_for(r"vehicle: mode IDLE -> RUN", WAIT_S)
-            keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
+            keys = Keys("small", "auv1")  # the small scenario's run and vehicle
             key = keys.stream("sensor", "nav")
             cfg = BusConfig(mode="client", connect=(endpoint,))
             with Bus(cfg, keys) as watcher, Bus(cfg, keys) as bus:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from helpers.runs import inproc
 
 from common.config.scenario import load_scenario
 from common.messages import TruthState, VehicleStatus, VelocityCommand
@@ -19,7 +20,7 @@ DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 @pytest.mark.parametrize("controller", ["nurbs", "backstepping", "fuzzy_pid"])
 def test_every_controller_reaches_the_goal_without_collision(controller: str) -> None:
     s, _ = load_scenario(DEFAULT, [f'controller.kind="{controller}"'])
-    r = run_inproc(s)
+    r = inproc(s)
     m = r.metrics
     assert r.reason == "goal"
     assert m["reached_goal"] is True
@@ -90,7 +91,7 @@ def test_lockstep_equals_inproc_with_command_sequences(tmp_path: Path) -> None:
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_default_mission_lockstep_equals_inproc(seed: int, tmp_path: Path) -> None:
     s, raw = load_scenario(DEFAULT, seed=seed)
-    ref = run_inproc(s)
+    ref = inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
     assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
     assert got.metrics == ref.metrics

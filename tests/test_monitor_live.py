@@ -14,15 +14,16 @@ from typing import Any
 
 import pytest
 from helpers.launch_proc import Tidelink, judged_exit, kill_recorded
+from helpers.runs import inproc
 
 from common.config.scenario import load_scenario
-from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.children import free_port
 
 pytestmark = pytest.mark.slow
 
 WAIT_S = 60.0
 DEFAULT = "configs/default.toml"
+SMALL = "configs/experiments/scenarios/small.toml"  # ~35 s to its goal
 
 
 def _lines(t: Tidelink) -> list[dict[str, Any]]:
@@ -113,7 +114,7 @@ def test_a_sigstopped_monitor_leaves_a_lockstep_trajectory_bit_identical(
     code, err = _with_a_stopped_monitor(launch, endpoint)
     assert code == 0, err
     s, _ = load_scenario(DEFAULT)
-    expected = run_inproc(s).metrics["trajectory_sha256"]
+    expected = inproc(s).metrics["trajectory_sha256"]
     assert _metrics(out)["trajectory_sha256"] == expected
 
 
@@ -121,12 +122,13 @@ def test_a_sigstopped_monitor_leaves_a_realtime_outcome_unchanged(
     tmp_path: Path, out: Path
 ) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", DEFAULT, "--listen", endpoint, "--time-scale", "8", "--out", str(out)]
+    launch = ["launch", SMALL, "--listen", endpoint, "--time-scale", "8", "--out", str(out)]
     code, err = _with_a_stopped_monitor(launch, endpoint)
-    assert code == 0, err
+    assert code == judged_exit(out), err
     m = _metrics(out)
-    # unchanged: the undisturbed default mission reaches its goal without contact in every
-    # runtime (test_mission.py), and so does this one with a frozen watcher on the bus
+    # unchanged: the undisturbed small mission reaches its goal without contact in every
+    # runtime (the smoke sweep, the following monitor below), and so does this one with a
+    # frozen watcher on the bus
     assert m["end_reason"] == "goal" and m["reached_goal"] is True
     assert m["collisions"] == 0
 
@@ -135,12 +137,11 @@ def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_anothe
     tmp_path: Path,
 ) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    small = "configs/experiments/scenarios/small.toml"
     with Tidelink("monitor", "--connect", endpoint, "--json", "--follow") as mon:
         mon.wait_for(r"no router at .* yet; waiting", 15.0, stdout=True)  # none listens yet
         for seed in ("1", "2"):  # each launch brings its own router on the same endpoint
             out = tmp_path / f"run{seed}"
-            launch = ["launch", small, "--runtime", "lockstep", "--listen", endpoint]
+            launch = ["launch", SMALL, "--runtime", "lockstep", "--listen", endpoint]
             with Tidelink(*launch, "--seed", seed, "--out", str(out), "--no-plot") as run:
                 assert run.wait(WAIT_S) == judged_exit(out), run.stderr
         first = mon.wait_for(r'"event": "end"', WAIT_S, stdout=True).string

@@ -11,12 +11,12 @@ from pathlib import Path
 
 import pytest
 from helpers.launch_proc import Tidelink, kill_recorded
+from helpers.runs import inproc
 
 from common.bus import Bus, Inbox, Keys, Received
 from common.config.bus import BusConfig
 from common.config.scenario import load_scenario
 from common.messages import TruthState
-from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.children import free_port
 
 pytestmark = pytest.mark.slow
@@ -77,7 +77,7 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
     }
     assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
     if runtime == "lockstep":  # the whole run, exactly as if nobody had interfered
-        ref = run_inproc(load_scenario(Path(DEFAULT))[0])
+        ref = inproc(load_scenario(Path(DEFAULT))[0])
         assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
         assert m["t_end_s"] == ref.t_end
     else:  # the real vehicle's arrival, not a forged one at 10 s

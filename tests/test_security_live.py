@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 from helpers.launch_proc import REPO, Tidelink, kill_recorded
+from helpers.runs import inproc
 
+from common.config.scenario import load_scenario
 from common.runtime.processes.children import free_port
 
 WAIT_S = 120.0
@@ -37,7 +39,7 @@ def test_a_rogue_with_a_monitor_certificate_changes_nothing(certs: Path, tmp_pat
     planner's token: the vehicle applies none of them (the trajectory is the plain inproc
     run's, bit for bit), the mission ends normally, and the rogue watched it all along, as
     did `tidelink monitor` with the same certificate."""
-    plain = json.loads(cli("run", DEFAULT, "--json", "--out", str(tmp_path / "plain")).stdout)
+    plain = inproc(load_scenario(DEFAULT)[0]).metrics
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "secured"
     common = ["--connect", endpoint, "--certs", str(certs)]
