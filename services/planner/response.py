@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 
 from common.config.vehicle import VehicleConfig
+from common.scalar import clamp
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (m, m, rad, m/s, rad/s)
 
@@ -67,20 +68,12 @@ class ResponseModel:
         # a lag shorter than the step reaches its goal within the step, never beyond it
         gain_v, gain_w = 1.0 / max(self.tau_v_s, h), 1.0 / max(self.tau_w_s, h)
         a_max, alpha_max = self.accel_max_mps2, self.yaw_accel_max_rps2
-        v_max, r_min, w_min, w_max = self.v_max_mps, self.r_min_m, self.w_min_rps, self.w_max_rps
         x, y, th, v, w = pose
         for _ in range(n):
-            # clamp() written out (the same comparisons): a rollout runs this ~200 times a step
-            dv = (v_c - v) * gain_v
-            dv = -a_max if dv < -a_max else a_max if dv > a_max else dv
-            v1 = v + h * dv
-            v1 = 0.0 if v1 < 0.0 else v_max if v1 > v_max else v1
-            room = v1 / r_min  # the turn the fins allow at this speed
-            wc = -room if w_c < -room else room if w_c > room else w_c
-            dw = (wc - w) * gain_w
-            dw = -alpha_max if dw < -alpha_max else alpha_max if dw > alpha_max else dw
-            w1, lo, hi = w + h * dw, max(w_min, -room), min(w_max, room)
-            w1 = lo if w1 < lo else hi if w1 > hi else w1
+            v1 = clamp(v + h * clamp((v_c - v) * gain_v, -a_max, a_max), 0.0, self.v_max_mps)
+            room = v1 / self.r_min_m  # the turn the fins allow at this speed
+            dw = clamp((clamp(w_c, -room, room) - w) * gain_w, -alpha_max, alpha_max)
+            w1 = clamp(w + h * dw, max(self.w_min_rps, -room), min(self.w_max_rps, room))
             # eq. (7) along the arc of the step's mean twist
             vm, wm = 0.5 * (v + v1), 0.5 * (w + w1)
             dth = wm * h
