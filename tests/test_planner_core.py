@@ -288,3 +288,29 @@ def test_a_planner_restarted_mid_mission_does_not_wait_for_tracks() -> None:
     core.deliver(_tracks(40.0))  # nothing in sonar range just now
     (path,) = _paths(core.step(40.05))
     assert path.status == "OK"
+
+
+def test_the_clearance_margin_widens_with_the_measured_loop_delay() -> None:
+    """A plan made on estimates that arrive 1 s old aims further from the obstacles: the
+    vehicle follows it on a state predicted that far ahead (planner.clearance_margin_*)."""
+    near, far = _core(), _core()
+    cfg = near.cfg
+    near.deliver(_estimate(0.0))
+    near.step(0.05)
+    for k in range(10):  # estimates that arrive 1 s after their stamp
+        stamp = 0.1 * k
+        est = StateEstimate(stamp=stamp, x=5.0, y=20.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
+        far.deliver(Delivery(source="estimator", stream="state", msg=est, t=stamp + 1.0))
+    assert [e for e in far.step(1.95) if e.stream == "path"]
+    assert near.clearance_margin_m == pytest.approx(
+        cfg.clearance_margin_m + cfg.clearance_margin_per_delay_s * 0.05, abs=0.006
+    )
+    assert far.clearance_margin_m == pytest.approx(
+        cfg.clearance_margin_m + cfg.clearance_margin_per_delay_s * 1.0, abs=0.006
+    )
+    still, _ = load_scenario(DEFAULT, ["planner.clearance_margin_per_delay_s=0"])
+    fixed = PlannerCore(still.planner, still.controller, still.vehicle, still.world)
+    for k in range(10):
+        est = StateEstimate(stamp=0.1 * k, x=5.0, y=20.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
+        fixed.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.1 * k + 1.0))
+    assert fixed.clearance_margin_m == still.planner.clearance_margin_m

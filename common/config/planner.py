@@ -52,6 +52,11 @@ class PlannerConfig:
     # metres of path length per unit of F_R; 0 leaves f_R out
     penalty_turn: float = 1.0
     clearance_margin_m: float = 0.15  # refinement aims this far beyond the required clearance
+    # ... and this much further per second of the loop's measured delay (the estimate's age as
+    # it arrives plus the downlink delay the commands are compensated for): the vehicle follows
+    # the path on a state predicted that far ahead, and the prediction's error grows with it
+    # (at 1 s one-way on every link the loop is ~3.4 s: 0.15 + 0.34 m); 0: a fixed margin
+    clearance_margin_per_delay_s: float = 0.1
     curvature_margin: float = 0.85  # refinement aims at k <= curvature_margin / R_min
     n_samples_check: int = 2000  # dense samples of the final checks, eq. (12)-(13), (20)
     # --- replan events
@@ -86,6 +91,7 @@ class PlannerConfig:
             "penalty_curvature",
             "penalty_turn",
             "clearance_margin_m",
+            "clearance_margin_per_delay_s",
         ):
             nonneg(name, getattr(self, name))
         for name in (

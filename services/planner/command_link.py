@@ -92,6 +92,12 @@ class CommandLink:
             return self.configured_downlink_s
         return max(0.0, st.delay_s + self.jitter_margin_k * st.delay_jitter_s)
 
+    @property
+    def loop_delay_s(self) -> float:
+        """The loop's measured delay (s): the estimate's age as it arrives plus the downlink
+        delay compensated; how far ahead the vehicle's state is predicted."""
+        return max(0.0, self.uplink.delay_s) + self.downlink_s
+
     def age_beyond_delay(self, t: float, est: StateEstimate) -> float:
         """How much older the estimate's information is at t than the uplink delay makes it
         anyway (s)."""

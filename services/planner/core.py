@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -320,6 +321,21 @@ class PlannerCore:
         )
         return False
 
+    @property
+    def clearance_margin_m(self) -> float:
+        """The margin a plan made now aims beyond the required clearance (m): the configured
+        one widened by the loop's measured delay (a tube as wide as the prediction's drift
+        grows), to the centimetre."""
+        extra = self.cfg.clearance_margin_per_delay_s * self.link.loop_delay_s
+        return round(self.cfg.clearance_margin_m + extra, 2)
+
+    def _plan_config(self) -> PlannerConfig:
+        """The planner's config with the clearance margin in force now."""
+        margin = self.clearance_margin_m
+        if margin == self.cfg.clearance_margin_m:
+            return self.cfg
+        return replace(self.cfg, clearance_margin_m=margin)
+
     def _replan(
         self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles, why: str
     ) -> PathMsg:
@@ -334,7 +350,7 @@ class PlannerCore:
             r_min_m=self.vehicle.turn_radius_min_m,
             v_ref_mps=self.vehicle.cruise_speed_mps,
         )
-        result = plan_path(req, self.cfg)
+        result = plan_path(req, self._plan_config())
         self.policy.on_planned(t_plan, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
