@@ -130,12 +130,13 @@ def test_the_fleet_dataflow_is_each_vehicles_plus_the_links_between_them() -> No
     assert {i.source for i in sensor.inputs} == {f"auv{k}.vehicle" for k in (1, 2, 3, 4)}
     planner = flow.service("auv2.planner")
     heard = {(i.source, i.stream) for i in planner.inputs}
-    assert ("auv1.planner", "path") in heard and ("auv4.planner", "pose") in heard
+    assert ("auv1.planner", "intent") in heard and ("auv4.planner", "pose") in heard
+    assert ("auv1.planner", "path") not in heard  # the path in force, re-sent: "intent"
     assert ("auv2.estimator", "state") in heard and ("auv2.planner", "path") not in heard
     assert ("auv4.estimator", "state") not in heard
     assert flow.service("auv2.vehicle").inputs[0].source == "auv2.planner"
     links = {lk.name for lk in flow.links}
-    assert "auv1.planner/path->auv2.planner" in links
+    assert "auv1.planner/intent->auv2.planner" in links
     assert "auv1.vehicle/truth->auv2.sensor" in links
 
 
@@ -248,6 +249,22 @@ def test_an_intent_is_the_other_vehicle_moving_along_its_path_until_it_goes_stal
     assert intents.obstacles(3.2) == ((), frozenset())  # 2.2 s old: its track takes over
 
 
+def test_each_step_counts_every_other_vehicle_by_intent_or_by_track() -> None:
+    intents = FleetIntents({"auv2": (100, 0.5), "auv3": (101, 0.5)}, max_age_s=2.0)
+    intents.tally(0.5)  # nothing heard yet: both by track
+    intents.offer("auv2", _straight_path(0.0, 0.0, 30.0))
+    intents.offer("auv2", _estimate(1.0, 6.0))
+    intents.offer("auv3", _estimate(1.0, 6.0, y=20.0))  # a pose without a path: no intent
+    for t in (1.5, 2.5, 3.0, 3.5):  # auv2's estimate goes stale after 3.0
+        intents.tally(t)
+    assert intents.counters == {
+        "intent.auv2": 3,
+        "intent.auv3": 0,
+        "track.auv2": 2,
+        "track.auv3": 5,
+    }
+
+
 def test_without_a_path_there_is_no_intent() -> None:
     intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
     intents.offer("auv2", _estimate(1.0, 6.0))
@@ -274,6 +291,12 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     assert m["outcome"] == "success"
     assert set(m["vehicles"]) == {"auv1", "auv2"}
     assert all(v["outcome"] == "success" for v in m["vehicles"].values())
+    # no loss on the intent links: each planned around the other's intent all along but for
+    # the first plan's wait for it
+    assert m["intent_fraction"] > 0.95
+    assert m["vehicles"]["auv1"]["intent_fraction_by_vehicle"] == {
+        "auv2": m["vehicles"]["auv1"]["intent_fraction"]
+    }
 
 
 @pytest.mark.deterministic
@@ -352,4 +375,8 @@ def test_a_vehicle_whose_planner_dies_holds_and_the_other_passes_it() -> None:
     one, two = m["vehicles"]["auv1"], m["vehicles"]["auv2"]
     assert not one["reached_goal"] and one["failsafe_time_s"] > 60.0
     assert two["outcome"] == "success" and two["hold_time_s"] == 0.0
+    # auv2 went on by auv1's track once its intent went stale, 2 s after the cut (~0.12: the run
+    # goes on to max_time); cut off, auv1's planner hears auv2 no more either
+    assert 0.05 < two["intent_fraction"] < 0.25
+    assert one["intent_fraction"] is not None and one["intent_fraction"] < 0.25
     assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m

@@ -103,7 +103,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     },
     LinkStats: {
         k: st.dictionaries(TEXT, COUNT, max_size=5)
-        for k in ("inputs_dropped", "inputs_rejected", "resets")
+        for k in ("inputs_dropped", "inputs_rejected", "resets", "counters")
     },
     Tick: {"tick": COUNT, "time_us": COUNT},
     TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},

@@ -383,16 +383,18 @@ class LinkStats(Message, frozen=True, kw_only=True):
     """Per-link statistics a service publishes on `.../<service>/stats`: counters of its
     outgoing links, the delays it measured on its incoming ones, and how its inputs fared:
     deliveries dropped because an input's queue was full (by link), inputs its core rejected
-    as implausible (by '<stream>.<reason>'), filters its core restarted (by filter)."""
+    as implausible (by '<stream>.<reason>'), filters its core restarted (by filter), and what
+    else its core counts (by name: a fleet planner's steps by intent or by track, per vehicle)."""
 
     links: tuple[LinkCounters, ...]
     measured: tuple[MeasuredDelay, ...] = ()
     inputs_dropped: dict[str, int] = msgspec.field(default_factory=dict)
     inputs_rejected: dict[str, int] = msgspec.field(default_factory=dict)
     resets: dict[str, int] = msgspec.field(default_factory=dict)
+    counters: dict[str, int] = msgspec.field(default_factory=dict)
 
     def validate(self) -> None:
-        for name in ("inputs_dropped", "inputs_rejected", "resets"):
+        for name in ("inputs_dropped", "inputs_rejected", "resets", "counters"):
             for key, n in getattr(self, name).items():
                 check_range(f"{name}[{key!r}]", n, 0)
 

@@ -30,6 +30,7 @@ PLOT_METRICS = {
     "min_separation_m": "minimum hull-to-hull separation between vehicles (m)",
     "vehicle_collisions": "vehicle-vehicle contacts",
     "vehicles_reached": "vehicles at their goals",
+    "intent_fraction": "share of planner steps by another vehicle's intent (not its track)",
 }
 
 

@@ -30,6 +30,7 @@ KEY_METRICS = (
     "vehicles_reached",
     "min_separation_m",
     "vehicle_collisions",
+    "intent_fraction",
 )
 # eq. (21) travel time only means something for runs that arrived
 ON_GOAL_ONLY = frozenset({"travel_time_s", "mean_speed_mps"})

@@ -162,6 +162,7 @@ def make_planner(
     others: Mapping[str, tuple[int, float]] | None = None,
     earlier: frozenset[str] = frozenset(),
     pose_every_s: float = 0.0,
+    intent_every_s: float = 0.0,
 ) -> PlannerCore:
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
     radius), whose broadcast intents it plans around (services/planner/intent.py): all of
@@ -188,6 +189,7 @@ def make_planner(
             earlier if s.planner.deconfliction == "priority" else None,
         ),
         pose_every_s=pose_every_s,
+        intent_every_s=intent_every_s,
     )
 
 

@@ -7,14 +7,17 @@ goal and section overrides: Scenario.member). Between vehicles:
     <other>.vehicle   --truth--> <id>.sensor   the sonar sees the other hulls (simulation: a
                                              sensor samples what is physically there)
     <other>.planner   --pose---> <id>.planner  the other's intent: the estimate its planner plans
-    <other>.planner   --path---> <id>.planner  from (every POSE_PERIOD_S while it is alive) and
-                                               the path it follows (services/planner/intent.py)
+    <other>.planner   --intent-> <id>.planner  from (every POSE_PERIOD_S while it is alive) and
+                                               the path it follows (each new one at once, then
+                                               every INTENT_PERIOD_S: a path is made once per
+                                               replan, and one lost would leave the others
+                                               without it until the next; intent.py)
 
 so every vehicle is a moving obstacle to the others: with a known trajectory while its intent
 arrives (deconfliction by intent; who gives way: planner.deconfliction), else as the track its
 sonar contact gives (eq. (12)-(13)).
 The intent links are modelled links like any other: "other.planner/pose->planner" and
-"other.planner/path->planner" name them for every vehicle in network profiles.
+"other.planner/intent->planner" name them for every vehicle in network profiles.
 """
 
 from __future__ import annotations
@@ -40,9 +43,10 @@ from services.mission.dataflow import auv_dataflow, make_planner, make_sensor
 # what a planner hears of each other vehicle: its intent (services/planner/intent.py)
 INTENT: tuple[tuple[str, str, type[Message]], ...] = (
     ("planner", "pose", StateEstimate),
-    ("planner", "path", PathMsg),
+    ("planner", "intent", PathMsg),
 )
 POSE_PERIOD_S = 0.5  # a planner's intent pose: 2 Hz, a quarter of the state's rate
+INTENT_PERIOD_S = 1.0  # its path in force, again: half planner.intent_max_age_s by default
 
 
 def fleet_obstacle_ids(s: Scenario) -> dict[str, int]:
@@ -72,9 +76,17 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                 inputs += tuple(_newest(src, "truth", TruthState) for src in hulls)
             elif svc.name == "planner":
                 factory = partial(
-                    make_planner, others=others, earlier=earlier, pose_every_s=POSE_PERIOD_S
+                    make_planner,
+                    others=others,
+                    earlier=earlier,
+                    pose_every_s=POSE_PERIOD_S,
+                    intent_every_s=INTENT_PERIOD_S,
                 )
-                outputs = (*outputs, Output(stream="pose", msg_type=StateEstimate))
+                outputs = (
+                    *outputs,
+                    Output(stream="pose", msg_type=StateEstimate),
+                    Output(stream="intent", msg_type=PathMsg),
+                )
                 inputs += tuple(
                     _newest(qualified(o, source), stream, msg_type)
                     for o in others

@@ -1,5 +1,6 @@
 """Metrics of a fleet run: each vehicle's, under its id, and the fleet's (all reached, makespan,
-separation between any two hulls, vehicle-vehicle collisions)."""
+separation between any two hulls, vehicle-vehicle collisions, deconfliction by intent or by
+track)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from common.config.scenario import Scenario
-from common.messages import TruthState
+from common.messages import LinkStats, TruthState
 from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record
 from common.world import World
@@ -22,6 +23,9 @@ from services.mission.outcome import classify
 def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     """The fleet's metrics; `vehicles` holds each vehicle's (services/mission/metrics.py)."""
     per = {vid: mission_metrics(record, m, World(m.world), vehicle=vid) for vid, m in s.members}
+    tallies = {vid: _intent_tallies(record, vid) for vid in per}
+    for vid, (by_intent, by_track) in tallies.items():
+        per[vid].update(_intent_metrics(by_intent, by_track))
     truths = {
         v.id: np.array(
             [
@@ -60,6 +64,11 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
         "rho0_breach_m": max(float(m.get("rho0_breach_m", 0.0)) for m in per.values()),
         "hold_time_s": sum(float(m.get("hold_time_s", 0.0)) for m in per.values()),
         "failsafe_time_s": sum(float(m.get("failsafe_time_s", 0.0)) for m in per.values()),
+        # of every planner step x other vehicle, the share handled by a fresh intent
+        "intent_fraction": _share(
+            sum(sum(i.values()) for i, _ in tallies.values()),
+            sum(sum(k.values()) for _, k in tallies.values()),
+        ),
     }
     out["outcome"] = classify(
         reached_goal=reached,
@@ -69,6 +78,36 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     out["success"] = out["outcome"] == "success"
     out["vehicles"] = per
     return out
+
+
+def _intent_tallies(record: Record, vid: str) -> tuple[dict[str, int], dict[str, int]]:
+    """Vehicle vid's planner's steps by each other vehicle's intent and by its track, from the
+    planner's last statistics (services/planner/intent.py: FleetIntents.counters)."""
+    stats = [
+        m for m in record.stream(qualified(vid, "planner"), "stats") if isinstance(m, LinkStats)
+    ]
+    counters = stats[-1].counters if stats else {}
+    by_intent = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("intent.")}
+    by_track = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("track.")}
+    return by_intent, by_track
+
+
+def _share(by_intent: int, by_track: int) -> float | None:
+    """The share of steps by intent (None without a counted step)."""
+    total = by_intent + by_track
+    return round(by_intent / total, 4) if total else None
+
+
+def _intent_metrics(by_intent: dict[str, int], by_track: dict[str, int]) -> dict[str, Any]:
+    """intent_fraction (all others together) and, per other vehicle,
+    intent_fraction_by_vehicle."""
+    others = sorted(set(by_intent) | set(by_track))
+    return {
+        "intent_fraction": _share(sum(by_intent.values()), sum(by_track.values())),
+        "intent_fraction_by_vehicle": {
+            o: _share(by_intent.get(o, 0), by_track.get(o, 0)) for o in others
+        },
+    }
 
 
 def _separation(truths: dict[str, np.ndarray], radius: dict[str, float]) -> dict[str, Any]:

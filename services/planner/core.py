@@ -88,12 +88,18 @@ class PlannerCore:
         commands: bool = True,
         intents: FleetIntents | None = None,
         pose_every_s: float = 0.0,
+        intent_every_s: float = 0.0,
     ) -> None:
         self.cfg = planner
         # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
         self.intents = intents
         self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
         self._next_pose_t = 0.0
+        # > 0 in a fleet: publish the newest path on "intent" when it is made and this often
+        # after, so that one lost on the way is repaired (a path is made once per replan)
+        self.intent_every_s = intent_every_s
+        self._intent: PathMsg | None = None
+        self._next_intent_t = 0.0
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
         self.vehicle = vehicle
@@ -224,13 +230,27 @@ class PlannerCore:
             circles=self.world.circles, polygons=self.world.polygons, moving=tuple(moving)
         )
 
+    @property
+    def stats_counters(self) -> dict[str, int]:
+        """In a fleet, this planner's steps by each other vehicle's intent or track."""
+        return self.intents.counters if self.intents is not None else {}
+
     def step(self, t: float) -> list[Emit]:
+        if self.intents is not None and self.state is not None:
+            self.intents.tally(t)
         out = self._step(t)
         # a fleet's planner broadcasts the estimate it plans from: others take it, with its
         # path, as its intent while it comes (a dead planner's vehicle is a track again)
         if self.pose_every_s > 0.0 and self.state is not None and t >= self._next_pose_t:
             self._next_pose_t = t + self.pose_every_s - 1e-9
             out.append(Emit(stream="pose", msg=self.state))
+        if self.intent_every_s > 0.0:
+            made = [e.msg for e in out if e.stream == "path" and isinstance(e.msg, PathMsg)]
+            if made:
+                self._intent, self._next_intent_t = made[-1], t
+            if self._intent is not None and t >= self._next_intent_t:
+                self._next_intent_t = t + self.intent_every_s - 1e-9
+                out.append(Emit(stream="intent", msg=self._intent))
         return out
 
     def _step(self, t: float) -> list[Emit]:

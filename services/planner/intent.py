@@ -1,7 +1,8 @@
 """Other vehicles' intents: where a fleet's vehicles will be, from the paths they broadcast.
 
 Each planner of a fleet publishes the estimate it plans from (planner/pose, while it is alive)
-and its plan (planner/path); a planner that receives both from another vehicle knows that
+and its newest plan (planner/intent: each new path at once, then again every second, so a lost
+one is repaired); a planner that receives both from another vehicle knows that
 vehicle's trajectory: along its path from where its estimate puts it, at the speed the
 estimate gives (a stopped vehicle stays put), stopping at the path's end (its goal). That is a
 moving obstacle with a known trajectory alpha_k(t) for eq. (12)-(13) and for replanning,
@@ -96,6 +97,10 @@ class FleetIntents:
         self.max_age_s = max_age_s
         self.gives_way_to = frozenset(self.vehicles) if gives_way_to is None else gives_way_to
         self._heard = {v: _Heard() for v in self.vehicles}
+        # planner steps at which each other vehicle was handled by its fresh intent, or by its
+        # sonar track (its intent stale, lost or never heard): what deconfliction rested on
+        self.by_intent = dict.fromkeys(self.vehicles, 0)
+        self.by_track = dict.fromkeys(self.vehicles, 0)
 
     def offer(self, vehicle: str, msg: Message) -> bool:
         """Keep `msg` if it is the newest estimate or OK path of another vehicle; False if
@@ -107,9 +112,38 @@ class FleetIntents:
             if heard.state is None or msg.stamp >= heard.state.stamp:
                 heard.state = msg
         elif isinstance(msg, PathMsg) and msg.status == "OK":
-            if heard.path is None or msg.stamp >= heard.path.stamp:
+            # the newest only: a path is re-sent (services/mission/fleet.py) with its stamp
+            if heard.path is None or msg.stamp > heard.path.stamp:
                 heard.path, heard.route = msg, _route_of(msg)
         return True
+
+    def tally(self, t: float) -> None:
+        """Count, for this planner step at t, each other vehicle as handled by intent or by
+        track."""
+        for vid in self.vehicles:
+            if self._fresh(vid, t):
+                self.by_intent[vid] += 1
+            else:
+                self.by_track[vid] += 1
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """The tallies by name: 'intent.<vehicle>', 'track.<vehicle>'."""
+        out = {f"intent.{v}": n for v, n in self.by_intent.items()}
+        out.update({f"track.{v}": n for v, n in self.by_track.items()})
+        return out
+
+    def _fresh(self, vid: str, t: float) -> bool:
+        """Whether vehicle vid's intent is usable at t: an estimate at most max_age_s old and a
+        route of it."""
+        heard = self._heard[vid]
+        st = heard.state
+        return (
+            st is not None
+            and heard.route is not None
+            and t - st.stamp <= self.max_age_s
+            and len(heard.route[0]) >= 2
+        )
 
     def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
         """The intents this vehicle gives way to at time t, as obstacles at t, and the obstacle
@@ -118,13 +152,12 @@ class FleetIntents:
         out = []
         fresh = set()
         for vid, (oid, radius) in self.vehicles.items():
+            if not self._fresh(vid, t):
+                continue
             heard = self._heard[vid]
             st = heard.state
-            if st is None or heard.route is None or t - st.stamp > self.max_age_s:
-                continue
+            assert st is not None and heard.route is not None  # _fresh: both are there
             route, s_route = heard.route
-            if len(route) < 2:
-                continue
             fresh.add(oid)
             if vid not in self.gives_way_to:
                 continue

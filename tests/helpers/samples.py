@@ -187,6 +187,7 @@ def one_of_each() -> list[Message]:
             inputs_dropped={"planner/cmd->sensor": 3},
             inputs_rejected={"cmd.future": 2},
             resets={"vehicle_filter": 1},
+            counters={"intent.auv2": 40, "track.auv2": 2},
         ),
         RunEnd(stamp=12.5, seq=1, source=SOURCE, sent=SENT, reason="goal", ticks=250),
         Tick(

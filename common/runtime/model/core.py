@@ -66,3 +66,13 @@ class RestartsFilters(Protocol):
 
     @property
     def resets(self) -> Mapping[str, int]: ...
+
+
+@runtime_checkable
+class CountsForStats(Protocol):
+    """A core that counts something its run's metrics need (e.g. a fleet planner's steps by
+    intent or track per vehicle) reports it by name; its runtime publishes it in the service's
+    statistics."""
+
+    @property
+    def stats_counters(self) -> Mapping[str, int]: ...

@@ -24,6 +24,7 @@ from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, Tru
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
 from common.runtime.model.core import (
+    CountsForStats,
     Delivery,
     Emit,
     JudgesInputs,
@@ -307,4 +308,5 @@ class Host:
             inputs_dropped=self.drops.by_link(),
             inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
             resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
+            counters=dict(core.stats_counters) if isinstance(core, CountsForStats) else {},
         )
