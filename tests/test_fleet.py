@@ -380,3 +380,36 @@ def test_a_vehicle_whose_planner_dies_holds_and_the_other_passes_it() -> None:
     assert 0.05 < two["intent_fraction"] < 0.25
     assert one["intent_fraction"] is not None and one["intent_fraction"] < 0.25
     assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m
+
+
+@pytest.mark.slow
+def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
+    tmp_path: Path,
+) -> None:
+    # a real launch of the head-on pair (8 service processes); auv1's planner is SIGKILLed at
+    # t = 20 s and not restarted: auv1's vehicle holds, then fails safe, on its own watchdog;
+    # auv2 passes it (its last intent, then its sonar track) and reaches its goal; the run
+    # goes on to max_time, says what was lost, writes its metrics and is no success (exit 3)
+    from common.runtime.distributed.bringup import run_keys
+    from services.chaos.case import CaseSetup, run_case
+    from services.chaos.faults import Fault
+
+    setup = CaseSetup(
+        scenario=HEADON, sets=("run.max_time_s=95.0",), time_scale=3.0, fault_at_s=20.0
+    )
+    s, _ = load_scenario(HEADON, list(setup.sets))
+    got = run_case(
+        setup,
+        Fault("kill", "auv1.planner"),
+        tmp_path / "run",
+        run_keys(s),
+        load_mission(s).dataflow,
+    )
+    m = got.metrics
+    assert got.exit_code == 3 and got.leftovers == [], (got.exit_code, got.note, got.leftovers)
+    assert m["end_reason"] == "max_time" and m["failure"].startswith("auv1.planner lost: ")
+    one, two = m["vehicles"]["auv1"], m["vehicles"]["auv2"]
+    assert not one["reached_goal"] and one["hold_time_s"] + one["failsafe_time_s"] > 30.0
+    assert two["reached_goal"] and two["collisions"] == 0 and two["hold_time_s"] == 0.0
+    assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m
+    assert two["intent_fraction"] < 0.5  # by auv1's track after its intent went stale

@@ -106,10 +106,12 @@ def cmd_launch(a: argparse.Namespace) -> int:
         print(f"logs: {out / 'logs'}")
         for line in recorded:
             print(line)
-    if outcome.result.failure:
+    if outcome.result.failure and outcome.result.reason == "service_failed":
         # the metrics of the run until then are written; the failure is the exit status
         print(f"tidelink: error: {outcome.result.failure}", file=sys.stderr)
         return 1
+    if outcome.result.failure:  # a fleet went on without what it lost: its outcome says how
+        print(f"tidelink: {outcome.result.failure}", file=sys.stderr)
     if outcome.result.reason == "interrupted":
         return 130
     return report_outcome(outcome.metrics, json_output=a.json)

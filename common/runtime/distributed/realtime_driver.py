@@ -1,6 +1,12 @@
 """The realtime runtime's driver: wait for every service, run the mission clock, record the
 run, apply restart policies, and end on the mission's end, max_time or a stop request.
 
+A service that ends for good (its policy does not restart it, or its token is gone too long)
+fails the run, except in a fleet once the clock runs: there a vehicle that lost a service goes
+on without it (a lost planner: its vehicle holds, then fails safe, on its own watchdog) and so
+does the rest of the fleet, which still sees it (its last intent, then its sonar track); the
+run ends as it would have, and says what was lost (RunResult.failure). As a fleet at sea.
+
 One driver for every realtime run: `run_realtime` (this process is the router, services are
 forked here) and `tidelink launch` (a router process, supervised services, remote ones).
 """
@@ -18,6 +24,7 @@ from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.clock import MissionClock
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
+from common.runtime.model.dataflow import vehicle_of
 from common.runtime.model.mission import mission_record
 from common.runtime.model.record import Renumbering
 from common.runtime.model.result import RunResult
@@ -57,6 +64,8 @@ class RealtimeDriver:
         self.renumbering = Renumbering(self.record)  # a restarted service's seqs start over
         self.clock: MissionClock | None = None
         self.ending = False
+        self.fleet = bool(scenario.vehicles)
+        self.lost: dict[str, str] = {}  # fleet services gone for good, and how
 
     # -- events ------------------------------------------------------------------------------
     def supervise(self) -> None:
@@ -72,7 +81,7 @@ class RealtimeDriver:
             elif isinstance(ev, Restarted):
                 self.observer.event(f"restarted {ev.name!r} (pid {ev.pid}, restart {ev.attempt})")
             elif isinstance(ev, GaveUp):
-                raise ServiceFailed(ev.text)
+                self._lose(ev.name, ev.text)
 
     def take(self, ev: Event | None) -> None:
         """Record a message, or track a liveliness change."""
@@ -114,12 +123,30 @@ class RealtimeDriver:
 
     def _check_gone(self) -> None:
         now = time.monotonic()
-        for service, since in self.gone_since.items():
+        for service, since in list(self.gone_since.items()):
             if now - since > self.timeout_s and not self.sup.pending_restart(service):
-                raise ServiceFailed(
+                self._lose(
+                    service,
                     f"service {service!r} has been gone (no liveliness token) "
-                    f"for {self.timeout_s:g} s"
+                    f"for {self.timeout_s:g} s",
                 )
+
+    def _lose(self, service: str, why: str) -> None:
+        """A service ended for good: the run fails, unless a fleet's run is under way and
+        another vehicle still has all of its services (then it goes on without this one)."""
+        vehicle = vehicle_of(service)
+        crippled = {vehicle_of(n) for n in self.lost} | {vehicle}
+        whole = {vehicle_of(n) for n in self.names} - crippled
+        if not (self.fleet and self.clock is not None and vehicle and whole):
+            raise ServiceFailed(why)
+        self.lost[service] = why
+        self.names.discard(service)
+        self.alive.discard(service)
+        self.gone_since.pop(service, None)
+        self.observer.event(
+            f"{why}: vehicle {vehicle} goes on without {service!r}, and the fleet with it "
+            f"(t={self.clock.now_us() / 1e6:.2f} s)"
+        )
 
     # -- phases ------------------------------------------------------------------------------
     def await_alive(self, inbox: Inbox) -> None:
@@ -184,7 +211,9 @@ class RealtimeDriver:
         self.observer.progress(t_end_us / 1e6)
         self.observer.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
         self._collect_final(inbox)
-        return RunResult(reason, t_end_us / 1e6, 0, self.record, self.mission.metrics(self.record))
+        lost = "; ".join(f"{n} lost: {why}" for n, why in self.lost.items())
+        metrics = self.mission.metrics(self.record)
+        return RunResult(reason, t_end_us / 1e6, 0, self.record, metrics, failure=lost)
 
     def _collect_final(self, inbox: Inbox) -> None:
         """Take the final statistics each service sends as it stops: a service is done
