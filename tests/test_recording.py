@@ -243,7 +243,9 @@ KILL_AT_BYTES = 256 * 1024  # the killed recorder's file by then holds several c
 def realtime_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealtimeRun]:
     d = tmp_path_factory.mktemp("realtime")
     out, endpoint = d / "run", f"tcp/127.0.0.1:{free_port()}"
-    scale = ("--time-scale", "8")
+    # 4x, not 8x: three remote recorders beside the run's own, on 2 cores, and the watch
+    # copies they take are sent DROP: at 8x one lost 26 of 1811 frames once (a fresh clone)
+    scale = ("--time-scale", "4")
     files = {name: d / f"{name}.mcap" for name in ("full", "killed", "stopped")}
     with ExitStack() as stack:
         stack.callback(kill_recorded, out / "pids.json")
