@@ -158,3 +158,73 @@ def test_a_launch_across_namespaces_survives_a_link_outage(
         for p in ps
         if alive(p)
     ]
+
+
+FLEET = ("auv1", "auv2")
+
+
+def test_a_fleet_launch_puts_each_vehicle_on_its_own_host(tmp_path: Path) -> None:
+    """The head-on pair (configs/fleet_headon.toml) across three namespaces: the router and the
+    clock on one, each vehicle's four services on its own, joined to the router's by a veth
+    pair. Every vehicle-to-vehicle message (sonar truth, intents) crosses two links; both
+    vehicles reach their goals, apart, and every service leaves by itself at the end."""
+    out = tmp_path / "run"
+    scenario = str(REPO / "configs" / "fleet_headon.toml")
+    with lab_or_skip() as lab:
+        router = lab.namespace("r")
+        links = {
+            v: lab.veth(router, lab.namespace(v), f"10.202.{i}", f"f{i}")
+            for i, v in enumerate(FLEET, 1)
+        }
+        try:
+            with ExitStack() as stack:
+                launcher = stack.enter_context(
+                    Tidelink(
+                        "launch",
+                        scenario,
+                        "--only",
+                        "",
+                        "--listen",
+                        f"tcp/0.0.0.0:{PORT}",
+                        "--time-scale",
+                        "4",
+                        "--out",
+                        str(out),
+                        "--no-plot",
+                        "--insecure",
+                        netns=router,
+                    )
+                )
+                launcher.wait_for(r"waiting for .* to join", WAIT_S)
+                services = {
+                    f"{v}.{s}": stack.enter_context(
+                        Tidelink(
+                            "service",
+                            s,
+                            scenario,
+                            "--vehicle",
+                            v,
+                            "--connect",
+                            f"tcp/{links[v].ip_a}:{PORT}",
+                            "--time-scale",
+                            "4",
+                            netns=links[v].ns_b,
+                        )
+                    )
+                    for v in FLEET
+                    for s in SERVICES
+                }
+                launcher.wait_for(r"all 8 services alive", WAIT_S)
+                assert launcher.wait(2 * WAIT_S) == judged_exit(out), launcher.stderr
+                for name, proc in services.items():  # each leaves by itself on the stop Tick
+                    assert proc.wait(WAIT_S) == 0, f"{name}:\n{proc.stderr}"
+        finally:
+            kill_recorded(out / "pids.json")
+        sent = {v: link_bytes(links[v].ns_b, links[v].dev_b)[0] for v in FLEET}
+    m = json.loads((out / "metrics.json").read_text())
+    summary = {k: v for k, v in m.items() if k not in ("link_stats", "vehicles")}
+    assert m["reached_goal"] is True and m["vehicles_reached"] == 2, summary
+    assert m["vehicle_collisions"] == 0 and m["min_separation_m"] > 0.0, summary
+    assert m["intent_fraction"] > 0.5, summary  # the intents crossed the hosts
+    for v in FLEET:  # each vehicle's traffic went over its own host's link
+        assert sent[v] > 10_000, (v, sent)
