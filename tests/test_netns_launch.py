@@ -67,19 +67,16 @@ def hosts() -> Iterator[Hosts]:
         yield Hosts(lab)
 
 
-@pytest.mark.parametrize("security", ["insecure", "mtls"])
-def test_a_launch_across_namespaces_survives_a_link_outage(
-    hosts: Hosts, tmp_path: Path, certs: Path, security: str
+def test_a_secured_launch_across_namespaces_survives_a_link_outage(
+    hosts: Hosts, tmp_path: Path, certs: Path
 ) -> None:
-    """Plain TCP (--insecure: the namespaces are this test's own network), then the same
-    deployment secured: mutual TLS to the router's addresses (its certificate names them),
-    the run's access control enforced."""
+    """Secured: mutual TLS to the router's addresses (its certificate names them), the run's
+    access control enforced. (Plain TCP across namespaces, --insecure: the fleet test below.)"""
     out = tmp_path / "run"
     scenario = str(REPO / "configs" / "default.toml")
     sets = [a for s in SETS for a in ("--set", s)]
-    # services never listen: they need no --insecure, only the certificates when secured
-    joined = [] if security == "insecure" else ["--certs", str(certs)]
-    secure = joined or ["--insecure"]
+    # services never listen: they need only the certificates
+    joined = secure = ["--certs", str(certs)]
     try:
         with ExitStack() as stack:
             launcher = stack.enter_context(
