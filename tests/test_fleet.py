@@ -301,11 +301,11 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
 
 @pytest.mark.deterministic
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 2])
-def test_fleet4_in_lockstep_equals_inproc(seed: int, tmp_path: Path) -> None:
+def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     # 16 service processes and the clock over one Zenoh session each; the first 30 s of the
-    # four vehicles crossing the default field (their first encounters: from ~15 s on), ~45 s
-    sets = ["run.max_time_s=30.0", f"run.seed={seed}"]
+    # four vehicles crossing the default field (their first encounters: from ~15 s on): ~50 s
+    # alone, 75-100 s beside the other worker, so one seed here (seed 2 was checked as well)
+    sets = ["run.max_time_s=30.0", "run.seed=1"]
     s, raw = load_scenario(FLEET4, sets, check=check_scenario)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")

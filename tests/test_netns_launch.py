@@ -61,6 +61,15 @@ class Hosts:
         return link_bytes(veth.ns_b, veth.dev_b)[0]
 
 
+def _clock_only(scenario: str, netns: str, out: Path, scale: str, *args: str) -> Tidelink:
+    """`tidelink launch` of the router and the clock alone (--only ''), listening on every
+    address of namespace `netns`; the services join from other namespaces."""
+    return Tidelink(
+        "launch", scenario, "--only", "", "--listen", f"tcp/0.0.0.0:{PORT}",
+        "--time-scale", scale, "--out", str(out), *args, netns=netns,
+    )  # fmt: skip
+
+
 @pytest.fixture
 def hosts() -> Iterator[Hosts]:
     with lab_or_skip() as lab:
@@ -80,21 +89,7 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
     try:
         with ExitStack() as stack:
             launcher = stack.enter_context(
-                Tidelink(
-                    "launch",
-                    scenario,
-                    "--only",
-                    "",
-                    "--listen",
-                    f"tcp/0.0.0.0:{PORT}",
-                    "--time-scale",
-                    SCALE,
-                    "--out",
-                    str(out),
-                    *sets,
-                    *secure,
-                    netns=hosts.router,
-                )
+                _clock_only(scenario, hosts.router, out, SCALE, *sets, *secure)
             )
             launcher.wait_for(r"waiting for estimator, planner, sensor, vehicle to join", WAIT_S)
             services = {
@@ -176,21 +171,7 @@ def test_a_fleet_launch_puts_each_vehicle_on_its_own_host(tmp_path: Path) -> Non
         try:
             with ExitStack() as stack:
                 launcher = stack.enter_context(
-                    Tidelink(
-                        "launch",
-                        scenario,
-                        "--only",
-                        "",
-                        "--listen",
-                        f"tcp/0.0.0.0:{PORT}",
-                        "--time-scale",
-                        "4",
-                        "--out",
-                        str(out),
-                        "--no-plot",
-                        "--insecure",
-                        netns=router,
-                    )
+                    _clock_only(scenario, router, out, "4", "--no-plot", "--insecure")
                 )
                 launcher.wait_for(r"waiting for .* to join", WAIT_S)
                 services = {
