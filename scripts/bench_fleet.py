@@ -8,6 +8,16 @@ fleet is its wall time over N x seconds (vehicle-seconds), and its scaling ratio
 cost(N) / cost(1) (goal <= 1.3: linear in N). The baseline, one vehicle, is measured in the
 same run, after a warm-up run. Inproc runs every N; lockstep (one process per service, the
 clock over Zenoh) runs N up to --lockstep-max (default 8: 33 processes).
+
+Realtime (--realtime-sizes, default 1,2,4): the same fleets at time scale 1, every link
+ideal (no modelled delay or loss), each service its own process; per vehicle, the delay each
+receiver measured on the control loop's three hops (sensor/nav -> estimator, estimator/state
+-> planner, planner/cmd -> vehicle: from its sending, by the sender's mission clock, to its
+delivery, by the receiver's, negatives counted 0: transport and queueing on the real bus and
+the two clocks' offset, not the services' periods), p50 / p95 / max (the statistics carry
+no p99). Goal
+(issue 18): every vehicle's loop within 10 ms at N = 4; judged here on the sum of its hops'
+p95 (and shown with their max); the largest N that holds it is reported.
 """
 
 from __future__ import annotations
@@ -18,10 +28,18 @@ from typing import Any
 
 from common.config.scenario import Scenario, scenario_from_raw
 from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
+from common.runtime.run import link_stats
 from common.world.check import check_scenario
 
 LANE_M = 6.0  # between two vehicles' lanes: hull to hull 5 m, well clear of rho0
+LOOP = (
+    ("sensor", "nav", "estimator"),
+    ("estimator", "state", "planner"),
+    ("planner", "cmd", "vehicle"),
+)
+LOOP_GOAL_MS = 10.0
 
 
 def fleet_raw(n: int, seconds: float) -> dict[str, Any]:
@@ -57,6 +75,10 @@ def main() -> None:
     ap.add_argument("--sizes", default="1,2,4,8,16", help="fleet sizes (default 1,2,4,8,16)")
     ap.add_argument("--seconds", type=float, default=20.0, help="mission seconds per run")
     ap.add_argument("--lockstep-max", type=int, default=8, help="largest N run in lockstep")
+    ap.add_argument(
+        "--realtime-sizes", default="1,2,4", help="fleet sizes run in realtime ('' for none)"
+    )
+    ap.add_argument("--realtime-seconds", type=float, default=20.0, help="mission s each, realtime")
     a = ap.parse_args()
     sizes = sorted({int(x) for x in a.sizes.split(",")} | {1})
     rows = []
@@ -90,6 +112,46 @@ def main() -> None:
     print("\nruntime   N   wall (s)  ms/vehicle-s  scaling (goal <= 1.3)")
     for runtime, n, wall, per, ratio in rows:
         print(f"{runtime:8s} {n:2d}  {wall:8.1f}  {1e3 * per:12.1f}  {ratio:7.2f}")
+    if a.realtime_sizes:
+        realtime_loops(sorted({int(x) for x in a.realtime_sizes.split(",")}), a.realtime_seconds)
+
+
+def _hop(
+    links: dict[str, dict[str, Any]], vid: str, hop: tuple[str, str, str]
+) -> tuple[float, ...]:
+    """(p50, p95, max) in ms that vehicle vid's receiver measured on one hop of its loop."""
+    src, stream, dst = hop
+    m = links.get(f"{vid}.{src}/{stream}->{vid}.{dst}", {})
+    keys = ("measured_delay_p50_s", "measured_delay_p95_s", "measured_delay_max_s")
+    return tuple(1e3 * float(m.get(k, float("nan"))) for k in keys)
+
+
+def realtime_loops(sizes: list[int], seconds: float) -> None:
+    """Each fleet size at time scale 1 on ideal links: every vehicle's loop, hop by hop."""
+    print(f"\nrealtime, time scale 1, ideal links, {seconds:g} s each: per vehicle, ms")
+    hops = "   ".join(f"{h:>20s}" for h in ("nav->est", "state->plan", "cmd->veh"))
+    print(f"  N  vehicle  {hops}   sum p95   (each hop: p50/p95/max)")
+    held = 0
+    for n in sizes:
+        raw = fleet_raw(n, seconds)
+        raw["runtime"] = {"kind": "realtime", "time_scale": 1.0}
+        raw["network"] = {"default": {"delay_s": 0.0}}
+        s = scenario_from_raw(raw, f"fleet{n}-realtime", check=check_scenario)
+        links = link_stats(run_realtime(s, raw).record)
+        worst = 0.0
+        for v in s.vehicles:
+            hops = [_hop(links, v.id, h) for h in LOOP]
+            total = sum(h[1] for h in hops)
+            worst = max(worst, total)
+            cells = "   ".join(f"{h[0]:5.2f}/{h[1]:5.2f}/{h[2]:6.2f}" for h in hops)
+            print(f" {n:2d}  {v.id:7s}  {cells}   {total:6.2f}", flush=True)
+        ok = worst <= LOOP_GOAL_MS
+        held = n if ok else held
+        print(
+            f" {n:2d}  worst loop (sum of p95) {worst:.2f} ms: goal <= {LOOP_GOAL_MS:g} ms "
+            f"{'held' if ok else 'NOT held'}"
+        )
+    print(f"largest N holding the realtime loop goal: {held or 'none'}")
 
 
 if __name__ == "__main__":
