@@ -263,6 +263,30 @@ def _run_segments(client: FoxgloveClient) -> list[list[float]]:
     return runs
 
 
+def _pump_until_logged(client: FoxgloveClient, bridge: Tidelink, line: str, start: int) -> None:
+    """Keep reading the socket, as the app does, until the bridge logs `line` (a server's
+    queue for a client that does not read is bounded: it may drop what was sent meanwhile)."""
+
+    def logged() -> bool:
+        return any(line in x for x in bridge.err[start:])
+
+    client.wait_until(logged, WAIT_S, f"the bridge's {line!r}")
+
+
+def _arrivals(client: FoxgloveClient) -> list[tuple[str, int]]:
+    """The client's run infos and true poses as (topic, count) runs in arrival order: what
+    a failure shows."""
+    out: list[tuple[str, int]] = []
+    for m in client.messages:
+        if m.topic not in ("/run/info", "/vehicle/pose_true"):
+            continue
+        if out and out[-1][0] == m.topic:
+            out[-1] = (m.topic, out[-1][1] + 1)
+        else:
+            out.append((m.topic, 1))
+    return out
+
+
 @pytest.mark.slow
 def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_another(
     tmp_path: Path,
@@ -277,11 +301,11 @@ def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_ano
             for n, name in enumerate(("first", "second"), start=1):
                 start = len(bridge.err)
                 with _run(name, router, tmp_path, 30.0) as run:
-                    bridge.wait_for(f"watching run {name}/auv1", WAIT_S, start=start)
+                    _pump_until_logged(client, bridge, f"watching run {name}/auv1", start)
                     while run.proc.poll() is None:
-                        client.pump(0.2)  # keep reading, as the app does
+                        client.pump(0.2)
                     assert run.wait(WAIT_S) == 3, run.stderr  # max_time: goal not reached
-                bridge.wait_for(f"run {name}/auv1 is over", WAIT_S, start=start)
+                _pump_until_logged(client, bridge, f"run {name}/auv1 is over", start)
 
                 def infos(n: int = n) -> bool:
                     return len(client.on("/run/info")) >= n
@@ -296,7 +320,12 @@ def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_ano
         # both runs were shown from (about) their start, the second too: the bridge opened a
         # new session as soon as its router listened, without waiting out Zenoh's back-off
         for name, stamps in zip(names, _run_segments(client), strict=True):
-            assert stamps and min(stamps) < 4.0 and max(stamps) > 25.0, (name, stamps[:3])
+            assert stamps and min(stamps) < 4.0 and max(stamps) > 25.0, (
+                name,
+                stamps[:3],
+                _arrivals(client),
+                bridge.stderr[-3000:],
+            )
         bridge.signal(signal.SIGTERM)
         assert bridge.wait(WAIT_S) == 0, bridge.stderr
         assert "the router at" in bridge.stderr and "is gone" in bridge.stderr
