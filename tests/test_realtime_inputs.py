@@ -73,3 +73,23 @@ def test_only_the_clocks_keys_carry_ticks(svc: RealtimeService) -> None:
     # data on a tick key is ignored; a stop tick there ends the run
     assert not svc._handle(Received(svc.keys.tick(["estimator"]), _fix(), None))
     assert svc._handle(Received(svc.keys.tick(["estimator"]), stop, None))
+
+
+def test_every_tick_after_the_first_moves_the_clock_only_forward_to_the_least_delay() -> None:
+    _, raw = load_scenario(DEFAULT)
+    svc = RealtimeService(ServiceSetup.of("estimator", raw, "tcp/127.0.0.1:7447"))
+    key = svc.keys.tick(["estimator"])
+
+    def tick(t_s: float) -> None:
+        t_us = round(t_s * 1e6)
+        svc._handle(Received(key, Tick(stamp=t_s, tick=1, time_us=t_us, watermarks={}), None))
+
+    tick(10.0)  # joined at 10 s, from a Tick that may have been delayed
+    # a Tick saying the launcher's clock reads 5 ms (wall) more is believed at once ...
+    ahead = svc.now_us() + round(svc.scale * 5000)
+    tick(ahead / 1e6)
+    assert svc.now_us() >= ahead
+    # ... one saying less (delayed more than the least delay seen) changes nothing
+    before = svc.now_us()
+    tick((before - round(svc.scale * 500_000)) / 1e6)
+    assert 0 <= svc.now_us() - before < svc.scale * 1000

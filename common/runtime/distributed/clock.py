@@ -1,8 +1,9 @@
 """The realtime mission clock: scaled wall time since the start Tick.
 
-Services set their clock from the first Tick they see (distributed.realtime_service), so the
-realtime driver re-publishes the current mission time: at once when a service (re)appears,
-and periodically, so a restarted or late remote service joins at the right time.
+Services set their clock from the first Tick they see and correct it with every later one
+(distributed.realtime_service), so the realtime driver re-publishes the current mission time:
+at once when a service (re)appears, and periodically, so a restarted or late remote service
+joins at the right time and every service's clock converges on the launcher's.
 """
 
 from __future__ import annotations

@@ -38,7 +38,9 @@ from common.runtime.processes.supervisor import (
 
 SERVICE_MODULE = "common.runtime.distributed.realtime_service"
 
-RETELL_S = 1.0  # wall seconds between re-publications of the mission time (late joiners)
+# wall seconds between re-publications of the mission time: late joiners start from it, and
+# every service corrects its clock with it (realtime_service: the least-delayed Tick wins)
+RETELL_S = 0.2
 CHECK_EVERY_S = 0.1  # wall seconds between supervision checks and progress reports
 FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
 GONE_GRACE_S = 0.5  # after a service's token went: its last frames may still be on their way

@@ -38,11 +38,18 @@ class RealtimeService:
 
     The clock starts with the first Tick seen: a service that joins late (restarted by the
     launcher, or started on another host) starts its schedule at the Tick's mission time
-    instead of replaying every period since 0. A step that falls behind by whole periods (a
-    long replan, a descheduled process) skips the missed periods, as a real-time loop must:
-    commands stamped in the past would only be rejected as stale. The service stops on a stop
-    Tick, or when the clock's liveliness token stays gone for CLOCK_GRACE_S (its launcher is
-    gone, not merely this service's connection).
+    instead of replaying every period since 0. Every later Tick corrects it (`_refine`): a
+    Tick's time was read before it travelled, so each one bounds the launcher's time 0 from
+    above, and the earliest bound is the nearest (a one-way minimum-delay filter, as NTP
+    keeps its minimum-delay sample). The first Tick reaches a service that is still starting
+    up late by milliseconds, different in every process; uncorrected, that skew between two
+    services' clocks was in every message's age and made a zero-delay hop wait for it (a
+    message is handed over at max(its delivery time, arrival) on the receiver's clock).
+
+    A step that falls behind by whole periods (a long replan, a descheduled process) skips
+    the missed periods, as a real-time loop must: commands stamped in the past would only be
+    rejected as stale. The service stops on a stop Tick, or when the clock's liveliness token
+    stays gone for CLOCK_GRACE_S (its launcher is gone, not merely this service's connection).
 
     A flood cannot stall the loop: the inbox sheds its oldest samples once INBOX_MAX_PENDING
     wait, each input holds at most its max_queued deliveries, and what is dropped or refused
@@ -112,6 +119,13 @@ class RealtimeService:
         if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
 
+    def _refine(self, t_us: int) -> None:
+        """Move time 0 earlier if this Tick (mission time t_us when it was sent) says the
+        launcher's clock is ahead of ours: mission time only ever jumps forward, by the
+        difference between this Tick's delay and the least delay seen so far."""
+        assert self.t0 is not None
+        self.t0 = min(self.t0, time.monotonic() - t_us / 1e6 / self.scale)
+
     def _shed(self, key: str, n: int) -> None:
         """The inbox shed n samples of `key`: count them against that input."""
         try:
@@ -149,6 +163,8 @@ class RealtimeService:
                 return True
             if self.t0 is None:
                 self._join(ev.msg.time_us)
+            else:
+                self._refine(ev.msg.time_us)
             return False
         if self.t0 is None:
             return False
