@@ -15,13 +15,9 @@
    loop's dataflow) against plain, runs interleaved plain, secured, plain, secured, ...
    (target: secured / plain <= 1.2 at p50); the certificates are made for the benchmark in
    a temporary directory. Each run's wall time (bring-up, handshakes and teardown included)
-   is shown too. Read the loop's ratio against the spread between runs of one kind: each
-   service starts its clock at the first Tick it receives (realtime_service), and that skew
-   between services, milliseconds on a loaded 2-core machine and different in every run,
-   is in every command age twice over: as an offset between the sensor's and the plant's
-   clocks, and as real waits (a zero-delay message is handed over at max(its send time,
-   arrival) on the receiver's clock, so a receiver whose clock started later holds it) —
-   far more than mTLS costs;
+   is shown too. Read the loop's ratio against the spread between runs of one kind (each
+   service's clock follows the least-delayed Tick it received, realtime_service: within
+   ~0.1 ms of the others here, but any skew left is in every command age);
 6. so, beside it, what the secured loop pays per hop, without the loop's clocks: one of its
    hops (sensor -> router -> filter, the typed bus, scripts/_bus_hop.py) one-way, plain,
    mTLS, and mTLS + the loop's access control, interleaved rounds; with each client's

@@ -21,6 +21,10 @@ log = logging.getLogger("tidelink.realtime")
 # Events a service lets wait before shedding the oldest samples (a flood it cannot keep up
 # with): at ~20 us an event, 1024 are ~20 ms of backlog. Ticks and liveliness are never shed.
 INBOX_MAX_PENDING = 1024
+# Events taken from the inbox at once before the steps that are due run: enough for the
+# Ticks a frozen process finds waiting, little enough (~1 ms at ~20 us an event) that a flood
+# does not hold a step back.
+DRAIN_MAX = 64
 # A delivery modelled further ahead than this (mission seconds) is no link's delay but a
 # forged routing: it would hold a queue slot until then.
 MAX_DELIVERY_AHEAD_S = 60.0
@@ -85,8 +89,7 @@ class RealtimeService:
                 if self.clock_lost_at is not None:
                     left = self.clock_lost_at + CLOCK_GRACE_S - time.monotonic()
                     timeout = max(0.0, left if timeout is None else min(timeout, left))
-                ev = inbox.get(timeout=timeout)
-                if (ev is not None and self._handle(ev)) or self._clock_gone():
+                if self._take(inbox, timeout) or self._clock_gone():
                     if self.t0 is not None:
                         # the final statistics, with source and seq like every message (a
                         # run's record refuses one without: anyone could have put it)
@@ -112,6 +115,20 @@ class RealtimeService:
                     # the core sees the scheduled event time; late wake-ups do not skew periods
                     for o in self.host.run_tick(self.ticks, t_us):
                         pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
+
+    def _take(self, inbox: Inbox, timeout: float | None) -> bool:
+        """Wait up to `timeout` for an event, then take what else is already waiting (at most
+        DRAIN_MAX in all) before any step runs; True when the run is over. A process that was
+        frozen (SIGSTOP) finds a second of Ticks queued per RETELL_S: taken one at a time,
+        each would move its clock by one re-tell and let it step through the past."""
+        ev = inbox.get(timeout=timeout)
+        for _ in range(DRAIN_MAX):
+            if ev is None:
+                return False
+            if self._handle(ev):
+                return True
+            ev = inbox.get(timeout=0.0)
+        return ev is not None and self._handle(ev)
 
     def _join(self, t_us: int) -> None:
         """Start the clock at mission time t_us (0 at the start; later for a late joiner)."""
