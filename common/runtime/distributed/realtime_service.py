@@ -21,10 +21,10 @@ log = logging.getLogger("tidelink.realtime")
 # Events a service lets wait before shedding the oldest samples (a flood it cannot keep up
 # with): at ~20 us an event, 1024 are ~20 ms of backlog. Ticks and liveliness are never shed.
 INBOX_MAX_PENDING = 1024
-# Events taken from the inbox at once before the steps that are due run: enough for the
-# Ticks a frozen process finds waiting, little enough (~1 ms at ~20 us an event) that a flood
-# does not hold a step back.
-DRAIN_MAX = 64
+# A Tick that moves a service's clock forward by more than this (wall seconds) means the
+# service is catching up (it just joined, or was frozen): it takes every event already
+# waiting before its due steps run (see RealtimeService._take).
+CATCH_UP_S = 0.01
 # A delivery modelled further ahead than this (mission seconds) is no link's delay but a
 # forged routing: it would hold a queue slot until then.
 MAX_DELIVERY_AHEAD_S = 60.0
@@ -71,6 +71,7 @@ class RealtimeService:
         self.ticks = 0
         self.skipped = 0  # periods skipped because the loop fell behind
         self.clock_lost_at: float | None = None  # wall time the clock's token vanished
+        self._catching_up = False  # the last Tick moved the clock by more than CATCH_UP_S
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -117,22 +118,27 @@ class RealtimeService:
                         pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
 
     def _take(self, inbox: Inbox, timeout: float | None) -> bool:
-        """Wait up to `timeout` for an event, then take what else is already waiting (at most
-        DRAIN_MAX in all) before any step runs; True when the run is over. A process that was
-        frozen (SIGSTOP) finds a second of Ticks queued per RETELL_S: taken one at a time,
-        each would move its clock by one re-tell and let it step through the past."""
+        """Wait up to `timeout` for an event and take it; while catching up, take every event
+        already waiting too, before any step runs. True when the run is over.
+
+        A process frozen (SIGSTOP) before its first Tick finds a Tick per RETELL_S queued,
+        each one newer: taken one at a time, each would move its clock by one re-tell and
+        let it step through the past. Only then: otherwise (a flood above all) one event at
+        a time, with the due steps between, so a burst of copies cannot crowd a fresh
+        message out of its input's queue before it is handed over."""
         ev = inbox.get(timeout=timeout)
-        for _ in range(DRAIN_MAX):
-            if ev is None:
-                return False
+        while ev is not None:
             if self._handle(ev):
                 return True
+            if not self._catching_up:
+                return False
             ev = inbox.get(timeout=0.0)
-        return ev is not None and self._handle(ev)
+        return False
 
     def _join(self, t_us: int) -> None:
         """Start the clock at mission time t_us (0 at the start; later for a late joiner)."""
         self.t0 = time.monotonic() - t_us / 1e6 / self.scale
+        self._catching_up = True
         if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
 
@@ -141,7 +147,9 @@ class RealtimeService:
         launcher's clock is ahead of ours: mission time only ever jumps forward, by the
         difference between this Tick's delay and the least delay seen so far."""
         assert self.t0 is not None
-        self.t0 = min(self.t0, time.monotonic() - t_us / 1e6 / self.scale)
+        t0 = time.monotonic() - t_us / 1e6 / self.scale
+        self._catching_up = t0 < self.t0 - CATCH_UP_S
+        self.t0 = min(self.t0, t0)
 
     def _shed(self, key: str, n: int) -> None:
         """The inbox shed n samples of `key`: count them against that input."""
