@@ -51,3 +51,32 @@ def test_projection_matches_the_exact_closest_point() -> None:
         s_exact = float(path.s_at_u(np.array([u_exact]))[0])
         assert abs(ref.closest_s(float(q[0]), float(q[1]), s_true) - s_exact) < 5e-3  # m
         assert abs(ref.closest_s(float(q[0]), float(q[1]), None) - s_exact) < 5e-3
+
+
+def test_the_curvature_bound_holds_over_every_stretch_and_leaves_the_speed_unchanged() -> None:
+    from common.config.controller import SpeedConfig
+    from common.config.vehicle import VehicleConfig
+    from services.planner.controllers.base import Limits
+    from services.planner.controllers.speed import target_speed
+
+    ref = PathArcReference(_path(), 1.5)
+    rng = np.random.default_rng(5)
+    limits = Limits.from_vehicle(VehicleConfig())
+    gentle, tight_budget = SpeedConfig(), SpeedConfig(curvature_budget=0.05)
+
+    class Sampled:  # the same path without the bound: every preview sample taken
+        length, v_ref = ref.length, ref.v_ref
+        curvature_at_s = ref.curvature_at_s
+
+    tight = 0
+    for _ in range(300):
+        s0 = float(rng.uniform(-1.0, ref.length + 1.0))
+        s1 = s0 + float(rng.choice([0.0, 0.01, 0.5, 4.5, 30.0]))
+        bound = ref.curvature_bound(s0, s1)
+        worst = max(abs(ref.curvature_at_s(float(s))) for s in np.linspace(s0, s1, 41))
+        assert worst <= bound <= worst + 0.05, (s0, s1)
+        for cfg in (gentle, tight_budget):
+            v = target_speed(ref, s0, cfg, limits)
+            assert v == target_speed(Sampled(), s0, cfg, limits)  # type: ignore[arg-type]
+            tight += v < min(ref.v_ref, limits.v_max) and ref.length - s0 > 10.0
+    assert tight > 0  # the bends do slow the profile somewhere: both branches were compared

@@ -39,6 +39,7 @@ class PathArcReference:
         self._yl: list[float] = self._y.tolist()
         self._headingl: list[float] = self._heading.tolist()
         self._kl: list[float] = self._k.tolist()
+        self._k_max = _range_max_table(np.abs(self._k))
         self._length = path.length
 
     @property
@@ -100,6 +101,30 @@ class PathArcReference:
     def curvature_at_s(self, s: float) -> float:
         sl = self._sl
         return _lerp(sl, self._kl, bisect_right(sl, s) - 1, s)
+
+    def curvature_bound(self, s0: float, s1: float) -> float:
+        """An upper bound of |curvature_at_s(s)| for s0 <= s <= s1 (an interpolated value lies
+        between its two table samples: the largest |sample| of the segments spanned, one more
+        on either side for a query rounded across a node, and a margin over the rounding of
+        the interpolation), from a range-maximum table in O(1)."""
+        sl, last = self._sl, len(self._sl) - 1
+        lo = max(bisect_right(sl, s0) - 2, 0)
+        hi = min(bisect_right(sl, s1) + 1, last)
+        if hi < lo:
+            lo, hi = hi, lo
+        level = (hi - lo + 1).bit_length() - 1
+        row = self._k_max[level]
+        return max(row[lo], row[hi - (1 << level) + 1]) * (1.0 + 1e-9)
+
+
+def _range_max_table(values: np.ndarray) -> list[list[float]]:
+    """Sparse table: row r holds max(values[i : i + 2^r]) at i (a range maximum is then the
+    larger of two overlapping rows' entries)."""
+    rows = [values]
+    while 2 * rows[-1].size > values.size and rows[-1].size > 1:
+        half = 1 << (len(rows) - 1)
+        rows.append(np.maximum(rows[-1][:-half], rows[-1][half:]))
+    return [r.tolist() for r in rows]
 
 
 def _lerp(xs: list[float], ys: list[float], j: int, x: float) -> float:
