@@ -303,11 +303,15 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
 # run in scripts/test's serial phase (beside the other worker it took 76 s and slowed the tests
 # running there twofold: phase 1 530 -> 640 s in a fresh clone)
 @pytest.mark.slow
-def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
-    # 16 service processes and the clock over one Zenoh session each; the first 30 s of the
-    # four vehicles crossing the default field (their first encounters: from ~15 s on): ~50 s
-    # alone, so one seed here (seed 2 was checked as well)
-    sets = ["run.max_time_s=30.0", "run.seed=1"]
+@pytest.mark.parametrize(("seed", "max_time_s"), [(1, None), (2, 30.0)])
+def test_fleet4_in_lockstep_equals_inproc(
+    seed: int, max_time_s: float | None, tmp_path: Path
+) -> None:
+    # 16 service processes and the clock over one Zenoh session each. Seed 1 whole: every
+    # vehicle at its goal, no contact, no two hulls within rho0, in both runtimes (~45 s of
+    # inproc, ~50 s of lockstep here); seed 2 over the first 30 s, the four vehicles' first
+    # encounters (from ~15 s on), to keep the suite's time (its whole run was checked too)
+    sets = [f"run.seed={seed}"] + ([] if max_time_s is None else [f"run.max_time_s={max_time_s}"])
     s, raw = load_scenario(FLEET4, sets, check=check_scenario)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
@@ -317,6 +321,12 @@ def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
         for stream in ("path", "intent", "stats"):
             key = (f"{vid}.planner", stream)
             assert got.record.stream(*key) == ref.record.stream(*key), key
+    if max_time_s is None:
+        m = got.metrics
+        assert m["outcome"] == "success" and m["vehicles_reached"] == 4, m["outcome"]
+        assert m["vehicle_collisions"] == 0 and m["collisions"] == 0
+        assert m["min_separation_m"] >= s.planner.rho0_m and m["rho0_breach_m"] == 0.0
+        assert m["makespan_s"] is not None and m["makespan_s"] < s.run.max_time_s
 
 
 # -- launching -------------------------------------------------------------------------------
