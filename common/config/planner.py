@@ -63,11 +63,6 @@ class PlannerConfig:
     corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
-    # realtime: a plan that reached the vehicle this much later than the planner expected (the
-    # median of its last plans' computing times: services/planner/plan_lag.py) started where
-    # the vehicle no longer is: plan again at once from the newest estimate (once). Steps in
-    # lockstep and inproc take no mission time: there it never applies. Above period_s.
-    late_plan_s: float = 0.5
     # the first plan waits (holding the vehicle still) until the estimator's tracks hold a
     # track, i.e. reflect at least one sonar scan, so eq. (12)-(13) see the moving obstacles
     # in view; from this mission time on it plans with what it has
@@ -107,12 +102,6 @@ class PlannerConfig:
         ):
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)
-        if not (math.isfinite(self.late_plan_s) and self.late_plan_s > self.period_s):
-            raise ConfigValueError(
-                "late_plan_s",
-                f"{self.late_plan_s!r} is invalid, expected a finite value > period_s "
-                f"({self.period_s!r}): a step one period after a plan is on time",
-            )
         positive("max_estimate_age_s", self.max_estimate_age_s)
         positive("intent_max_age_s", self.intent_max_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):

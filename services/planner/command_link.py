@@ -106,12 +106,10 @@ class CommandLink:
     def stale(self, t: float, est: StateEstimate) -> bool:
         return self.age_beyond_delay(t, est) > self.max_estimate_age_s
 
-    def predict(self, t: float, est: StateEstimate, extra_s: float = 0.0) -> Prediction:
-        """The state now and when a command sent now takes effect (extra_s later than the
-        downlink makes it: a plan's computing time in realtime, plan_lag.py). Sequences on
-        and delay compensated: carried forward from the estimate with the commands sent;
-        otherwise the estimate as it is (without sequences the controller compensates on
-        its own)."""
+    def predict(self, t: float, est: StateEstimate) -> Prediction:
+        """The state now and when a command sent now takes effect. Sequences on and delay
+        compensated: carried forward from the estimate with the commands sent; otherwise the
+        estimate as it is (without sequences the controller compensates on its own)."""
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
         t_b = basis_time(est)
         settle = YAW_SETTLE_TAUS * self.model.tau_w_s
@@ -126,7 +124,7 @@ class CommandLink:
         # YAW_SETTLE_TAUS time constants, from the filter's rate (left with e^-3 of its error)
         w = self.timeline.predict(pose, t_b - settle, t_b, self.model)[4]
         now = self.timeline.predict((x, y, th, v, w), t_b, t, self.model)
-        effect_t = t + self.downlink_s + extra_s
+        effect_t = t + self.downlink_s
         at_effect = self.timeline.predict(now, t, effect_t, self.model)
         return Prediction(now=now, effect_t=effect_t, at_effect=at_effect)
 

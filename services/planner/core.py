@@ -30,7 +30,6 @@ from services.planner.controllers.factory import make_controller
 from services.planner.intent import FleetIntents
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
-from services.planner.plan_lag import PlanLag
 from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
@@ -133,8 +132,6 @@ class PlannerCore:
         self._judge = Plausibility.of_area(world.area)
         self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
-        # realtime: how long a plan takes to reach the vehicle (plan_lag.py)
-        self.plan_lag = PlanLag(planner.period_s, planner.late_plan_s)
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
         self.resume_after_s = max(
@@ -257,7 +254,6 @@ class PlannerCore:
         return out
 
     def _step(self, t: float) -> list[Emit]:
-        late = self.plan_lag.step(t)
         if self.state is None:
             return []
         s = self.state
@@ -284,12 +280,6 @@ class PlannerCore:
             decision = ReplanDecision(
                 replan=False, detail="the first plan waits for the first obstacle tracks"
             )
-        elif late is not None:
-            # realtime: the last plan reached the vehicle this much later than planned for:
-            # it starts where the vehicle was not. Plan again from the newest estimate.
-            decision = ReplanDecision(
-                replan=True, reason="late", detail=f"the last plan came {late:.1f} s late"
-            )
         elif math.isfinite(gap) and gap > self.resume_after_s:
             # no command for so long that the vehicle's watchdog has made it hold: it has
             # coasted off the plan while the planner was stopped or its uplink was out. The
@@ -301,15 +291,6 @@ class PlannerCore:
         else:
             decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
-            lag = self.plan_lag.expected_s
-            if lag > 0.0:
-                # realtime: the plan reaches the vehicle when its computation ends; start it,
-                # and this step's command, where the vehicle will be then (plan_lag.py)
-                pred = self.link.predict(t, s, extra_s=lag)
-                here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
-                t_plan = pred.effect_t
-                obstacles = self._obstacles(t_plan)
-            self.plan_lag.planned(t, assumed_s=lag, remade=decision.reason == "late")
             path = self._replan(t, t_plan, here, obstacles, decision.reason)
             out.append(Emit(stream="path", msg=path))
         elif math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:

@@ -34,7 +34,7 @@ from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
 ReplanReason = Literal[
-    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "resumed", "late"
+    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "resumed"
 ]
 
 
