@@ -45,6 +45,8 @@ class FoxgloveClient:
         self._subs: dict[int, int] = {}  # subscription id -> channel id
         self._next_sub = 1
         self.messages: list[Received] = []
+        self.ops: list[str] = []  # every text operation, in short: what a failure shows
+        self.unrouted: dict[int, int] = {}  # message frames whose subscription id is not ours
         self.closed = False
 
     def __enter__(self) -> FoxgloveClient:
@@ -96,6 +98,7 @@ class FoxgloveClient:
 
     def _op(self, msg: dict[str, Any]) -> None:
         op = msg.get("op")
+        self.ops.append(_short(msg))
         if op == "serverInfo":
             self.server_infos.append(msg)
         elif op == "status":
@@ -111,6 +114,7 @@ class FoxgloveClient:
                 subs.append({"id": sid, "channelId": ch["id"]})
             if subs:
                 self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                self.ops.append(f"(sent) subscribe {[(x['id'], x['channelId']) for x in subs]}")
         elif op == "unadvertise":
             for cid in msg["channelIds"]:
                 self.channels.pop(cid, None)
@@ -122,6 +126,20 @@ class FoxgloveClient:
         channel = self.channels.get(self._subs.get(sub_id, -1))
         if channel is not None:
             self.messages.append(Received(channel["topic"], log_time, frame[13:]))
+        else:
+            self.unrouted[sub_id] = self.unrouted.get(sub_id, 0) + 1
+
+
+def _short(msg: dict[str, Any]) -> str:
+    """A text operation in one line: its op and what names it (no schemas)."""
+    op = msg.get("op")
+    if op == "advertise":
+        return f"advertise {[(c['id'], c['topic']) for c in msg['channels']]}"
+    if op == "serverInfo":
+        return f"serverInfo {msg.get('sessionId')}"
+    if op == "status":
+        return f"status {msg.get('level')} {msg.get('message')!r}"
+    return json.dumps({k: v for k, v in msg.items() if k != "schema"})[:200]
 
 
 def schema_bytes(channel: dict[str, Any]) -> bytes:
