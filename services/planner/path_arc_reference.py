@@ -121,7 +121,7 @@ def _range_max_table(values: np.ndarray) -> list[list[float]]:
     """Sparse table: row r holds max(values[i : i + 2^r]) at i (a range maximum is then the
     larger of two overlapping rows' entries)."""
     rows = [values]
-    while 2 * rows[-1].size > values.size and rows[-1].size > 1:
+    while (1 << len(rows)) <= values.size:  # row r exists while 2^r values fit
         half = 1 << (len(rows) - 1)
         rows.append(np.maximum(rows[-1][:-half], rows[-1][half:]))
     return [r.tolist() for r in rows]
