@@ -1,5 +1,6 @@
 """The tap's latest queryable answers a poll with what it asks for: the newest frame of each
-stream newer than `?after=N`, of the `;streams=` named only (what `monitor --rate` relies on).
+stream newer than `?after=N`, of the `;streams=` named only, never of the `;except=` named
+(what `monitor --rate` relies on).
 Real Zenoh: the tap on a router session, the watcher on a client session."""
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ def test_a_poll_gets_the_named_streams_newer_than_its_mark() -> None:
                 ("vehicle", "truth"),
                 ("estimator", "state"),
             ]
+            but = w.latest(keys, excluding=["vehicle/truth", "estimator/state"])
+            assert [(f.service, f.stream) for f in but] == [("vehicle", "status")]
             pubs[("vehicle", "truth")].put(SAMPLES[TruthState])  # tap count 4
             _wait_for(tap, 4)
             newer = w.latest(keys, after=3, streams=["vehicle/truth", "vehicle/status"])

@@ -14,8 +14,8 @@ asking "what is it now": a watcher that joins queries Keys.all_latest and Keys.s
 A thin-linked watcher polls Keys.all_latest with `?after=N` at its own rate instead of
 subscribing: the tap answers only with frames newer than its count N, so the decimation is
 done here, before the thin link. `;streams=<service>/<stream>|...` narrows a reply to those
-streams (a monitor polls the vehicle's state often and the rest, about three quarters of a
-full reply's bytes on the default mission, seldom).
+streams and `;except=...` leaves those out (a monitor polls the vehicle's state often and the
+rest, about three quarters of a full reply's bytes on the default mission, seldom and apart).
 """
 
 from __future__ import annotations
@@ -119,12 +119,13 @@ class WatchTap:
 
     def _answer(self, key_expr: str, params: dict[str, str]) -> list[RawFrame]:
         """The newest frame of every stream matching the query, newer than `?after=N`, of the
-        streams named by `;streams=a/b|c/d` only when given."""
+        streams named by `;streams=a/b|c/d` only when given, but those named by `;except=`."""
         try:
             after = int(params.get("after", "0"))
         except ValueError:
             after = 0
         only = set(params["streams"].split("|")) if params.get("streams") else None
+        skip = set(params["except"].split("|")) if params.get("except") else set()
         asked = zenoh.KeyExpr(key_expr)
         with self._lock:
             return [
@@ -132,6 +133,7 @@ class WatchTap:
                 for k, f in self._latest.items()
                 if self._latest_n[k] > after
                 and (only is None or self._latest_name.get(k) in only)
+                and self._latest_name.get(k) not in skip
                 and asked.intersects(zenoh.KeyExpr(k))
             ]
 

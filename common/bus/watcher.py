@@ -99,14 +99,17 @@ class Watcher:
         *,
         after: int = 0,
         streams: Iterable[str] = (),
+        excluding: Iterable[str] = (),
         timeout_s: float = 1.0,
     ) -> list[WatchedFrame]:
         """The newest frame of every stream of a run whose tap count is above `after` (of the
-        `streams` named "<service>/<stream>" only, when any are)."""
+        `streams` named "<service>/<stream>" only, when any are; never of those `excluding`)."""
         out = []
         selector = f"{keys.all_latest}?after={after}"
         if names := "|".join(streams):
             selector += f";streams={names}"
+        if skipped := "|".join(excluding):
+            selector += f";except={skipped}"
         for f in self.bus.query(selector, timeout_s=timeout_s):
             try:
                 out.append(watched(f))

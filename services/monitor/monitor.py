@@ -21,7 +21,6 @@ from common.messages import (
     StateEstimate,
     TruthState,
     VehicleStatus,
-    VelocityCommand,
     WireError,
     decode,
 )
@@ -35,10 +34,14 @@ ROUTER_PROBE_S = 0.5  # a router that is not there is probed this often
 ROUTER_CHECK_S = 1.0  # while no run is on, whether the router is still there
 DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
 EXIT_NO_RUN = 2
-# --rate: the streams of these types (the vehicle's state) at the rate, every stream every
-# FULL_POLL_S. On the default mission a reply with every stream is ~4.7 kB on the wire, so
-# polling them all at 2 Hz wanted ~75 kbit/s: more than a 64 kbit/s link carries
-STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, VelocityCommand, PathMsg, RunEnd)
+# --rate: the streams of these types (the vehicle's state) at the rate, every other stream
+# every FULL_POLL_S, in a poll of its own once the state was shown (its reply, ~4 kB, must not
+# hold up the state's on a thin link). On the default mission a reply with every stream is
+# ~5 kB on the wire, so polling them all at 2 Hz wanted ~80 kbit/s: more than a 64 kbit/s link
+# carries. The planner's command is not state here: with its future entries it is ~0.6 kB,
+# more than the rest of the state together, and the command the vehicle applies is in its
+# status
+STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, PathMsg, RunEnd)
 FULL_POLL_S = 2.0
 # Polling by default, the monitor still hears every frame of these: a mode change, a replan
 # or the run's end between two polls must not be missed (a few messages a second)
@@ -80,9 +83,9 @@ class MonitorOptions:
 class PollMarks:
     """--rate bookkeeping of one run: the tap counts polled up to, which streams are state."""
 
-    after_state: int = 0  # the tap count the last poll (of either kind) reached
-    after_all: int = 0  # the tap count the last poll of every stream reached
-    next_full: float = 0.0  # monotonic time of the next poll of every stream
+    after_state: int = 0  # the tap count the last poll of the state streams reached
+    after_all: int = 0  # the tap count the last poll of every other stream reached
+    next_full: float = 0.0  # monotonic time of the next poll of every other stream
     state_streams: set[str] = field(default_factory=set)  # "<service>/<stream>"
     followed: set[str] = field(default_factory=set)  # event streams subscribed to
     newest: dict[str, int] = field(default_factory=dict)  # stream -> tap count shown
@@ -193,6 +196,8 @@ class Monitor:
                 self._drain(s)
             if live:
                 self.view.update(live, now)
+            if not self.opts.every_frame:
+                self._poll_others_due(watcher)
             if self.opts.follow:
                 self._forget_ended()
             elif self.runs and all(s.over(now) for s in self.runs.values()):
@@ -321,27 +326,51 @@ class Monitor:
             if not state.over(now):
                 self._poll_run(watcher, key, state)
 
+    def _poll_others_due(self, watcher: Watcher) -> None:
+        """The poll of every other stream, of each run on whose turn it is (every FULL_POLL_S):
+        after the update showed the state, so that the state's reply never waits behind it."""
+        now, mono = time.time(), time.monotonic()
+        for key, state in self.runs.items():
+            if not state.over(now) and mono >= self._polls[key].next_full:
+                self._poll_others(watcher, key, state)
+
     def _poll_run(
         self, watcher: Watcher, key: tuple[str, str], state: RunState, *, full: bool = False
     ) -> None:
         """The frames the run's tap got since the last poll, newest only: of the vehicle's
-        state streams, and of every stream once every FULL_POLL_S (or when `full`)."""
+        state streams, and of every other stream too when `full` (all of them while no state
+        stream is known)."""
         marks = self._polls[key]
-        now = time.monotonic()
-        full = full or now >= marks.next_full or not marks.state_streams
-        if full:
-            marks.next_full = now + FULL_POLL_S
+        if not marks.state_streams:
             frames = watcher.latest(Keys(*key), after=marks.after_all)
-        else:
-            state_streams = sorted(marks.state_streams)
-            frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
+            self._take_polled(watcher, state, marks, frames)
+            if frames:
+                marks.after_state = marks.after_all = max(f.n for f in frames)
+            marks.next_full = time.monotonic() + FULL_POLL_S
+            return
+        state_streams = sorted(marks.state_streams)
+        frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
+        self._take_polled(watcher, state, marks, frames)
+        if frames:
+            marks.after_state = max(marks.after_state, max(f.n for f in frames))
+        if full:
+            self._poll_others(watcher, key, state)
+
+    def _poll_others(self, watcher: Watcher, key: tuple[str, str], state: RunState) -> None:
+        """The frames of every stream but the state's the tap got since the last such poll."""
+        marks = self._polls[key]
+        marks.next_full = time.monotonic() + FULL_POLL_S
+        state_streams = sorted(marks.state_streams)
+        frames = watcher.latest(Keys(*key), after=marks.after_all, excluding=state_streams)
+        self._take_polled(watcher, state, marks, frames)
+        if frames:
+            marks.after_all = max(f.n for f in frames)
+
+    def _take_polled(
+        self, watcher: Watcher, state: RunState, marks: PollMarks, frames: list[WatchedFrame]
+    ) -> None:
         for f in frames:
             self._polled(watcher, state, marks, f)
-        if frames:
-            n = max(f.n for f in frames)
-            marks.after_state = max(marks.after_state, n)
-            if full:
-                marks.after_all = n
 
     def _drain(self, state: RunState) -> None:
         for ev in state.take_events():
