@@ -167,6 +167,7 @@ def make_planner(
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
     radius), whose broadcast intents it plans around (services/planner/intent.py): all of
     them, or with planner.deconfliction = "priority" those `earlier` in [[vehicles]]."""
+    from common.runtime.deferred import InThread
     from services.planner.core import PlannerCore
     from services.planner.intent import FleetIntents
 
@@ -190,6 +191,8 @@ def make_planner(
         ),
         pose_every_s=pose_every_s,
         intent_every_s=intent_every_s,
+        # on the wall clock a replan is made beside the steps (common/runtime/deferred.py)
+        plans=InThread(name="tidelink-plan") if s.runtime.kind == "realtime" else None,
     )
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,6 +21,7 @@ from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
+from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
@@ -38,6 +39,15 @@ log = logging.getLogger("tidelink.planner")
 
 
 Commands = tuple[list[float], list[float]]  # speeds and yaw rates: now, then the sequence
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Asked:
+    """What a plan was asked for: the time it plans for, the obstacles then, and why."""
+
+    t_plan: float
+    obstacles: Obstacles
+    why: str
 
 
 def judge_state(j: Plausibility, m: StateEstimate, now: float) -> Reason | None:
@@ -89,8 +99,14 @@ class PlannerCore:
         intents: FleetIntents | None = None,
         pose_every_s: float = 0.0,
         intent_every_s: float = 0.0,
+        plans: Deferred[PlanResult] | None = None,
     ) -> None:
         self.cfg = planner
+        # where a plan is made: at once, in the step that asks for it (virtual time), or
+        # beside the steps, which go on tracking the path in force until it is there (the
+        # wall clock: a replan of seconds must not stop the commands; common/runtime/deferred.py)
+        self.plans: Deferred[PlanResult] = AtOnce() if plans is None else plans
+        self._asked: _Asked | None = None  # what the plan being made was asked for
         # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
         self.intents = intents
         self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
@@ -276,7 +292,9 @@ class PlannerCore:
         t_plan = pred.effect_t
         obstacles = self._obstacles(t_plan)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
-        if self.path_id == 0 and self._awaiting_tracks(t):
+        if self.plans.running:
+            decision = ReplanDecision(replan=False, detail="a plan is being made")
+        elif self.path_id == 0 and self._awaiting_tracks(t):
             decision = ReplanDecision(
                 replan=False, detail="the first plan waits for the first obstacle tracks"
             )
@@ -291,9 +309,11 @@ class PlannerCore:
         else:
             decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
-            path = self._replan(t, t_plan, here, obstacles, decision.reason)
-            out.append(Emit(stream="path", msg=path))
-        elif math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:
+            self._ask_plan(t_plan, here, obstacles, decision.reason)
+        made = self.plans.result()
+        if made is not None:
+            out.append(Emit(stream="path", msg=self._adopt(t, made)))
+        elif not decision.replan and math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:
             # steps were skipped (the estimate was stale): the vehicle ran on its buffer
             # meanwhile and the plan still holds, but the controller's own state (backstepping's
             # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
@@ -356,11 +376,8 @@ class PlannerCore:
             return self.cfg
         return replace(self.cfg, clearance_margin_m=margin)
 
-    def _replan(
-        self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles, why: str
-    ) -> PathMsg:
-        """Plan from `here`, the pose at t_plan (the obstacles as they are then); the path
-        message is stamped t, when it is sent."""
+    def _ask_plan(self, t_plan: float, here: Pose2D, obstacles: Obstacles, why: str) -> None:
+        """Start a plan from `here`, the pose at t_plan (the obstacles as they are then)."""
         req = PlanRequest(
             start=here,
             goal=self.goal,
@@ -370,7 +387,15 @@ class PlannerCore:
             r_min_m=self.vehicle.turn_radius_min_m,
             v_ref_mps=self.vehicle.cruise_speed_mps,
         )
-        result = plan_path(req, self._plan_config())
+        cfg = self._plan_config()
+        self._asked = _Asked(t_plan=t_plan, obstacles=obstacles, why=why)
+        self.plans.start(lambda: plan_path(req, cfg))
+
+    def _adopt(self, t: float, result: PlanResult) -> PathMsg:
+        """Put the plan made in force; the path message is stamped t, when it is sent."""
+        asked, self._asked = self._asked, None
+        assert asked is not None
+        t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
         self.policy.on_planned(t_plan, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1

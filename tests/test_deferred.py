@@ -1,0 +1,134 @@
+"""Work a core hands off: at once in virtual time, in a thread on the wall clock; and the
+planner core going on commanding on its path while a replan is being made."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from common.config.scenario import load_scenario
+from common.messages import PathMsg, StateEstimate, VelocityCommand
+from common.runtime.deferred import AtOnce, InThread
+from common.runtime.model.core import Delivery
+from services.planner.core import PlannerCore
+from services.planner.plan import PlanResult
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+WAIT_S = 10.0
+
+
+def test_at_once_has_the_result_in_the_step_that_started_it() -> None:
+    d: AtOnce[int] = AtOnce()
+    assert not d.running and d.result() is None
+    d.start(lambda: 42)
+    assert d.running
+    with pytest.raises(RuntimeError, match="already running"):
+        d.start(lambda: 0)
+    assert d.result() == 42
+    assert not d.running and d.result() is None  # taken once
+
+
+def test_an_exception_of_the_work_is_raised_where_its_result_is_taken() -> None:
+    def fails() -> int:
+        raise ValueError("no plan")
+
+    for d in (AtOnce[int](), InThread[int]()):
+        d.start(fails)
+        if isinstance(d, InThread):
+            assert d._thread is not None
+            d._thread.join(WAIT_S)
+        with pytest.raises(ValueError, match="no plan"):
+            d.result()
+        assert not d.running
+
+
+def test_in_thread_runs_beside_the_caller_until_the_work_is_done() -> None:
+    go, started = threading.Event(), threading.Event()
+    caller = threading.get_ident()
+    ran_in: list[int] = []
+
+    def work() -> str:
+        ran_in.append(threading.get_ident())
+        started.set()
+        assert go.wait(WAIT_S)
+        return "path"
+
+    d: InThread[str] = InThread()
+    d.start(work)
+    assert started.wait(WAIT_S)
+    assert d.running and d.result() is None  # still working: the caller goes on
+    go.set()
+    assert d._thread is not None
+    d._thread.join(WAIT_S)
+    assert d.result() == "path" and not d.running
+    assert ran_in and ran_in[0] != caller
+
+
+class HeldPlans:
+    """A Deferred whose work waits until the test lets it go (a replan taking long)."""
+
+    def __init__(self) -> None:
+        self.work: Callable[[], PlanResult] | None = None
+        self.done: PlanResult | None = None
+        self.started = 0
+
+    @property
+    def running(self) -> bool:
+        return self.work is not None or self.done is not None
+
+    def start(self, work: Callable[[], PlanResult]) -> None:
+        assert not self.running
+        self.work, self.started = work, self.started + 1
+
+    def finish(self) -> None:
+        assert self.work is not None
+        self.done, self.work = self.work(), None
+
+    def result(self) -> PlanResult | None:
+        done, self.done = self.done, None
+        return done
+
+
+def _estimate(t: float, x: float, y: float = 20.0) -> Delivery:
+    est = StateEstimate(stamp=t, x=x, y=y, theta=0.0, v=1.0, w=0.0, covariance=COV)
+    return Delivery(source="estimator", stream="state", msg=est, t=t + 0.05)
+
+
+def test_the_planner_commands_on_its_path_while_a_replan_is_made() -> None:
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    held = HeldPlans()
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core.deliver(_estimate(0.0, 5.0))
+    out = core.step(0.05)  # the first plan is asked for: until it is there, a stop
+    assert held.started == 1 and not [e for e in out if e.stream == "path"]
+    (stop,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(stop, VelocityCommand) and (stop.v, stop.w) == (0.0, 0.0)
+    held.finish()
+    out = core.step(0.15)  # adopted in the next step, stamped when sent
+    (path,) = [e.msg for e in out if e.stream == "path"]
+    assert isinstance(path, PathMsg) and path.status == "OK" and path.stamp == 0.15
+    (cmd,) = [e.msg for e in out if e.stream == "cmd"]
+    assert isinstance(cmd, VelocityCommand) and cmd.v > 0.0 and cmd.path_id == path.path_id
+    # past the minimum replan interval the vehicle is 6 m off its path (a replan is due): it
+    # is asked for once, and the steps go on commanding on the path in force, none asking
+    # again, until it is there
+    t0 = 0.15 + s.planner.min_replan_interval_s
+    core.deliver(_estimate(t0, 5.0, y=26.0))
+    asked_before = held.started
+    for k in range(5):
+        t = t0 + 0.05 + 0.1 * k
+        core.deliver(_estimate(t - 0.05, 5.0, y=26.0))
+        out = core.step(t)
+        cmds = [e.msg for e in out if e.stream == "cmd"]
+        assert len(cmds) == 1 and isinstance(cmds[0], VelocityCommand)
+        assert cmds[0].path_id == path.path_id and cmds[0].v > 0.0
+        assert not [e for e in out if e.stream == "path"]
+    assert held.started == asked_before + 1, "a replan is asked for once while one is made"
+    held.finish()
+    core.deliver(_estimate(t + 0.05, 5.0, y=26.0))
+    (new,) = [e.msg for e in core.step(t + 0.1) if e.stream == "path"]
+    assert isinstance(new, PathMsg) and new.path_id == path.path_id + 1
