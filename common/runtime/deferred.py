@@ -43,6 +43,15 @@ class _Outcome(Generic[T]):
     def __init__(self) -> None:
         self._done: tuple[T | None, BaseException | None] | None = None
 
+    def _do(self, work: Callable[[], T]) -> None:
+        """Do the work and keep its outcome (one reference assignment: seen whole by
+        another thread)."""
+        try:
+            done: tuple[T | None, BaseException | None] = (work(), None)
+        except Exception as exc:  # noqa: BLE001 - raised where the result is taken
+            done = (None, exc)
+        self._done = done
+
     def _take(self) -> T | None:
         done, self._done = self._done, None
         if done is None:
@@ -63,10 +72,7 @@ class AtOnce(_Outcome[T]):
     def start(self, work: Callable[[], T]) -> None:
         if self._done is not None:
             raise RuntimeError("work is already running")
-        try:
-            self._done = (work(), None)
-        except Exception as exc:  # noqa: BLE001 - raised where the result is taken
-            self._done = (None, exc)
+        self._do(work)
 
     def result(self) -> T | None:
         return self._take()
@@ -87,16 +93,8 @@ class InThread(_Outcome[T]):
     def start(self, work: Callable[[], T]) -> None:
         if self._thread is not None:
             raise RuntimeError("work is already running")
-
-        def run() -> None:
-            try:
-                done: tuple[T | None, BaseException | None] = (work(), None)
-            except Exception as exc:  # noqa: BLE001 - raised where the result is taken
-                done = (None, exc)
-            self._done = done  # one reference assignment: seen whole by the loop's thread
-
         self._done = None
-        self._thread = threading.Thread(target=run, name=self._name, daemon=True)
+        self._thread = threading.Thread(target=self._do, args=(work,), name=self._name, daemon=True)
         self._thread.start()
 
     def result(self) -> T | None:
