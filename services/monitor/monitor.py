@@ -342,17 +342,15 @@ class Monitor:
         stream is known)."""
         marks = self._polls[key]
         if not marks.state_streams:
-            frames = watcher.latest(Keys(*key), after=marks.after_all)
-            self._take_polled(watcher, state, marks, frames)
-            if frames:
-                marks.after_state = marks.after_all = max(f.n for f in frames)
+            n = self._poll_streams(watcher, key, state, marks.after_all)
+            if n is not None:
+                marks.after_state = marks.after_all = n
             marks.next_full = time.monotonic() + FULL_POLL_S
             return
         state_streams = sorted(marks.state_streams)
-        frames = watcher.latest(Keys(*key), after=marks.after_state, streams=state_streams)
-        self._take_polled(watcher, state, marks, frames)
-        if frames:
-            marks.after_state = max(marks.after_state, max(f.n for f in frames))
+        n = self._poll_streams(watcher, key, state, marks.after_state, streams=state_streams)
+        if n is not None:
+            marks.after_state = max(marks.after_state, n)
         if full:
             self._poll_others(watcher, key, state)
 
@@ -361,16 +359,28 @@ class Monitor:
         marks = self._polls[key]
         marks.next_full = time.monotonic() + FULL_POLL_S
         state_streams = sorted(marks.state_streams)
-        frames = watcher.latest(Keys(*key), after=marks.after_all, excluding=state_streams)
-        self._take_polled(watcher, state, marks, frames)
-        if frames:
-            marks.after_all = max(f.n for f in frames)
+        n = self._poll_streams(watcher, key, state, marks.after_all, excluding=state_streams)
+        if n is not None:
+            marks.after_all = n
 
-    def _take_polled(
-        self, watcher: Watcher, state: RunState, marks: PollMarks, frames: list[WatchedFrame]
-    ) -> None:
+    def _poll_streams(
+        self,
+        watcher: Watcher,
+        key: tuple[str, str],
+        state: RunState,
+        after: int,
+        *,
+        streams: list[str] | None = None,
+        excluding: list[str] | None = None,
+    ) -> int | None:
+        """Take the newest frame of each stream (of `streams` only; never of `excluding`) the
+        run's tap got after count `after`; the highest tap count among them, None if none."""
+        frames = watcher.latest(
+            Keys(*key), after=after, streams=streams or (), excluding=excluding or ()
+        )
         for f in frames:
-            self._polled(watcher, state, marks, f)
+            self._polled(watcher, state, self._polls[key], f)
+        return max((f.n for f in frames), default=None)
 
     def _drain(self, state: RunState) -> None:
         for ev in state.take_events():
