@@ -163,10 +163,12 @@ def make_planner(
     earlier: frozenset[str] = frozenset(),
     pose_every_s: float = 0.0,
     intent_every_s: float = 0.0,
+    ramps: Mapping[str, float] | None = None,
 ) -> PlannerCore:
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
     radius), whose broadcast intents it plans around (services/planner/intent.py): all of
-    them, or with planner.deconfliction = "priority" those `earlier` in [[vehicles]]."""
+    them, or with planner.deconfliction = "priority" those `earlier` in [[vehicles]]; `ramps`
+    their speed ramps on a path."""
     from common.runtime.deferred import InThread
     from services.planner.core import PlannerCore
     from services.planner.intent import FleetIntents
@@ -188,6 +190,7 @@ def make_planner(
             others,
             s.planner.intent_max_age_s,
             earlier if s.planner.deconfliction == "priority" else None,
+            ramps,
         ),
         pose_every_s=pose_every_s,
         intent_every_s=intent_every_s,

@@ -60,6 +60,8 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
     truth."""
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
+    # how fast each vehicle's speed rises on a new path: its intent, to the others
+    ramps = {vid: member.controller.speed.accel_mps2 for vid, member in s.members}
     services: list[Service] = []
     for k, (vid, member) in enumerate(s.members):
         earlier = frozenset(v.id for v in s.vehicles[:k])  # who it gives way to, by priority
@@ -79,6 +81,7 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                     make_planner,
                     others=others,
                     earlier=earlier,
+                    ramps={o: ramps[o] for o in others},
                     pose_every_s=POSE_PERIOD_S,
                     intent_every_s=INTENT_PERIOD_S,
                 )

@@ -4,7 +4,11 @@ Each planner of a fleet publishes the estimate it plans from (planner/pose, whil
 and its newest plan (planner/intent: each new path at once, then again every second, so a lost
 one is repaired); a planner that receives both from another vehicle knows that
 vehicle's trajectory: along its path from where its estimate puts it, at the speed the
-estimate gives (a stopped vehicle stays put), stopping at the path's end (its goal). That is a
+estimate gives, rising to the path's v_ref at that vehicle's speed ramp (controller.speed.
+accel_mps2: a vehicle that has just been given a path, at rest at its start, is about to
+leave it, not parked there for good: taken as parked, it walled off every goal near its
+start), stopping at the path's end (its goal). A vehicle whose newest path is NO_PATH brakes
+and holds: it keeps the speed its estimate gives (a stopped vehicle stays put). That is a
 moving obstacle with a known trajectory alpha_k(t) for eq. (12)-(13) and for replanning,
 better than the constant-acceleration extrapolation of its sonar track, which cannot see a
 turn coming. An intent whose estimate is older than `max_age_s` (lost, late, or the vehicle's
@@ -42,29 +46,50 @@ class IntentObstacle(ObstacleState):
     route: FloatArray = field(repr=False)  # (m, 2) points along the path
     s_route: FloatArray = field(repr=False)  # (m,) arc length at each point, from 0
     s0: float  # arc length now
-    speed: float  # m/s along the route
+    speed: float  # m/s along the route now
+    cruise: float = 0.0  # m/s it rises to (its path's v_ref) at `ramp`
+    ramp: float = 0.0  # m/s^2; 0: the speed holds (a vehicle braking on NO_PATH)
 
     def centre_at(self, t_s: object, accel_horizon_s: float = np.inf) -> FloatArray:
         """Centre (..., 2) t_s ahead along the route (accel_horizon_s is for extrapolations)."""
-        s = self.s0 + self.speed * np.maximum(np.asarray(t_s, dtype=np.float64), 0.0)
+        s = self.s0 + self._travel(np.maximum(np.asarray(t_s, dtype=np.float64), 0.0))
         x = np.interp(s, self.s_route, self.route[:, 0])
         y = np.interp(s, self.s_route, self.route[:, 1])
         return np.stack([x, y], axis=-1)
 
     def advanced(self, dt_s: float) -> IntentObstacle:
-        return along(self, self.s0 + self.speed * dt_s)
+        dt = max(dt_s, 0.0)
+        travel = float(self._travel(np.asarray(dt, dtype=np.float64)))
+        return along(self, self.s0 + travel, self._speed_after(dt))
+
+    def _rising(self) -> bool:
+        return self.ramp > 0.0 and self.speed < self.cruise
+
+    def _speed_after(self, dt_s: float) -> float:
+        return min(self.cruise, self.speed + self.ramp * dt_s) if self._rising() else self.speed
+
+    def _travel(self, t_s: FloatArray) -> FloatArray:
+        """Arc length covered in t_s >= 0: the speed ramps up to cruise, then holds."""
+        if not self._rising():
+            return self.speed * t_s
+        t_up = (self.cruise - self.speed) / self.ramp
+        up = np.minimum(t_s, t_up)
+        return self.speed * up + 0.5 * self.ramp * up * up + self.cruise * (t_s - up)
 
 
-def along(o: IntentObstacle, s0: float) -> IntentObstacle:
-    """The intent with the vehicle at arc length s0 (its velocity along the route there, zero
-    once at the route's end)."""
+def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObstacle:
+    """The intent with the vehicle at arc length s0 at `speed` (default: its speed now), its
+    velocity along the route there (zero once at the route's end)."""
+    v = o.speed if speed is None else speed
     end = float(o.s_route[-1])
     s0 = min(max(s0, 0.0), end)
     p, ahead = _point(o, s0), _point(o, min(s0 + 0.5, end))
     d = ahead - p
     n = float(np.hypot(d[0], d[1]))
-    vx, vy = (o.speed * d[0] / n, o.speed * d[1] / n) if n > 1e-9 else (0.0, 0.0)
-    return dataclasses.replace(o, x=float(p[0]), y=float(p[1]), vx=float(vx), vy=float(vy), s0=s0)
+    vx, vy = (v * d[0] / n, v * d[1] / n) if n > 1e-9 else (0.0, 0.0)
+    return dataclasses.replace(
+        o, x=float(p[0]), y=float(p[1]), vx=float(vx), vy=float(vy), s0=s0, speed=v
+    )
 
 
 def _point(o: IntentObstacle, s: float) -> FloatArray:
@@ -78,13 +103,15 @@ class _Heard:
     state: StateEstimate | None = None
     path: PathMsg | None = None
     route: tuple[FloatArray, FloatArray] | None = None  # the path's polyline, arc lengths
+    holding: bool = False  # its newest path is NO_PATH: it brakes, then holds
 
 
 class FleetIntents:
     """The newest estimate and path heard from each other vehicle, and their obstacles.
 
     `vehicles` maps each other vehicle's id to (its obstacle id in sonar tracks, hull radius);
-    `gives_way_to` names those whose intents this vehicle plans around (None: all of them).
+    `gives_way_to` names those whose intents this vehicle plans around (None: all of them);
+    `ramps` each one's speed ramp on a path (m/s^2; none: its speed taken as it is).
     """
 
     def __init__(
@@ -92,9 +119,11 @@ class FleetIntents:
         vehicles: Mapping[str, tuple[int, float]],
         max_age_s: float,
         gives_way_to: frozenset[str] | None = None,
+        ramps: Mapping[str, float] | None = None,
     ) -> None:
         self.vehicles = dict(vehicles)
         self.max_age_s = max_age_s
+        self.ramps = dict(ramps or {})
         self.gives_way_to = frozenset(self.vehicles) if gives_way_to is None else gives_way_to
         self._heard = {v: _Heard() for v in self.vehicles}
         # planner steps at which each other vehicle was handled by its fresh intent, or by its
@@ -111,10 +140,14 @@ class FleetIntents:
         if isinstance(msg, StateEstimate):
             if heard.state is None or msg.stamp >= heard.state.stamp:
                 heard.state = msg
-        elif isinstance(msg, PathMsg) and msg.status == "OK":
-            # the newest only: a path is re-sent (services/mission/fleet.py) with its stamp
+        elif isinstance(msg, PathMsg):
+            # the newest only: a path is re-sent (services/mission/fleet.py) with its stamp;
+            # after a NO_PATH the last OK path stays its route, but it is braking on it
             if heard.path is None or msg.stamp > heard.path.stamp:
-                heard.path, heard.route = msg, _route_of(msg)
+                if msg.status == "OK":
+                    heard.path, heard.route, heard.holding = msg, _route_of(msg), False
+                else:
+                    heard.holding = True
         return True
 
     def tally(self, t: float) -> None:
@@ -176,8 +209,10 @@ class FleetIntents:
                 s_route=s_route,
                 s0=float(s_route[i]),
                 speed=max(st.v, 0.0),
+                cruise=heard.path.v_ref if heard.path is not None else 0.0,
+                ramp=0.0 if heard.holding else self.ramps.get(vid, 0.0),
             )
-            out.append(along(now, float(s_route[i]) + now.speed * max(0.0, t - st.stamp)))
+            out.append(now.advanced(t - st.stamp))
         return tuple(out), frozenset(fresh)
 
 
