@@ -200,6 +200,21 @@ def test_a_fix_after_a_long_silence_restarts_the_filter_from_itself() -> None:
     assert cov[0, 0] == pytest.approx(0.25)  # the fix's own variance, nothing older
 
 
+def test_an_estimator_started_mid_mission_takes_its_first_fix_not_the_start_pose() -> None:
+    # a restarted estimator: the vehicle is 30 m from the configured start when it hears it
+    core = EstimatorCore(EstimatorConfig(), START)
+    _deliver(core, _fix(27.0, x=35.0, y=24.0, heading=1.0), 27.0)
+    state, _, _ = _step(core, 27.0)
+    assert (state.x, state.y, state.theta) == pytest.approx((35.0, 24.0, 1.0))
+    assert core.resets == {"vehicle_filter": 1, "tracks": 0}
+    # a first fix the start pose explains (the mission's first) is fused with it, as before
+    core = EstimatorCore(EstimatorConfig(), START)
+    _deliver(core, _fix(0.1, x=5.4, y=20.3), 0.1)
+    state, _, _ = _step(core, 0.1)
+    assert core.resets == {"vehicle_filter": 0, "tracks": 0}
+    assert 5.0 < state.x < 5.4 and 20.0 < state.y < 20.3
+
+
 @pytest.mark.filterwarnings("ignore::scipy.linalg.LinAlgWarning")  # the point of the test
 def test_a_diverging_filter_is_reset_and_its_outputs_stay_finite() -> None:
     # a process noise so large that one prediction explodes the covariance

@@ -200,7 +200,12 @@ def test_outputs_are_stamped_at_the_step() -> None:
     assert (state.x, state.y, state.theta) == (5.0, 20.0, 0.3)  # the start, before any fix
     P = np.array(state.covariance).reshape(5, 5)
     np.testing.assert_allclose(P, P.T, atol=1e-15)
-    assert P[0, 0] == pytest.approx(EstimatorConfig().init_std_xy_m ** 2)
+    # the start belief holds at mission time 0 and grows uncertain with time until a fix
+    start = core.step(0.0)[0].msg
+    assert isinstance(start, StateEstimate)
+    P0 = np.array(start.covariance).reshape(5, 5)
+    assert P0[0, 0] == pytest.approx(EstimatorConfig().init_std_xy_m ** 2)
+    assert P[0, 0] > P0[0, 0] and P[2, 2] > P0[2, 2]
 
 
 @pytest.mark.parametrize(

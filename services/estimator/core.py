@@ -8,6 +8,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import chdtri
 
 from common.config.estimator import EstimatorConfig
 from common.config.world import AreaConfig
@@ -39,6 +40,12 @@ FIX_BUDGET = 256
 DETECTION_BUDGET = 64
 # Measurements kept for out-of-sequence fusion (10 Hz fixes over history_s = 2 s are 20).
 MAX_BUFFERED = 256
+# The configured start pose is the vehicle's pose when the mission starts. An estimator started
+# (or restarted) mid-mission gets a first fix the start pose cannot explain: its position is
+# outside this chi-square gate (2 dof; inverse survival function) of the start belief plus the
+# fix's noise, and the filter starts from the fix. Fusing the two instead put a restarted
+# estimator's belief halfway between the start and the vehicle (26 m off in a chaos case).
+START_GATE = float(chdtri(2, 1.0 - 0.9999))
 # What the filters' linear algebra raises on a degenerate belief (numpy's LinAlgError is a
 # ValueError, like scipy's refusal of non-finite input; overflows are ArithmeticErrors).
 NUMERIC_ERRORS = (ArithmeticError, ValueError)
@@ -102,6 +109,8 @@ class EstimatorCore:
     def _fuse_fix(self, b: VehicleBelief, fix: NavFix) -> VehicleBelief:
         if b.stamp is not None and fix.stamp - b.stamp > MAX_PREDICT_S:
             return self._restart(b, fix)
+        if b.stamp is None and not self._start_explains(b, fix):
+            return self._restart(b, fix)
         prefilter = b.prefilter.copy()
         z = prefilter.apply(fix.stamp, np.array([fix.x, fix.y, fix.heading, fix.speed]))
         dt = 0.0 if b.stamp is None else fix.stamp - b.stamp
@@ -113,6 +122,12 @@ class EstimatorCore:
         if not healthy(x, P):  # diverged: the fix (plausible, judged) is the better belief
             return self._restart(b, fix)
         return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets)
+
+    def _start_explains(self, b: VehicleBelief, fix: NavFix) -> bool:
+        """Whether the start belief and the first fix agree (Mahalanobis, START_GATE)."""
+        y = np.array([fix.x - b.x[0], fix.y - b.x[1]])
+        S = b.P[:2, :2] + self._noise(fix)[:2, :2]
+        return float(y @ np.linalg.solve(S, y)) <= START_GATE
 
     @staticmethod
     def _noise(fix: NavFix) -> FloatArray:
@@ -198,11 +213,11 @@ class EstimatorCore:
     def belief_at(self, t: float) -> tuple[FloatArray, FloatArray, float]:
         """The vehicle belief (x, P) predicted from the last fused fix to time t (at most
         MAX_PREDICT_S ahead; the fused belief itself if the prediction is not finite), and
-        how far it was predicted (s)."""
+        how far it was predicted (s). Before the first fix, the belief is the start pose as it
+        was at mission time 0: an estimator started mid-mission says how old that is, so a
+        planner takes it as stale (and waits for a fix) rather than as the vehicle's pose."""
         b = self.nav.state
-        if b.stamp is None:
-            return b.x.copy(), b.P.copy(), 0.0
-        dt = max(0.0, min(t - b.stamp, MAX_PREDICT_S))
+        dt = max(0.0, min(t - (b.stamp if b.stamp is not None else 0.0), MAX_PREDICT_S))
         try:
             x, P = self._filter.predict(b.x, b.P, dt)
         except NUMERIC_ERRORS:
