@@ -41,6 +41,11 @@ log = logging.getLogger("tidelink.planner")
 Commands = tuple[list[float], list[float]]  # speeds and yaw rates: now, then the sequence
 
 
+# A plan taking longer than this (mission s) is logged when it is adopted: while it is made,
+# the path in force is followed and no other replan can start
+SLOW_PLAN_S = 2.0
+
+
 @dataclass(frozen=True, kw_only=True)
 class _Asked:
     """What a plan was asked for: the time it plans for, the obstacles then, and why."""
@@ -396,6 +401,14 @@ class PlannerCore:
         asked, self._asked = self._asked, None
         assert asked is not None
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
+        if t - t_plan > SLOW_PLAN_S:  # realtime only: in virtual time a plan is made at once
+            log.info(
+                "t=%.2f s: a plan asked for t=%.2f s (%s) took until now: the path in force "
+                "was followed unchecked meanwhile",
+                t,
+                t_plan,
+                why,
+            )
         self.policy.on_planned(t_plan, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
