@@ -8,7 +8,6 @@ from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtri
 
 from common.config.estimator import EstimatorConfig
 from common.config.world import AreaConfig
@@ -16,6 +15,7 @@ from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
+from services.estimator.gate import ChiSquareGate
 from services.estimator.health import healthy
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
@@ -42,10 +42,10 @@ DETECTION_BUDGET = 64
 MAX_BUFFERED = 256
 # The configured start pose is the vehicle's pose when the mission starts. An estimator started
 # (or restarted) mid-mission gets a first fix the start pose cannot explain: its position is
-# outside this chi-square gate (2 dof; inverse survival function) of the start belief plus the
-# fix's noise, and the filter starts from the fix. Fusing the two instead put a restarted
-# estimator's belief halfway between the start and the vehicle (26 m off in a chaos case).
-START_GATE = float(chdtri(2, 1.0 - 0.9999))
+# outside this chi-square gate (2 dof) of the start belief plus the fix's noise, and the
+# filter starts from the fix. Fusing the two instead put a restarted estimator's belief
+# halfway between the start and the vehicle (26 m off in a chaos case).
+START_GATE = ChiSquareGate(0.9999)
 # What the filters' linear algebra raises on a degenerate belief (numpy's LinAlgError is a
 # ValueError, like scipy's refusal of non-finite input; overflows are ArithmeticErrors).
 NUMERIC_ERRORS = (ArithmeticError, ValueError)
@@ -124,10 +124,9 @@ class EstimatorCore:
         return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets)
 
     def _start_explains(self, b: VehicleBelief, fix: NavFix) -> bool:
-        """Whether the start belief and the first fix agree (Mahalanobis, START_GATE)."""
+        """Whether the start belief and the first fix agree (START_GATE on the position)."""
         y = np.array([fix.x - b.x[0], fix.y - b.x[1]])
-        S = b.P[:2, :2] + self._noise(fix)[:2, :2]
-        return float(y @ np.linalg.solve(S, y)) <= START_GATE
+        return START_GATE.accepts(y, b.P[:2, :2] + self._noise(fix)[:2, :2])
 
     @staticmethod
     def _noise(fix: NavFix) -> FloatArray:

@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtri
 
 from common.config.estimator import EstimatorConfig
 from common.guard import MAX_ITEMS
 from common.messages import ObstacleDetections, Track
+from services.estimator.gate import ChiSquareGate
 from services.estimator.health import healthy
 from services.estimator.imm import H_POS, ImmFilter, combine
 
@@ -59,9 +59,7 @@ class ObstacleTracker:
 
     def __init__(self, cfg: EstimatorConfig) -> None:
         self.cfg = cfg
-        # chi-square quantile (chdtri: inverse survival function); scipy.special rather than
-        # scipy.stats, whose import alone costs every service process over a second
-        self.gate = float(chdtri(2, 1.0 - cfg.track_gate_probability))
+        self.gate = ChiSquareGate(cfg.track_gate_probability)
         self._imm = ImmFilter(
             cfg.track_cv_accel_psd_m2_s3,
             cfg.track_jerk_psd_m2_s5,
@@ -108,7 +106,7 @@ class ObstacleTracker:
             x, P = combine(xs, Ps, cbar)
             y = z - H_POS @ x
             S = H_POS @ P @ H_POS.T + R
-            if float(y @ np.linalg.solve(S, y)) > self.gate:  # Mahalanobis distance squared
+            if not self.gate.accepts(y, S):
                 gated_out += 1
                 continue
             xs, Ps, mu = self._imm.update(xs, Ps, cbar, z, R)
