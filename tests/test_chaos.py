@@ -5,6 +5,7 @@ where the fault is survivable). `scripts/chaos` runs the whole matrix."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -26,6 +27,12 @@ SETUP = CaseSetup(scenario=REPO / "configs" / "default.toml")
 # the 10 s command buffer, and the case ended 0.03 m in contact (a fresh clone, 1 run); at 2x it
 # passes but is the suite's longest test (40 s). The planner's own restart stays in the CLI's
 # matrix (`tidelink chaos`), which runs every service's.
+# The restarted estimator rejoins after ~3 s of wall time (process start, imports, Zenoh): at
+# 4x that is ~12 mission seconds, past the 10 s command buffer, and on a slow machine the
+# vehicle held and the case ended in contact (fresh clones: -1.88 m, and -0.78 m after a
+# restarted estimator stopped passing the start pose off as the vehicle's). At 2x the gap is
+# ~6 s, inside the buffer: the fault the case means to test is survivable there.
+RESTART_SETUP = dataclasses.replace(SETUP, time_scale=2.0)
 CASES = [
     Fault("kill", "planner"),
     Fault("kill", "estimator", restart=True),
@@ -41,7 +48,8 @@ CASES = [
 def test_a_fault_case_keeps_every_invariant(fault: Fault, tmp_path: Path) -> None:
     scenario, _ = load_scenario(SETUP.scenario, [], None)
     flow = load_mission(scenario).dataflow
-    outcome = run_case(SETUP, fault, tmp_path / "case", run_keys(scenario), flow)
+    setup = RESTART_SETUP if fault.restart else SETUP
+    outcome = run_case(setup, fault, tmp_path / "case", run_keys(scenario), flow)
     assert problems(outcome) == [], table([outcome])
 
 
