@@ -193,14 +193,24 @@ def test_a_frozen_service_raises_an_alarm_and_counts_in_the_metrics(
 ) -> None:
     """A SIGSTOPped service keeps its token and its connection; the launcher notices the
     silence (3 periods of nothing), says so, says when it speaks again, and the metrics
-    hold how long it was overdue."""
-    scenario = _scenario(tmp_path, max_time=16.0, scale=2.0)
+    hold how long it was overdue.
+
+    Frozen once it runs: a service frozen before its first Tick has no clock yet, and on
+    waking joins from the Ticks queued meanwhile (its first stamps can trail the launcher's
+    by the seconds it was frozen), which is a late start, not this case."""
+    scenario = _scenario(tmp_path, max_time=20.0, scale=2.0)
     with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
         t.wait_for(r"mission clock started", WAIT_S)
+        mark = 0
+        # the progress lines come every 2 s of wall time: the one past t = 2 s comes when
+        # every service has run on the clock for seconds
+        while float(t.wait_for(r"t=\s*([0-9.]+) s of", WAIT_S, start=mark)[1]) < 2.0:
+            mark = len(t.err)
         ctrl = _pids(out)["ctrl"][0]
         os.kill(ctrl, signal.SIGSTOP)
         try:
             since = float(t.wait_for(r"ALARM: ctrl unresponsive since t=([0-9.]+)", WAIT_S)[1])
+            assert since > 0.0, "ctrl was frozen before it published anything"
             # stopped well past its limit on its own clock too (the services' clocks start
             # apart, so the launcher can call it silent a little before its own stamps show it)
             mark = len(t.err)
