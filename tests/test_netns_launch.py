@@ -116,18 +116,18 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
             assert "mode RUN -> HOLD" not in launcher.stderr
             hosts.link("planner", "down")  # the planner's host is cut off: no commands
             try:
-                mark = len(launcher.err)
-                launcher.wait_for(r"vehicle: mode RUN -> HOLD", WAIT_S, start=mark)
-                launcher.wait_for(r"vehicle: mode HOLD -> FAILSAFE", WAIT_S, start=mark)
-                # keep it down until a progress line (one every 2 s) shows FAILSAFE too
-                launcher.wait_for(r"t=.* mode FAILSAFE", WAIT_S, start=mark)
-            finally:
-                hosts.link("planner", "up")
-            try:
+                try:
+                    mark = len(launcher.err)
+                    launcher.wait_for(r"vehicle: mode RUN -> HOLD", WAIT_S, start=mark)
+                    launcher.wait_for(r"vehicle: mode HOLD -> FAILSAFE", WAIT_S, start=mark)
+                    # keep it down until a progress line (one every 2 s) shows FAILSAFE too
+                    launcher.wait_for(r"t=.* mode FAILSAFE", WAIT_S, start=mark)
+                finally:
+                    hosts.link("planner", "up")
                 launcher.wait_for(r"vehicle: mode FAILSAFE -> RUN", WAIT_S, start=mark)
-            except AssertionError as exc:
-                why = f"{exc}\nthe planner's stderr:\n{services['planner'].stderr}"
-                raise AssertionError(why) from None
+            except AssertionError as exc:  # what each service said, to tell why
+                said = "".join(f"\n{s}'s stderr:\n{p.stderr[-4000:]}" for s, p in services.items())
+                raise AssertionError(f"{exc}{said}") from None
             assert launcher.wait(WAIT_S) == judged_exit(out), launcher.stderr
             for s, proc in services.items():  # each leaves by itself on the stop Tick
                 assert proc.wait(WAIT_S) == 0, f"{s}:\n{proc.stderr}"
