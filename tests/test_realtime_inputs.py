@@ -1,11 +1,13 @@
 """What a realtime service does with each message before its core sees it (issue 14): ticks
 only from the clock's keys; data without or with forged routing, or of the wrong type,
-dropped and counted against its input (no bus needed: events are handed in directly)."""
+dropped and counted against its input; and a loop whose steps outlast their period still
+goes back to its inbox (no bus needed: events are handed in directly)."""
 
 from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -14,6 +16,7 @@ from common.config.scenario import load_scenario
 from common.messages import NavFix, Tick, encode_routing
 from common.runtime.distributed.realtime_service import MAX_DELIVERY_AHEAD_S, RealtimeService
 from common.runtime.distributed.service_process import ServiceSetup
+from common.runtime.model.core import Emit
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 NAV = ("sensor", "nav")
@@ -93,3 +96,39 @@ def test_every_tick_after_the_first_moves_the_clock_only_forward_to_the_least_de
     before = svc.now_us()
     tick((before - round(svc.scale * 500_000)) / 1e6)
     assert 0 <= svc.now_us() - before < svc.scale * 1000
+
+
+class _Sent:
+    """A publisher that keeps what is put on it."""
+
+    def __init__(self) -> None:
+        self.frames: list[bytes] = []
+
+    def put_bytes(self, data: bytes, attachment: bytes | None = None) -> None:
+        self.frames.append(data)
+
+
+def test_a_step_longer_than_its_period_goes_back_to_the_inbox(
+    svc: RealtimeService, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every step of this service takes two periods: the due events run once, then the loop
+    returns to its inbox (where a stop Tick, or the inputs that would shorten the steps,
+    wait) instead of stepping on without end."""
+    period_s = svc.host.period_us / 1e6 / svc.scale
+    svc.t0 = time.monotonic() - 10.0 / svc.scale  # 10 mission seconds behind its schedule
+    core_step = svc.host.core.step
+    steps: list[float] = []
+
+    def slow_step(t: float) -> list[Emit]:
+        steps.append(t)
+        assert len(steps) < 5, "stepped on without going back to the inbox"
+        time.sleep(2 * period_s)
+        return core_step(t)
+
+    monkeypatch.setattr(svc.host.core, "step", slow_step)
+    pubs: dict[str, Any] = {s: _Sent() for s in svc.host.streams}
+    svc._run_due(pubs)
+    assert len(steps) == 1 and svc.skipped > 0  # the missed periods skipped, one step run
+    assert pubs["state"].frames  # and what it emitted published
+    svc._run_due(pubs)
+    assert len(steps) == 2  # the next call: the next step, late by a period

@@ -45,10 +45,12 @@ class Tidelink:
         cmd = [sys.executable, *(("-m", "services.cli") if cli else ()), *args]
         if netns is not None:
             cmd = ["ip", "netns", "exec", netns, *cmd]
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        # faulthandler: a process that hangs dumps every thread's stack on SIGABRT (see wait)
+        env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1")
         # the tests directory too: `Tidelink.python("-m", "helpers.X")` runs a test helper
         paths = [str(REPO), str(REPO / "tests"), env.get("PYTHONPATH")]
         env["PYTHONPATH"] = os.pathsep.join(p for p in paths if p)
+        self.cmd = cmd
         self.proc = subprocess.Popen(
             cmd,
             cwd=REPO,
@@ -109,7 +111,19 @@ class Tidelink:
         return m
 
     def wait(self, timeout_s: float) -> int:
-        code = self.proc.wait(timeout=timeout_s)
+        """The exit code within timeout_s; a process still running then is a hang: it is made
+        to dump every thread's stack (SIGABRT, faulthandler) and the AssertionError shows it."""
+        try:
+            code = self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGABRT)
+            self.proc.wait(timeout=15.0)
+            for t in self._threads:
+                t.join(timeout=15.0)
+            raise AssertionError(
+                f"{' '.join(self.cmd)} still running after {timeout_s} s; "
+                f"its stacks and stderr:\n{self.stderr[-12000:]}"
+            ) from None
         for t in self._threads:
             t.join(timeout=timeout_s)
         return code
