@@ -6,6 +6,7 @@ timeout passes), so the tests synchronise on what the launcher prints, never on 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import select
@@ -116,7 +117,8 @@ class Tidelink:
         try:
             code = self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGABRT)
+            with contextlib.suppress(ProcessLookupError):  # it may have ended just now
+                os.killpg(self.proc.pid, signal.SIGABRT)
             self.proc.wait(timeout=15.0)
             for t in self._threads:
                 t.join(timeout=15.0)
