@@ -58,3 +58,18 @@ def test_it_follows_a_step_in_the_delay_within_half_a_window() -> None:
 def test_a_window_must_hold_a_sample() -> None:
     with pytest.raises(ValueError, match="window"):
         DelayMeter(0)
+
+
+def test_copies_of_one_message_are_one_sample() -> None:
+    # a flood of forged copies of a frame stamped at 10 s, arriving ever later: with stamps,
+    # only the first copy counts and the median stays at the link's 50 ms
+    m = DelayMeter(31)
+    for k in range(31):
+        assert m.add(0.05, stamp=k * 0.05)
+    for i in range(1000):
+        assert not m.add(0.5 + i * 0.01, stamp=30 * 0.05)  # a copy of the last one sampled
+    assert (m.delay_s, m.jitter_s, m.count, m.copies) == (0.05, 0.0, 31, 1000)
+    # a stamp that has left the window is new again (a window's worth of messages ago)
+    for k in range(31, 62):
+        m.add(0.05, stamp=k * 0.05)
+    assert m.add(0.05, stamp=0.0)

@@ -77,7 +77,7 @@ class CommandLink:
     def on_estimate(self, t: float, est: StateEstimate) -> None:
         """An estimate delivered at t: the age of its information then is a sample of the
         uplink delay."""
-        self.uplink.add(t - basis_time(est))
+        self.uplink.add(t - basis_time(est), est.stamp)
 
     def on_status(self, status: VehicleStatus) -> None:
         if self.status is None or status.stamp >= self.status.stamp:

@@ -19,7 +19,8 @@ runtime clock; t_last = t_n, the start of the last entry, = stamp for a single c
   equal to the one in force) is idempotent and re-applied. The future check comes before
   the order check, so no single command can lock out every later one;
 - every command that passes the source, finiteness, future and shape checks is a delay
-  sample (t_now - stamp), the late and overtaken ones included: their delay is real;
+  sample (t_now - stamp), the late and overtaken ones included: their delay is real; a copy
+  (the stamp of a recent sample again) is not (common/control/delay.py);
 - an accepted command replaces the sequence in force from its delivery on; each entry is
   clamped to the eq. (11) bounds (counted once in `clamped` when any had to be), never
   applied raw. Its entries are applied in turn; the last one stays in force;
@@ -150,7 +151,7 @@ class Watchdog:
         if n * step_s > self._cfg.max_horizon_s:
             return "too_long"
         allowance = max(0.0, self.delay.delay_s)  # from the commands before this one
-        self.delay.add(t_now - stamp)
+        self.delay.add(t_now - stamp, stamp)
         last = self.schedule.stamp
         if last is not None and stamp < last:
             return "out_of_order"
