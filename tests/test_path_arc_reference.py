@@ -80,3 +80,25 @@ def test_the_curvature_bound_holds_over_every_stretch_and_leaves_the_speed_uncha
             assert v == target_speed(Sampled(), s0, cfg, limits)  # type: ignore[arg-type]
             tight += v < min(ref.v_ref, limits.v_max) and ref.length - s0 > 10.0
     assert tight > 0  # the bends do slow the profile somewhere: both branches were compared
+
+
+def test_a_stop_short_of_the_end_brakes_the_speed_profile_there() -> None:
+    from common.config.controller import SpeedConfig
+    from common.config.vehicle import VehicleConfig
+    from services.planner.controllers.base import Limits
+    from services.planner.controllers.speed import target_speed
+
+    ref = PathArcReference(_path(), 1.5)
+    cfg, limits = SpeedConfig(), Limits.from_vehicle(VehicleConfig())
+    before = [target_speed(ref, s, cfg, limits) for s in (5.0, 27.0)]
+    assert ref.stop_s == ref.length
+    ref.stop_at(30.0)
+    ref.stop_at(45.0)  # a later stop never lifts an earlier one
+    assert ref.stop_s == 30.0
+    assert target_speed(ref, 30.0, cfg, limits) == max(limits.v_min, 0.0)
+    assert target_speed(ref, 35.0, cfg, limits) == max(limits.v_min, 0.0)  # overshot: stays 0
+    # v <= sqrt(2 decel d) to the stop, and never above the profile without it
+    for s, v0 in zip((5.0, 27.0), before, strict=True):
+        v = target_speed(ref, s, cfg, limits)
+        assert v <= min(v0, math.sqrt(2.0 * cfg.decel_mps2 * (30.0 - s))) + 1e-12
+    assert target_speed(ref, 27.0, cfg, limits) < before[1]  # 3 m from the stop: braking

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from helpers.planner_world import circle, default_scenario, moving_circle
@@ -60,6 +61,7 @@ def test_deviation_beyond_the_threshold_and_the_minimum_interval() -> None:
     assert not pol.check(2.0, _on_path(2.0, dy=1.9), GOAL, NONE).replan  # 1.9 m < 2 m
     d = pol.check(3.0, _on_path(3.0, dy=2.2), GOAL, NONE)
     assert d.replan and d.reason == "deviation"
+    assert d.conflict_s == math.inf  # only an infeasible path has a point of conflict
 
 
 def test_static_obstacle_on_the_path_ahead_makes_it_infeasible() -> None:
@@ -67,6 +69,9 @@ def test_static_obstacle_on_the_path_ahead_makes_it_infeasible() -> None:
     blocker = Obstacles(circles=(circle(x=60.0, y=20.5, radius=1.0),))
     d = pol.check(5.0, _on_path(5.0), GOAL, blocker)
     assert d.replan and d.reason == "infeasible"
+    # the first point of conflict: where the path comes within r + rho0 of the circle's edge
+    first = 60.0 - math.sqrt((1.0 + R_VEH + CFG.rho0_m) ** 2 - 0.5**2) - START.x
+    assert first <= d.conflict_s <= first + 0.3, (d.conflict_s, first)  # the sample after it
     behind = Obstacles(circles=(circle(x=8.0, y=20.5, radius=0.5),))  # already passed
     assert not pol.check(10.0, _on_path(10.0), GOAL, behind).replan
 
@@ -87,6 +92,8 @@ def test_moving_obstacle_predicted_on_the_path_makes_it_infeasible() -> None:
     crossing = moving_circle(id=7, x=50.0, y=5.0, vx=0.0, vy=0.5, radius=1.0)
     d = pol.check(0.0 + 1.0, _on_path(1.0), GOAL, Obstacles(moving=(crossing.advanced(1.0),)))
     assert d.replan and d.reason == "infeasible"
+    # the conflict starts before the crossing point (x = 50: s = 45), ahead of the vehicle
+    assert 1.5 < d.conflict_s < 45.0
 
 
 def test_new_track_entering_the_corridor() -> None:

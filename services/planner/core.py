@@ -314,6 +314,12 @@ class PlannerCore:
         else:
             decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
+            if self.ref is not None and math.isfinite(decision.conflict_s):
+                # the path in force is unsafe ahead: until its replacement is made (seconds,
+                # in realtime; in virtual time it is made in this step and this has no
+                # effect), slow down to stop short of the first point of conflict instead of
+                # following it there at cruise speed
+                self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
             self._ask_plan(t_plan, here, obstacles, decision.reason)
         made = self.plans.result()
         if made is not None:

@@ -41,10 +41,21 @@ class PathArcReference:
         self._kl: list[float] = self._k.tolist()
         self._k_max = _range_max_table(np.abs(self._k))
         self._length = path.length
+        self._stop_s = path.length
 
     @property
     def length(self) -> float:
         return self._length
+
+    @property
+    def stop_s(self) -> float:
+        """Where the speed profile brings the vehicle to rest: the path's end, or sooner."""
+        return self._stop_s
+
+    def stop_at(self, s: float) -> None:
+        """Stop at arc length s at the latest: the path ahead of it is no longer safe to follow
+        (a plan to replace it is being made)."""
+        self._stop_s = min(self._stop_s, max(s, 0.0))
 
     @property
     def v_ref(self) -> float:

@@ -10,11 +10,13 @@ The target at arc length s (the vehicle's projection on the path, L the path's l
     v_target(s) = min(v_cruise, v_curv(s), v_stop(s))
     v_cruise    = v_ref within eq. (11)
     v_curv(s)   = budget * w_max / max |kappa(s')|,  s' in [s, s + v_cruise * preview_s]
-    v_stop(s)   = sqrt(2 decel (L - s))
+    v_stop(s)   = sqrt(2 decel (L - s))   (L: the path's end, or a stop short of it)
 
 v_curv keeps the curvature feed-forward v |kappa| within `budget` of eq. (11)'s yaw-rate
 bound over the preview window, leaving the rest to the feedback (it was the NURBS tracker's
-own rule); v_stop brakes to a stop at the end of the path at a constant deceleration.
+own rule); v_stop brakes to a stop at the end of the path at a constant deceleration, or
+sooner where the reference says so (`stop_s`: the planner's path found unsafe ahead while its
+replacement is being made).
 
 The command follows the target through one ramp: v_k = min(v_target, v_{k-1} + accel dt),
 starting from the vehicle's own speed when a path is taken (`reset`, then the first
@@ -59,7 +61,8 @@ def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Li
                 k_max = k
         if k_max * v > w_room:
             v = w_room / k_max
-    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(ref.length - s, 0.0)))
+    stop_s = getattr(ref, "stop_s", ref.length)
+    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(stop_s - s, 0.0)))
     return clamp(v, limits.v_min, limits.v_max)
 
 
