@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from common.messages import PathMsg, StateEstimate, VelocityCommand
+from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
 from common.runtime.deferred import AtOnce, InThread
 from common.runtime.model.core import Delivery
 from services.planner.core import PlannerCore
@@ -18,6 +18,7 @@ from services.planner.plan import PlanResult
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
+COV6 = tuple(0.01 if i % 7 == 0 else 0.0 for i in range(36))
 WAIT_S = 10.0
 
 
@@ -132,3 +133,59 @@ def test_the_planner_commands_on_its_path_while_a_replan_is_made() -> None:
     core.deliver(_estimate(t + 0.05, 5.0, y=26.0))
     (new,) = [e.msg for e in core.step(t + 0.1) if e.stream == "path"]
     assert isinstance(new, PathMsg) and new.path_id == path.path_id + 1
+
+
+def _on(core: PlannerCore, t: float, s: float, v: float = 1.0) -> Delivery:
+    """An estimate stamped t of a vehicle at arc length s on the path in force, moving at v."""
+    assert core.ref is not None
+    x, y = core.ref.point_at_s(s)
+    est = StateEstimate(
+        stamp=t, x=x, y=y, theta=core.ref.heading_at_s(s), v=v, w=0.0, covariance=COV
+    )
+    return Delivery(source="estimator", stream="state", msg=est, t=t + 0.05)
+
+
+def test_a_slow_replan_starts_where_the_vehicle_will_be_and_it_stops_short_of_the_conflict() -> (
+    None
+):
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    held = HeldPlans()
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core.deliver(_estimate(0.0, 5.0))
+    core.step(0.05)
+    for k in range(1, 20):  # the first plan takes 2 s
+        core.deliver(_estimate(0.05 * k, 5.0))
+        core.step(0.05 + 0.1 * k)
+    held.finish()
+    core.deliver(_estimate(2.0, 5.0))
+    (first,) = [e.msg for e in core.step(2.05) if e.stream == "path"]
+    assert isinstance(first, PathMsg) and first.status == "OK" and core.ref is not None
+    ref = core.ref
+    # under way on it; then a track parked on the path 12 m ahead: infeasible
+    t = 2.05
+    for k in range(1, 15):
+        t = 2.05 + 0.1 * k
+        core.deliver(_on(core, t - 0.05, 0.1 * k))
+        core.step(t)
+    s_here = ref.closest_s(*ref.point_at_s(1.4), None)
+    px, py = ref.point_at_s(s_here + 12.0)
+    parked = Track(id=40, x=px, y=py, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=1.0, covariance=COV6)
+    core.deliver(Delivery("estimator", "tracks", ObstacleTracks(stamp=t, tracks=(parked,)), t))
+    t += 0.1
+    core.deliver(_on(core, t - 0.05, 1.5))
+    asked = held.started
+    core.step(t)
+    assert held.started == asked + 1  # the replan is asked for
+    # the vehicle must stop short of where the path comes within r + rho0 of the track's edge
+    reach = 1.0 + s.vehicle.radius_m + s.planner.rho0_m
+    assert s_here + 12.0 - reach - 0.6 < ref.stop_s < s_here + 12.0 - reach
+    # the plan is made for 2 s on (as long as the last took), from the path 2 s ahead
+    held.finish()
+    new = core.last_result
+    core.deliver(_on(core, t + 0.05, 1.6))
+    out = core.step(t + 0.1)
+    (path,) = [e.msg for e in out if e.stream == "path"]
+    assert path.status == "OK" and core.last_result is not new and core.last_result is not None
+    x0, y0 = core.last_result.control_points[0]
+    ahead = ref.closest_s(x0, y0, None) - 1.5
+    assert 1.0 < ahead < 4.0, ahead  # v 1-1.5 m/s over the 2 s the last plan took

@@ -182,7 +182,17 @@ class ReplanPolicy:
         d = np.hypot(self.pts[win, 0] - pose.x, self.pts[win, 1] - pose.y)
         k = int(win[int(np.argmin(d))])
         self.s_now = max(self.s_now, float(self.s[k]))
-        return k, float(d.min())
+        dev = float(d.min())
+        if k == 0:
+            # short of the path's start (a plan made for where the vehicle would be once it
+            # was made, done sooner than expected: core.py `_plan_start`), the vehicle is on
+            # its way to it: only how far it is to the side of the start's tangent deviates
+            tx, ty = self.pts[1] - self.pts[0]
+            ex, ey = pose.x - self.pts[0, 0], pose.y - self.pts[0, 1]
+            norm = math.hypot(tx, ty)
+            if norm > 0.0 and ex * tx + ey * ty < 0.0:
+                dev = abs(ex * ty - ey * tx) / norm
+        return k, dev
 
     def _moving_gaps(
         self, obstacles: Obstacles, i_now: int, s_now: float
