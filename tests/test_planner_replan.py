@@ -124,3 +124,14 @@ def test_goal_change_triggers_and_replans_start_from_the_current_pose() -> None:
     assert res.ok and np.allclose(res.control_points[0], [here.x, here.y])
     pol.on_planned(2.0, res, new_goal, NONE)
     assert not pol.check(3.5, here, new_goal, NONE).replan
+
+
+def test_short_of_the_start_only_the_offset_to_the_side_deviates() -> None:
+    # a plan made for where the vehicle would be once it was made came sooner: the vehicle is
+    # still behind its start, on the way to it; 3 m behind is no deviation, 3 m aside is
+    pol, _ = _planned()
+    behind = Pose2D(x=START.x - 3.0, y=20.3, theta=0.0)
+    assert not pol.check(2.0, behind, GOAL, NONE).replan
+    aside = Pose2D(x=START.x - 1.0, y=23.0, theta=0.0)
+    d = pol.check(3.5, aside, GOAL, NONE)
+    assert d.replan and d.reason == "deviation" and d.detail.startswith("3.00 m"), d
