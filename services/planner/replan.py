@@ -138,15 +138,19 @@ class ReplanPolicy:
                     f"at ({ahead[j, 0]:.1f}, {ahead[j, 1]:.1f}) < rho0",
                     conflict_s=float(self.s[i_now + int(np.argmax(d < d_req - 1e-6))]),
                 )
-        gap, ids = self._moving_gaps(obstacles, i_now, self.s_now)
+        per_sample = self._sample_gaps(obstacles, i_now, self.s_now)
+        gap = np.array([float(np.min(g)) for g in per_sample])
+        ids = np.array([o.id for o in obstacles.moving], dtype=np.int64)
         if len(gap):
             j = int(np.argmin(gap))
             if gap[j] < self.cfg.rho0_m - 1e-6:
+                # the first sample ahead where any of them comes within rho0
+                bad = np.logical_or.reduce([g < self.cfg.rho0_m - 1e-6 for g in per_sample])
                 return ReplanDecision(
                     replan=True,
                     reason="infeasible",
                     detail=f"moving obstacle {ids[j]} predicted {gap[j]:.2f} m from the path",
-                    conflict_s=self._first_moving_conflict(obstacles, i_now),
+                    conflict_s=float(self.s[i_now + int(np.argmax(bad))]),
                 )
             new = [k for k in range(len(ids)) if ids[k] not in self.known_ids]
             hit = [k for k in new if gap[k] < self.cfg.corridor_halfwidth_m]
@@ -199,27 +203,20 @@ class ReplanPolicy:
     ) -> tuple[FloatArray, np.ndarray]:
         """Per moving obstacle: the least hull-to-surface gap to the path ahead, eq. (12)-(13),
         each path sample compared with the obstacle at the time the vehicle gets there."""
-        if self.pts is None or not obstacles.moving:
-            return np.zeros(0), np.zeros(0, dtype=np.int64)
         gaps = [float(np.min(g)) for g in self._sample_gaps(obstacles, i_now, s_now)]
         return np.array(gaps), np.array([o.id for o in obstacles.moving], dtype=np.int64)
 
     def _sample_gaps(self, obstacles: Obstacles, i_now: int, s_now: float) -> list[FloatArray]:
-        """Per moving obstacle, the hull-to-surface gap at every path sample ahead (eq. 12-13)."""
-        assert self.pts is not None
+        """Per moving obstacle, the hull-to-surface gap at every path sample ahead (eq. 12-13);
+        none without a path."""
+        if self.pts is None:
+            return []
         ahead = self.pts[i_now:]
         tau = (self.s[i_now:] - s_now) / self.v_ref
         return [
             np.hypot(*(ahead - o.centre_at(tau, self.cfg.accel_horizon_s)).T) - o.radius - self.r
             for o in obstacles.moving
         ]
-
-    def _first_moving_conflict(self, obstacles: Obstacles, i_now: int) -> float:
-        """Arc length of the first sample ahead where some moving obstacle comes within rho0."""
-        bad = np.logical_or.reduce(
-            [g < self.cfg.rho0_m - 1e-6 for g in self._sample_gaps(obstacles, i_now, self.s_now)]
-        )
-        return float(self.s[i_now + int(np.argmax(bad))])
 
 
 def _moved(a: Pose2D, b: Pose2D) -> bool:
