@@ -289,22 +289,6 @@ def test_a_vehicle_at_rest_on_a_new_path_is_about_to_leave_not_parked() -> None:
     assert flat.obstacles(0.0)[0][0].centre_at(np.array([10.0]))[0, 0] == pytest.approx(0.0)
 
 
-def test_a_vehicle_ahead_in_priority_plans_around_one_braking_on_no_path() -> None:
-    # auv1 gives way to no one: auv2, on a path, gives way to it (fresh: its track ignored too)
-    intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0, gives_way_to=frozenset())
-    intents.offer("auv2", _straight_path(0.0, 0.0, 30.0))
-    intents.offer("auv2", _estimate(1.0, 6.0))
-    assert intents.obstacles(1.5) == ((), frozenset({100}))
-    # its NO_PATH: it brakes on its last path and can give way to no one: an obstacle
-    no_path = _straight_path(1.2, 0.0, 30.0)
-    intents.offer("auv2", PathMsg(**{**_fields(no_path), "status": "NO_PATH"}))
-    (held,), covered = intents.obstacles(1.5)
-    assert covered == {100} and held.x == pytest.approx(6.75, abs=0.2)
-    # a new path: it gives way again
-    intents.offer("auv2", _straight_path(2.0, 6.0, 30.0))
-    assert intents.obstacles(2.5) == ((), frozenset({100}))
-
-
 def test_without_a_path_there_is_no_intent() -> None:
     intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
     intents.offer("auv2", _estimate(1.0, 6.0))

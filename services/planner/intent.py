@@ -18,9 +18,7 @@ Who gives way (planner.deconfliction): "mutual", every vehicle plans around ever
 intent; "priority" (prioritized planning), a vehicle plans around the intents of the vehicles
 listed before it in [[vehicles]] and leaves those after it to plan around its own: while
 their intents are fresh it ignores their tracks too, so two vehicles never both swerve the
-same way at once. A vehicle that cannot give way is an obstacle to everyone again: one whose
-intent goes stale (by its track), and one whose newest path is NO_PATH (by its braking intent:
-ignored, it was run into from behind by a vehicle ahead of it in the list, realtime fleet4).
+same way at once. A vehicle whose intent goes stale is an obstacle to everyone again.
 """
 
 from __future__ import annotations
@@ -181,10 +179,9 @@ class FleetIntents:
         )
 
     def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
-        """The intents this vehicle gives way to at time t, and those of every vehicle braking
-        on a NO_PATH (it gives way to no one), as obstacles at t; and the obstacle ids of every
-        vehicle whose intent is fresh (whose sonar tracks they replace: the vehicles it does
-        not give way to plan around it)."""
+        """The intents this vehicle gives way to at time t, as obstacles at t, and the obstacle
+        ids of every vehicle whose intent is fresh (whose sonar tracks they replace: the
+        vehicles it does not give way to plan around it)."""
         out = []
         fresh = set()
         for vid, (oid, radius) in self.vehicles.items():
@@ -195,7 +192,7 @@ class FleetIntents:
             assert st is not None and heard.route is not None  # _fresh: both are there
             route, s_route = heard.route
             fresh.add(oid)
-            if vid not in self.gives_way_to and not heard.holding:
+            if vid not in self.gives_way_to:
                 continue
             i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
             now = IntentObstacle(
