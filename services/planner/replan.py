@@ -101,7 +101,7 @@ class ReplanPolicy:
         self.pts = curve.evaluate(u, n_ders=0)[0]
         self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.pts, axis=0).T))])
         self._static_for = None
-        gap, ids = self._moving_gaps(obstacles, 0, 0.0)
+        gap, ids = _least_gaps(self._sample_gaps(obstacles, 0, 0.0), obstacles)
         self.known_ids = frozenset(ids[gap < self.cfg.corridor_halfwidth_m].tolist())
 
     # --- the decision --------------------------------------------------------------------
@@ -139,8 +139,7 @@ class ReplanPolicy:
                     conflict_s=float(self.s[i_now + int(np.argmax(d < d_req - 1e-6))]),
                 )
         per_sample = self._sample_gaps(obstacles, i_now, self.s_now)
-        gap = np.array([float(np.min(g)) for g in per_sample])
-        ids = np.array([o.id for o in obstacles.moving], dtype=np.int64)
+        gap, ids = _least_gaps(per_sample, obstacles)
         if len(gap):
             j = int(np.argmin(gap))
             if gap[j] < self.cfg.rho0_m - 1e-6:
@@ -198,14 +197,6 @@ class ReplanPolicy:
                 dev = abs(ex * ty - ey * tx) / norm
         return k, dev
 
-    def _moving_gaps(
-        self, obstacles: Obstacles, i_now: int, s_now: float
-    ) -> tuple[FloatArray, np.ndarray]:
-        """Per moving obstacle: the least hull-to-surface gap to the path ahead, eq. (12)-(13),
-        each path sample compared with the obstacle at the time the vehicle gets there."""
-        gaps = [float(np.min(g)) for g in self._sample_gaps(obstacles, i_now, s_now)]
-        return np.array(gaps), np.array([o.id for o in obstacles.moving], dtype=np.int64)
-
     def _sample_gaps(self, obstacles: Obstacles, i_now: int, s_now: float) -> list[FloatArray]:
         """Per moving obstacle, the hull-to-surface gap at every path sample ahead (eq. 12-13);
         none without a path."""
@@ -217,6 +208,15 @@ class ReplanPolicy:
             np.hypot(*(ahead - o.centre_at(tau, self.cfg.accel_horizon_s)).T) - o.radius - self.r
             for o in obstacles.moving
         ]
+
+
+def _least_gaps(
+    per_sample: list[FloatArray], obstacles: Obstacles
+) -> tuple[FloatArray, np.ndarray]:
+    """Per moving obstacle: the least of its per-sample gaps to the path ahead (eq. 12-13),
+    and its id."""
+    gaps = np.array([float(np.min(g)) for g in per_sample])
+    return gaps, np.array([o.id for o in obstacles.moving], dtype=np.int64)
 
 
 def _moved(a: Pose2D, b: Pose2D) -> bool:
