@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from helpers.launch_proc import REPO, tidelink_check, tidelink_cli
+from helpers.launch_proc import REPO, kill_recorded, tidelink_check, tidelink_cli
 
 from common.config.errors import ConfigError
 from common.config.fleet import MAX_VEHICLES
@@ -438,3 +439,42 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     assert two["reached_goal"] and two["collisions"] == 0 and two["hold_time_s"] == 0.0
     assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m
     assert two["intent_fraction"] < 0.5  # by auv1's track after its intent went stale
+
+
+@pytest.mark.slow
+def test_fleet4_launched_in_realtime_at_half_speed_reaches_every_goal_without_contact(
+    tmp_path: Path,
+) -> None:
+    # fleet4 as a user launches it: 16 supervised service processes, the router and the clock
+    # on this machine's 2 cores, in real time at half speed (~3 min). At 1x the planners'
+    # replans share the cores at the moments they are needed and take seconds: about 1 run in
+    # 4 fails, some with a contact (README "Fleets"). At 0.5x, 16 runs (seeds 1-16): every
+    # vehicle at its goal and no contact in all 16; two ended inside rho0 of a static obstacle
+    # (0.03 and 0.68 m), which the metrics report (outcome rho0_breach) and this test lets
+    # through: rho0 in realtime fleets is issue 18's open item, not a regression here.
+    out = tmp_path / "run"
+    try:
+        r = tidelink_cli(
+            "launch",
+            str(FLEET4),
+            "--time-scale",
+            "0.5",
+            "--out",
+            str(out),
+            "--no-plot",
+            timeout_s=900.0,
+        )
+    finally:
+        kill_recorded(out / "pids.json")
+    assert (out / "metrics.json").exists(), r.stderr[-3000:]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["runtime"] == "realtime" and m["vehicles_reached"] == 4, (
+        m["outcome"],
+        r.stderr[-3000:],
+    )
+    assert m["vehicle_collisions"] == 0 and m["collisions"] == 0, m["outcome"]
+    assert m["min_separation_m"] > 0.0
+    # a breach is reported as one: the outcome names it and the depth is in the metrics
+    assert m["outcome"] in ("success", "rho0_breach"), m["outcome"]
+    assert (m["outcome"] == "rho0_breach") == (m["rho0_breach_m"] > 0.0), m["rho0_breach_m"]
+    assert r.returncode == (0 if m["outcome"] == "success" else 3), r.returncode
