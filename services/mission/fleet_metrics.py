@@ -16,7 +16,7 @@ from common.messages import LinkStats, TruthState
 from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record
 from common.world import World
-from services.mission.metrics import mission_metrics
+from services.mission.metrics import duration_s, mission_metrics
 from services.mission.outcome import classify
 
 
@@ -37,8 +37,8 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
         for v in s.vehicles
     }
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
-    rho0 = max(v.planner.rho0_m for v in s.vehicles)
-    sep = _separation(truths, radius)
+    rho0 = {v.id: v.planner.rho0_m for v in s.vehicles}
+    sep = _separation(truths, radius, rho0)
     reached = all(m.get("reached_goal", False) for m in per.values())
     arrivals = [m["travel_time_s"] for m in per.values() if m.get("reached_goal")]
     out: dict[str, Any] = {
@@ -60,8 +60,7 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
             (m["min_clearance_m"] for m in per.values() if "min_clearance_m" in m),
             default=math.nan,
         ),
-        "rho0_m": rho0,
-        "rho0_breach_m": max(float(m.get("rho0_breach_m", 0.0)) for m in per.values()),
+        **_deepest_breach(per, sep, min(rho0.values())),
         "hold_time_s": sum(float(m.get("hold_time_s", 0.0)) for m in per.values()),
         "failsafe_time_s": sum(float(m.get("failsafe_time_s", 0.0)) for m in per.values()),
         # of every planner step x other vehicle, the share handled by a fresh intent
@@ -73,7 +72,7 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     out["outcome"] = classify(
         reached_goal=reached,
         contact=out["collisions"] > 0 or out["vehicle_collisions"] > 0,
-        below_rho0=out["rho0_breach_m"] > 0.0 or out["min_separation_m"] < rho0,
+        below_rho0=out["rho0_breach_m"] > 0.0,
     )
     out["success"] = out["outcome"] == "success"
     out["vehicles"] = per
@@ -110,11 +109,43 @@ def _intent_metrics(by_intent: dict[str, int], by_track: dict[str, int]) -> dict
     }
 
 
-def _separation(truths: dict[str, np.ndarray], radius: dict[str, float]) -> dict[str, Any]:
-    """Smallest hull-to-hull distance between any two vehicles and how often two came into
-    contact; truths[id]: (n, 3) rows (t, x, y); the other's track is interpolated to each
-    stamp of one's, over the time both were published."""
+def _deepest_breach(
+    per: dict[str, dict[str, Any]], sep: dict[str, Any], least_rho0: float
+) -> dict[str, Any]:
+    """The deepest way inside a safety distance anyone came, in its own terms: a vehicle
+    inside its own rho0 of an obstacle, or two hulls inside the larger of their two rho0
+    (each vehicle keeps its own from everything around it); rho0_breach_by names the vehicle
+    or the pair ("" without a breach, rho0_m then the least rho0: what every vehicle kept)."""
+    depth, rho0_m, below_s, by = 0.0, least_rho0, 0.0, ""
+    for vid, m in sorted(per.items()):
+        if float(m.get("rho0_breach_m") or 0.0) > depth:
+            depth, rho0_m = float(m["rho0_breach_m"]), float(m["rho0_m"])
+            below_s, by = float(m.get("time_below_rho0_s") or 0.0), vid
+    if sep["breach_m"] > depth:
+        depth, rho0_m, below_s, by = (
+            sep["breach_m"],
+            sep["breach_rho0_m"],
+            sep["breach_s"],
+            sep["breach_pair"],
+        )
+    return {
+        "rho0_m": rho0_m,
+        "rho0_breach_m": depth,
+        "time_below_rho0_s": below_s,
+        "rho0_breach_by": by,
+    }
+
+
+def _separation(
+    truths: dict[str, np.ndarray], radius: dict[str, float], rho0: dict[str, float]
+) -> dict[str, Any]:
+    """Smallest hull-to-hull distance between any two vehicles, how often two came into
+    contact, and the pair that came deepest inside the larger of their two rho0 (how deep,
+    that rho0, for how long); truths[id]: (n, 3) rows (t, x, y); the other's track is
+    interpolated to each stamp of one's, over the time both were published."""
     best, pair, collisions = math.inf, "", 0
+    breach: dict[str, Any] = {"breach_m": 0.0, "breach_rho0_m": 0.0, "breach_s": 0.0}
+    breach["breach_pair"] = ""
     for a, b in itertools.combinations(sorted(truths), 2):
         ta, tb = truths[a], truths[b]
         if len(ta) < 2 or len(tb) < 2:
@@ -129,4 +160,12 @@ def _separation(truths: dict[str, np.ndarray], radius: dict[str, float]) -> dict
         collisions += int(np.count_nonzero(touching[1:] & ~touching[:-1]) + int(touching[0]))
         if float(gap.min()) < best:
             best, pair = float(gap.min()), f"{a}-{b}"
-    return {"min_separation_m": best, "pair": pair, "collisions": collisions}
+        keep = max(rho0[a], rho0[b])
+        if keep - float(gap.min()) > breach["breach_m"]:
+            breach.update(
+                breach_m=keep - float(gap.min()),
+                breach_rho0_m=keep,
+                breach_s=duration_s(t, gap < keep),
+                breach_pair=f"{a}-{b}",
+            )
+    return {"min_separation_m": best, "pair": pair, "collisions": collisions, **breach}

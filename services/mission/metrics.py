@@ -112,7 +112,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     return m
 
 
-def _duration_s(t: np.ndarray, when: np.ndarray) -> float:
+def duration_s(t: np.ndarray, when: np.ndarray) -> float:
     """Time during which `when` held: each truth state t: (n,) holds until the next one."""
     return float(np.sum(np.diff(t)[when[:-1]]))
 
@@ -125,11 +125,11 @@ def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> dict[str
     out: dict[str, Any] = {
         "min_clearance_m": float(clear.min()),
         "collisions": int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0])),
-        "time_in_contact_s": _duration_s(t, collided),
+        "time_in_contact_s": duration_s(t, collided),
         "rho0_m": rho0_m,
         # how deep inside rho0 the hull came (more than rho0 once in contact); 0 if never
         "rho0_breach_m": max(0.0, rho0_m - float(clear.min())),
-        "time_below_rho0_s": _duration_s(t, below),
+        "time_below_rho0_s": duration_s(t, below),
     }
     if out["collisions"]:
         out["first_contact_t_s"] = float(t[np.argmax(collided)])
@@ -150,7 +150,7 @@ def _curvature_metrics(
     return {
         "max_executed_curvature": float(curv.max()) if len(curv) else 0.0,
         "max_executed_curvature_after_start": float(after.max()) if len(after) else 0.0,
-        "time_above_curvature_limit_s": _duration_s(t, above),
+        "time_above_curvature_limit_s": duration_s(t, above),
     }
 
 

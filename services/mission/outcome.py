@@ -81,8 +81,21 @@ def describe(m: dict[str, Any]) -> str:
 
 
 def _inside_rho0(m: dict[str, Any]) -> str:
+    """How deep inside rho0, for how long; a fleet's deepest breach in its own terms: one
+    vehicle's of an obstacle, or a pair's of each other (fleet_metrics.py)."""
+    who = m.get("rho0_breach_by") or ""
+    vehicles = m.get("vehicles") or {}
+    if who in vehicles:
+        return f"{who} came " + _inside_rho0(vehicles[who])
     rho0 = m.get("rho0_m")
     what = "the safety distance" + ("" if rho0 is None else f" rho0 = {float(rho0)} m")
+    if who:  # two vehicles: the distance is hull to hull
+        gap = _num(m, "rho0_m") - _num(m, "rho0_breach_m")
+        return (
+            f"{who.replace('-', ' and ')} came {_num(m, 'rho0_breach_m'):.2f} m inside {what} "
+            f"of each other for {_num(m, 'time_below_rho0_s', 0.0):.1f} s "
+            f"(hull to hull {gap:.2f} m)"
+        )
     return (
         f"{_num(m, 'rho0_breach_m'):.2f} m inside {what} for "
         f"{_num(m, 'time_below_rho0_s', 0.0):.1f} s "

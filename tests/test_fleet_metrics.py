@@ -1,0 +1,96 @@
+"""A fleet's safety metrics on synthetic truth records: two vehicles passing each other at a
+chosen lateral offset, each with its own rho0, one maybe passing a circle; the deepest breach
+is said in its own terms (the vehicle's rho0, or the larger of a pair's)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from helpers.launch_proc import REPO
+
+from common.config.loader import read_scenario_toml
+from common.config.scenario import Scenario, scenario_from_raw
+from common.messages import TruthState
+from common.runtime.model.record import Record
+from common.world.check import check_scenario
+from services.cli.core_commands import mission_failure
+from services.mission.fleet_metrics import fleet_metrics
+
+SPEED, DT = 1.5, 0.05  # m/s along x; the vehicles' truth period (s)
+HULLS = 1.6  # two default hulls of radius 0.8 m: centre distance = hull-to-hull gap + HULLS
+
+
+def _fleet(
+    offset_m: float, rho0: tuple[float, float], circles: list[dict[str, float]] | None = None
+) -> Scenario:
+    """The head-on pair, auv2 on the line offset_m north of auv1's (its goal moved with it)."""
+    raw = read_scenario_toml(REPO / "configs" / "fleet_headon.toml")
+    raw["world"]["circles"] = circles or []
+    one, two = raw["vehicles"]
+    two["start"]["y_m"] = two["goal"]["y_m"] = 20.0 + offset_m
+    one["planner"], two["planner"] = {"rho0_m": rho0[0]}, {"rho0_m": rho0[1]}
+    return scenario_from_raw(raw, "pair.toml", check=check_scenario)
+
+
+def _record(s: Scenario) -> Record:
+    """Each vehicle straight from its start to its goal at SPEED, one truth state every DT."""
+    rec = Record()
+    for vid, m in s.members:
+        x0, y0, x1 = m.world.start.x_m, m.world.start.y_m, m.world.goal.x_m
+        heading = 1.0 if x1 > x0 else -1.0
+        n = round(abs(x1 - x0) / (SPEED * DT)) + 1
+        for i in range(n):
+            rec.add(
+                f"{vid}.vehicle",
+                "truth",
+                TruthState(
+                    stamp=i * DT, source=f"{vid}.vehicle", seq=i + 1,
+                    x=x0 + heading * SPEED * i * DT, y=y0, theta=0.0 if heading > 0 else 3.14159,
+                    v=SPEED, w=0.0,
+                ),
+            )  # fmt: skip
+    return rec
+
+
+def _metrics(s: Scenario) -> dict[str, Any]:
+    return fleet_metrics(_record(s), s)
+
+
+def test_a_pair_between_its_two_rho0_breaches_the_larger_and_is_named() -> None:
+    m = _metrics(_fleet(1.2 + HULLS, (1.0, 1.5)))  # hull to hull 1.2 m: inside 1.5, not 1.0
+    assert m["reached_goal"] and m["collisions"] == 0 and m["vehicle_collisions"] == 0
+    assert m["min_separation_m"] == pytest.approx(1.2, abs=1e-3)
+    assert m["outcome"] == "rho0_breach" and not m["success"]
+    assert (m["rho0_breach_by"], m["rho0_m"]) == ("auv1-auv2", 1.5)
+    assert m["rho0_breach_m"] == pytest.approx(0.3, abs=1e-3)
+    assert m["time_below_rho0_s"] > 0.0
+    assert mission_failure(m | {"end_reason": "goal"}) == (
+        "mission failed: goal reached, but auv1 and auv2 came 0.30 m inside the safety "
+        f"distance rho0 = 1.5 m of each other for {m['time_below_rho0_s']:.1f} s "
+        "(hull to hull 1.20 m)"
+    )
+
+
+def test_a_pair_outside_both_rho0_is_a_success_that_names_no_one() -> None:
+    m = _metrics(_fleet(1.2 + HULLS, (1.0, 1.0)))
+    assert m["outcome"] == "success" and m["success"]
+    assert (m["rho0_breach_m"], m["rho0_breach_by"], m["time_below_rho0_s"]) == (0.0, "", 0.0)
+    assert m["rho0_m"] == 1.0
+
+
+def test_a_vehicles_breach_is_told_with_its_own_rho0_not_the_fleets_largest() -> None:
+    # a circle of radius 2 m 3.5 m south of auv1's line: auv1's hull (0.8 m) passes 0.7 m from
+    # it, 0.3 m inside auv1's rho0 of 1.0 m; auv2 passes 15 m away, its rho0 1.5 m
+    s = _fleet(15.0, (1.0, 1.5), [{"id": 1, "x_m": 50.0, "y_m": 16.5, "radius_m": 2.0}])
+    m = _metrics(s)
+    one = m["vehicles"]["auv1"]
+    assert m["outcome"] == "rho0_breach" and m["vehicles"]["auv2"]["outcome"] == "success"
+    assert (m["rho0_breach_by"], m["rho0_m"]) == ("auv1", 1.0)
+    assert m["rho0_breach_m"] == one["rho0_breach_m"] == pytest.approx(0.3, abs=1e-3)
+    assert m["time_below_rho0_s"] == one["time_below_rho0_s"] > 0.0
+    said = mission_failure(m | {"end_reason": "goal"})
+    assert said == (
+        "mission failed: goal reached, but auv1 came 0.30 m inside the safety distance "
+        f"rho0 = 1.0 m for {one['time_below_rho0_s']:.1f} s (min clearance 0.70 m)"
+    )
