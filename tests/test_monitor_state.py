@@ -132,7 +132,7 @@ def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_jso
     )
     s.see("planner", "stats", LinkStats(stamp=1.0, links=(link,)), wall=1.0)
     s.see("runtime", "end", RunEnd(stamp=65.5, reason="goal", ticks=0), wall=2.0)
-    s.est_error_m = math.nan  # what a diverged filter could leave: must not break JSON
+    s.view("").est_error_m = math.nan  # what a diverged filter could leave: must not break JSON
     out = io.StringIO()
     JsonLinesView(out).update([s], now=2.0)
     snap = json.loads(out.getvalue())
@@ -182,3 +182,84 @@ def test_a_monitor_without_a_router_fails_with_one_line_naming_the_endpoint(
     err = capsys.readouterr().err
     assert f"cannot reach the router at {endpoint}" in err
     assert "Traceback" not in err
+
+
+def test_a_fleets_vehicles_are_each_shown_apart_with_their_own_goal_mode_and_alarms() -> None:
+    s = RunState("fleet4", "fleet", stale_s=1.0)
+    s.scenario, _ = load_scenario("configs/fleet4.toml")
+    goals = {vid: m.world.goal for vid, m in s.scenario.members}
+    truth = SAMPLES["TruthState"]
+    p = SAMPLES["PathMsg"]
+    assert isinstance(truth, TruthState) and isinstance(p, PathMsg)
+    # both vehicles at (50, 20): each is its own distance from its own goal
+    for vid in ("auv1", "auv2"):
+        s.see(f"{vid}.vehicle", "truth", replace(truth, stamp=5.0, x=50.0, y=20.0), wall=1.0)
+    s.see("auv2.vehicle", "status", _status(5.0, "FAILSAFE", 4.0), wall=1.0)
+    s.see("auv1.planner", "path", replace(p, path_id=7), wall=1.0)
+    snap = s.snapshot(now=1.0)
+    fleet = snap["vehicles"]
+    assert set(fleet) == {"auv1", "auv2"}
+    for vid, g in goals.items():
+        if vid in fleet:
+            assert fleet[vid]["to_goal_m"] == pytest.approx(math.hypot(50 - g.x_m, 20 - g.y_m))
+    assert fleet["auv2"]["mode"] == "FAILSAFE" and fleet["auv1"]["mode"] is None
+    assert fleet["auv1"]["path"]["path_id"] == 7 and fleet["auv2"]["path"] is None
+    # nothing of one vehicle is shown as the run's own (there is none)
+    assert snap["pose"] is None and snap["to_goal_m"] is None and snap["path"] is None
+    assert "auv2 FAILSAFE" in snap["alarms"]
+    texts = [ev.text for ev in s.take_events()]
+    assert "auv2 mode FAILSAFE since t=4.00 s" in texts
+    assert any(t.startswith("auv1 path 7 ") for t in texts)
+
+
+def test_the_dashboard_shows_a_row_per_fleet_vehicle() -> None:
+    from rich.console import Console
+
+    from services.monitor.views import _panel
+
+    s = RunState("fleet4", "fleet", stale_s=1.0)
+    s.scenario, _ = load_scenario("configs/fleet4.toml")
+    truth = SAMPLES["TruthState"]
+    assert isinstance(truth, TruthState)
+    for vid in ("auv1", "auv3"):
+        s.see(f"{vid}.vehicle", "truth", replace(truth, stamp=5.0, x=50.0, y=20.0), wall=1.0)
+    out = io.StringIO()
+    Console(file=out, width=160).print(_panel(s.snapshot(now=1.0)))
+    shown = out.getvalue()
+    assert "auv1" in shown and "auv3" in shown and "to goal" in shown
+
+
+def test_paths_are_never_stale_however_quickly_the_last_replans_came() -> None:
+    s = _state()
+    p = SAMPLES["PathMsg"]
+    assert isinstance(p, PathMsg)
+    for i in range(4):  # four replans within a second, then none: a path is no heartbeat
+        s.see("planner", "path", replace(p, path_id=i + 1, stamp=i * 0.3), wall=100.0 + i * 0.3)
+    assert s.alarms(now=130.0) == []
+
+
+def test_services_leaving_once_every_vehicle_was_at_its_goal_raise_no_alarm() -> None:
+    s = _state()
+    assert s.scenario is not None
+    g, truth = s.scenario.world.goal, SAMPLES["TruthState"]
+    assert isinstance(truth, TruthState)
+    s.liveliness("planner", True, 1.0)
+    s.liveliness("planner", False, 2.0)  # mid-run: an alarm
+    assert s.alarms(now=2.0) == ["service planner gone"]
+    s.liveliness("planner", True, 3.0)
+    s.see("vehicle", "truth", replace(truth, stamp=60.0, x=g.x_m - 0.5, y=g.y_m), wall=4.0)
+    s.liveliness("planner", False, 5.0)  # the mission is over: its RunEnd is on its way
+    assert s.ending() and s.alarms(now=5.0) == []
+
+
+def test_a_fleet_is_ending_only_once_every_vehicle_was_at_its_goal() -> None:
+    s = RunState("fleet4", "fleet", stale_s=1.0)
+    s.scenario, _ = load_scenario("configs/fleet4.toml")
+    truth = SAMPLES["TruthState"]
+    assert isinstance(truth, TruthState)
+    members = dict(s.scenario.members)
+    for i, vid in enumerate(sorted(members)):
+        assert not s.ending()
+        g = members[vid].world.goal
+        s.see(f"{vid}.vehicle", "truth", replace(truth, stamp=50.0 + i, x=g.x_m, y=g.y_m), wall=i)
+    assert s.ending()

@@ -102,6 +102,20 @@ def _ms_pair(a: float | None, b: float | None) -> str:
     return f"{a * 1e3:.0f}/{b * 1e3:.0f} ms"
 
 
+def _mode(mode: str | None) -> str:
+    """A vehicle mode, coloured by how much it needs attention."""
+    style = {"RUN": "green", "HOLD": "yellow", "FAILSAFE": "bold red"}.get(mode or "", "")
+    return f"[{style}]{mode}[/]" if style else (mode or "-")
+
+
+def _path(path: dict[str, Any] | None) -> str:
+    """The path in force: status, id, replans and why (a NO_PATH's reason)."""
+    if path is None:
+        return "-"
+    why = f"  ({path['reason']})" if path["reason"] else ""
+    return f"{path['status']} #{path['path_id']}  {path['replans']} replans{why}"
+
+
 def _panel(snap: dict[str, Any]) -> Any:
     """One run's panel: vehicle, services, streams, links and alarms."""
     from rich.console import Group
@@ -111,30 +125,35 @@ def _panel(snap: dict[str, Any]) -> Any:
     head = Table.grid(padding=(0, 2))
     head.add_column(style="bold")
     head.add_column()
-    mode = snap["mode"] or "-"
-    style = {"RUN": "green", "HOLD": "yellow", "FAILSAFE": "bold red"}.get(mode, "")
-    head.add_row("mode", f"[{style}]{mode}[/]" if style else mode)
-    pose = snap["pose"]
-    head.add_row(
-        "pose",
-        "-"
-        if pose is None
-        else f"x {pose['x']:.1f} m  y {pose['y']:.1f} m  hdg {math.degrees(pose['theta']):.0f}°",
-    )
-    head.add_row("speed", _num(snap["speed_mps"], ".2f", " m/s"))
-    head.add_row("to goal", _num(snap["to_goal_m"], ".1f", " m"))
-    path = snap["path"]
-    head.add_row(
-        "path",
-        "-"
-        if path is None
-        else f"{path['status']} #{path['path_id']}  {path['replans']} replans"
-        + (f"  ({path['reason']})" if path["reason"] else ""),
-    )
-    head.add_row("estimate error", _num(snap["est_error_m"], ".2f", " m"))
+    fleet = snap.get("vehicles")
+    if not fleet:  # the run's only vehicle
+        head.add_row("mode", _mode(snap["mode"]))
+        p = snap["pose"]
+        head.add_row(
+            "pose",
+            "-"
+            if p is None
+            else f"x {p['x']:.1f} m  y {p['y']:.1f} m  hdg {math.degrees(p['theta']):.0f}°",
+        )
+        head.add_row("speed", _num(snap["speed_mps"], ".2f", " m/s"))
+        head.add_row("to goal", _num(snap["to_goal_m"], ".1f", " m"))
+        head.add_row("path", _path(snap["path"]))
+        head.add_row("estimate error", _num(snap["est_error_m"], ".2f", " m"))
     head.add_row("mission time", _num(snap["t_mission"], ".1f", " s"))
     if snap["end"] is not None:
         head.add_row("ended", f"{snap['end']['reason']} at t={snap['end']['t_end_s']:.1f} s")
+
+    # a fleet: a row per vehicle
+    vehicles = Table("vehicle", "mode", "speed", "to goal", "est. err", "path", box=None)
+    for vid, v in (fleet or {}).items():
+        vehicles.add_row(
+            vid,
+            _mode(v["mode"]),
+            _num(v["speed_mps"], ".2f", " m/s"),
+            _num(v["to_goal_m"], ".1f", " m"),
+            _num(v["est_error_m"], ".2f", " m"),
+            _path(v["path"]),
+        )
 
     services = Table("service", "state", "since", "restarts", box=None, pad_edge=False)
     for name, sv in snap["services"].items():
@@ -158,5 +177,6 @@ def _panel(snap: dict[str, Any]) -> Any:
         )
     alarms = snap["alarms"]
     alarm_text = "\n".join(f"[bold red]! {a}[/]" for a in alarms) or "[green]no alarms[/]"
-    body = Group(head, "", services, "", streams, "", links, "", alarm_text)
+    parts: list[Any] = [head, "", *([vehicles, ""] if fleet else []), services, "", streams]
+    body = Group(*parts, "", links, "", alarm_text)
     return Panel(body, title=f"{snap['run']}/{snap['vehicle']}", border_style="blue")
