@@ -16,6 +16,7 @@ from common.runtime.model.record import Record
 from common.world.check import check_scenario
 from services.cli.core_commands import mission_failure
 from services.mission.fleet_metrics import fleet_metrics
+from services.mission.outcome import describe
 
 SPEED, DT = 1.5, 0.05  # m/s along x; the vehicles' truth period (s)
 HULLS = 1.6  # two default hulls of radius 0.8 m: centre distance = hull-to-hull gap + HULLS
@@ -77,6 +78,11 @@ def test_a_pair_outside_both_rho0_is_a_success_that_names_no_one() -> None:
     assert m["outcome"] == "success" and m["success"]
     assert (m["rho0_breach_m"], m["rho0_breach_by"], m["time_below_rho0_s"]) == (0.0, "", 0.0)
     assert m["rho0_m"] == 1.0
+    # an empty world has no obstacle clearance to tell, a fleet its separation
+    assert describe(m) == (
+        f"goal reached in {m['travel_time_s']:.2f} s, never inside the safety distance "
+        "rho0 = 1.0 m (min separation 1.20 m)"
+    )
 
 
 def test_a_vehicles_breach_is_told_with_its_own_rho0_not_the_fleets_largest() -> None:
