@@ -332,3 +332,34 @@ def test_a_real_run_translates_into_messages_each_decodable_with_its_schema(
     errors = [decode(m)["error_m"] for m in run_view if m.topic == "/plot/estimate_error"]
     # the default sensor has 0.5 m position noise: the filtered estimate stays well inside 3 m
     assert len(errors) > 50 and max(errors) < 3.0
+
+
+def test_a_fleets_vehicles_each_have_their_topics_frames_start_and_goal() -> None:
+    fleet, _ = load_scenario(REPO / "configs" / "fleet4.toml")
+    members = dict(fleet.members)
+    view = FoxgloveView(fleet)
+    chart = _entities(_one(view.static(), v.SCENE_STATIC))
+    assert "start" not in chart and "goal" not in chart  # the base scenario's are nobody's
+    for vid, m in members.items():
+        g = m.world.goal
+        assert [t["text"] for t in chart[f"{vid}/goal"]["texts"]] == [f"{vid} goal"]
+        assert _xy(chart[f"{vid}/goal"]["lines"][0]).mean(axis=0) == pytest.approx(
+            (g.x_m, g.y_m), abs=0.05
+        )
+    one = view.translate("auv1.vehicle", "truth", _truth(3.0, 30.0))
+    two = view.translate("auv2.vehicle", "truth", _truth(3.0, 60.0))
+    assert _one(one, "/auv1" + v.POSE_TRUE)["pose"]["position"]["x"] == 30.0
+    assert _one(two, "/auv2" + v.POSE_TRUE)["pose"]["position"]["x"] == 60.0
+    assert _one(two, v.TF)["child_frame_id"] == "auv2"  # one /tf, a frame per vehicle
+    g2 = members["auv2"].world.goal
+    assert _one(two, "/auv2/plot/truth")["distance_to_goal_m"] == pytest.approx(
+        math.hypot(g2.x_m - 60.0, g2.y_m - 20.0)
+    )
+    # the moving obstacles are the run's: drawn once, at the first vehicle's truth
+    assert [m.topic for m in one].count(v.SCENE_MOVING) == 1
+    assert v.SCENE_MOVING not in [m.topic for m in two]
+    path = view.translate("auv3.planner", "path", _path(2))
+    assert {m.topic for m in path} >= {"/auv3" + v.PLANNER_PATH, v.EVENTS}
+    assert decode([m for m in path if m.topic == v.EVENTS][0])["name"] == "auv3.planner"
+    # the same path again as auv3's intent (each second, for the others) is no replan
+    assert view.translate("auv3.planner", "intent", _path(2)) == []

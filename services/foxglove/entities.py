@@ -40,28 +40,15 @@ def entity(eid: str, t: float, **primitives: Any) -> SceneEntity:
     return SceneEntity(timestamp=stamp(t), frame_id=WORLD, id=eid, **primitives)
 
 
-def chart(w: WorldConfig) -> list[SceneEntity]:
-    """The area's boundary, the start pose, the goal's tolerance circle, static obstacles."""
-    a, st, g = w.area, w.start, w.goal
+def chart(w: WorldConfig, ends: bool = True) -> list[SceneEntity]:
+    """The area's boundary, static obstacles and (`ends`) the start pose and the goal's
+    tolerance circle."""
+    a = w.area
     box = [(a.x_min_m, a.y_min_m), (a.x_max_m, a.y_min_m), (a.x_max_m, a.y_max_m)]
     box.append((a.x_min_m, a.y_max_m))
-    goal_ring = circle_xy(g.x_m, g.y_m, w.goal_tolerance_m)
-    heading = (math.cos(st.theta_rad), math.sin(st.theta_rad))
-    out = [
-        entity("area", 0.0, lines=[polyline(box, DARK, 0.15, closed=True)]),
-        entity(
-            "start",
-            0.0,
-            arrows=[arrow(st.x_m, st.y_m, *heading, VELOCITY_HORIZON_S, DARK)],
-            texts=[label(st.x_m, st.y_m, "start", DARK)],
-        ),
-        entity(
-            "goal",
-            0.0,
-            lines=[polyline(goal_ring, RED, 0.12, closed=True)],
-            texts=[label(g.x_m, g.y_m, "goal", RED)],
-        ),
-    ]
+    out = [entity("area", 0.0, lines=[polyline(box, DARK, 0.15, closed=True)])]
+    if ends:
+        out += start_and_goal(w)
     for c in w.circles:
         out.append(
             entity(
@@ -83,6 +70,29 @@ def chart(w: WorldConfig) -> list[SceneEntity]:
             )
         )
     return out
+
+
+def start_and_goal(w: WorldConfig, vehicle: str = "") -> list[SceneEntity]:
+    """The start pose and the goal's tolerance circle (of fleet vehicle `vehicle`: named)."""
+    st, g = w.start, w.goal
+    goal_ring = circle_xy(g.x_m, g.y_m, w.goal_tolerance_m)
+    heading = (math.cos(st.theta_rad), math.sin(st.theta_rad))
+    tag = f"{vehicle}/" if vehicle else ""
+    name = f"{vehicle} " if vehicle else ""
+    return [
+        entity(
+            f"{tag}start",
+            0.0,
+            arrows=[arrow(st.x_m, st.y_m, *heading, VELOCITY_HORIZON_S, DARK)],
+            texts=[label(st.x_m, st.y_m, f"{name}start", DARK)],
+        ),
+        entity(
+            f"{tag}goal",
+            0.0,
+            lines=[polyline(goal_ring, RED, 0.12, closed=True)],
+            texts=[label(g.x_m, g.y_m, f"{name}goal", RED)],
+        ),
+    ]
 
 
 def moving(obstacles: Iterable[ObstacleState], t: float) -> list[SceneEntity]:

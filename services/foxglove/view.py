@@ -10,6 +10,7 @@ of a topic is all a late subscriber needs.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from collections.abc import Callable
@@ -44,6 +45,7 @@ from common.messages import (
     VehicleStatus,
     VelocityCommand,
 )
+from common.runtime.model.dataflow import vehicle_of
 from common.world import World
 from services.foxglove import entities as draw
 from services.foxglove import series
@@ -66,6 +68,7 @@ TRAIL_EST = "/vehicle/trail_est"
 NAV_FIX = "/sensor/nav"  # the noisy navigation fix
 TF = "/tf"  # world -> auv (truth) and world -> auv_est, for a panel that follows the vehicle
 EVENTS = "/events"  # mode changes, path status changes, the run's end
+RUN_TOPICS = frozenset({EVENTS, SCENE_MOVING, TF})  # one of each in a run, fleet or not
 
 PATH_SAMPLES = 300  # points of the path in force: smooth at chart scale
 REPLAN_SAMPLES = 100  # points of each earlier replan, drawn faint
@@ -85,19 +88,44 @@ class ViewMessage:
     data: bytes
 
 
+# what a fleet vehicle's own view shows (under /<vehicle id>/...); the rest is the run's
+VEHICLE_TYPES = (
+    TruthState,
+    StateEstimate,
+    ObstacleTracks,
+    ObstacleDetections,
+    PathMsg,
+    VelocityCommand,
+    VehicleStatus,
+    NavFix,
+)
+
+
 class FoxgloveView:
     """Translates one run's messages (in order) into view messages; holds what a chart needs
-    across messages (trails, earlier replans, the truth to score estimates against)."""
+    across messages (trails, earlier replans, the truth to score estimates against).
 
-    def __init__(self, scenario: Scenario) -> None:
+    A fleet's vehicles each get a view of their own, built from their own scenario (their
+    start and goal): its topics under /<vehicle id> (/auv2/vehicle/pose_true,
+    /auv2/planner/path, ...), its frames <id> and <id>_est; the events, the links, the run's
+    end and the moving obstacles (drawn at the first vehicle's truth stamps) stay the run's.
+    """
+
+    def __init__(self, scenario: Scenario, *, vehicle: str = "", draw_moving: bool = True) -> None:
         self.scenario = scenario
         self.world = World(scenario.world)
-        self._has_moving = bool(scenario.world.moving)
+        self._has_moving = bool(scenario.world.moving) and draw_moving
+        self._frame = vehicle or "auv"  # the TF child frame of the truth (+ "_est")
+        self._members = {
+            vid: FoxgloveView(m, vehicle=vid, draw_moving=i == 0)
+            for i, (vid, m) in enumerate(scenario.members)
+        }
         self._scorer = EstimateScorer()
         self._trail_true = Trail(spacing_m=0.25, max_poses=4000, period_s=0.5)
         self._trail_est = Trail(spacing_m=0.25, max_poses=4000, period_s=0.5)
         self._replans: deque[tuple[int, np.ndarray]] = deque(maxlen=MAX_REPLANS)
         self._n_paths = 0
+        self._paths_seen: set[int] = set()
         self._links: dict[str, dict[str, Any]] = {}  # link name -> table row
         self._mode: str | None = None
         self._path_status: str | None = None
@@ -128,13 +156,17 @@ class FoxgloveView:
             "goal_x_m": g.x_m,
             "goal_y_m": g.y_m,
         }
-        return [
-            _replace_all(SCENE_STATIC, 0.0, draw.chart(s.world)),
-            _json(series.RUN_INFO, info),
-        ]
+        chart = draw.chart(s.world, ends=not self._members)
+        for vid, m in self._members.items():
+            chart += draw.start_and_goal(m.scenario.world, vid)
+        return [_replace_all(SCENE_STATIC, 0.0, chart), _json(series.RUN_INFO, info)]
 
     def translate(self, service: str, stream: str, msg: Message) -> list[ViewMessage]:
         """The view messages one tidelink message gives ([] for a type the view does not show)."""
+        vid = vehicle_of(service)
+        member = self._members.get(vid)
+        if member is not None and isinstance(msg, VEHICLE_TYPES):
+            return [_under(vid, vm) for vm in member.translate(service, stream, msg)]
         handler = self._by_type.get(type(msg))
         return [] if handler is None else handler(service, msg)
 
@@ -156,7 +188,7 @@ class FoxgloveView:
             values["clearance_m"] = clearance
         out = [
             _proto(POSE_TRUE, _pose(t, m.x, m.y, m.theta)),
-            _proto(TF, _transform("auv", t, m.x, m.y, m.theta)),
+            _proto(TF, _transform(self._frame, t, m.x, m.y, m.theta)),
             _json(series.TRUTH, values),
         ]
         if self._has_moving:
@@ -180,7 +212,7 @@ class FoxgloveView:
         }
         out = [
             _proto(POSE_EST, _pose(t, m.x, m.y, m.theta)),
-            _proto(TF, _transform("auv_est", t, m.x, m.y, m.theta)),
+            _proto(TF, _transform(f"{self._frame}_est", t, m.x, m.y, m.theta)),
             _replace_all(SCENE_ESTIMATE, t, [draw.estimate(m)]),
             _json(series.ESTIMATE, values),
         ]
@@ -239,6 +271,10 @@ class FoxgloveView:
 
     # -- the plan ----------------------------------------------------------------------------
     def _path(self, service: str, m: PathMsg) -> list[ViewMessage]:
+        # a fleet's planner sends each path again as its intent, every second: one replan
+        if m.path_id in self._paths_seen:
+            return []
+        self._paths_seen.add(m.path_id)
         t = m.stamp
         self._n_paths += 1
         values = {
@@ -307,6 +343,11 @@ class FoxgloveView:
             _json(series.RUN_END, {"t": m.stamp, "reason": m.reason, "ticks": m.ticks}),
             _event(m.stamp, LogLevel.Info, service, text),
         ]
+
+
+def _under(vehicle: str, vm: ViewMessage) -> ViewMessage:
+    """A fleet vehicle's view message on its own topic (/auv2/...), unless it is the run's."""
+    return vm if vm.topic in RUN_TOPICS else dataclasses.replace(vm, topic=f"/{vehicle}{vm.topic}")
 
 
 def _proto(topic: str, msg: Any) -> ViewMessage:
