@@ -171,3 +171,20 @@ def test_an_8_s_planner_outage_is_bridged_by_the_command_sequence() -> None:
     m = run_inproc(s).metrics
     assert m["hold_time_s"] == 0.0 and m["failsafe_time_s"] == 0.0
     assert m["reached_goal"] is True and m["collisions"] == 0 and m["success"] is True
+
+
+def test_a_realtime_run_whose_services_fell_behind_says_so_beside_its_outcome(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from services.cli.core_commands import fell_behind, report_outcome
+
+    late = {"a.estimator": 11.5, "b.vehicle": 3.0, "a.sensor": 0.0}
+    m = {"runtime": "realtime", "unresponsive_s": late, "outcome": "success", "success": True}
+    assert report_outcome(m, json_output=False) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("tidelink: note: 2 services fell silent for 14.5 s of mission time")
+    assert "(the most: a.estimator, 11.5 s)" in err and "--time-scale" in err
+    # one frozen service is the alarms' business; lockstep has no wall clock to fall behind
+    assert fell_behind(m | {"unresponsive_s": {"a.planner": 9.0}}) is None
+    assert fell_behind(m | {"runtime": "lockstep"}) is None
+    assert fell_behind(m | {"unresponsive_s": {"a.planner": 0.5, "b.planner": 0.5}}) is None

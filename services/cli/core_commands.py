@@ -213,10 +213,34 @@ def _verdict(metrics: dict[str, Any]) -> tuple[bool, str] | None:
     return outcome == "success", describe(metrics)
 
 
+# several services silent this long in all: the run's timing was not the scenario's
+BEHIND_S = 2.0
+
+
+def fell_behind(metrics: dict[str, Any]) -> str | None:
+    """Why a realtime run's outcome may say little of its method: several services fell
+    silent (unresponsive_s) for seconds, which is the machine not keeping up with the clock
+    or the launcher cut off from them; one frozen service is the alarms' business."""
+    silent = {k: float(v) for k, v in (metrics.get("unresponsive_s") or {}).items() if v}
+    total = sum(silent.values())
+    if metrics.get("runtime") != "realtime" or len(silent) < 2 or total < BEHIND_S:
+        return None
+    worst = max(silent, key=lambda k: silent[k])
+    return (
+        f"{len(silent)} services fell silent for {total:.1f} s of mission time in all "
+        f"(the most: {worst}, {silent[worst]:.1f} s): this machine did not keep up with the "
+        "run's time scale, or the network to them was out; the outcome is that of a late "
+        "loop. A lower --time-scale, or the services spread over more hosts, keeps its timing."
+    )
+
+
 def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
     """Say the run's outcome in words (a failure in the summary on stdout, on stderr when
     stdout is JSON; a success in the summary only) and return the exit code:
     EXIT_MISSION_FAILED for a failure, else 0."""
+    behind = fell_behind(metrics)
+    if behind is not None:
+        print(f"tidelink: note: {behind}", file=sys.stderr, flush=True)
     verdict = _verdict(metrics)
     if verdict is None:
         return 0
