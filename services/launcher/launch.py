@@ -185,7 +185,11 @@ def _run(
     observer = ProgressObserver(view, display, limits)
     cfg = scenario.bus.client_of(endpoint)
     raw = json.loads(scenario_json.read_text())
-    with clock_bus(cfg, keys, mission.dataflow, raw) as side, ExitStack() as attached:
+    lockstep = kind == "lockstep"
+    with (
+        clock_bus(cfg, keys, mission.dataflow, raw, lockstep=lockstep) as side,
+        ExitStack() as attached,
+    ):
         for hook in opts.attach:
             attached.enter_context(hook(side))
         for name in local:

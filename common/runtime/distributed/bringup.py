@@ -74,16 +74,18 @@ def clock_bus(
     flow: Dataflow,
     scenario_raw: dict[str, Any],
     *,
+    lockstep: bool,
     access_control: dict[str, Any] | None = None,
 ) -> Iterator[ClockSide]:
     """Open the driver's bus (see the module docstring) as the launcher identity (mTLS);
-    a router clock may enforce the run's access control. Everything closes on exit."""
+    a router clock may enforce the run's access control. Everything closes on exit.
+    `lockstep`: the driver ticks every step (ticks.py: batched); else it tells the time."""
     with Bus(cfg, keys, identity=LAUNCHER, access_control=access_control) as bus:
         inbox = Inbox()
         bus.subscribe(keys.all_streams, inbox)
         bus.watch_alive(inbox)
         tap = serve_watchers(bus, keys, flow, scenario_raw)
-        ticks = TickSender(bus, flow.names)
+        ticks = TickSender(bus, flow.names, express=not lockstep)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks, tap)
 
@@ -139,7 +141,8 @@ def local_run(
         raw_path = Path(tmp) / "scenario.json"
         raw_path.write_text(json.dumps(raw))
         try:
-            with clock_bus(cfg, keys, flow, raw, access_control=acl) as side:
+            lockstep = scenario.runtime.kind == "lockstep"
+            with clock_bus(cfg, keys, flow, raw, lockstep=lockstep, access_control=acl) as side:
                 for name in flow.names:
                     argv = [name, "--scenario-json", str(raw_path), "--connect", endpoint]
                     sup.start(name, ["-m", service_module, *argv])

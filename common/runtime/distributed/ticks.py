@@ -13,10 +13,19 @@ class TickSender:
 
     A tick that names due services goes to those; a stop tick, or one that names nobody
     (realtime start and clock ticks), goes to every service of the run.
+
+    `express`: sent at once from the caller's thread, for the realtime clock, whose ticks
+    set every service's time. Lockstep ticks go batched (express False): Zenoh sends a batch
+    as soon as its link is free, so a tick waits for nothing, and the send leaves the
+    coordinator's thread (an express put cost it 0.36-0.46 ms a tick while the services
+    stepped). The default mission in lockstep, interleaved pairs on 2 cores, median wall:
+    seed 1 13.2 -> 12.7 s, seed 2 13.4 -> 12.2 s, seed 3 11.7 -> 10.0 s; the toy loop's
+    floor (trivial cores, nothing else busy) is the same either way (1.60 / 1.66 ms).
     """
 
-    def __init__(self, bus: Bus, services: Iterable[str]) -> None:
+    def __init__(self, bus: Bus, services: Iterable[str], *, express: bool) -> None:
         self._bus = bus
+        self._express = express
         self._all = tuple(sorted(services))
         self._pubs: dict[tuple[str, ...], Publisher] = {}
 
@@ -24,11 +33,6 @@ class TickSender:
         to = self._all if tick.stop or not tick.due else tuple(sorted(tick.due))
         pub = self._pubs.get(to)
         if pub is None:
-            # batched, not express: Zenoh sends a batch as soon as its link is free, so a tick
-            # waits for nothing, and the send leaves the caller's thread (an express put cost
-            # the coordinator 0.36-0.46 ms a tick while the services stepped). The default
-            # mission in lockstep, interleaved pairs on 2 cores, median wall: seed 1 13.2 ->
-            # 12.7 s, seed 2 13.4 -> 12.2 s, seed 3 11.7 -> 10.0 s; the toy loop's floor
-            # (trivial cores, nothing else busy) is the same either way (1.60 / 1.66 ms)
-            pub = self._pubs[to] = self._bus.publisher_on(self._bus.keys.tick(to))
+            key = self._bus.keys.tick(to)
+            pub = self._pubs[to] = self._bus.publisher_on(key, express=self._express)
         pub.put(tick)
