@@ -144,8 +144,12 @@ def _separation(
     that rho0, for how long); truths[id]: (n, 3) rows (t, x, y); the other's track is
     interpolated to each stamp of one's, over the time both were published."""
     best, pair, collisions = math.inf, "", 0
-    breach: dict[str, Any] = {"breach_m": 0.0, "breach_rho0_m": 0.0, "breach_s": 0.0}
-    breach["breach_pair"] = ""
+    breach: dict[str, Any] = {
+        "breach_m": 0.0,
+        "breach_rho0_m": 0.0,
+        "breach_s": 0.0,
+        "breach_pair": "",
+    }
     for a, b in itertools.combinations(sorted(truths), 2):
         ta, tb = truths[a], truths[b]
         if len(ta) < 2 or len(tb) < 2:
@@ -158,12 +162,13 @@ def _separation(
         gap = np.hypot(ta[both, 1] - bx, ta[both, 2] - by) - (radius[a] + radius[b])
         touching = gap < 0.0
         collisions += int(np.count_nonzero(touching[1:] & ~touching[:-1]) + int(touching[0]))
-        if float(gap.min()) < best:
-            best, pair = float(gap.min()), f"{a}-{b}"
+        least = float(gap.min())
+        if least < best:
+            best, pair = least, f"{a}-{b}"
         keep = max(rho0[a], rho0[b])
-        if keep - float(gap.min()) > breach["breach_m"]:
+        if keep - least > breach["breach_m"]:
             breach.update(
-                breach_m=keep - float(gap.min()),
+                breach_m=keep - least,
                 breach_rho0_m=keep,
                 breach_s=duration_s(t, gap < keep),
                 breach_pair=f"{a}-{b}",

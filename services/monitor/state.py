@@ -312,6 +312,8 @@ class RunState:
 
     def _arrive(self, vid: str) -> None:
         """Note a vehicle within its goal tolerance (for good, as the mission judges it)."""
+        if vid in self.arrived:
+            return
         d, world = self.to_goal_m(vid), self._world_of(vid)
         if d is not None and world is not None and d <= world.goal_tolerance_m:
             self.arrived.add(vid)
