@@ -441,7 +441,11 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     assert two["intent_fraction"] < 0.5  # by auv1's track after its intent went stale
 
 
+# the suite's 300 s per test is short of this one's worst case: fleet4's max_time_s (240 s)
+# at half speed is 480 s of wall time, plus start-up and metrics (a fresh clone cut a run at
+# 300 s whose vehicles had been held up by replans; they usually arrive in ~200 s)
 @pytest.mark.slow
+@pytest.mark.timeout(600)
 def test_fleet4_launched_in_realtime_at_half_speed_reaches_every_goal_without_contact(
     tmp_path: Path,
 ) -> None:
@@ -462,7 +466,7 @@ def test_fleet4_launched_in_realtime_at_half_speed_reaches_every_goal_without_co
             "--out",
             str(out),
             "--no-plot",
-            timeout_s=900.0,
+            timeout_s=570.0,
         )
     finally:
         kill_recorded(out / "pids.json")
