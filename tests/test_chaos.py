@@ -44,6 +44,7 @@ CASES = [
 
 
 @pytest.mark.slow
+@pytest.mark.exclusive  # its invariants are judged in real time
 @pytest.mark.parametrize("fault", CASES, ids=lambda f: f.name.replace(" ", "-"))
 def test_a_fault_case_keeps_every_invariant(fault: Fault, tmp_path: Path) -> None:
     scenario, _ = load_scenario(SETUP.scenario, [], None)

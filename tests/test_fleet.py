@@ -324,10 +324,11 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     }
 
 
-# deterministic, but not marked so: its 17 processes would have the 2 cores to themselves and
-# run in scripts/test's serial phase (beside the other worker it took 76 s and slowed the tests
-# running there twofold: phase 1 530 -> 640 s in a fresh clone)
+# deterministic, but marked exclusive, not so: its 17 processes should have the 2 cores to
+# themselves, in scripts/test's last phase (beside the other worker it took 76 s and slowed
+# the tests running there twofold: phase 1 530 -> 640 s in a fresh clone)
 @pytest.mark.slow
+@pytest.mark.exclusive
 @pytest.mark.parametrize(("seed", "max_time_s"), [(2, None), (3, 30.0)])
 def test_fleet4_in_lockstep_equals_inproc(
     seed: int, max_time_s: float | None, tmp_path: Path
@@ -409,6 +410,7 @@ def test_launch_progress_shows_every_vehicle() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.exclusive
 def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     tmp_path: Path,
 ) -> None:
@@ -445,6 +447,7 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
 # at half speed is 480 s of wall time, plus start-up and metrics (a fresh clone cut a run at
 # 300 s whose vehicles had been held up by replans; they usually arrive in ~200 s)
 @pytest.mark.slow
+@pytest.mark.exclusive
 @pytest.mark.timeout(600)
 def test_fleet4_launched_in_realtime_at_half_speed_reaches_every_goal_without_contact(
     tmp_path: Path,

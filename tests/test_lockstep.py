@@ -38,6 +38,7 @@ def _hog(stop_at: float) -> None:
         pass
 
 
+@pytest.mark.exclusive  # its hogs would take the cores from the tests beside it
 def test_lockstep_is_deterministic_under_cpu_load(testloop_toml: Path, tmp_path: Path) -> None:
     s, raw = load_scenario(testloop_toml)
     first = run_lockstep(s, raw, tmp_path / "a")

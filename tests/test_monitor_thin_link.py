@@ -25,7 +25,7 @@ import pytest
 from helpers.launch_proc import REPO, Tidelink, kill_recorded
 from helpers.netns import Tbf, Veth, lab_or_skip, link_bytes, shape, tbf
 
-pytestmark = [pytest.mark.slow, pytest.mark.netns]
+pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 
 PORT = 7447
 WAIT_S = 60.0

@@ -19,7 +19,7 @@ import pytest
 from helpers.launch_proc import REPO, Tidelink, alive, judged_exit, kill_recorded
 from helpers.netns import NetnsLab, Veth, ip, lab_or_skip, link_bytes
 
-pytestmark = [pytest.mark.slow, pytest.mark.netns]
+pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 
 SERVICES = ("estimator", "planner", "sensor", "vehicle")
 PORT = 7447
