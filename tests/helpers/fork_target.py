@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import signal
 import sys
+
+from common.runtime.processes.signals import wait_for_stop
 
 
 def main(argv: list[str]) -> int:
@@ -12,7 +13,7 @@ def main(argv: list[str]) -> int:
     print("to stderr", file=sys.stderr, flush=True)
     if argv[0] == "exit":
         return int(argv[1])
-    signal.pause()
+    wait_for_stop()  # a service's wait: signal.pause() misses a signal landing just before it
     return 0
 
 
