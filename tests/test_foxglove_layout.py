@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 from helpers.foxglove_view import REPO, short_run, view_all
 
+from common.config.scenario import load_scenario
+from common.runtime.model.inproc import run_inproc
+from services.cli import main
+from services.foxglove.dashboard import fleet_layout
 from services.foxglove.view import ViewMessage
 
 LAYOUT = REPO / "docs" / "foxglove" / "tidelink-layout.json"
@@ -22,13 +27,30 @@ def layout() -> dict[str, Any]:
     return data
 
 
+def _firsts(messages: list[ViewMessage]) -> dict[str, ViewMessage]:
+    """The first message of every topic."""
+    out: dict[str, ViewMessage] = {}
+    for vm in messages:
+        out.setdefault(vm.topic, vm)
+    return out
+
+
 @pytest.fixture(scope="module")
 def produced() -> dict[str, ViewMessage]:
     """The first message of every topic the view produced for a short run of default.toml."""
-    out: dict[str, ViewMessage] = {}
-    for vm in view_all(*short_run()):
-        out.setdefault(vm.topic, vm)
-    return out
+    return _firsts(view_all(*short_run()))
+
+
+@pytest.fixture(scope="module")
+def fleet() -> tuple[dict[str, Any], dict[str, ViewMessage]]:
+    """The layout made for fleet4, and the first message of every topic its view produced
+    in the first 3 s of an in-process run."""
+    s, _ = load_scenario(REPO / "configs" / "fleet4.toml", ["run.max_time_s=3.0"])
+    record = run_inproc(s).record
+    frames = [(svc, st, m) for svc, st in record.keys() for m in record.stream(svc, st)]
+    frames.sort(key=lambda f: f[2].stamp)
+    layout = json.loads(LAYOUT.read_text())
+    return fleet_layout(layout, [vid for vid, _ in s.members]), _firsts(view_all(s, frames))
 
 
 def _panel_ids(node: Any) -> Iterator[str]:
@@ -56,9 +78,7 @@ def test_the_layout_is_an_importable_foxglove_layout(layout: dict[str, Any]) -> 
     assert kinds >= {"3D", "Plot", "Table", "StateTransitions"}
 
 
-def test_every_topic_and_field_the_layout_reads_is_produced_by_the_view(
-    layout: dict[str, Any], produced: dict[str, ViewMessage]
-) -> None:
+def _check_reads(layout: dict[str, Any], produced: dict[str, ViewMessage]) -> None:
     for pid, config in layout["configById"].items():
         for path in _paths(config):
             topic, _, field = path.partition(".")
@@ -71,14 +91,58 @@ def test_every_topic_and_field_the_layout_reads_is_produced_by_the_view(
                 assert name in props, f"{pid}: {topic} has no field {name!r}"
 
 
+def _scene_topics(layout: dict[str, Any], produced: dict[str, ViewMessage]) -> dict[str, Any]:
+    """The 3D panel's topics, checked to be the view's scene topics."""
+    three_d = [c for pid, c in layout["configById"].items() if pid.startswith("3D!")]
+    assert len(three_d) == 1
+    assert three_d[0]["followTf"] == "world"  # every scene message is drawn in "world"
+    topics: dict[str, Any] = three_d[0]["topics"]
+    scene = {t for t, vm in produced.items() if vm.schema_name in SCENE_SCHEMAS}
+    assert set(topics) == scene, "the 3D panel and the view's scene topics differ"
+    return topics
+
+
+def test_every_topic_and_field_the_layout_reads_is_produced_by_the_view(
+    layout: dict[str, Any], produced: dict[str, ViewMessage]
+) -> None:
+    _check_reads(layout, produced)
+
+
 def test_the_3d_panel_shows_every_scene_topic_of_the_view(
     layout: dict[str, Any], produced: dict[str, ViewMessage]
 ) -> None:
-    three_d = [c for pid, c in layout["configById"].items() if pid.startswith("3D!")]
-    assert len(three_d) == 1
-    topics = three_d[0]["topics"]
-    scene = {t for t, vm in produced.items() if vm.schema_name in SCENE_SCHEMAS}
-    assert set(topics) == scene, "the 3D panel and the view's scene topics differ"
+    topics = _scene_topics(layout, produced)
     visible = {t for t, s in topics.items() if s.get("visible")}
     assert {"/scene/static", "/planner/path", "/vehicle/pose_true", "/vehicle/pose_est"} <= visible
-    assert three_d[0]["followTf"] == "world"  # every scene message is drawn in "world"
+
+
+def test_a_fleets_layout_reads_every_vehicles_topics_and_nothing_its_view_lacks(
+    fleet: tuple[dict[str, Any], dict[str, ViewMessage]],
+) -> None:
+    layout, produced = fleet
+    _check_reads(layout, produced)
+    topics = _scene_topics(layout, produced)
+    colours = {topics[f"/{vid}/vehicle/pose_true"]["color"] for vid in ("auv1", "auv2", "auv3")}
+    assert len(colours) == 3  # a colour per vehicle
+    plot = layout["configById"]["Plot!goal"]["paths"]
+    assert [p["value"] for p in plot][:4] == [
+        f"/auv{i}/plot/truth.distance_to_goal_m" for i in (1, 2, 3, 4)
+    ]
+    assert plot[1]["label"] == "auv2 to goal (m)"
+    assert layout["configById"]["Table!links"]["topicPath"] == "/links.links"  # the run's
+    hidden = layout["configById"]["3D!tidelink"]["transforms"]
+    assert "frame:auv" not in hidden and hidden["frame:auv4_est"] == {"visible": False}
+
+
+def test_tidelink_foxglove_layout_for_prints_it(
+    layout: dict[str, Any], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert main(["foxglove", "--layout-for", str(REPO / "configs" / "default.toml")]) == 0
+    assert json.loads(capsys.readouterr().out) == layout  # one vehicle: the shipped layout
+    assert main(["foxglove", "--layout-for", str(REPO / "configs" / "fleet_headon.toml")]) == 0
+    paths = json.loads(capsys.readouterr().out)["configById"]["Plot!command"]["paths"]
+    assert {p["value"].split("/")[1] for p in paths} == {"auv1", "auv2"}
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[[vehicles]]\nid = 3\n")
+    assert main(["foxglove", "--layout-for", str(bad)]) == 2
+    assert "vehicles" in capsys.readouterr().err

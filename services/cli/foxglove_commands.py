@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+import sys
+from pathlib import Path
 
 from services.cli.core_commands import watcher_args
 
 
 def cmd_foxglove(a: argparse.Namespace) -> int:
+    if a.layout_for is not None:
+        return _print_layout(a.layout_for)
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
     from services.foxglove.serve import BridgeOptions, serve
 
@@ -32,6 +37,19 @@ def cmd_foxglove(a: argparse.Namespace) -> int:
     return 0
 
 
+def _print_layout(scenario_path: Path) -> int:
+    """The Foxglove layout for a scenario's vehicles (a fleet's: every vehicle in each panel)
+    on stdout."""
+    from common.config.scenario import load_scenario
+    from services.foxglove.dashboard import fleet_layout, shipped_layout
+
+    scenario, _ = load_scenario(scenario_path)
+    layout = fleet_layout(shipped_layout(), [vid for vid, _ in scenario.members])
+    json.dump(layout, sys.stdout, indent=1)
+    sys.stdout.write("\n")
+    return 0
+
+
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add foxglove to the tidelink parser."""
     f = sub.add_parser(
@@ -44,4 +62,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     f.add_argument("--host", default="127.0.0.1", help="address to serve on (0.0.0.0: all)")
     f.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
+    f.add_argument(
+        "--layout-for",
+        type=Path,
+        metavar="SCENARIO",
+        help="print the Foxglove layout for this scenario's vehicles (a fleet: every vehicle "
+        "in each panel) and exit; import it in the app with Layouts > Import from file",
+    )
     f.set_defaults(func=cmd_foxglove)

@@ -69,6 +69,13 @@ NAV_FIX = "/sensor/nav"  # the noisy navigation fix
 TF = "/tf"  # world -> auv (truth) and world -> auv_est, for a panel that follows the vehicle
 EVENTS = "/events"  # mode changes, path status changes, the run's end
 RUN_TOPICS = frozenset({EVENTS, SCENE_MOVING, TF})  # one of each in a run, fleet or not
+# what a fleet's view publishes once for the run, not under each vehicle's id
+FLEET_RUN_TOPICS = RUN_TOPICS | {
+    SCENE_STATIC,
+    series.LINKS.topic,
+    series.RUN_INFO.topic,
+    series.RUN_END.topic,
+}
 
 PATH_SAMPLES = 300  # points of the path in force: smooth at chart scale
 REPLAN_SAMPLES = 100  # points of each earlier replan, drawn faint
