@@ -10,8 +10,6 @@ from typing import Any
 import pytest
 from helpers.foxglove_view import REPO, short_run, view_all
 
-from common.config.scenario import load_scenario
-from common.runtime.model.inproc import run_inproc
 from services.cli import main
 from services.foxglove.dashboard import fleet_layout
 from services.foxglove.view import ViewMessage
@@ -45,10 +43,7 @@ def produced() -> dict[str, ViewMessage]:
 def fleet() -> tuple[dict[str, Any], dict[str, ViewMessage]]:
     """The layout made for fleet4, and the first message of every topic its view produced
     in the first 3 s of an in-process run."""
-    s, _ = load_scenario(REPO / "configs" / "fleet4.toml", ["run.max_time_s=3.0"])
-    record = run_inproc(s).record
-    frames = [(svc, st, m) for svc, st in record.keys() for m in record.stream(svc, st)]
-    frames.sort(key=lambda f: f[2].stamp)
+    s, frames = short_run(3.0, REPO / "configs" / "fleet4.toml")
     layout = json.loads(LAYOUT.read_text())
     return fleet_layout(layout, [vid for vid, _ in s.members]), _firsts(view_all(s, frames))
 

@@ -24,10 +24,12 @@ JSON_TYPES: dict[str, tuple[type, ...]] = {
 }
 
 
-def short_run(max_time_s: float = 8.0) -> tuple[Scenario, list[tuple[str, str, Message]]]:
-    """The default scenario run in-process for max_time_s: every message as (service,
-    stream, msg), in stamp order (publication order within a stream)."""
-    s, _ = load_scenario(REPO / "configs" / "default.toml", [f"run.max_time_s={max_time_s}"])
+def short_run(
+    max_time_s: float = 8.0, scenario: Path = REPO / "configs" / "default.toml"
+) -> tuple[Scenario, list[tuple[str, str, Message]]]:
+    """A scenario (the default one) run in-process for max_time_s: every message as
+    (service, stream, msg), in stamp order (publication order within a stream)."""
+    s, _ = load_scenario(scenario, [f"run.max_time_s={max_time_s}"])
     record = run_inproc(s).record
     frames = [(svc, st, m) for svc, st in record.keys() for m in record.stream(svc, st)]
     frames.sort(key=lambda f: f[2].stamp)  # stable: keeps each stream's own order
