@@ -186,13 +186,15 @@ def test_a_child_leads_its_own_process_group(tmp_path: Path) -> None:
     # Python's own SIGINT handler, set explicitly: a suite started in the background by a
     # shell inherits SIGINT ignored, and so would this child (then SIGTERM ends it); the
     # stop waits until it is set (a SIGINT before it was ignored, seen in such a suite).
-    # Then the wait of a service (wait_for_stop), not signal.pause(): a SIGINT that lands
-    # between the 'ready' and pause() is handled only when pause() returns, which it then
-    # never does (seen when the tests beside it loaded the machine: ended by SIGTERM)
+    # 'ready' is flushed and its file kept open: written as open(...).write(...), it reached
+    # us when the file was closed at deallocation, and a SIGINT landing in that close was
+    # lost (the handler set, nothing pending, the child still waiting; ended by SIGTERM in 1
+    # of 2 runs started from a background job, 0 of 10 this way). Then the wait of a service
+    # (wait_for_stop): signal.pause() misses a signal that lands just before it.
     quiet = (
         "import signal, sys; from common.runtime.processes.signals import wait_for_stop; "
         "signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "open(sys.argv[1], 'w').write('ready\\n'); wait_for_stop()"
+        "ready = open(sys.argv[1], 'w'); ready.write('ready\\n'); ready.flush(); wait_for_stop()"
     )
     child = sup.start("quiet", ["-c", quiet, str(fifo)])
     try:
