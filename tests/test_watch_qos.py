@@ -10,6 +10,7 @@ import pytest
 from helpers.launch_proc import REPO, Tidelink
 
 from common.bus import Bus, Keys
+from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 from common.runtime.processes.children import free_port
 
@@ -20,6 +21,7 @@ GAPS = """
 import sys, time
 sys.path.insert(0, {repo!r})
 from common.bus import Bus, Keys
+from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 last = [time.monotonic()]; worst = [0.0]
 def on(f):
@@ -70,3 +72,53 @@ def test_a_stopped_watcher_stalls_neither_the_tap_nor_another_watcher() -> None:
     assert worst_put < 0.5, f"the tap's put blocked {worst_put:.2f} s"
     assert len(gaps) >= SECONDS - 2
     assert max(gaps[1:]) < 0.5, f"the other watcher starved: gaps {gaps}"
+
+
+# A watcher that reads slowly (a loaded machine's monitor) and says when the run's end came.
+SLOW_END = """
+import sys, time
+sys.path.insert(0, {repo!r})
+from common.bus import Bus, Keys
+from common.bus.tap import WatchTap
+from common.config.bus import BusConfig
+def on(f):
+    if f.key == {end!r}:
+        print("end", flush=True)
+    else:
+        time.sleep(0.002)
+with Bus(BusConfig(mode="client", connect=({endpoint!r},)), Keys("q", "q")) as bus:
+    bus.subscribe_raw({watch!r}, on)
+    print("ready", flush=True)
+    while True:
+        time.sleep(1.0)
+"""
+
+
+def test_a_slow_watcher_still_gets_the_runs_end_behind_a_stopped_one() -> None:
+    # the tap's copies are DROP: a slow watcher loses some; the RunEnd, sent once the run is
+    # over, must reach it all the same (as DROP it reached neither watcher here), without
+    # the stopped watcher holding up the end of the run
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    keys = Keys("qos", "auv1")
+    watch = keys.watch("vehicle", "truth").rsplit("/", 2)[0] + "/**"
+    code = SLOW_END.format(repo=str(REPO), endpoint=endpoint, end=keys.end, watch=watch)
+    with Tidelink("router", "--listen", endpoint) as router:
+        router.wait_for(r"listening", 30.0, stdout=True)
+        with Tidelink.python("-c", code) as slow, _subscriber(endpoint, watch) as stopped:
+            slow.wait_for(r"^ready$", 30.0, stdout=True)
+            stopped.signal(signal.SIGSTOP)
+            try:
+                with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
+                    tap = WatchTap(bus, keys, {})
+                    pub = bus.monitoring_publisher(keys.watch("vehicle", "truth"))
+                    for _ in range(3000):  # a burst the slow watcher cannot keep up with
+                        pub.put_bytes(b"x" * 2000)
+                    t0 = time.monotonic()
+                    tap.end("goal", 12.5, 250)
+                    # closing right after, as a launcher does
+                closed_after = time.monotonic() - t0
+                slow.wait_for(r"^end$", 30.0, stdout=True)
+            finally:
+                stopped.signal(signal.SIGCONT)
+        router.signal(signal.SIGINT)
+    assert closed_after < 3.0, f"the end held the run up {closed_after:.2f} s"

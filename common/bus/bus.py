@@ -323,16 +323,23 @@ class Bus:
         )
         return Publisher(self._keep(pub), key)
 
-    def monitoring_publisher(self, key: str) -> Publisher:
+    def monitoring_publisher(self, key: str, *, last: bool = False) -> Publisher:
         """A publisher for watchers outside the control loop (Keys.watch): congestion DROP
         and priority DATA_LOW. A router forwards a BLOCK sample to a subscriber that stopped
         reading by waiting (measured here: the publisher and every other subscriber stalled
         ~5 s until the router closed the stalled session); a DROP sample is dropped for
-        that subscriber alone, so no watcher can slow the run (README "Remote monitoring")."""
+        that subscriber alone, so no watcher can slow the run (README "Remote monitoring").
+
+        `last`: BLOCK instead, for the one message a run sends after its loop is over (the
+        RunEnd), which a slow watcher must not lose: behind a subscriber that had stopped
+        reading, a DROP one reached no subscriber at all here, a BLOCK one reached the others
+        and its publisher closed its session 1 s later, as with DROP. Same priority: it still
+        comes after the copies sent before it."""
+        congestion = zenoh.CongestionControl.BLOCK if last else zenoh.CongestionControl.DROP
         pub = self.session.declare_publisher(
             key,
             reliability=zenoh.Reliability.RELIABLE,
-            congestion_control=zenoh.CongestionControl.DROP,
+            congestion_control=congestion,
             priority=zenoh.Priority.DATA_LOW,
         )
         return Publisher(self._keep(pub), key)

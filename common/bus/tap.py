@@ -6,7 +6,9 @@ keeps the run's record). Watchers (monitors, Foxglove bridges, remote recorders)
 subscribe to the control streams themselves: those are published BLOCK, and a router waits
 for a subscriber that stopped reading before it forwards the next BLOCK sample to anyone
 (measured here: ~5 s stalls). The tap's copies are published DROP at priority DATA_LOW, so a
-stalled or thin-linked watcher loses copies of its own and nothing else.
+stalled or thin-linked watcher loses copies of its own and nothing else. The RunEnd alone is
+published BLOCK: the run is over by then, and a watcher slow at the end still learns how it
+ended.
 
 Late join: state that is not re-sent often (the path in force, the obstacle tracks, the
 vehicle's mode, the scenario's static world) is answered by queryables, Zenoh's own way of
@@ -153,6 +155,6 @@ class WatchTap:
         for sink in sinks:
             sink(TappedFrame(CLOCK, END, data, None, wall, n))
         try:
-            self.bus.monitoring_publisher(self.keys.end).put_bytes(data, att)
+            self.bus.monitoring_publisher(self.keys.end, last=True).put_bytes(data, att)
         except Exception as exc:  # noqa: BLE001 - a closing bus must not hide the run's result
             log.warning("could not announce the run's end: %s", exc)

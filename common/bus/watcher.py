@@ -20,7 +20,8 @@ from common.messages import WireError, decode_watch
 log = logging.getLogger("tidelink.watch")
 
 # After a run's clock token vanished, how long a watcher still waits for its RunEnd: the
-# RunEnd is a DROP/DATA_LOW copy and can arrive after the token's end (seen under load)
+# RunEnd travels at DATA_LOW behind the tap's copies and can arrive after the token's end
+# (seen under load)
 END_GRACE_S = 3.0
 
 
