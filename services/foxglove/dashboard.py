@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from services.foxglove.view import FLEET_RUN_TOPICS
+from services.foxglove.view import FLEET_RUN_TOPICS, vehicle_topic
 
 SHIPPED = Path(__file__).resolve().parents[2] / "docs" / "foxglove" / "tidelink-layout.json"
 SINGLE_FRAMES = ("auv", "auv_est")  # the single vehicle's frames on /tf, a fleet's are its ids
@@ -68,7 +68,7 @@ def fleet_layout(single: dict[str, Any], vehicles: Sequence[str]) -> dict[str, A
             config["paths"] = [p for old in config["paths"] for p in _per_vehicle(old, vehicles)]
         for key in ("topicPath", "topicToRender"):  # one-topic panels: the first vehicle's
             if config.get(key) and not _is_run(config[key]):
-                config[key] = _under(vehicles[0], config[key])
+                config[key] = vehicle_topic(vehicles[0], config[key])
     return out
 
 
@@ -81,10 +81,6 @@ def _is_run(path: str) -> bool:
     return _topic(path) in FLEET_RUN_TOPICS
 
 
-def _under(vehicle: str, path: str) -> str:
-    return f"/{vehicle}{path}"
-
-
 def _colour(i: int) -> str:
     return PALETTE[i % len(PALETTE)]
 
@@ -95,7 +91,7 @@ def _per_vehicle(path: dict[str, Any], vehicles: Sequence[str]) -> list[dict[str
         return [path]
     out = []
     for i, vid in enumerate(vehicles):
-        p = dict(path, value=_under(vid, path["value"]))
+        p = dict(path, value=vehicle_topic(vid, path["value"]))
         p["label"] = f"{vid} {path.get('label', '')}".rstrip()
         if "color" in path:
             p["color"] = _colour(i)
@@ -118,7 +114,7 @@ def _scene(config: dict[str, Any], vehicles: Sequence[str]) -> None:
                 mine["color"] = _colour(i) + alpha
             if "gradient" in settings:
                 mine["gradient"] = [_colour(i) + alpha] * len(settings["gradient"])
-            topics[_under(vid, topic)] = mine
+            topics[vehicle_topic(vid, topic)] = mine
     config["topics"] = topics
     frames = {
         k: v

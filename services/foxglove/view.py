@@ -352,9 +352,16 @@ class FoxgloveView:
         ]
 
 
+def vehicle_topic(vehicle: str, topic: str) -> str:
+    """A fleet vehicle's own topic: the single vehicle's, under its id (/auv2/vehicle/pose)."""
+    return f"/{vehicle}{topic}"
+
+
 def _under(vehicle: str, vm: ViewMessage) -> ViewMessage:
     """A fleet vehicle's view message on its own topic (/auv2/...), unless it is the run's."""
-    return vm if vm.topic in RUN_TOPICS else dataclasses.replace(vm, topic=f"/{vehicle}{vm.topic}")
+    if vm.topic in RUN_TOPICS:
+        return vm
+    return dataclasses.replace(vm, topic=vehicle_topic(vehicle, vm.topic))
 
 
 def _proto(topic: str, msg: Any) -> ViewMessage:
