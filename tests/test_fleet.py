@@ -444,28 +444,28 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
 
 
 # the suite's 300 s per test is short of this one's worst case: fleet4's max_time_s (240 s)
-# at half speed is 480 s of wall time, plus start-up and metrics (a fresh clone cut a run at
-# 300 s whose vehicles had been held up by replans; they usually arrive in ~200 s)
+# at 0.75x is 320 s of wall time, plus start-up and metrics (a fresh clone cut a run at 300 s
+# whose vehicles had been held up by replans; they usually arrive in ~120-140 s)
 @pytest.mark.slow
 @pytest.mark.exclusive
 @pytest.mark.timeout(600)
-def test_fleet4_launched_in_realtime_at_half_speed_reaches_every_goal_without_contact(
+def test_fleet4_launched_in_realtime_at_three_quarter_speed_reaches_every_goal_without_contact(
     tmp_path: Path,
 ) -> None:
     # fleet4 as a user launches it: 16 supervised service processes, the router and the clock
-    # on this machine's 2 cores, in real time at half speed (~3 min). At 1x the planners'
-    # replans share the cores at the moments they are needed and take seconds: about 1 run in
-    # 4 fails, some with a contact (README "Fleets"). At 0.5x, 16 runs (seeds 1-16): every
-    # vehicle at its goal and no contact in all 16; two ended inside rho0 of a static obstacle
-    # (0.03 and 0.68 m), which the metrics report (outcome rho0_breach) and this test lets
-    # through: rho0 in realtime fleets is issue 18's open item, not a regression here.
+    # on this machine's 2 cores, in real time at 0.75x (~2.2 min). On 2026-11-28's machine
+    # (README "Fleets"): at 1x 17 successes in 20, none with a contact, two rho0 breaches and
+    # one vehicle stuck in NO_PATH (which this test would fail); at 0.75x 6 in 6 (seeds 1-6);
+    # at 0.5x, on the earlier, slower machine, every vehicle arrived without contact in 16
+    # of 16. A rho0 breach is reported (outcome rho0_breach) and let through here: rho0 in
+    # realtime fleets is issue 18's open item, not a regression here.
     out = tmp_path / "run"
     try:
         r = tidelink_cli(
             "launch",
             str(FLEET4),
             "--time-scale",
-            "0.5",
+            "0.75",
             "--out",
             str(out),
             "--no-plot",
