@@ -85,11 +85,11 @@ def on(f):
     if f.key == {end!r}:
         print("end", flush=True)
     else:
-        time.sleep(0.002)
+        time.sleep(0.002)  # the slowness under test (a loaded watcher), not a wait
 with Bus(BusConfig(mode="client", connect=({endpoint!r},)), Keys("q", "q")) as bus:
     bus.subscribe_raw({watch!r}, on)
     print("ready", flush=True)
-    while True:
+    while True:  # the callbacks do the work; the test ends this process
         time.sleep(1.0)
 """
 

@@ -333,8 +333,8 @@ class Bus:
         `last`: BLOCK instead, for the one message a run sends after its loop is over (the
         RunEnd), which a slow watcher must not lose: behind a subscriber that had stopped
         reading, a DROP one reached no subscriber at all here, a BLOCK one reached the others
-        and its publisher closed its session 1 s later, as with DROP. Same priority: it still
-        comes after the copies sent before it."""
+        and its publisher closed its session at once (within 0.1 s), as with DROP. Same
+        priority: it still comes after the copies sent before it."""
         congestion = zenoh.CongestionControl.BLOCK if last else zenoh.CongestionControl.DROP
         pub = self.session.declare_publisher(
             key,
