@@ -8,6 +8,7 @@ The runtime self-test loop (tests.helpers.testloop) keeps most of these fast.
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 from pathlib import Path
@@ -25,9 +26,11 @@ from helpers.launch_proc import (
 )
 
 from common.config.scenario import load_scenario
+from common.messages import TruthState, decode
 from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.children import free_port
 from common.runtime.run import write_outputs
+from services.recording.reader import read_recording
 
 pytestmark = pytest.mark.slow
 
@@ -103,6 +106,40 @@ def test_a_killed_service_is_restarted_and_rejoins_the_clock(tmp_path: Path, out
     assert m["final_error"] < 1.0
     assert set(m) == _inproc_keys(scenario, tmp_path)  # the same metrics as `tidelink run`
     assert (out / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_restarted_vehicle_takes_up_where_its_hull_was(tmp_path: Path, out: Path) -> None:
+    # the process is the vehicle's computer, not the vehicle: a restart must not teleport
+    # the hull back to its start pose (it did: the estimate then ran ~20 m off, and one
+    # chaos run in three ended in contact)
+    scenario = REPO / "configs" / "default.toml"
+    args = ("launch", str(scenario), "--time-scale", "4", "--set", "run.max_time_s=30")
+    with Tidelink(
+        *args, "--out", str(out), "--no-plot", "--record", "--restart", "vehicle=on-failure"
+    ) as t:
+        t.wait_for(r"t=\s*(?:[89]|1\d)\.\d+ s of 30", WAIT_S)  # under way, far from the start
+        (first,) = _pids(out)["vehicle"]
+        os.kill(first, signal.SIGKILL)
+        t.wait_for(r"service 'vehicle' rejoined at t=", WAIT_S)
+        assert t.wait(WAIT_S) == judged_exit(out), t.stderr
+    assert (
+        "vehicle: resumed the hull from its truth at t=" in (out / "logs/vehicle.log").read_text()
+    )
+    truths = [
+        m
+        for f in read_recording(out / "run.mcap").frames
+        if (f.service, f.stream) == ("vehicle", "truth")
+        and isinstance(m := decode(f.payload), TruthState)
+    ]
+    # the restart: where the new process numbers its truths from 1 again
+    (i,) = [k for k in range(1, len(truths)) if truths[k].seq < truths[k - 1].seq]
+    last, resumed = truths[i - 1], truths[i]
+    gap = resumed.stamp - last.stamp
+    assert gap > 0.5 and math.hypot(last.x, last.y) > 8.0  # was under way when killed
+    # no faster than it could move meanwhile; nowhere near the start pose
+    assert math.hypot(resumed.x - last.x, resumed.y - last.y) <= 2.0 * gap + 0.1
+    m = _metrics(out)
+    assert m["estimation_max_m"] < 5.0 and m["collisions"] == 0, m
 
 
 def test_a_crash_under_policy_never_fails_the_run_naming_the_service(

@@ -109,3 +109,36 @@ def test_other_messages_are_ignored() -> None:
     other = TruthState(stamp=0.0, x=0.0, y=0.0, theta=0.0, v=0.0, w=0.0)
     assert core.deliver(Delivery(source="x", stream="y", msg=other, t=0.0)) == []
     assert core.watchdog.applied == 0 and core.watchdog.rejected == 0
+
+
+def test_a_restarted_core_resumes_the_hull_where_its_last_truth_was() -> None:
+    cfg = VehicleConfig()
+    before = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(1))
+    for k in range(1, 201):  # 10 s at 1.5 m/s, turning gently
+        t = k * cfg.period_s
+        _send(before, t, 1.5, 0.05)
+        last = before.step(t)[0].msg
+    assert isinstance(last, TruthState) and math.hypot(last.x, last.y) > 8.0
+    after = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(2))  # the new process
+    gap = 2.3  # the restart took this long; no command was in force meanwhile
+    what = after.resume({"truth": last}, last.stamp + gap)
+    assert what is not None and f"t={last.stamp:.2f} s" in what
+    first = after.step(last.stamp + gap)[0].msg
+    assert isinstance(first, TruthState)
+    moved = math.hypot(first.x - last.x, first.y - last.y)
+    # it coasted on along its heading while braking (IDLE): less than at full speed, not back
+    # at the start pose
+    assert 0.5 < moved < last.v * gap
+    along = (first.x - last.x) * math.cos(last.theta) + (first.y - last.y) * math.sin(last.theta)
+    assert along > 0.9 * moved
+    assert first.v < last.v and after.applied(first.stamp).mode == "IDLE"
+
+
+def test_a_core_without_a_usable_truth_starts_over() -> None:
+    cfg = VehicleConfig()
+    core = VehicleCore(cfg, (5.0, 6.0, 0.0), np.random.default_rng(0))
+    future = TruthState(stamp=20.0, x=50.0, y=50.0, theta=0.0, v=1.0, w=0.0)
+    assert core.resume({}, 10.0) is None
+    assert core.resume({"truth": future}, 10.0) is None  # from after the restart: not its own
+    truth = core.step(10.0)[0].msg
+    assert isinstance(truth, TruthState) and (truth.x, truth.y) == (5.0, 6.0)

@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
 from common.config.vehicle import VehicleConfig
 from common.control import Applied, Schedule
-from common.messages import TruthState, VehicleStatus, VelocityCommand
+from common.messages import Message, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
 from services.vehicle.current import OceanCurrent
@@ -106,6 +106,22 @@ class VehicleCore:
             else:
                 self._pieces.append((start, after))
         return []
+
+    def resume(self, own: Mapping[str, Message], t: float) -> str | None:
+        """Restarted at mission time t (Resumes): the hull is where the previous process last
+        saw it, since the process is the vehicle's computer, not the vehicle. The plant
+        starts from that truth (its integrator z at 0) at its stamp, with no command in
+        force (IDLE) until this process accepts one, and is integrated on from there."""
+        truth = own.get("truth")
+        if not isinstance(truth, TruthState) or truth.stamp > t:
+            return None
+        self._state = (truth.x, truth.y, truth.theta, truth.v, truth.w, 0.0)
+        self._t = truth.stamp
+        self._pieces = [(self._t, Schedule())]
+        return (
+            f"the hull from its truth at t={truth.stamp:.2f} s: ({truth.x:.1f}, {truth.y:.1f}) "
+            f"m, heading {math.degrees(truth.theta):.0f} deg, {truth.v:.2f} m/s"
+        )
 
     def _log_rejection(self, reason: str, t: float, msg: VelocityCommand) -> None:
         """Say why a command was rejected: once per reason per mission second (a flood of

@@ -11,6 +11,7 @@ from common.bus import Bus, Inbox, Liveliness, Publisher, Received
 from common.messages import Tick, encode_routing
 from common.runtime.distributed.service_process import (
     ServiceSetup,
+    resume_from_tap,
     service_main,
     take_data,
     wire,
@@ -35,6 +36,9 @@ MAX_DELIVERY_AHEAD_S = 60.0
 # common/bus/session.py), the client reconnects and sees the token again within ~0.1 s
 # (measured in tests/test_netns_launch.py); a launcher that is really gone never returns.
 CLOCK_GRACE_S = 3.0
+# How long (wall seconds) a restarted core that resumes waits for the run's tap to answer
+# with what its previous process published (the launcher's tap answers within milliseconds)
+RESUME_QUERY_S = 2.0
 
 
 class RealtimeService:
@@ -73,6 +77,7 @@ class RealtimeService:
         self.skipped = 0  # periods skipped because the loop fell behind
         self.clock_lost_at: float | None = None  # wall time the clock's token vanished
         self._catching_up = False  # the last Tick moved the clock by more than CATCH_UP_S
+        self._bus: Bus | None = None
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -80,6 +85,7 @@ class RealtimeService:
 
     def run(self) -> int:
         with Bus(self.bus_cfg, self.keys, low_latency=True, identity=self.name) as bus:
+            self._bus = bus
             inbox = Inbox(max_pending=INBOX_MAX_PENDING, keep=self.keys.is_tick, on_shed=self._shed)
             pubs = wire(bus, self.host, self.keys, inbox, express=False)
             bus.declare_alive(self.name)
@@ -151,6 +157,8 @@ class RealtimeService:
         self._catching_up = True
         if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
+            if self._bus is not None:  # a restarted core may take up where its last one was
+                resume_from_tap(self._bus, self.host, self.keys, t_us, timeout_s=RESUME_QUERY_S)
 
     def _refine(self, t_us: int) -> None:
         """Move time 0 earlier if this Tick (mission time t_us when it was sent) says the

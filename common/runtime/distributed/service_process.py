@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import NamedTuple, Protocol
 
 from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
+from common.bus.watcher import Watcher
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import WireError, decode_routing
@@ -61,6 +62,23 @@ def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> di
     bus.subscribe(keys.ticks_for(host.name), inbox)
     bus.watch_alive(inbox, keys.alive(CLOCK))
     return {s: bus.publisher(host.name, s, express=express) for s in host.streams}
+
+
+def resume_from_tap(bus: Bus, host: Host, keys: Keys, t_us: int, *, timeout_s: float) -> None:
+    """A core that resumes (Resumes), joining a running mission, takes up from the newest
+    message its previous process published on each stream, as the run's watch tap kept them
+    (common/bus/tap.py); with none (its first start, or no tap answered) it starts over."""
+    if not host.resumes:
+        return
+    names = [f"{host.name}/{s}" for s in host.streams]
+    own = {
+        f.stream: f.payload for f in Watcher(bus).latest(keys, streams=names, timeout_s=timeout_s)
+    }
+    what = host.resume(own, t_us)
+    if what is None:
+        log.info("%s: nothing of an earlier process of it found: starting over", host.name)
+    else:
+        log.info("%s: resumed %s", host.name, what)
 
 
 class Routed(NamedTuple):

@@ -69,6 +69,16 @@ class RestartsFilters(Protocol):
 
 
 @runtime_checkable
+class Resumes(Protocol):
+    """A core whose state outlives its process: restarted mid-run, it takes up from the
+    newest messages its previous process published, by stream (the vehicle's plant: a real
+    hull stays where it is while its computer reboots). Returns what it resumed from, for
+    the log, or None when nothing it was given lets it resume (it starts over)."""
+
+    def resume(self, own: Mapping[str, Message], t: float) -> str | None: ...
+
+
+@runtime_checkable
 class CountsForStats(Protocol):
     """A core that counts something its run's metrics need (e.g. a fleet planner's steps by
     intent or track per vehicle) reports it by name; its runtime publishes it in the service's

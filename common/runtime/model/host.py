@@ -17,10 +17,20 @@ from __future__ import annotations
 
 import heapq
 import itertools
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from common.config.network import link_name
-from common.messages import LinkCounters, LinkStats, MeasuredDelay, Message, TruthState, encode
+from common.messages import (
+    LinkCounters,
+    LinkStats,
+    MeasuredDelay,
+    Message,
+    TruthState,
+    WireError,
+    decode,
+    encode,
+)
 from common.netmodel import NetworkModel
 from common.netmodel.stats import LinkStatsAccumulator
 from common.runtime.model.core import (
@@ -30,6 +40,7 @@ from common.runtime.model.core import (
     JudgesInputs,
     QueuePolicy,
     RestartsFilters,
+    Resumes,
     ServiceCore,
 )
 from common.runtime.model.dataflow import Dataflow, Input
@@ -225,6 +236,27 @@ class Host:
             return False
         self.next_step_us += -(-(t_us - self.next_step_us) // self.period_us) * self.period_us
         return True
+
+    @property
+    def resumes(self) -> bool:
+        """Whether the core takes up from its previous process's messages (Resumes)."""
+        return isinstance(self.core, Resumes)
+
+    def resume(self, own: Mapping[str, bytes], t_us: int) -> str | None:
+        """Hand the core the newest message its previous process published on each stream
+        (bytes as they crossed the wire); only messages this service signed are taken. What
+        it resumed from, or None when it starts over."""
+        if not isinstance(self.core, Resumes):
+            return None
+        mine: dict[str, Message] = {}
+        for stream, data in own.items():
+            try:
+                msg = decode(data)
+            except WireError:
+                continue
+            if stream in self._seq and msg.source == self.name:
+                mine[stream] = msg
+        return self.core.resume(mine, t_us / 1e6) if mine else None
 
     def skip_missed(self, now_us: int) -> int:
         """Skip whole periods already past (a step that fell behind); returns how many."""
