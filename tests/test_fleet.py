@@ -290,6 +290,21 @@ def test_a_vehicle_at_rest_on_a_new_path_is_about_to_leave_not_parked() -> None:
     assert flat.obstacles(0.0)[0][0].centre_at(np.array([10.0]))[0, 0] == pytest.approx(0.0)
 
 
+def test_a_vehicle_parked_at_its_goal_is_an_obstacle_even_to_those_ahead_in_priority() -> None:
+    # auv1 is first in priority: it plans around no one's intent while they are fresh. A
+    # vehicle at its route's end will not move again to give way: it is an obstacle to all,
+    # where its estimate is (here 1.4 m past its route's end: it overshot its goal), at rest
+    first = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0, gives_way_to=frozenset())
+    first.offer("auv2", _straight_path(0.0, 0.0, 30.0))
+    first.offer("auv2", _estimate(1.0, 15.0))  # under way: auv2 gives way, auv1 ignores it
+    assert first.obstacles(1.5) == ((), frozenset({100}))
+    for stamp, x in ((20.0, 29.2), (30.0, 31.4)):  # within 1 m of its end (the goal
+        first.offer("auv2", _estimate(stamp, x, v=0.0))  # tolerance), or past it
+        (parked,), covered = first.obstacles(stamp + 0.5)
+        assert covered == {100} and (parked.x, parked.y) == (x, 10.0)
+        assert parked.centre_at(np.array([0.0, 60.0])).ravel().tolist() == [x, 10.0, x, 10.0]
+
+
 def test_without_a_path_there_is_no_intent() -> None:
     intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
     intents.offer("auv2", _estimate(1.0, 6.0))
@@ -322,6 +337,34 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     assert m["vehicles"]["auv1"]["intent_fraction_by_vehicle"] == {
         "auv2": m["vehicles"]["auv1"]["intent_fraction"]
     }
+
+
+@pytest.mark.deterministic
+def test_a_vehicle_first_in_priority_goes_around_one_parked_at_its_goal(tmp_path: Path) -> None:
+    # auv2 arrives first and parks on auv1's straight line; auv1, ahead in priority, plans
+    # around no one's fresh intent, but a vehicle at its goal will not give way to it (before
+    # that rule auv1 drove through auv2: hulls 1.41 m into each other)
+    parked = tmp_path / "parked.toml"
+    parked.write_text(
+        f"""extends = "{HEADON}"
+[run]
+max_time_s = 90.0
+[[vehicles]]
+id = "auv1"
+start = {{ x_m = 10.0, y_m = 20.0, theta_rad = 0.0 }}
+goal = {{ x_m = 90.0, y_m = 20.0 }}
+[[vehicles]]
+id = "auv2"
+start = {{ x_m = 50.0, y_m = 36.0, theta_rad = -1.5708 }}
+goal = {{ x_m = 50.0, y_m = 20.0 }}
+"""
+    )
+    s, _ = load_scenario(parked, ['runtime.kind="inproc"'], check=check_scenario)
+    assert s.planner.deconfliction == "priority"
+    m = run_inproc(s).metrics
+    assert m["vehicles_reached"] == 2 and m["vehicle_collisions"] == 0, m
+    assert m["vehicles"]["auv2"]["travel_time_s"] < 0.5 * m["vehicles"]["auv1"]["travel_time_s"]
+    assert m["min_separation_m"] >= s.planner.rho0_m and m["outcome"] == "success"
 
 
 # deterministic, but marked exclusive, not so: its 17 processes should have the 2 cores to

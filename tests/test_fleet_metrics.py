@@ -73,6 +73,15 @@ def test_a_pair_between_its_two_rho0_breaches_the_larger_and_is_named() -> None:
     )
 
 
+def test_two_hulls_in_contact_are_named_with_how_deep() -> None:
+    m = _metrics(_fleet(HULLS - 0.4, (1.0, 1.0)))  # hulls overlapping by 0.4 m, no obstacle
+    assert m["outcome"] == "collision" and m["vehicle_collisions"] > 0 and m["collisions"] == 0
+    # the pair and its depth, not an obstacle clearance an empty world does not have
+    assert mission_failure(m | {"end_reason": "goal"}) == (
+        "mission failed: auv1 and auv2 in contact (hull to hull -0.40 m); goal reached"
+    )
+
+
 def test_a_pair_outside_both_rho0_is_a_success_that_names_no_one() -> None:
     m = _metrics(_fleet(1.2 + HULLS, (1.0, 1.0)))
     assert m["outcome"] == "success" and m["success"]

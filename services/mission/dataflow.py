@@ -191,6 +191,7 @@ def make_planner(
             s.planner.intent_max_age_s,
             earlier if s.planner.deconfliction == "priority" else None,
             ramps,
+            parked_within_m=s.world.goal_tolerance_m,
         ),
         pose_every_s=pose_every_s,
         intent_every_s=intent_every_s,

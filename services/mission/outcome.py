@@ -59,7 +59,11 @@ def describe(m: dict[str, Any]) -> str:
     if outcome == "rho0_breach":
         return "goal reached, but " + _inside_rho0(m)
     why = []
-    if outcome == "collision":
+    hulls = outcome == "collision" and (m.get("vehicle_collisions") or 0) > 0
+    if hulls:  # two vehicles of a fleet touched: the closest pair did
+        pair = str(m.get("min_separation_pair") or "two vehicles").replace("-", " and ")
+        why.append(f"{pair} in contact (hull to hull {_num(m, 'min_separation_m'):.2f} m)")
+    if outcome == "collision" and (not hulls or (m.get("collisions") or 0) > 0):
         first = m.get("first_contact_t_s")
         contact = f"contact at t={first:.2f} s " if first is not None else "contact "
         contact += f"(min clearance {_num(m, 'min_clearance_m'):.3g} m)"

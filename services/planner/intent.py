@@ -18,7 +18,11 @@ Who gives way (planner.deconfliction): "mutual", every vehicle plans around ever
 intent; "priority" (prioritized planning), a vehicle plans around the intents of the vehicles
 listed before it in [[vehicles]] and leaves those after it to plan around its own: while
 their intents are fresh it ignores their tracks too, so two vehicles never both swerve the
-same way at once. A vehicle whose intent goes stale is an obstacle to everyone again.
+same way at once. A vehicle whose intent goes stale is an obstacle to everyone again, and so
+is one parked at the end of its route (its goal): it will not move again, so it can give way
+to no one (a vehicle ahead in priority that ignored one drove through it, seed 22 of fleet4).
+A parked vehicle is where its estimate puts it, at rest, not at its route's last point (a
+vehicle that overshot its goal is past it).
 """
 
 from __future__ import annotations
@@ -111,7 +115,9 @@ class FleetIntents:
 
     `vehicles` maps each other vehicle's id to (its obstacle id in sonar tracks, hull radius);
     `gives_way_to` names those whose intents this vehicle plans around (None: all of them);
-    `ramps` each one's speed ramp on a path (m/s^2; none: its speed taken as it is).
+    `ramps` each one's speed ramp on a path (m/s^2; none: its speed taken as it is);
+    `parked_within_m`: a vehicle whose estimate is this near its route's end, or past it,
+    is parked there (the goal tolerance).
     """
 
     def __init__(
@@ -120,9 +126,11 @@ class FleetIntents:
         max_age_s: float,
         gives_way_to: frozenset[str] | None = None,
         ramps: Mapping[str, float] | None = None,
+        parked_within_m: float = 1.0,
     ) -> None:
         self.vehicles = dict(vehicles)
         self.max_age_s = max_age_s
+        self.parked_within_m = parked_within_m
         self.ramps = dict(ramps or {})
         self.gives_way_to = frozenset(self.vehicles) if gives_way_to is None else gives_way_to
         self._heard = {v: _Heard() for v in self.vehicles}
@@ -178,11 +186,12 @@ class FleetIntents:
             and len(heard.route[0]) >= 2
         )
 
-    def obstacles(self, t: float) -> tuple[tuple[IntentObstacle, ...], frozenset[int]]:
-        """The intents this vehicle gives way to at time t, as obstacles at t, and the obstacle
-        ids of every vehicle whose intent is fresh (whose sonar tracks they replace: the
-        vehicles it does not give way to plan around it)."""
-        out = []
+    def obstacles(self, t: float) -> tuple[tuple[ObstacleState, ...], frozenset[int]]:
+        """The intents this vehicle gives way to at time t, and every vehicle parked at its
+        route's end, as obstacles at t; and the obstacle ids of every vehicle whose intent is
+        fresh (whose sonar tracks they replace: the vehicles it does not give way to plan
+        around it)."""
+        out: list[ObstacleState] = []
         fresh = set()
         for vid, (oid, radius) in self.vehicles.items():
             if not self._fresh(vid, t):
@@ -192,9 +201,12 @@ class FleetIntents:
             assert st is not None and heard.route is not None  # _fresh: both are there
             route, s_route = heard.route
             fresh.add(oid)
+            i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
+            if i == len(route) - 1 or s_route[-1] - s_route[i] <= self.parked_within_m:
+                out.append(_parked(oid, st, radius))
+                continue
             if vid not in self.gives_way_to:
                 continue
-            i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
             now = IntentObstacle(
                 id=oid,
                 x=st.x,
@@ -214,6 +226,13 @@ class FleetIntents:
             )
             out.append(now.advanced(t - st.stamp))
         return tuple(out), frozenset(fresh)
+
+
+def _parked(oid: int, st: StateEstimate, radius: float) -> ObstacleState:
+    """A vehicle at its goal: at rest where its estimate puts it, for good."""
+    return ObstacleState(
+        id=oid, x=st.x, y=st.y, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=radius, moving=True
+    )
 
 
 def _route_of(path: PathMsg) -> tuple[FloatArray, FloatArray]:
