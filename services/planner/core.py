@@ -148,7 +148,7 @@ class PlannerCore:
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
-        self.limits = Limits.from_vehicle(vehicle)
+        self.limits = Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
         self.controller = make_controller(controller, self.limits)
         self.state: StateEstimate | None = None
         self.tracks: ObstacleTracks | None = None

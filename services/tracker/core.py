@@ -44,7 +44,9 @@ class TrackerCore:
         self.kind = controller.kind
         self.world = world
         self.link = CommandLink(planner, controller, vehicle)
-        self.controller = make_controller(controller, Limits.from_vehicle(vehicle))
+        self.controller = make_controller(
+            controller, Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
+        )
         self.state: StateEstimate | None = None
         self.ref: PathArcReference | None = None
         self.path_id = 0  # of the path followed (0: none yet)

@@ -99,7 +99,7 @@ class Backstepping:
             v_r = 0.0  # the reference stopped at the end of the path
         xr, yr = ref.point_at_s(s_eval)
         th_r = ref.heading_at_s(s_eval)
-        w_r = v_r * ref.curvature_at_s(s_eval)
+        w_r = v_r * ref.curvature_at_s(self.limits.ahead(s_eval, v_meas, ref.length))
         # error posture in the vehicle frame (Kanayama eq. 3)
         c, sn = math.cos(theta), math.sin(theta)
         e_x = c * (xr - x) + sn * (yr - y)

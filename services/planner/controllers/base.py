@@ -22,16 +22,26 @@ class Limits:
     w_min: float
     w_max: float
     r_min: float
+    yaw_lead_s: float = 0.0  # how far ahead (s) a controller reads its reference (`ahead`)
 
     @staticmethod
-    def from_vehicle(cfg: VehicleConfig) -> Limits:
+    def from_vehicle(cfg: VehicleConfig, *, yaw_lag_lead: bool = True) -> Limits:
+        """The vehicle's bounds; with `yaw_lag_lead` references are read its yaw_tau_s ahead."""
         return Limits(
             v_min=cfg.v_min_mps,
             v_max=cfg.v_max_mps,
             w_min=cfg.w_min_rps,
             w_max=cfg.w_max_rps,
             r_min=cfg.turn_radius_min_m,
+            yaw_lead_s=cfg.yaw_tau_s if yaw_lag_lead else 0.0,
         )
+
+    def ahead(self, s: float, v_now: float, length: float) -> float:
+        """The arc length at which a controller reads its path reference for a vehicle at s
+        moving at v_now: yaw_lead_s ahead (the plant's yaw rate follows its command with that
+        time constant: a turn asked for where it begins is made late, and wide), at most the
+        path's end (ControllerConfig.yaw_lag_lead)."""
+        return min(s + max(v_now, 0.0) * self.yaw_lead_s, length) if self.yaw_lead_s else s
 
     def turn_cap(self, v_now: float) -> float:
         """The largest |w| (rad/s) a vehicle moving at v_now (m/s) can turn: v_now / R_min.

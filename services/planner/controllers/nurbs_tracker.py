@@ -10,7 +10,8 @@ lateral error (> 0 left), e_theta = theta - theta_p(s) and kappa(s) the signed c
 
     s_dot   = v cos(e_theta) / (1 - kappa e_y)
     chi     = -atan(e_y / Delta)                  desired approach angle, Delta = look-ahead
-    w       = kappa s_dot                         curvature feed-forward (= v kappa on the path)
+    w       = kappa s_dot                         curvature feed-forward (= v kappa on the path;
+                                                  kappa read yaw_tau_s ahead, Limits.ahead)
               + dchi/de_y * v sin(e_theta)        keeps the approach angle consistent
               - k_h wrap_angle(e_theta - chi)           heading feedback
 
@@ -80,7 +81,7 @@ class NurbsTracker:
         self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
-        kappa = ref.curvature_at_s(s)
+        kappa = ref.curvature_at_s(self.limits.ahead(s, v_meas, ref.length))
         v_cmd = self.speed.command(t, ref, s, v_meas)
         # kinematic terms use the measured speed: the vehicle turns at w / v_actual
         v_k = max(v_meas, 0.0)
