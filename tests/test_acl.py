@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from common.bus import Bus, Keys
+from common.bus import Bus, Keys, RawFrame
 from common.config.bus import BusConfig
 from common.config.scenario import load_scenario
 from common.messages import NavFix
@@ -147,6 +147,26 @@ def test_a_monitor_sees_the_watch_copies_but_not_the_control_streams(probe: Prob
         assert delivered(launcher, monitor, keys.watch("vehicle", "status"), Keys.any_watch())
         with probe.client("vehicle") as vehicle:  # a BLOCK stream a monitor could stall
             assert not delivered(vehicle, monitor, keys.stream("vehicle", "truth"))
+
+
+def test_a_service_may_ask_the_tap_for_its_own_newest_frames_only(probe: Probe) -> None:
+    # a restarted vehicle resumes from its last truth, kept by the launcher's tap
+    # (service_process.resume_from_tap): its own, not another service's
+    keys = probe.keys
+    truth = RawFrame(keys.latest("vehicle", "truth"), b"t", None)
+    nav = RawFrame(keys.latest("sensor", "nav"), b"n", None)
+    with probe.client(LAUNCHER) as launcher, probe.client("vehicle") as vehicle:
+        launcher.serve_frames(  # as the tap answers: the frames whose keys were asked for
+            keys.all_latest,
+            lambda key, params: [f for f in (truth, nav) if zenoh.KeyExpr(key).intersects(f.key)],
+        )
+        deadline = time.monotonic() + 5 * DELIVERY_S
+        got: list[RawFrame] = []
+        while not got and time.monotonic() < deadline:  # the queryable propagates first
+            got = vehicle.query(keys.latest("vehicle", "*"), timeout_s=DELIVERY_S)
+        assert [f.key for f in got] == [truth.key]
+        assert vehicle.query(keys.latest("sensor", "*"), timeout_s=DELIVERY_S) == []
+        assert vehicle.query(keys.all_latest, timeout_s=DELIVERY_S) == []
 
 
 def test_liveliness_tokens_only_under_ones_own_name(probe: Probe) -> None:

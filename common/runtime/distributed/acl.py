@@ -3,7 +3,8 @@
 Each identity (a certificate's common name) gets exactly what its code does on the bus
 (README "Security"):
 - a service puts its own output streams, its stats and its lockstep acks, subscribes to its
-  inputs and to the ticks addressed to it, and declares only its own liveliness token;
+  inputs and to the ticks addressed to it, declares only its own liveliness token, and may
+  ask the tap for its own newest frames (a restarted vehicle resumes from them);
 - the launcher (the clock) puts ticks and the watch copies, hears every stream, serves the
   run's dataflow, latest frames and scenario, and owns the clock's token;
 - a monitor sees every run on the router through its watch tap (subscribes to the watch
@@ -92,6 +93,9 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
             ),
             token=(keys.alive(name),),
             watch=(keys.alive(CLOCK),),
+            # its own newest frames, kept by the launcher's tap: a restarted core resumes
+            # from them (service_process.resume_from_tap)
+            query=(keys.latest(name, "*"),),
         )
     out[LAUNCHER] = Grants(
         put=(f"{keys.root}/{CLOCK}/tick/**", keys.all_watch),

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import NamedTuple, Protocol
 
 from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
-from common.bus.watcher import Watcher
+from common.bus.watcher import watched
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import WireError, decode_routing
@@ -70,10 +70,14 @@ def resume_from_tap(bus: Bus, host: Host, keys: Keys, t_us: int, *, timeout_s: f
     (common/bus/tap.py); with none (its first start, or no tap answered) it starts over."""
     if not host.resumes:
         return
-    names = [f"{host.name}/{s}" for s in host.streams]
-    own = {
-        f.stream: f.payload for f in Watcher(bus).latest(keys, streams=names, timeout_s=timeout_s)
-    }
+    own = {}
+    # its own keys only: that is what its certificate may ask for in a secured run (acl.py)
+    for f in bus.query(keys.latest(host.name, "*"), timeout_s=timeout_s):
+        try:
+            w = watched(f)
+        except (ValueError, WireError):
+            continue
+        own[w.stream] = w.payload
     what = host.resume(own, t_us)
     if what is None:
         log.info("%s: nothing of an earlier process of it found: starting over", host.name)
