@@ -325,6 +325,18 @@ def print_secured(sec: Secured) -> None:
     )
 
 
+def _find_the_test_loop() -> None:
+    """The tick floor and the realtime loop run the runtime self-test loop, a fixture of
+    tests/ (tests.helpers.testloop): run directly, not by scripts/bench, this process and
+    the service processes it starts must import it from the repository's root too."""
+    root = str(Path(__file__).resolve().parents[1])
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    paths = os.environ.get("PYTHONPATH", "").split(os.pathsep)
+    if root not in paths:
+        os.environ["PYTHONPATH"] = os.pathsep.join([root, *filter(None, paths)])
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, default=4)
@@ -337,6 +349,7 @@ def main() -> None:
         "(0: plain loop only)",
     )
     a = p.parse_args()
+    _find_the_test_loop()
     seeds = range(1, a.seeds + 1)
     rows = [bench_lockstep(seed) for seed in seeds]
     med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}

@@ -26,12 +26,10 @@ DEFAULT = REPO / "configs" / "default.toml"
 # 1.17.1 moved it; so did a machine with AVX-512, on which numpy's vectorised sin/cos/exp
 # round differently: 7b6639b5... on the machine of 2026-11-26, 42edd711... on an AVX-512 one).
 # Re-pinned when the planner's clearance margin came to grow with the measured loop delay
-# (issue 16): 5431be1d... before; and when the controllers' yaw-rate feed-forward came to be
-# read yaw_tau_s ahead (controller.yaw_lag_lead): 42edd711... before on the AVX-512 machine.
-# Elsewhere the test compares with the explicit placement.
+# (issue 16): 5431be1d... before. Elsewhere the test compares with the explicit placement.
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
-        "0e9dd04a65873f109c630d4836b4365af8948eb62fc882a2cc459ac740beb3b4"
+        "42edd7111108c409fd7d0028d57d6b3e6076ac24f21fd224505d4fbed1982a5b"
     ),
 }
 

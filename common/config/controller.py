@@ -162,13 +162,14 @@ class ControllerConfig:
     # k = 0, in 5 with k = 1; backstepping's least clearance 0.15 m larger on 6 seeds)
     jitter_margin_k: float = 0.0
     # a controller's yaw-rate feed-forward (the NURBS tracker's curvature term, the reference
-    # yaw rate of backstepping) is read vehicle.yaw_tau_s ahead at the vehicle's speed: the
+    # yaw rate of backstepping) read vehicle.yaw_tau_s ahead at the vehicle's speed: the
     # plant's yaw rate lags its command by that time constant, so a feed-forward read where
-    # the vehicle is asks for each turn late and the vehicle swings wide of it (inproc fleet4,
-    # NURBS, seeds 1-12: worst cross-track error 1.35 -> 0.57 m, rho0 kept in 10 -> 12). The
-    # immune fuzzy PID has no feed-forward to lead (a heading read ahead would only bias its
-    # error: 0.37 m off a circle of 8 m)
-    yaw_lag_lead: bool = True
+    # the vehicle is asks for each turn late and the vehicle swings wide of it. On in
+    # configs/fleet4.toml (inproc, NURBS, seeds 1-12: rho0 kept in 10 -> 12, worst cross-track
+    # error 1.35 -> 0.57 m). Off by default: with single commands (sequence.horizon_s = 0)
+    # after an 8 s planner outage it ended 3 of 8 seeds in contact against 0 (README "Fleets").
+    # The immune fuzzy PID has no feed-forward to lead.
+    yaw_lag_lead: bool = False
     sequence: SequenceConfig = field(default_factory=SequenceConfig)  # shared by every controller
     speed: SpeedConfig = field(default_factory=SpeedConfig)  # shared by every controller
     nurbs: NurbsGains = field(default_factory=NurbsGains)

@@ -25,7 +25,7 @@ class Limits:
     yaw_lead_s: float = 0.0  # how far ahead (s) a controller reads its reference (`ahead`)
 
     @staticmethod
-    def from_vehicle(cfg: VehicleConfig, *, yaw_lag_lead: bool = True) -> Limits:
+    def from_vehicle(cfg: VehicleConfig, *, yaw_lag_lead: bool = False) -> Limits:
         """The vehicle's bounds; with `yaw_lag_lead` references are read its yaw_tau_s ahead."""
         return Limits(
             v_min=cfg.v_min_mps,
