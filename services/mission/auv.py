@@ -40,6 +40,10 @@ class AuvMission:
                 self._arrived.add(name)
         return "goal" if len(self._arrived) == len(self._vehicles) else None
 
+    def ends_on(self, service: str, stream: str) -> bool:
+        """The end is judged on the vehicles' truth streams alone."""
+        return stream == "truth" and service in self._vehicles
+
     def metrics(self, record: Record) -> dict[str, Any]:
         # imported here: only a run's driver computes metrics, and they need the planner's
         # curves and scipy.spatial, which a service process would otherwise load for nothing

@@ -288,6 +288,9 @@ class TestLoop:
     def observe(self, record: Record) -> str | None:
         return None  # runs to max_time_s
 
+    def ends_on(self, service: str, stream: str) -> bool:
+        return False  # observe looks at nothing
+
     def metrics(self, record: Record) -> dict[str, Any]:
         truth = [m for m in record.stream("plant", "truth") if isinstance(m, TruthState)]
         sp = self.params.setpoint

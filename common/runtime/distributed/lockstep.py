@@ -4,7 +4,9 @@ The coordinator is the clock and the recorder of everything the services publish
 time T carries the watermarks (last seq of every stream published before tick k); each service
 first waits until it holds every input message up to those watermarks, then runs the tick
 exactly as the inproc runtime does and acknowledges with what it published and when it next
-needs a tick. Time jumps to the earliest such need. Because the hosts, link models and
+needs a tick. Time jumps to the earliest such need. While only services whose outcome is
+predictable are still running a tick, the next one already goes to the services they do not
+feed (lookahead.py). Because the hosts, link models and
 delivery order are the same, the trajectory is bit-identical to an inproc run of the same
 scenario and seed. `run_lockstep` makes this process the Zenoh router and forks the services;
 the launcher drives the same Coordinator with its own router and supervised processes.
@@ -15,12 +17,13 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from common.bus import Inbox, Liveliness, Received
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
+from common.runtime.distributed.lookahead import Lookahead
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.host import NEVER
@@ -30,6 +33,24 @@ from common.runtime.processes.supervisor import ServiceFailed
 
 SERVICE_MODULE = "common.runtime.distributed.lockstep_service"
 PROGRESS_EVERY_S = 0.25  # wall seconds between progress reports to the observer
+
+
+class Ahead(NamedTuple):
+    """The next tick, already sent to some of its services (lookahead.py)."""
+
+    time_us: int
+    services: tuple[str, ...]
+    predicted: dict[str, int]  # the next need of each service still running the last tick
+
+
+class Done(NamedTuple):
+    """A tick complete: the watermarks after it, its acks, the mission's end (or None), and
+    the next tick if it was started early."""
+
+    marks: dict[str, int]
+    acks: dict[str, TickAck]
+    end: str | None
+    ahead: Ahead | None
 
 
 class Coordinator:
@@ -45,7 +66,11 @@ class Coordinator:
         self.observer = ctx.observer
         self.stop = ctx.stop
         self.record = mission_record(ctx.mission)
-        self.acks: dict[str, TickAck] = {}
+        self.acks: dict[int, dict[str, TickAck]] = {}  # by tick, then service
+        self.lookahead = Lookahead.of(ctx.mission)
+        self._tick_no = 0  # the tick being run
+        self._max_us = 0  # the run's end (drive)
+        self.started_early = 0  # ticks sent to some services before the last one was done
         self.alive: set[str] = set()
         self.finished: set[str] = set()  # services that acknowledged the stop tick
         self.stopping = False
@@ -82,7 +107,7 @@ class Coordinator:
         left = deadline - now
         if left <= 0:
             if what.startswith("ack"):
-                missing = sorted(set(self.names) - set(self.acks))
+                missing = sorted(set(self.names) - set(self.acks.get(self._tick_no, {})))
             elif what.startswith("to start"):
                 missing = sorted(set(self.names) - self.alive)
             else:
@@ -108,7 +133,8 @@ class Coordinator:
 
     def _take(self, ev: Received) -> None:
         if isinstance(ev.msg, TickAck):
-            self.acks[ev.msg.service] = ev.msg
+            if ev.msg.tick >= self._tick_no:  # an older one is a late repeat
+                self.acks.setdefault(ev.msg.tick, {})[ev.msg.service] = ev.msg
             if self.stopping:
                 self.finished.add(ev.msg.service)
             return
@@ -126,57 +152,156 @@ class Coordinator:
         t_us: int,
         marks: dict[str, int],
         due: list[str],
+        *,
+        need: dict[str, int] | None = None,
+        sent: tuple[str, ...] = (),
         stop: bool = False,
-    ) -> dict[str, int]:
-        self.acks = {}
+    ) -> Done:
+        """Run tick k: send it to the due services not `sent` it early, collect every due
+        service's ack and data, judge the end. Given `need` (every service's next need before
+        the tick; the caller's judgement that each due one's is known) it may start tick k+1
+        early (lookahead.py)."""
+        self._tick_no = k
         self.stopping = stop
         self.t_us = t_us
-        pub.put(
-            Tick(
-                stamp=t_us / 1e6, tick=k, time_us=t_us, watermarks=marks, due=tuple(due), stop=stop
+        to = [n for n in due if n not in sent]
+        if to:
+            pub.put(
+                Tick(
+                    stamp=t_us / 1e6,
+                    tick=k,
+                    time_us=t_us,
+                    watermarks=marks,
+                    due=tuple(to),
+                    stop=stop,
+                )
             )
-        )
         deadline = time.monotonic() + self.timeout_s
-        while any(self.acks.get(n) is None or self.acks[n].tick != k for n in due):
+        judged, end, ahead = False, None, None
+        while True:
+            got = dict(self.acks.get(k, {}))
+            running = [n for n in due if n not in got]
+            if not running:
+                break
+            if need is not None and not judged and self.lookahead.predictable(running):
+                # the end is judged on the data of the services done (lookahead.py)
+                partial = self._data_of(inbox, deadline, k, marks, got)
+                judged, end = True, self.mission.observe(self.record)
+                if end is None:
+                    ahead = self._start_next(pub, k, t_us, partial, need, got, running)
+                continue
             self._pump(inbox, deadline, f"acknowledging tick {k}")
+        acks = self.acks.pop(k)
+        for old in [t for t in self.acks if t < k]:
+            del self.acks[old]
+        new_marks = self._data_of(inbox, deadline, k, marks, acks)
+        if ahead is not None:
+            for n, predicted in ahead.predicted.items():
+                if acks[n].next_us != predicted or acks[n].wakes:
+                    raise RuntimeError(
+                        f"lockstep look-ahead: {n} acknowledged tick {k} needing t="
+                        f"{acks[n].next_us} us (predicted {predicted}) and waking {acks[n].wakes}"
+                    )
+        if not judged and not stop:
+            end = self.mission.observe(self.record)
+        return Done(new_marks, acks, end, ahead)
+
+    def _data_of(
+        self,
+        inbox: Inbox,
+        deadline: float,
+        k: int,
+        marks: dict[str, int],
+        acks: dict[str, TickAck],
+    ) -> dict[str, int]:
+        """Wait until the data the acks of tick k report are recorded; the watermarks."""
         new_marks = dict(marks)
-        for a in self.acks.values():
+        for a in acks.values():
             new_marks.update(a.published)
         while missing := self.record.missing(new_marks):
             self._pump(inbox, deadline, f"data of tick {k} on {', '.join(missing)}")
         return new_marks
 
+    def _start_next(
+        self,
+        pub: TickSender,
+        k: int,
+        t_us: int,
+        marks: dict[str, int],
+        need: dict[str, int],
+        got: dict[str, TickAck],
+        running: list[str],
+    ) -> Ahead | None:
+        """Send tick k+1 to those of its services that may start it now (lookahead.py)."""
+        predicted = {n: t_us + self.lookahead.period_us[n] for n in running}
+        after = dict(need) | {n: a.next_us for n, a in got.items()} | predicted
+        for a in got.values():
+            for receiver, at in a.wakes.items():
+                after[receiver] = min(after[receiver], at)
+        nxt = min(after.values())
+        if nxt > self._max_us or nxt >= NEVER:
+            return None
+        early = self.lookahead.early([n for n in sorted(after) if after[n] <= nxt], running)
+        if not early:
+            return None
+        pub.put(Tick(stamp=nxt / 1e6, tick=k + 1, time_us=nxt, watermarks=marks, due=tuple(early)))
+        self.started_early += 1
+        return Ahead(nxt, tuple(early), predicted)
+
     def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
         """Tick until the mission ends or max_time; a stop request raises Interrupted."""
-        max_us = round(self.mission.max_time_s * 1e6)
+        max_us = self._max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, reason = 0, 0, "max_time"
         marks: dict[str, int] = {}
         # when each service next needs a tick: its own next event (from its last ack) or a
         # wake delivery someone sent it since (reported by the sender, before it arrives)
         need = dict.fromkeys(self.names, 0)
+        stepped: set[str] = set()  # services that acknowledged a tick: their need is known
+        sent: tuple[str, ...] = ()  # services tick k was sent to early
         wall0 = time.monotonic()
         self.observer.event("mission clock started (lockstep: virtual time)")
         while True:
             due = [n for n in sorted(need) if need[n] <= t_us]
-            marks = self._tick(inbox, pub, k, t_us, marks, due)
+            # a predictable service is due now for its step only once it has told its need
+            # (before its first ack, every service is due at t = 0, its step maybe not)
+            done = self._tick(
+                inbox,
+                pub,
+                k,
+                t_us,
+                marks,
+                due,
+                need=need if stepped.issuperset(due) else None,
+                sent=sent,
+            )
+            marks = done.marks
+            stepped.update(due)
             for n in due:
-                need[n] = self.acks[n].next_us
+                need[n] = done.acks[n].next_us
             for n in due:
-                for receiver, at in self.acks[n].wakes.items():
+                for receiver, at in done.acks[n].wakes.items():
                     need[receiver] = min(need[receiver], at)
-            end = self.mission.observe(self.record)
-            if end is not None:
-                reason = end
+            if done.end is not None:
+                reason = done.end
                 break
             nxt = min(need.values())
+            if done.ahead is not None:
+                now_due = [n for n in sorted(need) if need[n] <= nxt]
+                if nxt != done.ahead.time_us or not set(done.ahead.services) <= set(now_due):
+                    raise RuntimeError(
+                        f"lockstep look-ahead: tick {k + 1} started at t={done.ahead.time_us} us "
+                        f"for {done.ahead.services}, but it is at t={nxt} us for {now_due}"
+                    )
             if nxt > max_us or nxt >= NEVER:
                 break
             t_us, k = nxt, k + 1
+            sent = done.ahead.services if done.ahead is not None else ()
         self._tick(inbox, pub, k + 1, t_us, marks, sorted(need), stop=True)
         logging.getLogger("tidelink.lockstep").info(
-            "lockstep run ended at t=%.3f s after %d ticks in %.2f s wall: %s",
+            "lockstep run ended at t=%.3f s after %d ticks (%d started early) in %.2f s wall: %s",
             t_us / 1e6,
             k + 1,
+            self.started_early,
             time.monotonic() - wall0,
             reason,
         )

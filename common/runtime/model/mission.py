@@ -22,7 +22,18 @@ class Mission(Protocol):
     def observe(self, record: Record) -> str | None:
         """Called after each tick with everything published so far: an end reason, or None."""
 
+    def ends_on(self, service: str, stream: str) -> bool:
+        """Does what `observe` returns depend on this stream at all? (A lockstep run judges a
+        tick's end before the services publishing none of those streams have finished it,
+        common/runtime/distributed/lookahead.py.) When in doubt, True."""
+
     def metrics(self, record: Record) -> dict[str, Any]: ...
+
+
+def ends_on(mission: Mission, service: str, stream: str) -> bool:
+    """mission.ends_on; True for a registered mission that does not say (no look-ahead)."""
+    judge = getattr(mission, "ends_on", None)
+    return True if judge is None else bool(judge(service, stream))
 
 
 def mission_record(mission: Mission) -> Record:
