@@ -36,9 +36,17 @@ def test_the_vehicle_is_never_predictable_the_mission_ends_on_its_truth() -> Non
 def test_the_sensor_and_estimator_start_while_the_planner_steps_the_vehicle_waits() -> None:
     la = _default()
     # the planner feeds the vehicle alone (its commands); the estimator feeds the planner
-    assert la.early(["estimator", "sensor", "vehicle"], ["planner"]) == ["estimator", "sensor"]
-    assert la.early(["planner", "vehicle"], ["estimator"]) == ["vehicle"]
-    assert la.early(["planner", "vehicle"], ["sensor"]) == ["planner", "vehicle"]
+    assert la.waits(["estimator", "sensor", "vehicle"], ["planner"]) == {
+        "estimator": (),
+        "sensor": (),
+        "vehicle": ("planner",),
+    }
+    assert la.waits(["planner", "vehicle"], ["estimator"]) == {
+        "planner": ("estimator",),
+        "vehicle": (),
+    }
+    # a service still running the last tick gets the next one when it is done
+    assert la.waits(["planner", "vehicle"], ["planner"]) == {"vehicle": ("planner",)}
 
 
 def test_wake_inputs_make_a_service_unpredictable(testloop_toml: Path) -> None:

@@ -105,7 +105,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
         k: st.dictionaries(TEXT, COUNT, max_size=5)
         for k in ("inputs_dropped", "inputs_rejected", "resets", "counters")
     },
-    Tick: {"tick": COUNT, "time_us": COUNT},
+    Tick: {"tick": COUNT, "time_us": COUNT, "after": st.dictionaries(TEXT, COUNT, max_size=3)},
     TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},
     RunEnd: {"ticks": COUNT},
 }

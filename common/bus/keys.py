@@ -9,7 +9,7 @@ from dataclasses import dataclass
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 # a service name may be a fleet vehicle's ("auv2.planner", common/runtime/model/dataflow.py)
 _SERVICE = re.compile(r"^[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+)?$")
-CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack
+CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack/...
 WATCH = "watch"  # .../watch/<service>/<stream>: the monitoring copy of every stream
 END = "end"  # .../watch/runtime/end: the clock's RunEnd
 LATEST = "latest"  # .../latest/<service>/<stream>: queryable newest frame of every stream
@@ -66,6 +66,20 @@ class Keys:
         """Is `key` one of this run's clock tick keys (whatever its recipients)?"""
         return key.startswith(f"{self.root}/{CLOCK}/tick/")
 
+    def ack(self, service: str) -> str:
+        """The key of a service's lockstep acknowledgements: .../runtime/ack/<service> (the
+        coordinator hears them all, a service those of the services it reads)."""
+        return f"{self.root}/{CLOCK}/ack/{service}"
+
+    @property
+    def all_acks(self) -> str:
+        return f"{self.root}/{CLOCK}/ack/*"
+
+    def acked_by(self, key: str) -> str | None:
+        """The service whose acknowledgement key `key` is, or None for any other key."""
+        prefix = f"{self.root}/{CLOCK}/ack/"
+        return key[len(prefix) :] if key.startswith(prefix) else None
+
     def alive(self, service: str) -> str:
         """The liveliness token key of a service."""
         return f"{self.root}/alive/{service}"
@@ -76,7 +90,7 @@ class Keys:
 
     @property
     def all_streams(self) -> str:
-        """Every <service>/<stream> key of the run: data, stats and acks, but no clock ticks
+        """Every <service>/<stream> key of the run: data and stats, but no clock ticks or acks
         (their keys have more chunks), so a clock that records a run does not hear its own."""
         return f"{self.root}/*/*"
 

@@ -417,10 +417,15 @@ class Tick(Message, frozen=True, kw_only=True):
     watermarks: dict[str, int]
     due: tuple[str, ...] = ()  # the services that run this tick (the others have nothing due)
     stop: bool = False  # end of run: publish final statistics, acknowledge and exit
+    # service -> the tick it is still running: wait for its ack of it, and for the data that
+    # ack reports, before running this one (a tick sent early, lookahead.py)
+    after: dict[str, int] = msgspec.field(default_factory=dict)
 
     def validate(self) -> None:
         check_range("tick", self.tick, 0)
         check_range("time_us", self.time_us, 0)
+        for tick in self.after.values():
+            check_range("after", tick, 0)
 
 
 class TickAck(Message, frozen=True, kw_only=True):

@@ -200,6 +200,7 @@ def one_of_each() -> list[Message]:
             watermarks={"sensor/nav": 125, "planner/cmd": 124},
             due=("estimator", "planner"),
             stop=False,
+            after={"sensor": 249},
         ),
         TickAck(
             stamp=12.5,

@@ -3,8 +3,9 @@
 Each identity (a certificate's common name) gets exactly what its code does on the bus
 (README "Security"):
 - a service puts its own output streams, its stats and its lockstep acks, subscribes to its
-  inputs and to the ticks addressed to it, declares only its own liveliness token, and may
-  ask the tap for its own newest frames (a restarted vehicle resumes from them);
+  inputs, to their publishers' acks and to the ticks addressed to it, declares only its own
+  liveliness token, and may ask the tap for its own newest frames (a restarted vehicle
+  resumes from them);
 - the launcher (the clock) puts ticks and the watch copies, hears every stream, serves the
   run's dataflow, latest frames and scenario, and owns the clock's token;
 - a monitor sees every run on the router through its watch tap (subscribes to the watch
@@ -41,7 +42,6 @@ from common.runtime.model.host import STATS_STREAM
 LAUNCHER = "launcher"  # the clock's identity: `tidelink launch` and the runtimes' driver
 MONITOR = "monitor"  # tools that watch: monitor, foxglove, record, graph
 ROUTER = "router"  # the router process: routes, and nothing else
-ACK_STREAM = "ack"  # lockstep services' TickAcks, on .../runtime/ack
 
 # (message, flow) pairs each kind of grant needs, see the module docstring
 _FLOWS: dict[str, tuple[tuple[str, str], ...]] = {
@@ -86,9 +86,10 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
     for name, svc in flow.services.items():
         streams = [o.stream for o in svc.outputs] + [STATS_STREAM]
         out[name] = Grants(
-            put=(*(keys.stream(name, s) for s in streams), keys.stream(CLOCK, ACK_STREAM)),
+            put=(*(keys.stream(name, s) for s in streams), keys.ack(name)),
             subscribe=(
                 *(keys.stream(i.source, i.stream) for i in svc.inputs),
+                *(keys.ack(source) for source in sorted({i.source for i in svc.inputs})),
                 keys.ticks_for(name),
             ),
             token=(keys.alive(name),),
@@ -99,7 +100,7 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
         )
     out[LAUNCHER] = Grants(
         put=(f"{keys.root}/{CLOCK}/tick/**", keys.all_watch),
-        subscribe=(keys.all_streams,),
+        subscribe=(keys.all_streams, keys.all_acks),
         serve=(keys.dataflow, keys.all_latest, keys.scenario),
         token=(keys.alive(CLOCK),),
         watch=(keys.all_alive,),

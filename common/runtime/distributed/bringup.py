@@ -83,6 +83,7 @@ def clock_bus(
     with Bus(cfg, keys, identity=LAUNCHER, access_control=access_control) as bus:
         inbox = Inbox()
         bus.subscribe(keys.all_streams, inbox)
+        bus.subscribe(keys.all_acks, inbox)  # a lockstep run's; a realtime run has none
         bus.watch_alive(inbox)
         tap = serve_watchers(bus, keys, flow, scenario_raw)
         ticks = TickSender(bus, flow.names, express=not lockstep)

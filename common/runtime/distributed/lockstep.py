@@ -5,8 +5,8 @@ time T carries the watermarks (last seq of every stream published before tick k)
 first waits until it holds every input message up to those watermarks, then runs the tick
 exactly as the inproc runtime does and acknowledges with what it published and when it next
 needs a tick. Time jumps to the earliest such need. While only services whose outcome is
-predictable are still running a tick, the next one already goes to the services they do not
-feed (lookahead.py). Because the hosts, link models and
+predictable are still running a tick, the next one already goes out, those it reads from
+told to wait for (lookahead.py). Because the hosts, link models and
 delivery order are the same, the trajectory is bit-identical to an inproc run of the same
 scenario and seed. `run_lockstep` makes this process the Zenoh router and forks the services;
 the launcher drives the same Coordinator with its own router and supervised processes.
@@ -232,7 +232,8 @@ class Coordinator:
         got: dict[str, TickAck],
         running: list[str],
     ) -> Ahead | None:
-        """Send tick k+1 to those of its services that may start it now (lookahead.py)."""
+        """Send tick k+1 now to its services not running tick k, each told which running ones
+        it reads and must wait for (lookahead.py)."""
         predicted = {n: t_us + self.lookahead.period_us[n] for n in running}
         after = dict(need) | {n: a.next_us for n, a in got.items()} | predicted
         for a in got.values():
@@ -241,12 +242,25 @@ class Coordinator:
         nxt = min(after.values())
         if nxt > self._max_us or nxt >= NEVER:
             return None
-        early = self.lookahead.early([n for n in sorted(after) if after[n] <= nxt], running)
-        if not early:
+        waits = self.lookahead.waits([n for n in sorted(after) if after[n] <= nxt], running)
+        if not waits:
             return None
-        pub.put(Tick(stamp=nxt / 1e6, tick=k + 1, time_us=nxt, watermarks=marks, due=tuple(early)))
+        groups: dict[tuple[str, ...], list[str]] = {}
+        for service, feeders in waits.items():
+            groups.setdefault(feeders, []).append(service)
+        for feeders, services in sorted(groups.items()):
+            pub.put(
+                Tick(
+                    stamp=nxt / 1e6,
+                    tick=k + 1,
+                    time_us=nxt,
+                    watermarks=marks,
+                    due=tuple(services),
+                    after=dict.fromkeys(feeders, k),
+                )
+            )
         self.started_early += 1
-        return Ahead(nxt, tuple(early), predicted)
+        return Ahead(nxt, tuple(sorted(waits)), predicted)
 
     def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
         """Tick until the mission ends or max_time; a stop request raises Interrupted."""

@@ -1,4 +1,10 @@
-"""A lockstep service process: hosts one core, steps only when the coordinator ticks."""
+"""A lockstep service process: hosts one core, steps only when the coordinator ticks.
+
+A tick sent early (lookahead.py) may name services still running the tick before (`after`):
+the service then waits for their acks, which it hears directly (it subscribes to the acks of
+the predictable services it reads), and for the data they report, and steps as soon as they
+are in: the step after the planner's waits one hop for it, not two and the coordinator's.
+"""
 
 from __future__ import annotations
 
@@ -6,8 +12,9 @@ import logging
 import sys
 import time
 
-from common.bus import CLOCK, Bus, Inbox, Liveliness, Received
+from common.bus import Bus, Inbox, Liveliness, Received
 from common.messages import Tick, TickAck, encode_routing
+from common.runtime.distributed.lookahead import Lookahead
 from common.runtime.distributed.service_process import (
     ServiceSetup,
     service_main,
@@ -17,6 +24,7 @@ from common.runtime.distributed.service_process import (
 from common.runtime.model.seqwindow import SeqWindow, max_seq_gap
 
 log = logging.getLogger("tidelink.lockstep")
+MAX_ACKS_KEPT = 64  # feeders' acks held before those of past ticks are dropped
 
 
 class LockstepService:
@@ -34,6 +42,10 @@ class LockstepService:
         gap = max_seq_gap(self.host.flow, self.scenario.run.max_time_s)
         self.received = {f"{i.source}/{i.stream}": SeqWindow(gap) for i in self.host.inputs}
         self.timeout_s = self.scenario.runtime.tick_timeout_s
+        # the acks it may be told to wait for: of the predictable services it reads
+        predictable = Lookahead.of(setup.mission).period_us
+        self.feeders = sorted({i.source for i in self.host.inputs} & set(predictable))
+        self.acks: dict[tuple[str, int], TickAck] = {}  # theirs, by (service, tick)
 
     def run(self) -> int:
         # Measured on the default mission (2 cores, 1312 ticks): batching publishers and
@@ -43,13 +55,15 @@ class LockstepService:
         with Bus(self.bus_cfg, self.keys, identity=self.name) as bus:
             inbox = Inbox()
             pubs = wire(bus, self.host, self.keys, inbox, express=False)
-            ack_pub = bus.publisher(CLOCK, "ack")
+            for feeder in self.feeders:
+                bus.subscribe(self.keys.ack(feeder), inbox)
+            ack_pub = bus.publisher_on(self.keys.ack(self.name))
             bus.declare_alive(self.name)
             while True:
                 tick = self._next_tick(inbox)
                 if not tick.stop and self.name not in tick.due:
                     continue  # nothing due here: messages keep arriving into the host
-                self._wait_for(inbox, tick.watermarks)
+                self._wait_for(inbox, self._after(inbox, tick))
                 if tick.stop:
                     out = [self.host.publish_stats(tick.tick, tick.time_us)]
                 else:
@@ -69,6 +83,26 @@ class LockstepService:
                 if tick.stop:
                     self._await_release(inbox)
                     return 0
+                if len(self.acks) > MAX_ACKS_KEPT:  # the feeders' acks of ticks gone by
+                    self.acks = {key: a for key, a in self.acks.items() if key[1] >= tick.tick}
+
+    def _after(self, inbox: Inbox, tick: Tick) -> dict[str, int]:
+        """The watermarks of `tick`, with those its `after` services' acks report (waited for)."""
+        if not tick.after:
+            return tick.watermarks
+        marks = dict(tick.watermarks)
+        deadline = time.monotonic() + self.timeout_s
+        for service, k in sorted(tick.after.items()):
+            if service not in self.feeders:
+                raise RuntimeError(f"{self.name}: tick {tick.tick} waits for {service}, not read")
+            while (service, k) not in self.acks:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"{self.name}: {service}'s ack of tick {k} never came")
+                if self._handle(inbox.get(timeout=left)) is not None:
+                    raise RuntimeError(f"{self.name}: a new tick came before {service}'s ack")
+            marks.update(self.acks[(service, k)].published)
+        return marks
 
     def _await_release(self, inbox: Inbox) -> None:
         """Stay connected until the coordinator leaves, so the final ack is surely delivered."""
@@ -90,6 +124,11 @@ class LockstepService:
             return None
         if self.keys.is_tick(ev.key):  # only the clock's keys carry ticks
             return ev.msg if isinstance(ev.msg, Tick) else None
+        acked_by = self.keys.acked_by(ev.key)
+        if acked_by is not None:  # a feeder's ack, on its own key only
+            if isinstance(ev.msg, TickAck) and ev.msg.service == acked_by:
+                self.acks[(acked_by, ev.msg.tick)] = ev.msg
+            return None
         service, stream = self.keys.split(ev.key)
         window = self.received.get(f"{service}/{stream}")
         if window is not None and ev.msg.source == service and window.plausible(ev.msg.seq):

@@ -9,10 +9,12 @@ that service is *predictable*: periodic, with no wake input (its next need is it
 and no output to one (it moves no one else's), and publishing nothing the mission's end
 depends on (Mission.ends_on). While only predictable services are still running tick k, the
 coordinator judges the tick's end on the data it has, works out tick k+1, and sends it at
-once to those of its services that none of the still-running ones feeds: what they read
-from them was all sent before tick k. The rest of tick k+1 goes out when tick k is complete.
-The end of tick k+1 is judged only after tick k's (no data of a later tick can be seen
-early), so the trajectory is the same as without look-ahead (and as inproc), bit for bit.
+once to its services that are not running tick k: one that none of the running ones feeds
+starts at once (what it reads from them was all sent before tick k); one they feed is told
+to wait for their acks, which it hears directly, and for the data these report (the step
+after the planner's then waits one hop for it, not two hops and the coordinator). The end of
+tick k+1 is judged only after tick k's (no data of a later tick can be seen early), so the
+trajectory is the same as without look-ahead (and as inproc), bit for bit.
 """
 
 from __future__ import annotations
@@ -62,7 +64,8 @@ class Lookahead:
         """Are the tick's outcomes known without these services' acks (module docstring)?"""
         return all(n in self.period_us for n in running)
 
-    def early(self, due: Sequence[str], running: Sequence[str]) -> list[str]:
-        """The services of the next tick (`due`) that may start it while `running` finish
-        theirs: those none of them feeds."""
-        return [s for s in due if s not in running and not any(s in self.feeds[r] for r in running)]
+    def waits(self, due: Sequence[str], running: Sequence[str]) -> dict[str, tuple[str, ...]]:
+        """The services of the next tick (`due`) that may be sent it while `running` finish
+        theirs (those not running it), each with the running ones it reads: it starts when
+        their acks and the data these report are in (lockstep_service.py)."""
+        return {s: tuple(r for r in running if s in self.feeds[r]) for s in due if s not in running}

@@ -17,7 +17,7 @@ from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import WireError, decode_routing
 from common.runtime.model.host import Host
 from common.runtime.model.inproc import build_host
-from common.runtime.model.mission import load_mission
+from common.runtime.model.mission import Mission, load_mission
 from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
 log = logging.getLogger("tidelink.service")
@@ -25,34 +25,33 @@ log = logging.getLogger("tidelink.service")
 
 @dataclass(frozen=True)
 class ServiceSetup:
-    """What a service process is given: its scenario, its Host, its run's keys and bus."""
+    """What a service process is given: its scenario and mission, its Host, its run's keys
+    and bus."""
 
     name: str
     scenario: Scenario
+    mission: Mission
     host: Host
     keys: Keys
     bus_cfg: BusConfig
 
     @classmethod
     def of(cls, name: str, raw: dict[str, object], connect: str) -> ServiceSetup:
-        """Validate the scenario and build this service's Host; a client of `connect`."""
+        """Validate the scenario and build this service's Host (the whole dataflow is
+        validated; only this service's core is built); a client of `connect`."""
         scenario = scenario_from_raw(raw)
+        mission = load_mission(scenario)
+        flow = mission.dataflow
+        if name not in flow.services:
+            raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(flow.names)}")
         return cls(
             name=name,
             scenario=scenario,
-            host=host_for(scenario, name),
+            mission=mission,
+            host=build_host(scenario, flow, name),
             keys=Keys(scenario.run.name, scenario.run.vehicle),
             bus_cfg=scenario.bus.client_of(connect),  # the run's security (mTLS) included
         )
-
-
-def host_for(scenario: Scenario, name: str) -> Host:
-    """The Host of one service of the scenario's mission (the whole dataflow is validated;
-    only this service's core is built)."""
-    flow = load_mission(scenario).dataflow
-    if name not in flow.services:
-        raise SystemExit(f"unknown service {name!r}; this mission has {', '.join(flow.names)}")
-    return build_host(scenario, flow, name)
 
 
 def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> dict[str, Publisher]:
