@@ -132,7 +132,11 @@ class Coordinator:
         self._take(ev)
 
     def _take(self, ev: Received) -> None:
-        if isinstance(ev.msg, TickAck):
+        acked_by = self.keys.acked_by(ev.key)
+        if acked_by is not None or isinstance(ev.msg, TickAck):
+            # an ack counts on its service's own key only; anything else there is ignored
+            if not isinstance(ev.msg, TickAck) or ev.msg.service != acked_by:
+                return
             if ev.msg.tick >= self._tick_no:  # an older one is a late repeat
                 self.acks.setdefault(ev.msg.tick, {})[ev.msg.service] = ev.msg
             if self.stopping:

@@ -96,10 +96,10 @@ class LockstepService:
             if service not in self.feeders:
                 raise RuntimeError(f"{self.name}: tick {tick.tick} waits for {service}, not read")
             while (service, k) not in self.acks:
-                left = deadline - time.monotonic()
-                if left <= 0:
+                ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
+                if ev is None:
                     raise TimeoutError(f"{self.name}: {service}'s ack of tick {k} never came")
-                if self._handle(inbox.get(timeout=left)) is not None:
+                if self._handle(ev) is not None:
                     raise RuntimeError(f"{self.name}: a new tick came before {service}'s ack")
             marks.update(self.acks[(service, k)].published)
         return marks
