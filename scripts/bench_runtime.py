@@ -77,16 +77,19 @@ max_time_s = 30.0
 
 
 class _LoopTimer(logging.Handler):
-    """Catches the coordinator's 'ended ... in X s wall' line: the tick loop alone."""
+    """Catches the coordinator's 'ended ... after N ticks (M started early) in X s wall'
+    line: the tick loop alone, and how many ticks the look-ahead started early."""
 
     def __init__(self) -> None:
         super().__init__()
         self.loop_s = float("nan")
+        self.early = float("nan")
 
     def emit(self, record: logging.LogRecord) -> None:
         msg = record.getMessage()
         if " s wall" in msg:
             self.loop_s = float(msg.split(" in ")[1].split(" s wall")[0])
+            self.early = float(msg.split(" (")[1].split(" started early")[0])
 
 
 def _loop_timer() -> _LoopTimer:
@@ -114,6 +117,7 @@ def bench_lockstep(seed: int) -> dict[str, float]:
         "lockstep_s": lockstep_s,
         "lockstep_loop_s": timer.loop_s,
         "ticks": float(got.ticks),
+        "early": timer.early,
     }
 
 
@@ -362,7 +366,10 @@ def main() -> None:
         "library calls in this process, one row per seed (the first row: imports and the fork"
         " server start are in it, for both runtimes; later rows: everything warm, as in a sweep):"
     )
-    print("  seed  mission   inproc  lockstep  ratio (<= 3x)  tick loop   RTF loop (>= 20x)")
+    print(
+        "  seed  mission   inproc  lockstep  ratio (<= 3x)  tick loop   RTF loop (>= 20x)"
+        "                  ticks started early (look-ahead)"
+    )
     for seed, r in zip(seeds, rows, strict=True):
         print(
             f"  {seed:4d}  {r['mission_s']:5.1f} s  {r['inproc_s']:5.2f} s"
@@ -370,6 +377,7 @@ def main() -> None:
             f"  {r['lockstep_s'] / r['inproc_s']:8.2f}x     {r['lockstep_loop_s']:5.2f} s"
             f"  {r['mission_s'] / r['lockstep_loop_s']:7.1f}x  "
             f"({1e3 * r['lockstep_loop_s'] / r['ticks']:.2f} ms per tick)"
+            f"  {r['early']:5.0f} of {r['ticks']:.0f}"
         )
     warm = rows[1:] or rows
     ratios = [r["lockstep_s"] / r["inproc_s"] for r in warm]
