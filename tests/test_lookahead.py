@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import logging
 import re
-import time
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -111,14 +111,22 @@ def _forge_acks(endpoint: str, run: Tidelink) -> int:
     with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
         pub = bus.publisher_on(keys.ack("planner"))
         not_an_ack = dict(x=0.0, y=0.0, theta=0.0, v=0.0, w=0.0)
-        while run.proc.poll() is None:
+        while not _exited(run, within_s=0.005):  # a forgery pair every 5 ms until it ends
             pub.put(TruthState(stamp=1.0, source="planner", seq=n + 1, **not_an_ack))
             pub.put(
                 TickAck(stamp=1.0, tick=n, service="vehicle", published={}, next_us=0, wakes={})
             )
             n += 1
-            time.sleep(0.005)  # a steady trickle (what is asserted is the run's outcome)
     return n
+
+
+def _exited(run: Tidelink, within_s: float) -> bool:
+    """Whether the launch exits within `within_s` (waiting on the process itself)."""
+    try:
+        run.proc.wait(timeout=within_s)
+    except subprocess.TimeoutExpired:
+        return False
+    return True
 
 
 @pytest.mark.deterministic
