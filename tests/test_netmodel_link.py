@@ -305,3 +305,26 @@ def test_network_model_resolves_profiles_per_link() -> None:
     assert net.decide("sensor", "nav", "estimator", 0, 1.0, 10).delivered_at == (1.01,)
     assert net.link("planner", "cmd", "vehicle") is net.link("planner", "cmd", "vehicle")
     assert list(net.snapshots()) == ["planner/cmd->vehicle", "sensor/nav->estimator"]
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    delay_us=st.integers(0, 500_000),
+    seed=st.integers(0, 2**32),
+    gaps_us=st.lists(st.integers(0, 50_000), min_size=1, max_size=100),
+    size=st.integers(0, 2000),
+)
+def test_a_constant_delay_link_decides_as_the_whole_pipeline_does(
+    delay_us: int, seed: int, gaps_us: list[int], size: int
+) -> None:
+    # a link with nothing but a constant delay takes a short cut; a zero-width uniform jitter
+    # is the same link through every stage of the pipeline (drawn, queued, FIFO)
+    fixed = LinkModel(LinkProfile(delay_s=delay_us / 1e6), seed=seed, link=LINK)
+    whole = LinkModel(
+        LinkProfile(delay_s=delay_us / 1e6, jitter="uniform", jitter_s=0.0), seed=seed, link=LINK
+    )
+    t_us = 0
+    for k, gap in enumerate(gaps_us):
+        t_us += gap
+        assert fixed.decide(k, t_us / 1e6, size) == whole.decide(k, t_us / 1e6, size)
+    assert fixed.stats.snapshot() == whole.stats.snapshot()

@@ -38,6 +38,8 @@ class NetworkModel:
         self.placement = placement or PlacementConfig()
         self.vehicle_xy = vehicle_start
         self._links: dict[str, LinkModel | AcousticLink] = {}
+        # by (source, stream, receiver): a model is looked up for every message it decides
+        self._by_ends: dict[tuple[str, str, str], LinkModel | AcousticLink] = {}
         self._modems: dict[tuple[str, str], Modem] = {}
 
     def observe_vehicle(self, x: float, y: float) -> None:
@@ -46,10 +48,14 @@ class NetworkModel:
 
     def link(self, source_service: str, stream: str, receiver: str) -> LinkModel | AcousticLink:
         """The model of ``source/stream->receiver`` (created on first use)."""
-        name = link_name(source_service, stream, receiver)
-        model = self._links.get(name)
+        ends = (source_service, stream, receiver)
+        model = self._by_ends.get(ends)
         if model is None:
-            model = self._links[name] = self._build(name, source_service, receiver)
+            name = link_name(source_service, stream, receiver)
+            model = self._links.get(name)
+            if model is None:
+                model = self._links[name] = self._build(name, source_service, receiver)
+            self._by_ends[ends] = model
         return model
 
     def _build(self, name: str, source: str, receiver: str) -> LinkModel | AcousticLink:
