@@ -27,9 +27,10 @@ vehicle that overshot its goal is past it).
 
 from __future__ import annotations
 
-import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 
@@ -47,7 +48,9 @@ class IntentObstacle(ObstacleState):
     """A vehicle following its broadcast route: alpha_k(t) = route(s0 + speed t), clamped at
     the route's end; x, y, vx, vy are its state now (t = 0)."""
 
-    route: FloatArray = field(repr=False)  # (m, 2) points along the path
+    # the route's points, as contiguous x and y (np.interp copies a strided column each call)
+    route_x: FloatArray = field(repr=False)  # (m,)
+    route_y: FloatArray = field(repr=False)  # (m,)
     s_route: FloatArray = field(repr=False)  # (m,) arc length at each point, from 0
     s0: float  # arc length now
     speed: float  # m/s along the route now
@@ -57,14 +60,13 @@ class IntentObstacle(ObstacleState):
     def centre_at(self, t_s: object, accel_horizon_s: float = np.inf) -> FloatArray:
         """Centre (..., 2) t_s ahead along the route (accel_horizon_s is for extrapolations)."""
         s = self.s0 + self._travel(np.maximum(np.asarray(t_s, dtype=np.float64), 0.0))
-        x = np.interp(s, self.s_route, self.route[:, 0])
-        y = np.interp(s, self.s_route, self.route[:, 1])
+        x = np.interp(s, self.s_route, self.route_x)
+        y = np.interp(s, self.s_route, self.route_y)
         return np.stack([x, y], axis=-1)
 
     def advanced(self, dt_s: float) -> IntentObstacle:
         dt = max(dt_s, 0.0)
-        travel = float(self._travel(np.asarray(dt, dtype=np.float64)))
-        return along(self, self.s0 + travel, self._speed_after(dt))
+        return along(self, self.s0 + self._travel(dt), self._speed_after(dt))
 
     def _rising(self) -> bool:
         return self.ramp > 0.0 and self.speed < self.cruise
@@ -72,12 +74,18 @@ class IntentObstacle(ObstacleState):
     def _speed_after(self, dt_s: float) -> float:
         return min(self.cruise, self.speed + self.ramp * dt_s) if self._rising() else self.speed
 
-    def _travel(self, t_s: FloatArray) -> FloatArray:
-        """Arc length covered in t_s >= 0: the speed ramps up to cruise, then holds."""
+    @overload
+    def _travel(self, t_s: float) -> float: ...
+    @overload
+    def _travel(self, t_s: FloatArray) -> FloatArray: ...
+    def _travel(self, t_s: float | FloatArray) -> float | FloatArray:
+        """Arc length covered in t_s >= 0 (one time, or an array): the speed ramps up to
+        cruise, then holds."""
         if not self._rising():
             return self.speed * t_s
         t_up = (self.cruise - self.speed) / self.ramp
-        up = np.minimum(t_s, t_up)
+        # a plain float for one time: numpy's scalar arithmetic costs microseconds a step
+        up = min(t_s, t_up) if isinstance(t_s, float) else np.minimum(t_s, t_up)
         return self.speed * up + 0.5 * self.ramp * up * up + self.cruise * (t_s - up)
 
 
@@ -87,18 +95,31 @@ def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObs
     v = o.speed if speed is None else speed
     end = float(o.s_route[-1])
     s0 = min(max(s0, 0.0), end)
-    p, ahead = _point(o, s0), _point(o, min(s0 + 0.5, end))
-    d = ahead - p
-    n = float(np.hypot(d[0], d[1]))
-    vx, vy = (v * d[0] / n, v * d[1] / n) if n > 1e-9 else (0.0, 0.0)
-    return dataclasses.replace(
-        o, x=float(p[0]), y=float(p[1]), vx=float(vx), vy=float(vy), s0=s0, speed=v
+    # the point at s0 and the one 0.5 m ahead (its heading), in one interpolation per axis
+    (x, x_ahead), (y, y_ahead) = (
+        np.interp((s0, min(s0 + 0.5, end)), o.s_route, axis).tolist()
+        for axis in (o.route_x, o.route_y)
     )
-
-
-def _point(o: IntentObstacle, s: float) -> FloatArray:
-    return np.array(
-        [np.interp(s, o.s_route, o.route[:, 0]), np.interp(s, o.s_route, o.route[:, 1])]
+    dx, dy = x_ahead - x, y_ahead - y
+    n = math.hypot(dx, dy)
+    vx, vy = (v * dx / n, v * dy / n) if n > 1e-9 else (0.0, 0.0)
+    return IntentObstacle(  # not dataclasses.replace: it inspects the fields on every call
+        id=o.id,
+        x=x,
+        y=y,
+        vx=vx,
+        vy=vy,
+        ax=o.ax,
+        ay=o.ay,
+        radius=o.radius,
+        moving=o.moving,
+        route_x=o.route_x,
+        route_y=o.route_y,
+        s_route=o.s_route,
+        s0=s0,
+        speed=v,
+        cruise=o.cruise,
+        ramp=o.ramp,
     )
 
 
@@ -106,8 +127,11 @@ def _point(o: IntentObstacle, s: float) -> FloatArray:
 class _Heard:
     state: StateEstimate | None = None
     path: PathMsg | None = None
-    route: tuple[FloatArray, FloatArray] | None = None  # the path's polyline, arc lengths
+    route: tuple[FloatArray, FloatArray, FloatArray] | None = None  # polyline x, y; arc lengths
     holding: bool = False  # its newest path is NO_PATH: it brakes, then holds
+    # the obstacle at the estimate's stamp, from this state, route and holding (a planner steps
+    # several times per pose heard: 10 Hz against 2 Hz); None until asked after a change
+    at_stamp: ObstacleState | None = None
 
 
 class FleetIntents:
@@ -147,7 +171,7 @@ class FleetIntents:
             return False
         if isinstance(msg, StateEstimate):
             if heard.state is None or msg.stamp >= heard.state.stamp:
-                heard.state = msg
+                heard.state, heard.at_stamp = msg, None
         elif isinstance(msg, PathMsg):
             # the newest only: a path is re-sent (services/mission/fleet.py) with its stamp;
             # after a NO_PATH the last OK path stays its route, but it is braking on it
@@ -156,6 +180,7 @@ class FleetIntents:
                     heard.path, heard.route, heard.holding = msg, _route_of(msg), False
                 else:
                     heard.holding = True
+                heard.at_stamp = None
         return True
 
     def tally(self, t: float) -> None:
@@ -196,36 +221,46 @@ class FleetIntents:
         for vid, (oid, radius) in self.vehicles.items():
             if not self._fresh(vid, t):
                 continue
-            heard = self._heard[vid]
-            st = heard.state
-            assert st is not None and heard.route is not None  # _fresh: both are there
-            route, s_route = heard.route
             fresh.add(oid)
-            i = int(np.argmin(np.hypot(route[:, 0] - st.x, route[:, 1] - st.y)))
-            if i == len(route) - 1 or s_route[-1] - s_route[i] <= self.parked_within_m:
-                out.append(_parked(oid, st, radius))
-                continue
-            if vid not in self.gives_way_to:
-                continue
-            now = IntentObstacle(
-                id=oid,
-                x=st.x,
-                y=st.y,
-                vx=0.0,
-                vy=0.0,
-                ax=0.0,
-                ay=0.0,
-                radius=radius,
-                moving=True,
-                route=route,
-                s_route=s_route,
-                s0=float(s_route[i]),
-                speed=max(st.v, 0.0),
-                cruise=heard.path.v_ref if heard.path is not None else 0.0,
-                ramp=0.0 if heard.holding else self.ramps.get(vid, 0.0),
-            )
-            out.append(now.advanced(t - st.stamp))
+            heard = self._heard[vid]
+            if heard.at_stamp is None:
+                heard.at_stamp = self._at_stamp(vid, oid, radius, heard)
+            now = heard.at_stamp
+            if not isinstance(now, IntentObstacle):
+                out.append(now)  # parked at its route's end: an obstacle to everyone
+            elif vid in self.gives_way_to:
+                st = heard.state
+                assert st is not None  # _fresh
+                out.append(now.advanced(t - st.stamp))
         return tuple(out), frozenset(fresh)
+
+    def _at_stamp(self, vid: str, oid: int, radius: float, heard: _Heard) -> ObstacleState:
+        """Vehicle vid at its estimate's stamp: parked (at or past its route's end), or
+        following its route from the route's point nearest the estimate."""
+        st, path = heard.state, heard.path
+        assert st is not None and heard.route is not None  # _fresh: both are there
+        xs, ys, s_route = heard.route
+        i = int(np.argmin(np.hypot(xs - st.x, ys - st.y)))
+        if i == len(xs) - 1 or s_route[-1] - s_route[i] <= self.parked_within_m:
+            return _parked(oid, st, radius)
+        return IntentObstacle(
+            id=oid,
+            x=st.x,
+            y=st.y,
+            vx=0.0,
+            vy=0.0,
+            ax=0.0,
+            ay=0.0,
+            radius=radius,
+            moving=True,
+            route_x=xs,
+            route_y=ys,
+            s_route=s_route,
+            s0=float(s_route[i]),
+            speed=max(st.v, 0.0),
+            cruise=path.v_ref if path is not None else 0.0,
+            ramp=0.0 if heard.holding else self.ramps.get(vid, 0.0),
+        )
 
 
 def _parked(oid: int, st: StateEstimate, radius: float) -> ObstacleState:
@@ -235,9 +270,10 @@ def _parked(oid: int, st: StateEstimate, radius: float) -> ObstacleState:
     )
 
 
-def _route_of(path: PathMsg) -> tuple[FloatArray, FloatArray]:
-    """The path's polyline (ROUTE_SAMPLES points) and the arc length at each."""
+def _route_of(path: PathMsg) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The path's polyline (ROUTE_SAMPLES points, x and y) and the arc length at each."""
     curve = curve_of(path)
     u = np.linspace(curve.u_min, curve.u_max, ROUTE_SAMPLES)
     pts = np.asarray(curve.evaluate(u, n_ders=0)[0])
-    return pts, np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    return np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), s
