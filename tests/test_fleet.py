@@ -16,6 +16,7 @@ from common.config.errors import ConfigError
 from common.config.fleet import MAX_VEHICLES
 from common.config.loader import read_scenario_toml
 from common.config.network import profile_for
+from common.config.planner import PlannerConfig
 from common.config.scenario import Scenario, load_scenario, scenario_from_raw
 from common.messages import PathMsg, StateEstimate, TruthState
 from common.runtime.distributed.lockstep import run_lockstep
@@ -28,6 +29,9 @@ from services.launcher.launch import select_services
 from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
 from services.planner.intent import FleetIntents
+from services.planner.plan import PlanRequest, plan_path
+from services.planner.replan import ReplanPolicy
+from services.planner.result import Obstacles, Pose2D
 from services.sensor.core import SensorCore
 
 CONFIGS = REPO / "configs"
@@ -248,6 +252,34 @@ def test_an_intent_is_the_other_vehicle_moving_along_its_path_until_it_goes_stal
     assert intents.obstacles(2.0)[0][0].x == pytest.approx(7.5, abs=0.2)
     assert intents.obstacles(2.9)[1] == {100}
     assert intents.obstacles(3.2) == ((), frozenset())  # 2.2 s old: its track takes over
+
+
+@pytest.mark.parametrize("lane_y", [10.0, 14.0, 17.0, 20.5, 40.0])
+def test_the_replan_check_bounds_far_routes_by_their_box_and_decides_as_exact_gaps_do(
+    lane_y: float,
+) -> None:
+    # a path along y = 20; another vehicle on a lane at lane_y, crossing x 0 -> 90. Gaps are
+    # only compared with rho0 and the corridor: a route whose box is farther than both from
+    # the path ahead has its gaps stood in for by that bound, which must never exceed them
+    cfg = PlannerConfig(corridor_halfwidth_m=3.0)
+    start, goal = Pose2D(x=5.0, y=20.0, theta=0.0), Pose2D(x=95.0, y=20.0, theta=0.0)
+    plan = plan_path(PlanRequest(start=start, goal=goal, v_ref_mps=1.5, vehicle_radius_m=0.5), cfg)
+    policy = ReplanPolicy(cfg, vehicle_radius_m=0.5, v_ref_mps=1.5)
+    policy.on_planned(0.0, plan, goal, Obstacles())
+    intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0)
+    intents.offer("auv2", _straight_path(0.0, 0.0, 90.0, y=lane_y))
+    intents.offer("auv2", _estimate(0.0, 0.0, y=lane_y))
+    (o,), _ = intents.obstacles(0.0)
+    (bound,) = policy._sample_gaps(Obstacles(moving=(o,)), 0, 0.0)
+    assert policy.pts is not None
+    exact = np.hypot(*(policy.pts - o.centre_at(policy.s / 1.5)).T) - o.radius - 0.5
+    far = max(cfg.rho0_m, cfg.corridor_halfwidth_m)
+    if abs(lane_y - 20.0) - 1.0 >= far:  # the boxes' distance less both radii
+        # at least rho0 and the corridor, so compared with them as the exact gaps would be
+        assert np.all(bound >= far) and np.all(bound <= exact + 1e-9)
+        assert np.ptp(bound) == 0.0  # the bound, not the samples
+    else:
+        assert bound == pytest.approx(exact)
 
 
 def test_each_step_counts_every_other_vehicle_by_intent_or_by_track() -> None:

@@ -22,7 +22,12 @@ from common.config.world import (
 )
 from common.world import World
 from common.world.check import check_world
-from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
+from common.world.geometry import (
+    Box,
+    polygon_centroid,
+    polygon_signed_distance,
+    vertices_array,
+)
 
 
 def _world(**kw: object) -> World:
@@ -212,3 +217,20 @@ def test_default_field_blocked_line_and_4m_passage() -> None:
     assert _connected(static, 2.0, 0.0)
     for t in (0.0, 15.0, 28.0, 40.0, 60.0):
         assert _connected(w, 2.0, t), t
+
+
+_points = st.lists(
+    st.tuples(st.floats(-100, 100), st.floats(-100, 100)), min_size=1, max_size=8
+).map(lambda p: np.array(p, dtype=np.float64))
+
+
+@given(a=_points, b=_points)
+def test_the_distance_of_two_boxes_bounds_that_of_any_points_inside_them(
+    a: np.ndarray, b: np.ndarray
+) -> None:
+    d = Box.of(a[:, 0], a[:, 1]).distance(Box.of(b[:, 0], b[:, 1]))
+    pairwise = np.hypot(*(a[:, None, :] - b[None, :, :]).transpose(2, 0, 1))
+    assert 0.0 <= d <= pairwise.min() + 1e-9
+    far = b + np.array([500.0, 0.0])  # boxes apart along x: exactly the gap between them
+    gap = far[:, 0].min() - a[:, 0].max()
+    assert Box.of(a[:, 0], a[:, 1]).distance(Box.of(far[:, 0], a[:, 1])) == pytest.approx(gap)

@@ -1,4 +1,5 @@
-"""Exact planar polygon geometry: area, centroid, simplicity and vectorised signed distance."""
+"""Exact planar geometry: polygon area, centroid, simplicity, vectorised signed distance;
+bounding boxes."""
 
 from __future__ import annotations
 
@@ -14,6 +15,28 @@ FloatArray = NDArray[np.float64]
 def vertices_array(flat: Sequence[float]) -> FloatArray:
     """Flat (x0, y0, x1, y1, ...) to an (n, 2) array of vertices."""
     return np.asarray(flat, dtype=np.float64).reshape(-1, 2)
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """An axis-aligned bounding box."""
+
+    x_min: float
+    y_min: float
+    x_max: float
+    y_max: float
+
+    @staticmethod
+    def of(x: FloatArray, y: FloatArray) -> Box:
+        """The box of the points (x[i], y[i]) (at least one)."""
+        return Box(float(x.min()), float(y.min()), float(x.max()), float(y.max()))
+
+    def distance(self, other: Box) -> float:
+        """The least distance between a point of this box and one of the other (0 if they
+        overlap): a lower bound on the distance between anything inside each."""
+        dx = max(0.0, other.x_min - self.x_max, self.x_min - other.x_max)
+        dy = max(0.0, other.y_min - self.y_max, self.y_min - other.y_max)
+        return float(np.hypot(dx, dy))
 
 
 def polygon_area(v: FloatArray) -> float:

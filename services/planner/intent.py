@@ -36,7 +36,7 @@ import numpy as np
 
 from common.messages import Message, PathMsg, StateEstimate
 from common.world import ObstacleState
-from common.world.geometry import FloatArray
+from common.world.geometry import Box, FloatArray
 from services.planner.planned_path import curve_of
 
 # samples of a broadcast path: a route polyline fine enough for rho0 at the fleet's sizes
@@ -52,6 +52,7 @@ class IntentObstacle(ObstacleState):
     route_x: FloatArray = field(repr=False)  # (m,)
     route_y: FloatArray = field(repr=False)  # (m,)
     s_route: FloatArray = field(repr=False)  # (m,) arc length at each point, from 0
+    route_box: Box  # where it can ever be: its centre stays on the route
     s0: float  # arc length now
     speed: float  # m/s along the route now
     cruise: float = 0.0  # m/s it rises to (its path's v_ref) at `ramp`
@@ -116,6 +117,7 @@ def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObs
         route_x=o.route_x,
         route_y=o.route_y,
         s_route=o.s_route,
+        route_box=o.route_box,
         s0=s0,
         speed=v,
         cruise=o.cruise,
@@ -123,11 +125,15 @@ def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObs
     )
 
 
+# a broadcast path as a route: polyline x, y; arc length at each point; the points' box
+_Route = tuple[FloatArray, FloatArray, FloatArray, Box]
+
+
 @dataclass
 class _Heard:
     state: StateEstimate | None = None
     path: PathMsg | None = None
-    route: tuple[FloatArray, FloatArray, FloatArray] | None = None  # polyline x, y; arc lengths
+    route: _Route | None = None
     holding: bool = False  # its newest path is NO_PATH: it brakes, then holds
     # the obstacle at the estimate's stamp, from this state, route and holding (a planner steps
     # several times per pose heard: 10 Hz against 2 Hz); None until asked after a change
@@ -239,7 +245,7 @@ class FleetIntents:
         following its route from the route's point nearest the estimate."""
         st, path = heard.state, heard.path
         assert st is not None and heard.route is not None  # _fresh: both are there
-        xs, ys, s_route = heard.route
+        xs, ys, s_route, box = heard.route
         i = int(np.argmin(np.hypot(xs - st.x, ys - st.y)))
         if i == len(xs) - 1 or s_route[-1] - s_route[i] <= self.parked_within_m:
             return _parked(oid, st, radius)
@@ -256,6 +262,7 @@ class FleetIntents:
             route_x=xs,
             route_y=ys,
             s_route=s_route,
+            route_box=box,
             s0=float(s_route[i]),
             speed=max(st.v, 0.0),
             cruise=path.v_ref if path is not None else 0.0,
@@ -270,10 +277,11 @@ def _parked(oid: int, st: StateEstimate, radius: float) -> ObstacleState:
     )
 
 
-def _route_of(path: PathMsg) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The path's polyline (ROUTE_SAMPLES points, x and y) and the arc length at each."""
+def _route_of(path: PathMsg) -> _Route:
+    """The path's polyline (ROUTE_SAMPLES points, x and y), the arc length at each, its box."""
     curve = curve_of(path)
     u = np.linspace(curve.u_min, curve.u_max, ROUTE_SAMPLES)
     pts = np.asarray(curve.evaluate(u, n_ders=0)[0])
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    return np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), s
+    xs, ys = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+    return xs, ys, s, Box.of(xs, ys)

@@ -28,8 +28,9 @@ from typing import Literal
 import numpy as np
 
 from common.config.planner import PlannerConfig
-from common.world.geometry import FloatArray
+from common.world.geometry import Box, FloatArray
 from services.planner.clearance import StaticField
+from services.planner.intent import IntentObstacle
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
@@ -204,10 +205,21 @@ class ReplanPolicy:
             return []
         ahead = self.pts[i_now:]
         tau = (self.s[i_now:] - s_now) / self.v_ref
-        return [
-            np.hypot(*(ahead - o.centre_at(tau, self.cfg.accel_horizon_s)).T) - o.radius - self.r
-            for o in obstacles.moving
-        ]
+        # a gap is only ever compared with rho0 and the corridor: another vehicle's route
+        # farther than both from the path ahead is that far at every sample (its gap bound
+        # stands for its gaps; a fleet's vehicles are mostly far from each other's paths)
+        far = max(self.cfg.rho0_m, self.cfg.corridor_halfwidth_m)
+        box = Box.of(ahead[:, 0], ahead[:, 1]) if len(ahead) else None
+        gaps = []
+        for o in obstacles.moving:
+            if box is not None and isinstance(o, IntentObstacle):
+                least = box.distance(o.route_box) - o.radius - self.r
+                if least >= far:
+                    gaps.append(np.full(len(ahead), least))
+                    continue
+            centres = o.centre_at(tau, self.cfg.accel_horizon_s)
+            gaps.append(np.hypot(*(ahead - centres).T) - o.radius - self.r)
+        return gaps
 
 
 def _least_gaps(
