@@ -6,8 +6,9 @@ hearing their intents (pose and path): the fleet's whole dataflow, N x 4 service
 N (N - 1) x 3 links between vehicles. Each run is `--seconds` of mission time; the cost of a
 fleet is its wall time over N x seconds (vehicle-seconds), and its scaling ratio
 cost(N) / cost(1) (goal <= 1.3: linear in N). The baseline, one vehicle, is measured in the
-same run, after a warm-up run. Inproc runs every N; lockstep (one process per service, the
-clock over Zenoh) runs N up to --lockstep-max (default 16: 65 processes, ~45 s here).
+same run, after a warm-up run, as the median of --baseline-runs runs (a one-vehicle run lasts
+a second: one slow run would skew every ratio). Inproc runs every N; lockstep (one process per
+service, the clock over Zenoh) runs N up to --lockstep-max (default 16: 65 processes, ~25 s).
 
 Realtime (--realtime-sizes, default 1,2,4): the same fleets at time scale 1, every link
 ideal (no modelled delay or loss), each service its own process; per vehicle, the delay each
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from statistics import median
 from typing import Any
 
 from common.config.scenario import Scenario, scenario_from_raw
@@ -76,6 +78,9 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0, help="mission seconds per run")
     ap.add_argument("--lockstep-max", type=int, default=16, help="largest N run in lockstep")
     ap.add_argument(
+        "--baseline-runs", type=int, default=3, help="runs of N = 1 whose median is the baseline"
+    )
+    ap.add_argument(
         "--realtime-sizes", default="1,2,4", help="fleet sizes run in realtime ('' for none)"
     )
     ap.add_argument("--realtime-seconds", type=float, default=20.0, help="mission s each, realtime")
@@ -95,10 +100,13 @@ def main() -> None:
             raw = fleet_raw(n, a.seconds)
             raw["runtime"]["kind"] = runtime
             s: Scenario = scenario_from_raw(raw, f"fleet{n}", check=check_scenario)
+            runs = max(1, a.baseline_runs) if n == 1 else 1
             if runtime == "inproc":
-                wall = _timed(lambda s=s: run_inproc(s))
+                wall = median(_timed(lambda s=s: run_inproc(s)) for _ in range(runs))
             else:
-                wall = _timed(lambda s=s, raw=raw: run_lockstep(s, raw))
+                wall = median(
+                    _timed(lambda s=s, raw=raw: run_lockstep(s, raw)) for _ in range(runs)
+                )
             per = wall / (n * a.seconds)
             base = per if n == 1 else base
             assert base is not None
