@@ -285,8 +285,12 @@ class Host:
             if spec.tap:  # a simulation tap is no link: handed over at the next tick
                 schedule[receiver] = (t_us,)
                 continue
-            dec = self.net.decide(self.name, stream, receiver, seq, t, len(data))
-            schedule[receiver] = tuple(to_us(x) for x in dec.delivered_at)
+            times = self.net.decide(self.name, stream, receiver, seq, t, len(data)).delivered_at
+            # one copy, or none, nearly always: no generator for it (a fleet's truth goes to
+            # every vehicle's sensor)
+            schedule[receiver] = (
+                (to_us(times[0]),) if len(times) == 1 else tuple(to_us(x) for x in times)
+            )
         return Outgoing(stream, data, schedule)
 
     def wake_deliveries_us(self, out: list[Outgoing]) -> dict[str, int]:
