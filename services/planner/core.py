@@ -9,6 +9,7 @@ estimator's tracks, predicted with their velocity and acceleration (paper §2).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from collections import deque
@@ -30,6 +31,7 @@ from common.world import ObstacleState
 from services.planner.command_link import CommandLink, Prediction
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
+from services.planner.flight import FlightModel, plan_flown
 from services.planner.intent import FleetIntents
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
@@ -331,10 +333,10 @@ class PlannerCore:
                 # effect), slow down to stop short of the first point of conflict instead of
                 # following it there at cruise speed
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
-            t_start, start = self._plan_start(t_plan, here, pred, decision.reason)
+            t_start, start, twist = self._plan_start(t_plan, here, pred, decision.reason)
             if t_start != t_plan:
                 obstacles = self._obstacles(t_start)
-            self._ask_plan(t, t_start, start, obstacles, decision.reason)
+            self._ask_plan(t, t_start, start, twist, obstacles, decision.reason)
         made = self.plans.result()
         if made is not None:
             out.append(Emit(stream="path", msg=self._adopt(t, made)))
@@ -403,8 +405,9 @@ class PlannerCore:
 
     def _plan_start(
         self, t_plan: float, here: Pose2D, pred: Prediction, why: str
-    ) -> tuple[float, Pose2D]:
-        """When and where a plan asked now should start: where the vehicle will be on the path
+    ) -> tuple[float, Pose2D, tuple[float, float]]:
+        """When and where a plan asked now should start, and the vehicle's twist (v, w) then:
+        where the vehicle will be on the path
         in force once the plan is made, as long as the last plans took (the median of the
         last PLAN_LAGS_KEPT). A plan of seconds made from where the vehicle was when it was
         asked starts metres behind it by the time it is in force (measured on realtime
@@ -414,18 +417,28 @@ class PlannerCore:
         stop short of a conflict (PathArcReference.stop_s)."""
         lag = min(median(self._plan_lags), PLAN_AHEAD_MAX_S) if self._plan_lags else 0.0
         ref = self.ref
+        v = pred.at_effect[3]
         if lag <= 0.0 or ref is None or why not in _ALONG_THE_PATH:
-            return t_plan, here
+            return t_plan, here, (v, pred.at_effect[4])
         s_here = ref.closest_s(here.x, here.y, self.policy.s_now)
-        s_then = min(s_here + max(pred.at_effect[3], 0.0) * lag, ref.stop_s, ref.length)
+        s_then = min(s_here + max(v, 0.0) * lag, ref.stop_s, ref.length)
         x, y = ref.point_at_s(s_then)
-        return t_plan + lag, Pose2D(x=x, y=y, theta=ref.heading_at_s(s_then))
+        # there it turns as the path in force does
+        twist = (v, v * ref.curvature_at_s(s_then))
+        return t_plan + lag, Pose2D(x=x, y=y, theta=ref.heading_at_s(s_then)), twist
 
     def _ask_plan(
-        self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles, why: str
+        self,
+        t: float,
+        t_plan: float,
+        here: Pose2D,
+        twist: tuple[float, float],
+        obstacles: Obstacles,
+        why: str,
     ) -> None:
-        """Start (at step t) a plan from `here`, the pose at t_plan (the obstacles as they are
-        then)."""
+        """Start (at step t) a plan from `here`, the pose at t_plan, where the vehicle moves
+        with `twist` (v, w) (the obstacles as they are then); flown before it is adopted
+        (flight.py)."""
         req = PlanRequest(
             start=here,
             goal=self.goal,
@@ -437,7 +450,15 @@ class PlannerCore:
         )
         cfg = self._plan_config()
         self._asked = _Asked(t_plan=t_plan, obstacles=obstacles, why=why, asked_t=t)
-        self.plans.start(lambda: plan_path(req, cfg))
+        flight = FlightModel(
+            # a copy now: the plan may be made beside the steps, which go on using it
+            controller=copy.deepcopy(self.controller),
+            model=self.link.model,
+            step_s=self.cfg.period_s,
+            start=(here.x, here.y, here.theta, *twist),
+            t0=t_plan,
+        )
+        self.plans.start(lambda: plan_flown(req, cfg, flight, plan_path))
 
     def _adopt(self, t: float, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""

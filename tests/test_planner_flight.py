@@ -1,0 +1,192 @@
+"""A plan flown before it is adopted (services/planner/flight.py): the controller on the
+response model measures how near the vehicle will come, and a plan it would fly inside rho0
+is made again wider."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from common.config.planner import PlannerConfig
+from common.config.scenario import load_scenario
+from common.config.world import CircleObstacleConfig
+from common.world import ObstacleState
+from services.planner.controllers import Limits, make_controller
+from services.planner.flight import (
+    FLIGHT_CURVATURE_FACTOR,
+    FLIGHT_CUSHION_M,
+    FLIGHT_MOVING_S,
+    FlightModel,
+    fly,
+    plan_flown,
+)
+from services.planner.nurbs_curve import clamped_uniform_knots
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
+from services.planner.response import ResponseModel
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+SCENARIO = load_scenario(DEFAULT)[0]
+CFG = SCENARIO.planner
+R = SCENARIO.vehicle.radius_m
+V = SCENARIO.vehicle.cruise_speed_mps
+W_MAX = V / SCENARIO.vehicle.turn_radius_min_m  # the hardest turn at cruise speed
+
+
+def _straight(y: float, x0: float = 5.0, x1: float = 60.0) -> PlanResult:
+    """An OK plan along the line y from x0 to x1 (a degree-3 NURBS, evenly spaced points)."""
+    ctrl = np.column_stack([np.linspace(x0, x1, 8), np.full(8, y)])
+    return PlanResult(
+        status="OK",
+        reason="",
+        degree=3,
+        control_points=ctrl,
+        weights=np.ones(8),
+        knots=clamped_uniform_knots(8, 3),
+        length_m=x1 - x0,
+    )
+
+
+def _request(*, circles: tuple[CircleObstacleConfig, ...] = (), moving=()) -> PlanRequest:
+    return PlanRequest(
+        start=Pose2D(x=5.0, y=20.0, theta=0.0),
+        goal=Pose2D(x=60.0, y=20.0, theta=0.0),
+        area=SCENARIO.world.area,
+        obstacles=Obstacles(circles=circles, moving=tuple(moving)),
+        vehicle_radius_m=R,
+        r_min_m=SCENARIO.vehicle.turn_radius_min_m,
+        v_ref_mps=V,
+    )
+
+
+def _flight(w0: float = 0.0, v0: float = V) -> FlightModel:
+    limits = Limits.from_vehicle(SCENARIO.vehicle, yaw_lag_lead=True)
+    return FlightModel(
+        controller=make_controller(SCENARIO.controller, limits),
+        model=ResponseModel.from_vehicle(SCENARIO.vehicle),
+        step_s=CFG.period_s,
+        start=(5.0, 20.0, 0.0, v0, w0),
+        t0=0.0,
+    )
+
+
+def _circle_left_of_the_line(gap_m: float, x: float = 12.0) -> CircleObstacleConfig:
+    """A circle whose surface is gap_m from the hull of a vehicle on the line y = 20."""
+    radius = 2.0
+    return CircleObstacleConfig(id=1, x_m=x, y_m=20.0 + R + gap_m + radius, radius_m=radius)
+
+
+def test_a_flight_on_its_path_clears_what_the_path_clears() -> None:
+    gap = CFG.rho0_m + 0.3
+    f = fly(_straight(20.0), _request(circles=(_circle_left_of_the_line(gap),)), _flight(), 5.0)
+    assert f.off_path_m < 0.02
+    assert abs(f.min_clearance_m - gap) < 0.02
+    assert abs(f.x - 12.0) < 0.2 and abs(f.t_s - 7.0 / V) < 1.0
+
+
+def test_a_vehicle_turning_the_other_way_flies_the_start_of_its_path_wide() -> None:
+    # the same straight path, the vehicle turning hard left as it starts: its yaw loop takes
+    # a while to unwind, and it swings toward the obstacle on its left
+    gap = CFG.rho0_m + 0.3
+    req = _request(circles=(_circle_left_of_the_line(gap, x=9.0),))
+    straight = fly(_straight(20.0), req, _flight(w0=0.0), 5.0)
+    turning = fly(_straight(20.0), req, _flight(w0=W_MAX), 5.0)
+    assert straight.off_path_m < 0.02 and turning.off_path_m > 0.05
+    assert turning.min_clearance_m < straight.min_clearance_m - 0.05
+
+
+def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
+    def crossing_at(t_s: float) -> ObstacleState:
+        # comes down across the line y = 20 at x = 5 + V t_s, reaching it at t_s
+        return ObstacleState(
+            id=9,
+            x=5.0 + V * t_s,
+            y=20.0 + 1.0 * t_s,
+            vx=0.0,
+            vy=-1.0,
+            ax=0.0,
+            ay=0.0,
+            radius=1.0,
+            moving=True,
+        )
+
+    def flown(meets_at_s: float) -> float:
+        req = _request(moving=[crossing_at(meets_at_s)])
+        return fly(_straight(20.0), req, _flight(), 5.0).min_clearance_m
+
+    soon, late = flown(8.0), flown(FLIGHT_MOVING_S + 8.0)
+    assert soon < 0.0  # they meet
+    # they would meet too, after the window: only where it is within it counts (metres away)
+    assert late > 5.0
+
+
+def test_the_escape_stretch_is_not_held_to_rho0() -> None:
+    circle = _circle_left_of_the_line(0.2, x=7.0)  # 0.2 m from the hull, 2 m after the start
+    req = _request(circles=(circle,))
+    assert fly(_straight(20.0), req, _flight(), 5.0).min_clearance_m < 0.25
+    escaping = dataclasses.replace(_straight(20.0), escape_m=6.0)
+    assert fly(escaping, req, _flight(), 5.0).min_clearance_m > 1.0
+
+
+class _Planner:
+    """A stand-in for plan_path: a straight path farther from y = 20 the wider the margin
+    asked, or NO_PATH from the second call on (`fail_again`); records the configs asked."""
+
+    def __init__(self, *, fail_again: bool = False) -> None:
+        self.asked: list[PlannerConfig] = []
+        self.fail_again = fail_again
+
+    def __call__(self, req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
+        self.asked.append(cfg)
+        if self.fail_again and len(self.asked) > 1:
+            return PlanResult(status="NO_PATH", reason="no feasible curve")
+        return _straight(20.0 - 4.0 * (cfg.clearance_margin_m - CFG.clearance_margin_m))
+
+
+def test_a_plan_whose_flight_keeps_rho0_is_adopted_as_made() -> None:
+    planner = _Planner()
+    req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.3),))
+    first = planner(req, CFG)
+    got = plan_flown(req, CFG, _flight(), planner)
+    assert (
+        len(planner.asked) == 2
+        and got.reason == ""
+        and np.array_equal(got.control_points, first.control_points)
+    )
+
+
+def test_a_plan_flown_inside_rho0_is_made_again_wider_and_says_so() -> None:
+    planner = _Planner()
+    req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
+    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    first, wider = planner.asked
+    assert first is CFG
+    # the margin asked is the tracking error the first flight showed, plus the cushion
+    flown = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG.accel_horizon_s)
+    assert flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
+    assert math.isclose(wider.clearance_margin_m, flown.off_path_m + FLIGHT_CUSHION_M)
+    assert wider.clearance_margin_m > CFG.clearance_margin_m
+    assert math.isclose(wider.curvature_margin, CFG.curvature_margin * FLIGHT_CURVATURE_FACTOR)
+    assert got.ok and got.control_points[0, 1] < 20.0  # the wider one
+    assert "made again with a" in got.reason and "off the path" in got.reason
+    again = fly(got, req, _flight(w0=W_MAX), CFG.accel_horizon_s)
+    assert again.min_clearance_m >= CFG.rho0_m + FLIGHT_CUSHION_M
+
+
+def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -> None:
+    planner = _Planner(fail_again=True)
+    req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
+    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    assert len(planner.asked) == 2
+    assert got.ok and got.control_points[0, 1] == 20.0
+    assert "fared no better" in got.reason
+
+
+def test_no_path_is_not_flown() -> None:
+    def nothing(req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
+        return PlanResult(status="NO_PATH", reason="walled off")
+
+    got = plan_flown(_request(), CFG, _flight(), nothing)
+    assert not got.ok and got.reason == "walled off"
