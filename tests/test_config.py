@@ -474,3 +474,17 @@ def test_check_rejects_a_start_whose_hull_touches_an_obstacle() -> None:
     # one centimetre more and the hull is free: accepted
     ok = tidelink_check(str(REPO / "configs" / "default.toml"), "--set", "world.start.x_m=15.19")
     assert ok.returncode == 0, ok.stderr
+
+
+def test_a_goal_without_a_heading_leaves_it_free_and_a_bad_one_is_named(tmp_path: Path) -> None:
+    # eq. (10)'s theta_f only where the scenario gives one: a fleet entry's goal written as
+    # { x_m, y_m } used to mean "arrive facing east" (a loop near the area's edge for a
+    # vehicle coming from the east)
+    goal = "\n[world.goal]\nx_m = 90.0\ny_m = 20.0\n"
+    free = load_scenario(_write(tmp_path, GOOD + goal), check=check_scenario)
+    fixed = load_scenario(_write(tmp_path, GOOD + goal), ["world.goal.theta_rad=1.5"])
+    assert free[0].world.goal.theta_rad is None and fixed[0].world.goal.theta_rad == 1.5
+    err = _error(_write(tmp_path, GOOD + goal), ["world.goal.theta_rad=east"])
+    assert err.key == "world.goal.theta_rad" and "expected a number" in err.problem
+    default = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
+    assert load_scenario(default)[0].world.goal.theta_rad == 0.0

@@ -117,6 +117,26 @@ def test_obstacle_free_straight_line_has_f_l_one() -> None:
     assert res.length_m <= 1.05 * _optimal_grid_length(req)
 
 
+def test_a_free_goal_heading_arrives_along_the_last_leg_a_fixed_one_turns_to_it() -> None:
+    # westward in open water to a goal given facing east (theta_f = 0) or without a heading
+    west = Pose2D(x=85.0, y=20.0, theta=math.pi)
+    goal = Pose2D(x=25.0, y=20.0, theta=0.0)
+    free = plan_path(
+        _paper_request(obstacles=Obstacles(), start=west, goal=goal, fix_goal_heading=False), CFG
+    )
+    fixed_req = _paper_request(obstacles=Obstacles(), start=west, goal=goal)
+    fixed = plan_path(fixed_req, CFG)
+    assert free.ok and abs(free.f_l - 1.0) < 1e-6  # straight on
+    end = free.curve().evaluate(np.array([free.curve().u_max]), n_ders=1)[1][0]
+    assert abs(math.atan2(end[1], end[0]) - math.pi) < 1e-3
+    # eq. (10) held: it loops round to arrive facing east, or finds no curve that does
+    if fixed.ok:
+        _verify(fixed_req, fixed)
+        assert fixed.length_m > free.length_m + math.pi * fixed_req.r_min_m
+        end = fixed.curve().evaluate(np.array([fixed.curve().u_max]), n_ders=1)[1][0]
+        assert abs(math.atan2(end[1], end[0])) < 1e-3
+
+
 def test_paper_field_plan_is_safe_smooth_and_near_optimal() -> None:
     req = _paper_request()
     res = plan_path(req, CFG)

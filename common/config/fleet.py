@@ -20,7 +20,7 @@ from common.config.network import OTHER
 from common.config.planner import PlannerConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
-from common.config.world import PoseConfig
+from common.config.world import GoalConfig, PoseConfig
 
 MAX_VEHICLES = 16
 # a vehicle id qualifies its services' names ("auv2.planner") and is a key chunk: no '.'
@@ -42,7 +42,7 @@ class FleetVehicle:
 
     id: str
     start: PoseConfig
-    goal: PoseConfig
+    goal: GoalConfig
     vehicle: VehicleConfig
     sensor: SensorConfig
     estimator: EstimatorConfig
@@ -92,7 +92,7 @@ def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, .
             FleetVehicle(
                 id=vid,
                 start=build(PoseConfig, e["start"], file=file, path=(*at, "start")),
-                goal=build(PoseConfig, e["goal"], file=file, path=(*at, "goal")),
+                goal=build(GoalConfig, e["goal"], file=file, path=(*at, "goal")),
                 **sections,
             )
         )

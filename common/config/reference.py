@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import types
 import typing
 from typing import Any
 
@@ -22,6 +23,10 @@ def _type_name(hint: Any) -> str:
         return f"array of {_type_name(inner)}"
     if origin is dict:
         return f"table of {' or '.join(_type_name(a) for a in typing.get_args(args[1]))}"
+    if origin in (types.UnionType, typing.Union) and type(None) in args:
+        # an optional key: the table's cell must not carry a bare "|"
+        kept = [a for a in args if a is not type(None)]
+        return " or ".join(_type_name(a) for a in kept) + " (optional)"
     if isinstance(hint, type):
         return {float: "number", int: "integer", str: "string", bool: "bool"}.get(
             hint, hint.__name__

@@ -159,12 +159,30 @@ class MovingObstacleConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class GoalConfig:
+    """Where a vehicle must arrive, and its heading there (eq. (10)'s theta_f) if given: without
+    `theta_rad` the heading at the goal is free (the path arrives along its own last leg)
+    rather than silently east, which made a vehicle coming from the east loop round near the
+    edge of the area to arrive facing it."""
+
+    x_m: float
+    y_m: float
+    theta_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "theta_rad"):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise ConfigValueError(name, f"{value!r} is not finite, expected a number")
+
+
+@dataclass(frozen=True, kw_only=True)
 class WorldConfig:
     """The scenario's world: area, start and goal poses, obstacles (ids unique over all)."""
 
     area: AreaConfig = field(default_factory=AreaConfig)
     start: PoseConfig = field(default_factory=lambda: PoseConfig(x_m=5.0, y_m=20.0))
-    goal: PoseConfig = field(default_factory=lambda: PoseConfig(x_m=95.0, y_m=20.0))
+    goal: GoalConfig = field(default_factory=lambda: GoalConfig(x_m=95.0, y_m=20.0))
     goal_tolerance_m: float = 1.0
     circles: tuple[CircleObstacleConfig, ...] = ()
     polygons: tuple[PolygonObstacleConfig, ...] = ()

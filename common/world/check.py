@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from common.config.budget import DEFAULT_BUDGET, Budget, check_budget
 from common.config.errors import ConfigError
 from common.config.placement import PlacementConfig
-from common.config.world import PoseConfig, WorldConfig
+from common.config.world import GoalConfig, PoseConfig, WorldConfig
 from common.world.geometry import polygon_area, polygon_is_simple, vertices_array
 from common.world.model import World
 
@@ -117,7 +117,9 @@ def check_world(
     _check_goal_margin(world, file, cfg.goal, vehicle_radius_m, rho0_m)
 
 
-def _check_free(world: World, file: str, name: str, pose: PoseConfig, r: float) -> None:
+def _check_free(
+    world: World, file: str, name: str, pose: PoseConfig | GoalConfig, r: float
+) -> None:
     # eq. (12) with the hull radius r and the obstacles at t = 0: a pose in contact would
     # start (or end) the mission touching an obstacle
     oid, d = world.nearest(pose.x_m, pose.y_m, r, 0.0)
@@ -131,7 +133,7 @@ def _check_free(world: World, file: str, name: str, pose: PoseConfig, r: float) 
         )
 
 
-def _check_goal_margin(world: World, file: str, pose: PoseConfig, r: float, rho0: float) -> None:
+def _check_goal_margin(world: World, file: str, pose: GoalConfig, r: float, rho0: float) -> None:
     # eq. (12)-(13): every planned path keeps rho0 from static obstacles, so the planner
     # refuses a goal closer than that (NO_PATH for the whole run); moving ones pass by
     oid, d = world.nearest(pose.x_m, pose.y_m, r, 0.0, moving=False)

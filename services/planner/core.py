@@ -143,7 +143,10 @@ class PlannerCore:
         self.link = CommandLink(
             planner, controller, vehicle, expected_downlink_s=expected_downlink_s
         )
-        self.goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
+        g = world.goal
+        # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
+        self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
+        self.fix_goal_heading = g.theta_rad is not None
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
             p.id for p in world.polygons
         )
@@ -447,6 +450,7 @@ class PlannerCore:
             vehicle_radius_m=self.vehicle.radius_m,
             r_min_m=self.vehicle.turn_radius_min_m,
             v_ref_mps=self.vehicle.cruise_speed_mps,
+            fix_goal_heading=self.fix_goal_heading,
         )
         cfg = self._plan_config()
         self._asked = _Asked(t_plan=t_plan, obstacles=obstacles, why=why, asked_t=t)
