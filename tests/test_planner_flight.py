@@ -132,14 +132,21 @@ def test_the_escape_stretch_is_not_held_to_rho0() -> None:
 
 class _Planner:
     """A stand-in for plan_path: a straight path farther from y = 20 the wider the margin
-    asked, or NO_PATH from the second call on (`fail_again`); records the configs asked."""
+    asked, or NO_PATH from the second call on (`fail_again`), but for a request with a disc
+    more than the scenario's: then, with `detour`, a path 5 m to the side; records the
+    configs and requests asked."""
 
-    def __init__(self, *, fail_again: bool = False) -> None:
+    def __init__(self, *, fail_again: bool = False, detour: bool = False) -> None:
         self.asked: list[PlannerConfig] = []
+        self.requests: list[PlanRequest] = []
         self.fail_again = fail_again
+        self.detour = detour
 
     def __call__(self, req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
         self.asked.append(cfg)
+        self.requests.append(req)
+        if self.detour and len(req.obstacles.circles) > len(self.requests[0].obstacles.circles):
+            return _straight(15.0)
         if self.fail_again and len(self.asked) > 1:
             return PlanResult(status="NO_PATH", reason="no feasible curve")
         return _straight(20.0 - 4.0 * (cfg.clearance_margin_m - CFG.clearance_margin_m))
@@ -179,9 +186,38 @@ def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -
     planner = _Planner(fail_again=True)
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
     got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
-    assert len(planner.asked) == 2
+    assert len(planner.asked) == 3  # wider, then around a disc where it came nearest
     assert got.ok and got.control_points[0, 1] == 20.0
     assert "fared no better" in got.reason
+
+
+def test_a_squeeze_too_narrow_for_the_wider_margin_is_left_for_another_way() -> None:
+    planner = _Planner(fail_again=True, detour=True)
+    circle = _circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0)
+    req = _request(circles=(circle,))
+    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    first, wider, around = planner.requests
+    assert first is req and wider is req
+    (disc,) = set(around.obstacles.circles) - {circle}
+    flown = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG.accel_horizon_s)
+    assert (disc.x_m, disc.y_m) == (flown.x, flown.y) and disc.id != circle.id
+    assert planner.asked[2] is CFG
+    assert got.ok and got.control_points[0, 1] == 15.0
+    assert "made again around where it came nearest" in got.reason
+
+
+def test_no_detour_round_a_moving_obstacle_it_will_be_elsewhere() -> None:
+    # the mover crosses just ahead of the vehicle: its flight comes near it, not near a wall
+    mover = ObstacleState(
+        id=9, x=12.0, y=20.0 + R + 1.05 + 1.0 + 4.0, vx=0.0, vy=-1.0, ax=0.0, ay=0.0,
+        radius=1.0, moving=True,
+    )  # fmt: skip
+    planner = _Planner(fail_again=True, detour=True)
+    req = _request(moving=[mover])
+    flown = fly(_straight(20.0), req, _flight(), CFG.accel_horizon_s)
+    assert not flown.static and flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
+    plan_flown(req, CFG, _flight(), planner)
+    assert len(planner.asked) == 2  # wider only
 
 
 def test_no_path_is_not_flown() -> None:

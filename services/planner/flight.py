@@ -15,9 +15,13 @@ controller (a copy, reset as on adoption) commands every control period, the res
 (at most FLIGHT_MAX_S). Where the flight comes inside rho0 of an obstacle (past the stretch
 the plan itself may pass nearer: escape_m), the flight's distance off the path there is the
 tracking error, and the plan is made again with a clearance margin that wide plus
-FLIGHT_CUSHION_M, its curvature aimed FLIGHT_CURVATURE_FACTOR lower. The plan whose flight
-comes nearer to keeping rho0 is adopted (the first when the second fares no better, or fails);
-either way its reason says what the flight found. Pure: the same floats in every runtime.
+FLIGHT_CUSHION_M, its curvature aimed FLIGHT_CURVATURE_FACTOR lower; if that flight does not
+keep rho0 + FLIGHT_CUSHION_M either (a squeeze at a bend can be too narrow for the wider
+margin: fleet4 seed 17, between polygon 2 and the area's north edge), once more around a disc
+of FLIGHT_DETOUR_M where the first flight came nearest a static obstacle, so the search takes
+another way. The plan whose flight clears the most is adopted (the first when none fares
+better); either way its reason says what the flight found. Pure: the same floats in every
+runtime.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from common.config.planner import PlannerConfig
+from common.config.world import CircleObstacleConfig
 from services.planner.clearance import StaticField, moving_distance
 from services.planner.controllers.base import Controller
 from services.planner.path_arc_reference import PathArcReference
@@ -47,6 +52,8 @@ FLIGHT_CUSHION_M = 0.1
 # (the plan's own check, at v_ref, covers them; replans judge them anew as they come)
 FLIGHT_MOVING_S = 10.0
 FLIGHT_CURVATURE_FACTOR = 0.9  # the second plan aims its curvature this much lower
+# ... and failing that, a third avoids a disc this wide where the flight came nearest
+FLIGHT_DETOUR_M = 0.5
 ARRIVED_M = 0.5  # a flight within this of the path's end, slower than ARRIVED_MPS, is over
 ARRIVED_MPS = 0.05
 
@@ -62,6 +69,7 @@ class Flight:
     y: float
     t_s: float
     off_path_m: float
+    static: bool = True  # the obstacle nearest there is a static one (else a moving one)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,7 +106,8 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, accel_horizon_s: 
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
     obs = req.obstacles
-    d = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
+    d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
+    d = d_static.copy()
     soon = t <= FLIGHT_MOVING_S
     d[soon] = np.minimum(
         d[soon], moving_distance(obs.moving, pts[soon], t[soon], accel_horizon_s)[0]
@@ -113,6 +122,7 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, accel_horizon_s: 
         y=y,
         t_s=float(t[j]),
         off_path_m=math.hypot(x - px, y - py),
+        static=bool(d_static[j] <= d[j]),
     )
 
 
@@ -138,18 +148,46 @@ def plan_flown(req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, plan: Plan
         clearance_margin_m=max(cfg.clearance_margin_m, f1.off_path_m + FLIGHT_CUSHION_M),
         curvature_margin=cfg.curvature_margin * FLIGHT_CURVATURE_FACTOR,
     )
-    second = plan(req, wider)
-    if second.ok:
-        f2 = fly(second, req, fm, cfg.accel_horizon_s)
-        if f2.min_clearance_m > f1.min_clearance_m:
-            kept = "keeps" if f2.min_clearance_m >= keep else "comes nearer keeping"
-            return _with_reason(
-                second,
-                f"{found}; made again with a {wider.clearance_margin_m:.2f} m margin, "
-                f"whose flight {kept} rho0 + {FLIGHT_CUSHION_M:.2f} m (least clearance "
-                f"{f2.min_clearance_m:.2f} m)",
-            )
-    return _with_reason(first, f"{found}; made again wider, it fared no better")
+    tried = [(f"made again with a {wider.clearance_margin_m:.2f} m margin", req, wider)]
+    around = _detour(req, cfg, f1)
+    if around is not None:
+        tried.append(("made again around where it came nearest", around, cfg))
+    best, best_f, how = first, f1, ""
+    for what, q, c in tried:
+        again = plan(q, c)
+        if not again.ok:
+            continue
+        f = fly(again, req, fm, cfg.accel_horizon_s)  # judged among the real obstacles
+        if f.min_clearance_m > best_f.min_clearance_m:
+            best, best_f, how = again, f, what
+        if best_f.min_clearance_m >= keep:
+            break
+    if best is first:
+        return _with_reason(first, f"{found}; made again, it fared no better")
+    kept = "keeps" if best_f.min_clearance_m >= keep else "comes nearer keeping"
+    return _with_reason(
+        best,
+        f"{found}; {how}, whose flight {kept} rho0 + {FLIGHT_CUSHION_M:.2f} m (least "
+        f"clearance {best_f.min_clearance_m:.2f} m)",
+    )
+
+
+def _detour(req: PlanRequest, cfg: PlannerConfig, f: Flight) -> PlanRequest | None:
+    """The request with a disc of FLIGHT_DETOUR_M where a flight came nearest a static
+    obstacle: the search then leaves the squeeze (a gap at a bend) for another way. None when
+    that was a moving obstacle (it will be elsewhere) or the disc would crowd the start or goal."""
+    if not f.static:
+        return None
+    reach = FLIGHT_DETOUR_M + req.vehicle_radius_m + cfg.rho0_m + FLIGHT_CUSHION_M
+    for p in (req.start, req.goal):
+        if math.hypot(p.x - f.x, p.y - f.y) < reach:
+            return None
+    obs = req.obstacles
+    ids = [c.id for c in obs.circles] + [q.id for q in obs.polygons] + [m.id for m in obs.moving]
+    disc = CircleObstacleConfig(
+        id=max(ids, default=0) + 1, x_m=f.x, y_m=f.y, radius_m=FLIGHT_DETOUR_M
+    )
+    return replace(req, obstacles=replace(obs, circles=(*obs.circles, disc)))
 
 
 def _with_reason(result: PlanResult, note: str) -> PlanResult:
