@@ -226,3 +226,19 @@ def test_no_path_is_not_flown() -> None:
 
     got = plan_flown(_request(), CFG, _flight(), nothing)
     assert not got.ok and got.reason == "walled off"
+
+
+def test_after_an_escape_the_flight_is_held_to_rho0_without_the_cushion() -> None:
+    # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it
+    planner = _Planner()
+    req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.05, x=12.0),))
+    escaping = dataclasses.replace(_straight(20.0), escape_m=2.0)
+
+    def escape_first(q: PlanRequest, c: PlannerConfig) -> PlanResult:
+        planner(q, c)  # counted
+        return escaping
+
+    got = plan_flown(req, CFG, _flight(), escape_first)
+    assert len(planner.asked) == 1 and got is escaping
+    plain = plan_flown(req, CFG, _flight(), _Planner())
+    assert "flown on the response model" in plain.reason  # without an escape: the cushion

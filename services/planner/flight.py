@@ -43,7 +43,8 @@ from services.planner.response import Pose, ResponseModel
 from services.planner.result import PlanRequest, PlanResult
 
 FLIGHT_MAX_S = 90.0  # a flight ends at the path's end, or after this long (s)
-# a flight must keep rho0 + this: the model knows no current and no estimation error (on
+# a flight must keep rho0 + this (rho0 alone past an escape, which ends at rho0 + 1 cm):
+# the model knows no current and no estimation error (on
 # fleet4 seed 22 the vehicle flew 0.07 m nearer than its flight); the same cushion is added
 # to the tracking error the flight showed, for the margin the plan is made again with
 FLIGHT_CUSHION_M = 0.1
@@ -135,7 +136,9 @@ def plan_flown(req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, plan: Plan
     if not first.ok:
         return first
     f1 = fly(first, req, fm, cfg.accel_horizon_s)
-    keep = cfg.rho0_m + FLIGHT_CUSHION_M
+    # a plan that leaves the margin (or contact) first ends its escape at rho0 + 1 cm and
+    # leaves the margin gradually: right after it, its flight is held to rho0 alone
+    keep = cfg.rho0_m + (FLIGHT_CUSHION_M if first.escape_m <= 0.0 else 0.0)
     if f1.min_clearance_m >= keep:
         return first
     found = (
@@ -164,11 +167,11 @@ def plan_flown(req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, plan: Plan
             break
     if best is first:
         return _with_reason(first, f"{found}; made again, it fared no better")
-    kept = "keeps" if best_f.min_clearance_m >= keep else "comes nearer keeping"
+    kept = "clears" if best_f.min_clearance_m >= keep else "comes nearer clearing"
     return _with_reason(
         best,
-        f"{found}; {how}, whose flight {kept} rho0 + {FLIGHT_CUSHION_M:.2f} m (least "
-        f"clearance {best_f.min_clearance_m:.2f} m)",
+        f"{found}; {how}, whose flight {kept} {keep:.2f} m (least clearance "
+        f"{best_f.min_clearance_m:.2f} m)",
     )
 
 
