@@ -10,6 +10,9 @@
 4. realtime control-loop latency with a zero-delay profile: sensor sample to command applied
    at the plant, through sensor -> filter -> controller -> plant (three Zenoh hops via the
    router, event-driven cores), against the raw Zenoh one-way hop latency measured here;
+   hop by hop, and service by service where each tick's time goes (how late it woke, its
+   step, its publishing: common/runtime/distributed/loop_times.py, from each service's
+   statistics), so the slowest part is visible;
 5. the same loop secured as `tidelink run --certs DIR` runs it (issue 13: every service over
    mutual TLS to the run's router, which enforces the access control generated from the
    loop's dataflow) against plain, runs interleaved plain, secured, plain, secured, ...
@@ -46,9 +49,10 @@ import numpy as np
 
 from common.bus.certs import create_certs
 from common.config.scenario import load_scenario
-from common.messages import VehicleStatus
+from common.messages import LinkStats, VehicleStatus
 from common.runtime.distributed.acl import LAUNCHER
 from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.distributed.loop_times import PHASES
 from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
@@ -68,6 +72,7 @@ event_driven = true
 
 # the loop's hops from the sensor's sample to the plant: where the time between goes
 LOOP_HOPS = ("sensor/nav->filter", "filter/state->ctrl", "ctrl/cmd->plant")
+LOOP_SERVICES = ("sensor", "filter", "ctrl", "plant")
 
 FLOOR_TOML = """
 [run]
@@ -169,6 +174,9 @@ class LoopLatency:
     # each hop of the loop: (link, p50, p95, max in us) as its receiver measured it, from the
     # sender's step time to the hand-over to the receiver's core
     hops: tuple[tuple[str, float, float, float], ...] = ()
+    # each service's loop phases (common/runtime/distributed/loop_times.py), from its last
+    # statistics: its "loop.<phase>_<p50|p95|max>_us" counters
+    phases: tuple[tuple[str, dict[str, int]], ...] = ()
 
 
 def _loop_toml(seconds: float) -> Path:
@@ -197,7 +205,13 @@ def bench_realtime_latency(seconds: float, certs: Path | None = None) -> LoopLat
         )
         for link in LOOP_HOPS
     )
+    phases = tuple(
+        (name, {k: v for k, v in stats[-1].counters.items() if k.startswith("loop.")})
+        for name in LOOP_SERVICES
+        if (stats := [m for m in r.record.stream(name, "stats") if isinstance(m, LinkStats)])
+    )
     return LoopLatency(
+        phases=phases,
         p50_us=float(np.percentile(ages, 50) * 1e6),
         p99_us=float(np.percentile(ages, 99) * 1e6),
         n=len(ages),
@@ -425,11 +439,27 @@ def main() -> None:
         f"{rt99 / (3 * raw99):8.2f}x"
     )
     print("  hop by hop, as each receiver measured it (sender's step -> hand-over to its core):")
+    phases = dict(loop.phases)
     for link, h50, h95, hmax in loop.hops:
+        # the sender's own part (its phases' p50s, summed: an estimate, not a quantile)
+        own = phases.get(link.split("/")[0], {})
+        sender = sum(own.get(f"loop.{phase}_p50_us", 0) for phase in PHASES)
         print(
             f"    {link:<27} p50 {h50:8.0f} us   p95 {h95:8.0f} us   max {hmax:8.0f} us"
-            f"   p50 / raw hop {h50 / raw50:6.2f}x"
+            f"   p50 / raw hop {h50 / raw50:6.2f}x   ~{sender:.0f} us the sender's,"
+            f" ~{max(0.0, h50 - sender):.0f} us on the way and receiving"
         )
+    print(
+        "  service by service, each tick's phases in wall us (p50 / p95): woke late (after its"
+        " timer, or after taking its message), step (hand-over, core step, link model,"
+        " encoding), publish (Zenoh puts):"
+    )
+    for name, c in loop.phases:
+        cells = "   ".join(
+            f"{phase} {c.get(f'loop.{phase}_p50_us', 0):5d} / {c.get(f'loop.{phase}_p95_us', 0):5d}"
+            for phase in PHASES
+        )
+        print(f"    {name:<8} {cells}")
     if sec is not None:
         print_secured(sec)
 

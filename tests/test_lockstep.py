@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
+from common.messages import LinkStats
 from common.runtime.distributed.lockstep import run_lockstep
+from common.runtime.distributed.loop_times import PHASES
 from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.supervisor import ServiceFailed
@@ -77,6 +79,14 @@ def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> No
     assert {k for k, _ in r.record.keys()} >= {"ctrl", "filter", "plant", "sensor"}
     logs = {p.stem for p in (tmp_path / "logs").glob("*.log")}
     assert logs == {"ctrl", "filter", "plant", "sensor"}
+    # each service's statistics say where its loop's time went (loop_times.py), in order
+    for name in ("ctrl", "filter", "plant", "sensor"):
+        stats = [m for m in r.record.stream(name, "stats") if isinstance(m, LinkStats)]
+        c = stats[-1].counters
+        for phase in PHASES:
+            p50, p95, top = (c[f"loop.{phase}_{q}_us"] for q in ("p50", "p95", "max"))
+            assert 0 <= p50 <= p95 <= top, (name, phase, c)
+        assert 0 < c["loop.step_p50_us"] < 1_000_000, (name, c)  # a toy core steps in < 1 s
 
 
 def test_lockstep_equals_inproc_with_event_driven_cores(

@@ -14,6 +14,7 @@ import pytest
 from common.bus import Received
 from common.config.scenario import load_scenario
 from common.messages import NavFix, Tick, encode_routing
+from common.runtime.distributed.loop_times import PHASES, LoopTimes
 from common.runtime.distributed.realtime_service import MAX_DELIVERY_AHEAD_S, RealtimeService
 from common.runtime.distributed.service_process import ServiceSetup
 from common.runtime.model.core import Emit
@@ -133,3 +134,27 @@ def test_a_step_longer_than_its_period_goes_back_to_the_inbox(
     assert pubs["state"].frames  # and what it emitted published
     svc._run_due(pubs)
     assert len(steps) == 2  # the next call: the next step, late by a period
+
+
+def test_loop_times_are_reported_as_microsecond_quantiles_per_phase() -> None:
+    times = LoopTimes()
+    assert times.counters() == {}  # nothing before the first tick
+    for k in range(1, 101):  # wake 1..100 us, step 10x that, publish constant 5 us
+        times.record(k * 1e-6, k * 1e-5, 5e-6)
+    times.record(-1e-6, 0.0, 0.0)  # a clock read a hair early counts as on time
+    c = times.counters()
+    assert c["loop.wake_p50_us"] == pytest.approx(50, rel=0.01)
+    assert c["loop.step_p95_us"] == pytest.approx(950, rel=0.01)
+    assert (c["loop.wake_max_us"], c["loop.step_max_us"]) == (100, 1000)
+    assert c["loop.publish_p50_us"] == 5
+
+
+def test_a_realtime_hosts_statistics_carry_its_loop_times(svc: RealtimeService) -> None:
+    pubs: dict[str, Any] = {s: _Sent() for s in svc.host.streams}
+    svc.t0 = time.monotonic() - 1.0 / svc.scale  # a second in: a step and statistics are due
+    svc._run_due(pubs)
+    stats = svc.host.link_stats(1.0)
+    assert stats.counters["loop.step_p50_us"] > 0
+    assert set(stats.counters) == {
+        f"loop.{phase}_{q}_us" for phase in PHASES for q in ("p50", "p95", "max")
+    }

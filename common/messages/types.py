@@ -384,7 +384,8 @@ class LinkStats(Message, frozen=True, kw_only=True):
     outgoing links, the delays it measured on its incoming ones, and how its inputs fared:
     deliveries dropped because an input's queue was full (by link), inputs its core rejected
     as implausible (by '<stream>.<reason>'), filters its core restarted (by filter), and what
-    else its core counts (by name: a fleet planner's steps by intent or by track, per vehicle)."""
+    else its core or runtime counts (by name: a fleet planner's steps by intent or by track,
+    per vehicle; a realtime service's loop times in us, 'loop.step_p50_us' ...)."""
 
     links: tuple[LinkCounters, ...]
     measured: tuple[MeasuredDelay, ...] = ()

@@ -49,12 +49,7 @@ class LinkStatsAccumulator:
         self.loss_bursts = 0
         self.max_loss_burst = 0
         self._run = 0  # length of the current run of loss drops
-        self._sum_delay = 0.0
-        self._max_delay = 0.0
-        # count per non-empty bin: a link's delays fill a few of the ~2300 bins, and a host
-        # reads the percentiles of every outgoing link each second (a fleet of 16: ~30 links
-        # a host; a pass over every bin was the fleet's largest per-vehicle cost growing with N)
-        self._bins: dict[int, int] = {}
+        self.delays = DurationHistogram()  # of the first copy of each delivered message
 
     def record(
         self,
@@ -85,42 +80,19 @@ class LinkStatsAccumulator:
         if len(delivered_at) > 1:
             self.duplicated += 1
         # >= 0 up to the us rounding of delivery times (exact when send_time is on the us grid)
-        d = max(0.0, min(delivered_at) - send_time)
-        self._sum_delay += d
-        if d > self._max_delay:
-            self._max_delay = d
-        b = _bin_of(d)
-        self._bins[b] = self._bins.get(b, 0) + 1
+        self.delays.record(max(0.0, min(delivered_at) - send_time))
 
     def percentile(self, q: float) -> float:
         """Nearest-rank q-quantile (0 < q <= 1) of the first-copy delay, to 0.5 %; 0 if empty."""
-        return self.quantiles(q)[0]
+        return self.delays.quantiles(q)[0]
 
     def quantiles(self, *qs: float) -> tuple[float, ...]:
-        """percentile(q) for each q, from one cumulative pass over the non-empty bins (a
-        snapshot asks three, a host snapshots its links every second)."""
-        if self.delivered == 0:
-            return tuple(0.0 for _ in qs)
-        filled = sorted(self._bins)
-        cumulative = list(accumulate(self._bins[b] for b in filled))
-        out = []
-        for q in qs:
-            rank = max(1, math.ceil(q * self.delivered))
-            j = bisect_left(cumulative, rank)  # the first bin whose count reaches the rank
-            if j >= len(cumulative):  # unreachable: the bins hold every delivered message
-                out.append(self._max_delay)
-                continue
-            i = filled[j]
-            if i == 0:
-                out.append(0.0)
-            else:
-                mid = _D0_S * _RATIO ** (i - 0.5)  # geometric centre of the bin
-                out.append(min(mid, self._max_delay))
-        return tuple(out)
+        """percentile(q) for each q (DurationHistogram.quantiles)."""
+        return self.delays.quantiles(*qs)
 
     def snapshot(self) -> LinkStatsSnapshot:
         """The counters and delay statistics so far."""
-        p50, p95, p99 = self.quantiles(0.5, 0.95, 0.99)
+        p50, p95, p99 = self.delays.quantiles(0.5, 0.95, 0.99)
         return LinkStatsSnapshot(
             sent=self.sent,
             delivered=self.delivered,
@@ -131,12 +103,63 @@ class LinkStatsAccumulator:
             delay_p50_s=p50,
             delay_p95_s=p95,
             delay_p99_s=p99,
-            delay_mean_s=self._sum_delay / self.delivered if self.delivered else 0.0,
-            delay_max_s=self._max_delay,
+            delay_mean_s=self.delays.mean,
+            delay_max_s=self.delays.max,
             loss_bursts=self.loss_bursts,
             max_loss_burst=self.max_loss_burst,
             bytes_sent=self.bytes_sent,
         )
+
+
+class DurationHistogram:
+    """Durations (s) in logarithmic bins: count, exact mean and maximum, and nearest-rank
+    quantiles to 0.5 %, each recorded in O(1) (a link's delays, a loop's step times)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._sum = 0.0
+        self.max = 0.0
+        # count per non-empty bin: a link's delays fill a few of the ~2300 bins, and a host
+        # reads the percentiles of every outgoing link each second (a fleet of 16: ~30 links
+        # a host; a pass over every bin was the fleet's largest per-vehicle cost growing with N)
+        self._bins: dict[int, int] = {}
+
+    def record(self, d: float) -> None:
+        """Count one duration d >= 0 (s)."""
+        self.count += 1
+        self._sum += d
+        if d > self.max:
+            self.max = d
+        b = _bin_of(d)
+        self._bins[b] = self._bins.get(b, 0) + 1
+
+    @property
+    def mean(self) -> float:
+        """The exact mean; 0 if empty."""
+        return self._sum / self.count if self.count else 0.0
+
+    def quantiles(self, *qs: float) -> tuple[float, ...]:
+        """The nearest-rank q-quantile (0 < q <= 1) for each q, from one cumulative pass over
+        the non-empty bins (a snapshot asks three, a host snapshots its links every second);
+        0 if empty."""
+        if self.count == 0:
+            return tuple(0.0 for _ in qs)
+        filled = sorted(self._bins)
+        cumulative = list(accumulate(self._bins[b] for b in filled))
+        out = []
+        for q in qs:
+            rank = max(1, math.ceil(q * self.count))
+            j = bisect_left(cumulative, rank)  # the first bin whose count reaches the rank
+            if j >= len(cumulative):  # unreachable: the bins hold every recorded duration
+                out.append(self.max)
+                continue
+            i = filled[j]
+            if i == 0:
+                out.append(0.0)
+            else:
+                mid = _D0_S * _RATIO ** (i - 0.5)  # geometric centre of the bin
+                out.append(min(mid, self.max))
+        return tuple(out)
 
 
 def _bin_of(delay_s: float) -> int:

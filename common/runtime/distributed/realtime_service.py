@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 from common.bus import Bus, Inbox, Liveliness, Publisher, Received
 from common.messages import Tick, encode_routing
+from common.runtime.distributed.loop_times import LoopTimes
 from common.runtime.distributed.service_process import (
     ServiceSetup,
     resume_from_tap,
@@ -78,6 +79,8 @@ class RealtimeService:
         self.clock_lost_at: float | None = None  # wall time the clock's token vanished
         self._catching_up = False  # the last Tick moved the clock by more than CATCH_UP_S
         self._bus: Bus | None = None
+        self.times = LoopTimes()
+        self.host.runtime_counters = self.times.counters
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -125,13 +128,20 @@ class RealtimeService:
         if self.t0 is None:
             return
         now = self.now_us()
+        woke_at = time.perf_counter()
         # a step that fell behind by whole periods skips them (see the class docstring)
         self.skipped += self.host.skip_missed(now)
         while (t_us := self.host.next_event_us()) <= now:
             self.ticks += 1
+            woke = time.perf_counter()
             # the core sees the scheduled event time; late wake-ups do not skew periods
-            for o in self.host.run_tick(self.ticks, t_us):
+            out = self.host.run_tick(self.ticks, t_us)
+            stepped = time.perf_counter()
+            for o in out:
                 pubs[o.stream].put_bytes(o.data, encode_routing(self.ticks, o.schedule))
+            if out:  # the ticks on a message's way through (a loop's latency is theirs)
+                late_s = (now - t_us) / 1e6 / self.scale + (woke - woke_at)
+                self.times.record(late_s, stepped - woke, time.perf_counter() - stepped)
 
     def _take(self, inbox: Inbox, timeout: float | None) -> bool:
         """Wait up to `timeout` for an event and take it; while catching up, take every event

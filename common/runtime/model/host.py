@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from common.config.network import link_name
@@ -109,6 +109,9 @@ class Host:
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
         self.drops = InputDrops(name)
         self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
+        # counters of the runtime around this host, carried in its statistics beside the
+        # core's (a realtime service's loop times, loop_times.py)
+        self.runtime_counters: Callable[[], Mapping[str, int]] = dict
 
     @property
     def inputs(self) -> tuple[Input, ...]:
@@ -344,5 +347,8 @@ class Host:
             inputs_dropped=self.drops.by_link(),
             inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
             resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
-            counters=dict(core.stats_counters) if isinstance(core, CountsForStats) else {},
+            counters={
+                **(core.stats_counters if isinstance(core, CountsForStats) else {}),
+                **self.runtime_counters(),
+            },
         )

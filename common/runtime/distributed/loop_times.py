@@ -1,0 +1,39 @@
+"""Where a realtime service's loop spends its time: waking late, stepping, publishing."""
+
+from __future__ import annotations
+
+from common.netmodel.stats import DurationHistogram
+
+# what is timed per tick that published something, in wall seconds (README "Benchmarks":
+# scripts/bench runtime)
+#   wake     how late the loop ran the tick after it was due: after its timer (a periodic
+#            step), or after the loop took the message it hands over from its inbox
+#   step     Host.run_tick: hand-overs, the core's step, the link model, encoding
+#   publish  the Zenoh puts of what the tick emitted
+PHASES = ("wake", "step", "publish")
+QUANTILES = {"p50": 0.5, "p95": 0.95}
+
+
+class LoopTimes:
+    """Durations of each phase of the ticks a realtime service ran; as the integer counters
+    its statistics carry ("loop.step_p50_us", ...), so a run's record says where its loop's
+    latency went, service by service."""
+
+    def __init__(self) -> None:
+        self._phases = {p: DurationHistogram() for p in PHASES}
+
+    def record(self, wake_s: float, step_s: float, publish_s: float) -> None:
+        """One tick's phases (s)."""
+        for phase, d in zip(PHASES, (wake_s, step_s, publish_s), strict=True):
+            self._phases[phase].record(max(0.0, d))
+
+    def counters(self) -> dict[str, int]:
+        """p50, p95 and max of each phase in microseconds; empty before the first tick."""
+        out: dict[str, int] = {}
+        for phase, h in self._phases.items():
+            if h.count == 0:
+                continue
+            for name, q in zip(QUANTILES, h.quantiles(*QUANTILES.values()), strict=True):
+                out[f"loop.{phase}_{name}_us"] = round(q * 1e6)
+            out[f"loop.{phase}_max_us"] = round(h.max * 1e6)
+        return out
