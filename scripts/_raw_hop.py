@@ -1,6 +1,13 @@
 """Raw zenoh-python latency between two processes (baselines for the runtime benchmark).
 
-    _raw_hop.py N        one-way hop, peer to peer: prints "p50_us p99_us"
+    _raw_hop.py N        one-way hop, peer to peer, one sample a millisecond: prints
+                         "p50_us p99_us"
+    _raw_hop.py N MS [router]
+                         the same, one sample every MS milliseconds (a loop's pace: between
+                         samples each process sleeps, and pays its wake-up on the next);
+                         with `router`, from a client through a router to a client, as a
+                         service's message goes (this process the router, its subscriber a
+                         second session of it)
     _raw_hop.py rtt N    round trip through a router, the shape of a lockstep tick: this
                          process is a router (as the lockstep coordinator is), the child a
                          client that answers each ping; prints "p50_us p99_us"
@@ -38,18 +45,19 @@ def _endpoint() -> str:
         return f"tcp/127.0.0.1:{so.getsockname()[1]}"
 
 
-def child(endpoint: str, n: int) -> None:
-    with zenoh.open(_conf(None, endpoint)) as s:
+def child(endpoint: str, n: int, interval_s: float, mode: str) -> None:
+    with zenoh.open(_conf(None, endpoint, mode)) as s:
         pub = s.declare_publisher("bench/hop", reliability=zenoh.Reliability.RELIABLE)
         time.sleep(0.5)  # benchmark warm-up: let the subscription propagate (not a test)
         for _ in range(n):
             pub.put(struct.pack("<q", time.monotonic_ns()))
-            time.sleep(0.001)
+            time.sleep(interval_s)
         pub.put(b"")
 
 
-def parent(n: int) -> None:
+def parent(n: int, interval_s: float = 0.001, via_router: bool = False) -> None:
     endpoint = _endpoint()
+    mode = "client" if via_router else "peer"
     lat: list[int] = []
     done = threading.Event()
 
@@ -61,13 +69,17 @@ def parent(n: int) -> None:
             return
         lat.append(now - struct.unpack("<q", b)[0])
 
-    with zenoh.open(_conf(endpoint, None)) as s:
+    router = zenoh.open(_conf(endpoint, None, "router")) if via_router else None
+    with zenoh.open(_conf(None, endpoint, mode) if via_router else _conf(endpoint, None)) as s:
         sub = s.declare_subscriber("bench/hop", on)
-        proc = subprocess.Popen([sys.executable, __file__, "child", endpoint, str(n)])
-        done.wait(timeout=60)
+        args = ["child", endpoint, str(n), str(interval_s), mode]
+        proc = subprocess.Popen([sys.executable, __file__, *args])
+        done.wait(timeout=60 + 2 * n * interval_s)
         proc.wait(timeout=10)
         sub.undeclare()
-    a = np.array(lat[100:]) / 1e3
+    if router is not None:
+        router.close()
+    a = np.array(lat[n // 20 :]) / 1e3  # the first samples warm up
     print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
 
 
@@ -114,10 +126,11 @@ def rtt_parent(n: int) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1] == "child":
-        child(sys.argv[2], int(sys.argv[3]))
+        child(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), sys.argv[5])
     elif sys.argv[1] == "rtt-child":
         rtt_child(sys.argv[2])
     elif sys.argv[1] == "rtt":
         rtt_parent(int(sys.argv[2]))
     else:
-        parent(int(sys.argv[1]))
+        ms = float(sys.argv[2]) if len(sys.argv) > 2 else 1.0
+        parent(int(sys.argv[1]), ms / 1e3, sys.argv[3:4] == ["router"])
