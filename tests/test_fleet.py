@@ -18,6 +18,7 @@ from common.config.loader import read_scenario_toml
 from common.config.network import profile_for
 from common.config.planner import PlannerConfig
 from common.config.scenario import Scenario, load_scenario, scenario_from_raw
+from common.config.vehicle import VehicleConfig
 from common.messages import PathMsg, StateEstimate, TruthState
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.model.core import Delivery
@@ -33,6 +34,7 @@ from services.planner.plan import PlanRequest, plan_path
 from services.planner.replan import ReplanPolicy
 from services.planner.result import Obstacles, Pose2D
 from services.sensor.core import SensorCore
+from services.vehicle.core import VehicleCore
 
 CONFIGS = REPO / "configs"
 FLEET4 = CONFIGS / "fleet4.toml"
@@ -142,7 +144,8 @@ def test_the_fleet_dataflow_is_each_vehicles_plus_the_links_between_them() -> No
     assert flow.service("auv2.vehicle").inputs[0].source == "auv2.planner"
     links = {lk.name for lk in flow.links}
     assert "auv1.planner/intent->auv2.planner" in links
-    assert "auv1.vehicle/truth->auv2.sensor" in links
+    assert "auv1.vehicle/hull->auv2.sensor" in links
+    assert "auv1.vehicle/truth->auv2.sensor" not in links  # every step: its own sensor only
 
 
 def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_wins() -> None:
@@ -167,6 +170,40 @@ def test_a_profile_without_vehicle_ids_covers_every_vehicle_and_a_qualified_one_
     assert profile_for(net, "auv2.planner/pose->auv1.planner").delay_s == 0.7
     assert profile_for(net, "auv1.estimator/state->auv1.planner").delay_s == 0.1
     assert profile_for(net, "estimator/state->planner").delay_s == 0.1
+
+
+def test_a_vehicle_sends_its_hull_only_at_the_last_step_before_each_scan() -> None:
+    core = VehicleCore(
+        VehicleConfig(period_s=0.05),
+        (0.0, 0.0, 0.0),
+        np.random.default_rng(0),
+        hull_scans_s=(0.5, 0.3),
+    )
+    sent = [k for k in range(41) if any(e.stream == "hull" for e in core.step(k * 0.05))]
+    # scans at 0.3, 0.5, 0.6, 0.9, 1.0, ...: the step before each (a scan at a step's own time
+    # takes the step before: nothing is delivered in the tick it is sent)
+    scans = sorted({round(m * p / 0.05) for p in (0.5, 0.3) for m in range(1, 8)})
+    assert sent == [k - 1 for k in scans if k - 1 <= 40]
+    single = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    assert [e.stream for e in single.step(0.05)] == ["truth", "status"]  # no fleet: no hull
+
+
+@pytest.mark.deterministic
+def test_each_sonar_scan_holds_the_newest_truth_of_the_other_hull() -> None:
+    raw = _raw(HEADON)
+    raw["run"]["max_time_s"] = 6.0
+    raw["vehicles"][0]["sensor"] = {"obstacle_rate_hz": 5.0}  # the two sonars scan apart
+    s = _fleet(raw)
+    rec = run_inproc(s).record
+    members = dict(s.members)
+    for me, other in (("auv1", "auv2"), ("auv2", "auv1")):
+        scan_s = members[me].sensor.scan_every * members[me].sensor.period_s
+        truth = [m.stamp for m in rec.stream(f"{other}.vehicle", "truth")]
+        hull = [m.stamp for m in rec.stream(f"{other}.vehicle", "hull")]
+        scans = np.arange(1, round(6.0 / scan_s) + 1) * scan_s
+        newest = {max(t for t in truth if t < sc - 1e-9) for sc in scans}
+        # every hull a scan will take is sent, and none else
+        assert set(hull) == newest and len(hull) < len(truth) / 3
 
 
 def _truth(source: str, x: float, y: float, theta: float = 0.0, v: float = 1.0) -> Delivery:

@@ -68,3 +68,9 @@ class SensorConfig:
     def period_s(self) -> float:
         """The core's step period: 1 / base_rate_hz."""
         return 1.0 / self.base_rate_hz
+
+    @property
+    def scan_every(self) -> int:
+        """Steps between two obstacle scans: the sonar scans at every multiple of this many
+        step periods from t = 0."""
+        return round(self.base_rate_hz / self.obstacle_rate_hz)

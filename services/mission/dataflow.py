@@ -207,7 +207,9 @@ def make_tracker(ctx: CoreContext) -> TrackerCore:
     return TrackerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
-def make_vehicle(ctx: CoreContext) -> VehicleCore:
+def make_vehicle(ctx: CoreContext, hull_scans_s: tuple[float, ...] = ()) -> VehicleCore:
+    """The vehicle; in a fleet `hull_scans_s` are the other vehicles' sonar scan periods
+    (it publishes its hull for them: services/mission/fleet.py)."""
     from services.vehicle.core import VehicleCore
 
     s = ctx.scenario
@@ -218,4 +220,5 @@ def make_vehicle(ctx: CoreContext) -> VehicleCore:
         ctx.rng,
         clearance=lambda x, y, t: world.clearance(x, y, r, t),
         commander=ctx.sibling(commander(s)),  # defence in depth: whatever the bus lets through
+        hull_scans_s=hull_scans_s,
     )

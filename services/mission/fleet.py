@@ -4,8 +4,10 @@ Each vehicle's services are the single-vehicle ones named "<id>.<service>" (auv2
 auv2.estimator, auv2.planner, auv2.vehicle), built from that vehicle's scenario (its start,
 goal and section overrides: Scenario.member). Between vehicles:
 
-    <other>.vehicle   --truth--> <id>.sensor   the sonar sees the other hulls (simulation: a
-                                             sensor samples what is physically there)
+    <other>.vehicle   --hull---> <id>.sensor   the sonar sees the other hulls (simulation: a
+                                             sensor samples what is physically there; "hull"
+                                             is the other's truth at the steps right before
+                                             a scan: services/vehicle/core.py)
     <other>.planner   --pose---> <id>.planner  the other's intent: the estimate its planner plans
     <other>.planner   --intent-> <id>.planner  from (every POSE_PERIOD_S while it is alive) and
                                                the path it follows (each new one at once, then
@@ -38,7 +40,7 @@ from common.runtime.model.dataflow import (
     qualified,
 )
 from common.world import World
-from services.mission.dataflow import auv_dataflow, make_planner, make_sensor
+from services.mission.dataflow import auv_dataflow, make_planner, make_sensor, make_vehicle
 
 # what a planner hears of each other vehicle: its intent (services/planner/intent.py)
 INTENT: tuple[tuple[str, str, type[Message]], ...] = (
@@ -60,6 +62,8 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
     truth."""
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
+    # when each vehicle's sonar scans: the others publish their hull just before
+    scan_s = {vid: m.sensor.scan_every * m.sensor.period_s for vid, m in s.members}
     # how fast each vehicle's speed rises on a new path: its intent, to the others
     ramps = {vid: member.controller.speed.accel_mps2 for vid, member in s.members}
     services: list[Service] = []
@@ -75,7 +79,12 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
             )
             if svc.name == "sensor":
                 factory = partial(make_sensor, others=hulls)
-                inputs += tuple(_newest(src, "truth", TruthState) for src in hulls)
+                inputs += tuple(_newest(src, "hull", TruthState) for src in hulls)
+            elif svc.name == "vehicle":
+                factory = partial(
+                    make_vehicle, hull_scans_s=tuple(scan_s[o] for o in sorted(others))
+                )
+                outputs = (*outputs, Output(stream="hull", msg_type=TruthState))
             elif svc.name == "planner":
                 factory = partial(
                     make_planner,

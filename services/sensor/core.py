@@ -49,7 +49,7 @@ class SensorCore:
         base = cfg.base_rate_hz
         self._period_s = cfg.period_s
         self._nav_every = round(base / cfg.nav_rate_hz)
-        self._obs_every = round(base / cfg.obstacle_rate_hz)
+        self._obs_every = cfg.scan_every
         self._truth: TruthState | None = None
         self._last_nav = -np.inf
         self._last_scan = -np.inf
