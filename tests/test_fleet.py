@@ -27,6 +27,7 @@ from common.runtime.model.mission import load_mission
 from common.world import World
 from common.world.check import check_scenario
 from services.launcher.launch import select_services
+from services.launcher.plot import _of_type
 from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
 from services.planner.intent import FleetIntents
@@ -204,6 +205,8 @@ def test_each_sonar_scan_holds_the_newest_truth_of_the_other_hull() -> None:
         newest = {max(t for t in truth if t < sc - 1e-9) for sc in scans}
         # every hull a scan will take is sent, and none else
         assert set(hull) == newest and len(hull) < len(truth) / 3
+        # the run's plot draws the truth once, not again from the hull
+        assert [m.stamp for m in _of_type(rec, TruthState, other)] == truth
 
 
 def _truth(source: str, x: float, y: float, theta: float = 0.0, v: float = 1.0) -> Delivery:

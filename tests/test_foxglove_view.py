@@ -363,3 +363,5 @@ def test_a_fleets_vehicles_each_have_their_topics_frames_start_and_goal() -> Non
     assert decode([m for m in path if m.topic == v.EVENTS][0])["name"] == "auv3.planner"
     # the same path again as auv3's intent (each second, for the others) is no replan
     assert view.translate("auv3.planner", "intent", _path(2)) == []
+    # nor is a truth state again as auv1's hull (before the others' scans) a new pose
+    assert view.translate("auv1.vehicle", "hull", _truth(3.5, 31.0)) == []

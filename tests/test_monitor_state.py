@@ -194,6 +194,8 @@ def test_a_fleets_vehicles_are_each_shown_apart_with_their_own_goal_mode_and_ala
     # both vehicles at (50, 20): each is its own distance from its own goal
     for vid in ("auv1", "auv2"):
         s.see(f"{vid}.vehicle", "truth", replace(truth, stamp=5.0, x=50.0, y=20.0), wall=1.0)
+        # its hull (the truth again, for the others' sonars) counts as a stream, not a pose
+        s.see(f"{vid}.vehicle", "hull", replace(truth, stamp=5.0, x=0.0, y=0.0), wall=1.0)
     s.see("auv2.vehicle", "status", _status(5.0, "FAILSAFE", 4.0), wall=1.0)
     s.see("auv1.planner", "path", replace(p, path_id=7), wall=1.0)
     snap = s.snapshot(now=1.0)

@@ -170,6 +170,8 @@ class FoxgloveView:
 
     def translate(self, service: str, stream: str, msg: Message) -> list[ViewMessage]:
         """The view messages one tidelink message gives ([] for a type the view does not show)."""
+        if isinstance(msg, TruthState) and stream != "truth":
+            return []  # a fleet vehicle's "hull": the same states again, for the others' sonars
         vid = vehicle_of(service)
         member = self._members.get(vid)
         if member is not None and isinstance(msg, VEHICLE_TYPES):

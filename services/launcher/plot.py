@@ -28,7 +28,9 @@ def _of_type(record: Record, cls: type[Message], vehicle: str | None = None) -> 
     out = [
         m
         for key in record.keys()
-        if vehicle is None or vehicle_of(key[0]) == vehicle
+        if (vehicle is None or vehicle_of(key[0]) == vehicle)
+        # a fleet vehicle's "hull" repeats some of its truth states, for the others' sonars
+        and not (cls is TruthState and key[1] != "truth")
         for m in record.stream(*key)
         if isinstance(m, cls)
     ]

@@ -220,6 +220,8 @@ class RunState:
                 seen.wall, seen.stamp = wall, msg.stamp
         if not isinstance(msg, RunEnd):
             self.t_mission = max(self.t_mission, msg.stamp)
+        if isinstance(msg, TruthState) and stream != "truth":
+            return  # a fleet vehicle's "hull": the same states again, for the others' sonars
         if isinstance(msg, VEHICLE_TYPES):
             vid = vehicle_of(service)
             happened = self.view(vid).see(msg)
