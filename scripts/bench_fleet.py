@@ -44,8 +44,9 @@ LOOP = (
 LOOP_GOAL_MS = 10.0
 
 
-def fleet_raw(n: int, seconds: float) -> dict[str, Any]:
-    """A scenario of n vehicles in lanes across open water, for `seconds` of mission."""
+def fleet_raw(n: int, seconds: float, spread_s: float = 0.0) -> dict[str, Any]:
+    """A scenario of n vehicles in lanes across open water, for `seconds` of mission; vehicle
+    i steps `i spread_s / n` later in its periods ([[vehicles]] phase_s; 0: all in phase)."""
     height = LANE_M * (n + 1)
     return {
         "run": {"name": f"bench-fleet{n}", "vehicle": "fleet", "max_time_s": seconds},
@@ -60,6 +61,7 @@ def fleet_raw(n: int, seconds: float) -> dict[str, Any]:
                 "id": f"auv{i + 1}",
                 "start": {"x_m": 5.0, "y_m": LANE_M * (i + 1)},
                 "goal": {"x_m": 95.0, "y_m": LANE_M * (i + 1)},
+                "phase_s": i * spread_s / n,
             }
             for i in range(n)
         ],
@@ -84,6 +86,12 @@ def main() -> None:
         "--realtime-sizes", default="1,2,4", help="fleet sizes run in realtime ('' for none)"
     )
     ap.add_argument("--realtime-seconds", type=float, default=20.0, help="mission s each, realtime")
+    ap.add_argument(
+        "--phase-spread",
+        type=float,
+        default=0.0,
+        help="vehicle i of N steps i * this / N s later in its periods (default 0: in phase)",
+    )
     a = ap.parse_args()
     sizes = sorted({int(x) for x in a.sizes.split(",")} | {1})
     rows = []
@@ -97,7 +105,7 @@ def main() -> None:
         for n in sizes:
             if runtime == "lockstep" and n > a.lockstep_max:
                 continue
-            raw = fleet_raw(n, a.seconds)
+            raw = fleet_raw(n, a.seconds, a.phase_spread)
             raw["runtime"]["kind"] = runtime
             s: Scenario = scenario_from_raw(raw, f"fleet{n}", check=check_scenario)
             runs = max(1, a.baseline_runs) if n == 1 else 1
@@ -117,11 +125,13 @@ def main() -> None:
                 f"({a.seconds * n / wall:5.1f} vehicle-s per s)",
                 flush=True,
             )
-    print("\nruntime   N   wall (s)  ms/vehicle-s  scaling (goal <= 1.3)")
+    print(f"\nphases spread over {a.phase_spread:g} s")
+    print("runtime   N   wall (s)  ms/vehicle-s  scaling (goal <= 1.3)")
     for runtime, n, wall, per, ratio in rows:
         print(f"{runtime:8s} {n:2d}  {wall:8.1f}  {1e3 * per:12.1f}  {ratio:7.2f}")
     if a.realtime_sizes:
-        realtime_loops(sorted({int(x) for x in a.realtime_sizes.split(",")}), a.realtime_seconds)
+        sizes = sorted({int(x) for x in a.realtime_sizes.split(",")})
+        realtime_loops(sizes, a.realtime_seconds, a.phase_spread)
 
 
 def _hop(
@@ -134,14 +144,17 @@ def _hop(
     return tuple(1e3 * float(m.get(k, float("nan"))) for k in keys)
 
 
-def realtime_loops(sizes: list[int], seconds: float) -> None:
+def realtime_loops(sizes: list[int], seconds: float, spread_s: float) -> None:
     """Each fleet size at time scale 1 on ideal links: every vehicle's loop, hop by hop."""
-    print(f"\nrealtime, time scale 1, ideal links, {seconds:g} s each: per vehicle, ms")
+    print(
+        f"\nrealtime, time scale 1, ideal links, {seconds:g} s each, phases spread over "
+        f"{spread_s:g} s: per vehicle, ms"
+    )
     hops = "   ".join(f"{h:>20s}" for h in ("nav->est", "state->plan", "cmd->veh"))
     print(f"  N  vehicle  {hops}   sum p95   (each hop: p50/p95/max)")
     held = 0
     for n in sizes:
-        raw = fleet_raw(n, seconds)
+        raw = fleet_raw(n, seconds, spread_s)
         raw["runtime"] = {"kind": "realtime", "time_scale": 1.0}
         raw["network"] = {"default": {"delay_s": 0.0}}
         s = scenario_from_raw(raw, f"fleet{n}-realtime", check=check_scenario)

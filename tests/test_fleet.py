@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -178,35 +179,71 @@ def test_a_vehicle_sends_its_hull_only_at_the_last_step_before_each_scan() -> No
         VehicleConfig(period_s=0.05),
         (0.0, 0.0, 0.0),
         np.random.default_rng(0),
-        hull_scans_s=(0.5, 0.3),
+        hull_scans_s=((0.5, 0.0), (0.3, 0.0), (0.5, 0.12)),
     )
     sent = [k for k in range(41) if any(e.stream == "hull" for e in core.step(k * 0.05))]
-    # scans at 0.3, 0.5, 0.6, 0.9, 1.0, ...: the step before each (a scan at a step's own time
-    # takes the step before: nothing is delivered in the tick it is sent)
-    scans = sorted({round(m * p / 0.05) for p in (0.5, 0.3) for m in range(1, 8)})
-    assert sent == [k - 1 for k in scans if k - 1 <= 40]
+    # scans at 0.3, 0.5, 0.6, 0.9, 1.0, ... and at 0.12, 0.62, ...: the step before each (a
+    # scan at a step's own time takes the step before: nothing is delivered in the tick it
+    # is sent)
+    scans = [m * p for p in (0.5, 0.3) for m in range(1, 8)] + [0.12 + 0.5 * m for m in range(4)]
+    assert sent == sorted({math.ceil(round(sc / 0.05, 6)) - 1 for sc in scans if sc <= 2.05})
     single = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
     assert [e.stream for e in single.step(0.05)] == ["truth", "status"]  # no fleet: no hull
 
 
 @pytest.mark.deterministic
-def test_each_sonar_scan_holds_the_newest_truth_of_the_other_hull() -> None:
+@pytest.mark.parametrize("phase_s", [0.0, 0.035])
+def test_each_sonar_scan_holds_the_newest_truth_of_the_other_hull(phase_s: float) -> None:
     raw = _raw(HEADON)
     raw["run"]["max_time_s"] = 6.0
     raw["vehicles"][0]["sensor"] = {"obstacle_rate_hz": 5.0}  # the two sonars scan apart
+    raw["vehicles"][1]["phase_s"] = phase_s  # and, but for 0, step apart
     s = _fleet(raw)
+    flow = load_mission(s).dataflow
+    for name in ("sensor", "estimator", "planner", "vehicle"):
+        one, two = flow.service(f"auv1.{name}"), flow.service(f"auv2.{name}")
+        assert one.period_s is not None
+        assert two.offset_s == pytest.approx((one.offset_s + phase_s) % one.period_s)
     rec = run_inproc(s).record
     members = dict(s.members)
     for me, other in (("auv1", "auv2"), ("auv2", "auv1")):
-        scan_s = members[me].sensor.scan_every * members[me].sensor.period_s
+        cfg = members[me].sensor
+        first = flow.service(f"{me}.sensor").offset_s
+        # up to a vehicle step past the end: the last steps send for scans the run never saw
+        scans = np.arange(first, 6.05 + 1e-9, cfg.scan_every * cfg.period_s)
         truth = [m.stamp for m in rec.stream(f"{other}.vehicle", "truth")]
         hull = [m.stamp for m in rec.stream(f"{other}.vehicle", "hull")]
-        scans = np.arange(1, round(6.0 / scan_s) + 1) * scan_s
-        newest = {max(t for t in truth if t < sc - 1e-9) for sc in scans}
+        newest = {max(t for t in truth if t < sc - 1e-9) for sc in scans if sc > truth[0]}
+        # the sonar scans there (its first scan, with no truth yet, takes nothing)
+        seen = rec.stream(f"{me}.sensor", "obstacles")
+        assert len(seen) == sum(1 for sc in scans if first < sc <= s.run.max_time_s + 1e-9)
         # every hull a scan will take is sent, and none else
         assert set(hull) == newest and len(hull) < len(truth) / 3
         # the run's plot draws the truth once, not again from the hull
         assert [m.stamp for m in _of_type(rec, TruthState, other)] == truth
+
+
+@pytest.mark.slow
+def test_vehicles_out_of_phase_run_the_same_in_lockstep_as_inproc(tmp_path: Path) -> None:
+    # 8 service processes and the clock; auv2 steps 35 ms into every period (its sonar's
+    # scans, and auv1's hulls for them, with it)
+    raw = _raw(HEADON)
+    raw["run"]["max_time_s"] = 8.0
+    raw["vehicles"][1]["phase_s"] = 0.035
+    s = _fleet(raw)
+    ref = run_inproc(s)
+    got = run_lockstep(s, raw, tmp_path / "logs")
+    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    for key in (("auv1.vehicle", "hull"), ("auv2.sensor", "obstacles"), ("auv2.planner", "path")):
+        assert got.record.stream(*key) == ref.record.stream(*key), key
+    assert ref.record.stream("auv1.vehicle", "hull")  # sent, for auv2's scans
+
+
+def test_a_vehicles_phase_must_be_a_number_of_seconds() -> None:
+    raw = _raw(HEADON)
+    raw["vehicles"][1]["phase_s"] = -0.01
+    with pytest.raises(ConfigError, match=r"vehicles\[1\]\.phase_s.*>= 0"):
+        _fleet(raw)
 
 
 def _truth(source: str, x: float, y: float, theta: float = 0.0, v: float = 1.0) -> Delivery:

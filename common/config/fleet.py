@@ -4,10 +4,15 @@ An entry's `vehicle`, `sensor`, `estimator`, `planner` and `controller` tables o
 scenario's tables key by key (what an entry leaves out stays the scenario's), so a fleet of
 identical vehicles needs only ids, starts and goals. Every merged section is checked where the
 entry wrote it: an error names `vehicles[i].planner.rho0_m`, not `planner.rho0_m`.
+
+`phase_s` shifts every periodic service of the vehicle that much later in its period (its own
+computer's clock phase): vehicles in phase step at the same instants, and in realtime their
+steps queue for the same cores at once.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -33,7 +38,7 @@ SECTIONS: dict[str, type] = {
     "planner": PlannerConfig,
     "controller": ControllerConfig,
 }
-ENTRY_KEYS = ("id", "start", "goal", *SECTIONS)
+ENTRY_KEYS = ("id", "start", "goal", "phase_s", *SECTIONS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,6 +53,7 @@ class FleetVehicle:
     estimator: EstimatorConfig
     planner: PlannerConfig
     controller: ControllerConfig
+    phase_s: float = 0.0  # its services step this much later in their periods
 
 
 def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, ...]:
@@ -82,6 +88,13 @@ def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, .
         if vid in seen:
             raise ConfigError(file, (*at, "id"), f"{vid!r} is used twice, expected unique ids")
         seen.add(vid)
+        phase = e.get("phase_s", 0.0)
+        if (
+            isinstance(phase, bool)
+            or not isinstance(phase, int | float)
+            or not (math.isfinite(phase) and phase >= 0.0)
+        ):
+            raise ConfigError(file, (*at, "phase_s"), f"{phase!r} must be a finite number >= 0")
         sections: dict[str, Any] = {
             name: build(
                 cls, merge_tables(raw.get(name, {}), e.get(name, {})), file=file, path=(*at, name)
@@ -93,6 +106,7 @@ def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, .
                 id=vid,
                 start=build(PoseConfig, e["start"], file=file, path=(*at, "start")),
                 goal=build(GoalConfig, e["goal"], file=file, path=(*at, "goal")),
+                phase_s=float(phase),
                 **sections,
             )
         )

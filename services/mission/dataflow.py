@@ -140,14 +140,21 @@ def _start(s: Scenario) -> tuple[float, float, float]:
 
 
 def make_sensor(
-    ctx: CoreContext, others: Mapping[str, tuple[int, float]] | None = None
+    ctx: CoreContext, others: Mapping[str, tuple[int, float]] | None = None, phase_s: float = 0.0
 ) -> SensorCore:
     """The sensor; in a fleet `others` maps the other vehicles' truth sources to (obstacle
-    id, hull radius) (services/mission/fleet.py)."""
+    id, hull radius), and `phase_s` is its vehicle's phase (services/mission/fleet.py)."""
     from services.sensor.core import SensorCore
 
     s = ctx.scenario
-    return SensorCore(s.sensor, World(s.world), ctx.rng, own=ctx.sibling("vehicle"), others=others)
+    return SensorCore(
+        s.sensor,
+        World(s.world),
+        ctx.rng,
+        own=ctx.sibling("vehicle"),
+        others=others,
+        phase_s=phase_s,
+    )
 
 
 def make_estimator(ctx: CoreContext) -> EstimatorCore:
@@ -207,9 +214,11 @@ def make_tracker(ctx: CoreContext) -> TrackerCore:
     return TrackerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
-def make_vehicle(ctx: CoreContext, hull_scans_s: tuple[float, ...] = ()) -> VehicleCore:
-    """The vehicle; in a fleet `hull_scans_s` are the other vehicles' sonar scan periods
-    (it publishes its hull for them: services/mission/fleet.py)."""
+def make_vehicle(
+    ctx: CoreContext, hull_scans_s: tuple[tuple[float, float], ...] = ()
+) -> VehicleCore:
+    """The vehicle; in a fleet `hull_scans_s` are the other vehicles' sonar scans, (period,
+    first scan) each (it publishes its hull for them: services/mission/fleet.py)."""
     from services.vehicle.core import VehicleCore
 
     s = ctx.scenario

@@ -62,8 +62,13 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
     truth."""
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
-    # when each vehicle's sonar scans: the others publish their hull just before
-    scan_s = {vid: m.sensor.scan_every * m.sensor.period_s for vid, m in s.members}
+    # when each vehicle's sonar scans (period, first scan): the others send their hull just
+    # before; its sensor steps at its phase, and scans every scan_every steps from there
+    phase = {v.id: v.phase_s for v in s.vehicles}
+    scans = {
+        vid: (m.sensor.scan_every * m.sensor.period_s, phase[vid] % m.sensor.period_s)
+        for vid, m in s.members
+    }
     # how fast each vehicle's speed rises on a new path: its intent, to the others
     ramps = {vid: member.controller.speed.accel_mps2 for vid, member in s.members}
     services: list[Service] = []
@@ -78,11 +83,11 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                 dataclasses.replace(i, source=qualified(vid, i.source)) for i in svc.inputs
             )
             if svc.name == "sensor":
-                factory = partial(make_sensor, others=hulls)
+                factory = partial(make_sensor, others=hulls, phase_s=scans[vid][1])
                 inputs += tuple(_newest(src, "hull", TruthState) for src in hulls)
             elif svc.name == "vehicle":
                 factory = partial(
-                    make_vehicle, hull_scans_s=tuple(scan_s[o] for o in sorted(others))
+                    make_vehicle, hull_scans_s=tuple(scans[o] for o in sorted(others))
                 )
                 outputs = (*outputs, Output(stream="hull", msg_type=TruthState))
             elif svc.name == "planner":
@@ -104,6 +109,8 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
                     for o in others
                     for source, stream, msg_type in INTENT
                 )
+            if svc.period_s is not None and phase[vid]:
+                svc = dataclasses.replace(svc, offset_s=(svc.offset_s + phase[vid]) % svc.period_s)
             services.append(
                 dataclasses.replace(
                     svc,

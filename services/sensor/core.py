@@ -39,6 +39,7 @@ class SensorCore:
         *,
         own: str = "vehicle",
         others: Mapping[str, tuple[int, float]] | None = None,
+        phase_s: float = 0.0,
     ) -> None:
         self.cfg = cfg
         self.world = world
@@ -48,6 +49,7 @@ class SensorCore:
         self._other_truth: dict[str, TruthState] = {}
         base = cfg.base_rate_hz
         self._period_s = cfg.period_s
+        self._phase_s = phase_s  # it steps at phase_s + k period_s (a fleet vehicle's phase)
         self._nav_every = round(base / cfg.nav_rate_hz)
         self._obs_every = cfg.scan_every
         self._truth: TruthState | None = None
@@ -120,7 +122,7 @@ class SensorCore:
 
     def step(self, t: float) -> list[Emit]:
         # integer tick index from the runtime clock: no float accumulation over a long run
-        k = round(t / self._period_s)
+        k = round((t - self._phase_s) / self._period_s)
         truth = self._truth
         out: list[Emit] = []
         if truth is None:

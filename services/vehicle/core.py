@@ -46,7 +46,7 @@ class VehicleCore:
 
     In a fleet it also publishes its truth on "hull", for the other vehicles' sonars, but
     only at the steps whose truth a sonar scan will take: the last step before each scan of
-    any of them (`hull_scans_s`: their scan periods; scans fall on multiples of them). A scan
+    any of them (`hull_scans_s`: (period, first scan) of each, in mission seconds). A scan
     at t takes the newest truth sent before t, so the sonars see exactly what every step's
     truth would have shown them, at a tenth of the messages (20 Hz steps, 2 Hz scans): on a
     fleet of 16 those were most of the run's traffic (N (N - 1) deliveries a step).
@@ -61,11 +61,13 @@ class VehicleCore:
         *,
         t0: float = 0.0,
         commander: str | None = None,
-        hull_scans_s: tuple[float, ...] = (),
+        hull_scans_s: tuple[tuple[float, float], ...] = (),
     ) -> None:
         self._cfg = cfg
         self._period_us = round(cfg.period_s * 1e6)
-        self._hull_scans_us = tuple(sorted({round(p * 1e6) for p in hull_scans_s}))
+        self._hull_scans_us = tuple(
+            sorted({(round(p * 1e6), round(first * 1e6)) for p, first in hull_scans_s})
+        )
         self._p = PlantParams.from_config(cfg)
         self._dt = cfg.dt_internal_s
         self._state: State = (float(start[0]), float(start[1]), float(start[2]), 0.0, 0.0, 0.0)
@@ -195,7 +197,10 @@ class VehicleCore:
         no later than the next, so this step's truth is the newest it will hold."""
         t_us = round(t * 1e6)
         nxt = t_us + self._period_us
-        return any((t_us // p + 1) * p <= nxt for p in self._hull_scans_us)
+        return any(
+            (first if t_us < first else first + ((t_us - first) // p + 1) * p) <= nxt
+            for p, first in self._hull_scans_us
+        )
 
     # -- plant ---------------------------------------------------------------------------------
 
