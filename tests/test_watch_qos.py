@@ -94,6 +94,12 @@ with Bus(BusConfig(mode="client", connect=({endpoint!r},)), Keys("q", "q")) as b
 """
 
 
+# exclusive: its outcome depends on the machine's load. A watcher starved of CPU for longer
+# than the router's block-close delay (1 s, common/bus/session.py) has its session closed,
+# and what was queued for it (the end) with it: on fresh clone 72 the end did not come in
+# 120 s while the shared phase ran lockstep fleets beside this test (5-6 s alone, and with
+# two busy loops beside it)
+@pytest.mark.exclusive
 def test_a_slow_watcher_still_gets_the_runs_end_behind_a_stopped_one() -> None:
     # the tap's copies are DROP: a slow watcher loses some; the RunEnd, sent once the run is
     # over, must reach it all the same (as DROP it reached neither watcher here), without
