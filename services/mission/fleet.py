@@ -58,8 +58,8 @@ def fleet_obstacle_ids(s: Scenario) -> dict[str, int]:
 
 
 def fleet_dataflow(s: Scenario) -> Dataflow:
-    """Every vehicle's AUV dataflow, qualified by its id, each sensor reading the others'
-    truth."""
+    """Every vehicle's AUV dataflow, qualified by its id and shifted by its phase, each
+    sensor reading the others' hulls and each planner their intents."""
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
     # when each vehicle's sonar scans (period, first scan): the others send their hull just
