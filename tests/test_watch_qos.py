@@ -94,11 +94,10 @@ with Bus(BusConfig(mode="client", connect=({endpoint!r},)), Keys("q", "q")) as b
 """
 
 
-# exclusive: its outcome depends on the machine's load. A watcher starved of CPU for longer
-# than the router's block-close delay (1 s, common/bus/session.py) has its session closed,
-# and what was queued for it (the end) with it: on fresh clone 72 the end did not come in
-# 120 s while the shared phase ran lockstep fleets beside this test (5-6 s alone, and with
-# two busy loops beside it)
+# exclusive: its outcome depends on the machine. A watcher whose queue at the router stays
+# full for longer than the router's block-close delay (common/bus/session.py) has its
+# session closed, and the end queued for it with it: with the delay at 1 s the end did not
+# come in 120 s on fresh clones 72 and 73 and on 4 of 7 tries alone (2026-11-29)
 @pytest.mark.exclusive
 def test_a_slow_watcher_still_gets_the_runs_end_behind_a_stopped_one() -> None:
     # the tap's copies are DROP: a slow watcher loses some; the RunEnd, sent once the run is
