@@ -120,6 +120,32 @@ def test_gate_rejects_20_sigma_outlier() -> None:
     assert again.gated_out == 1 and again.tracks[5].stamp == 10.0
 
 
+def test_a_manoeuvre_after_a_long_steady_run_is_followed_not_gated_out() -> None:
+    # 40 s at a steady 0.5 m/s, then 0.3 m/s^2 sideways (the weave's peak acceleration): the
+    # steady mode dominates and is surest just when the manoeuvre starts; gated on the mixture
+    # alone, 8 runs in 40 refused the manoeuvre's detections and 6 lost the obstacle by 3.5-4.2 m
+    worst, gated_out = [], 0
+    for seed in range(20):
+        tracker = ObstacleTracker(EstimatorConfig())
+        rng = np.random.default_rng(seed)
+        state = TrackerState(tracks={})
+        err = 0.0
+        for k in range(121):  # 2 Hz scans for 60 s
+            t = 0.5 * k
+            turning = max(t - 40.0, 0.0)
+            x, y = 10.0 + 0.5 * t, 8.0 + 0.15 * turning**2
+            z = rng.standard_normal(2) * 0.2
+            scan = ObstacleDetections(stamp=t, detections=(_det(5, x + z[0], y + z[1]),))
+            state = tracker.fuse(state, scan)
+            (tr,) = tracker.tracks_at(state, t)
+            err = max(err, math.hypot(tr.x - x, tr.y - y))
+        worst.append(err)
+        gated_out += state.gated_out
+    # one false refusal in 2400 updates is the gate's 1e-4 doing its job; measured: none
+    assert gated_out <= 1, gated_out
+    assert max(worst) < 1.0, worst  # measured 0.45-0.65 m
+
+
 def test_track_dropped_after_timeout_and_restarted() -> None:
     cfg = EstimatorConfig(track_timeout_s=3.0)
     tracker = ObstacleTracker(cfg)

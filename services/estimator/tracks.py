@@ -50,7 +50,7 @@ class TrackerState:
 
 
 class ObstacleTracker:
-    """Associates detections to tracks by id, gates them (Mahalanobis, chi-square) and fuses.
+    """Associates detections to tracks by id, gates them (chi-square, per mode) and fuses.
 
     At most MAX_ITEMS tracks are held (a detection of one more id is refused: the work of
     every publish grows with the tracks); a track whose filter diverges restarts from its
@@ -83,6 +83,25 @@ class ObstacleTracker:
             radius_var=r_var,
         )
 
+    def _gates(
+        self,
+        xs: tuple[FloatArray, ...],
+        Ps: tuple[FloatArray, ...],
+        cbar: FloatArray,
+        z: FloatArray,
+        R: FloatArray,
+    ) -> bool:
+        """Whether detection z falls in the track's gate: the combined belief's, or any one
+        mode's. A manoeuvre starts where the steady mode, which dominates the mixture, is
+        surest: a gate on the mixture alone would refuse the very detections that tell the
+        manoeuvring mode it is right, and the track would coast on its old velocity.
+        """
+        x, P = combine(xs, Ps, cbar)
+        beliefs = ((x, P), *zip(xs, Ps, strict=True))
+        return any(
+            self.gate.accepts(z - H_POS @ xj, H_POS @ Pj @ H_POS.T + R) for xj, Pj in beliefs
+        )
+
     def fuse(self, state: TrackerState, msg: ObstacleDetections) -> TrackerState:
         """The tracks after one scan (stamped msg.stamp, fused in id order)."""
         timeout = self.cfg.track_timeout_s
@@ -103,10 +122,7 @@ class ObstacleTracker:
                 continue
             xs, Ps, cbar = self._imm.predict(b.xs, b.Ps, b.mu, msg.stamp - b.stamp)
             R = np.eye(2) * var
-            x, P = combine(xs, Ps, cbar)
-            y = z - H_POS @ x
-            S = H_POS @ P @ H_POS.T + R
-            if not self.gate.accepts(y, S):
+            if not self._gates(xs, Ps, cbar, z, R):
                 gated_out += 1
                 continue
             xs, Ps, mu = self._imm.update(xs, Ps, cbar, z, R)
