@@ -72,5 +72,5 @@ class SensorConfig:
     @property
     def scan_every(self) -> int:
         """Steps between two obstacle scans: the sonar scans at every multiple of this many
-        step periods from t = 0."""
+        step periods from its first step (t = 0, or a fleet vehicle's phase)."""
         return round(self.base_rate_hz / self.obstacle_rate_hz)

@@ -62,11 +62,16 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
     sensor reading the others' hulls and each planner their intents."""
     ids = fleet_obstacle_ids(s)
     radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
+    flows = {vid: auv_dataflow(member) for vid, member in s.members}
     # when each vehicle's sonar scans (period, first scan): the others send their hull just
-    # before; its sensor steps at its phase, and scans every scan_every steps from there
+    # before; its sensor steps at its own offset shifted by the vehicle's phase, and scans
+    # every scan_every steps from there
     phase = {v.id: v.phase_s for v in s.vehicles}
     scans = {
-        vid: (m.sensor.scan_every * m.sensor.period_s, phase[vid] % m.sensor.period_s)
+        vid: (
+            m.sensor.scan_every * m.sensor.period_s,
+            (flows[vid].services["sensor"].offset_s + phase[vid]) % m.sensor.period_s,
+        )
         for vid, m in s.members
     }
     # how fast each vehicle's speed rises on a new path: its intent, to the others
@@ -76,7 +81,7 @@ def fleet_dataflow(s: Scenario) -> Dataflow:
         earlier = frozenset(v.id for v in s.vehicles[:k])  # who it gives way to, by priority
         others = {o: (ids[o], radius[o]) for o in ids if o != vid}
         hulls = {qualified(o, "vehicle"): seen for o, seen in others.items()}
-        for svc in auv_dataflow(member).services.values():
+        for svc in flows[vid].services.values():
             factory: CoreFactory = svc.factory
             outputs = svc.outputs
             inputs = tuple(
