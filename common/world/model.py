@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from common.config.world import WorldConfig
+from common.messages import Track
 from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
 from common.world.trajectory import Trajectory, make_trajectory
 
@@ -47,6 +48,14 @@ class ObstacleState:
         x = self.x + self.vx * t + self.ax * quad
         y = self.y + self.vy * t + self.ay * quad
         return np.stack([x, y], axis=-1)
+
+    @classmethod
+    def of_track(cls, k: Track) -> ObstacleState:
+        """The moving obstacle an estimator's track describes (its mean; the covariance is
+        not used by eq. (12))."""
+        return cls(
+            id=k.id, x=k.x, y=k.y, vx=k.vx, vy=k.vy, ax=k.ax, ay=k.ay, radius=k.radius, moving=True
+        )
 
     def advanced(self, dt_s: float) -> ObstacleState:
         """The same obstacle with its state extrapolated dt_s ahead (acceleration held)."""

@@ -251,18 +251,7 @@ class PlannerCore:
             for k in self.tracks.tracks:
                 if k.id in self.static_ids or k.id in covered:
                     continue  # charted static obstacles are planned from the chart
-                track = ObstacleState(
-                    id=k.id,
-                    x=k.x,
-                    y=k.y,
-                    vx=k.vx,
-                    vy=k.vy,
-                    ax=k.ax,
-                    ay=k.ay,
-                    radius=k.radius,
-                    moving=True,
-                )
-                moving.append(track.advanced(dt))
+                moving.append(ObstacleState.of_track(k).advanced(dt))
         return Obstacles(
             circles=self.world.circles, polygons=self.world.polygons, moving=tuple(moving)
         )
