@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from common.config.scenario import Scenario, load_scenario
-from common.messages import TruthState
+from common.messages import ObstacleTracks, Track, TruthState
 from common.runtime.model.record import Record
 from common.world import World
 from services.cli.core_commands import mission_failure
-from services.mission.metrics import YAW_RATE_TOL_RPS, mission_metrics
+from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_metrics
 from services.mission.outcome import OUTCOMES, classify, describe, outcome_of
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
@@ -184,3 +184,44 @@ def test_the_words_survive_null_metrics() -> None:
     assert describe(m).startswith("goal reached in 0.00 s")
     m = {"outcome": "rho0_breach", "reached_goal": True, "rho0_breach_m": None, "rho0_m": 1.0}
     assert "inside the safety distance rho0 = 1.0 m" in describe(m)
+
+
+def _tracked(offset_m: float, dv_mps: float) -> dict[str, Any]:
+    """The pass of `_record` with one moving obstacle (id 7: a line at 0.5 m/s east along
+    y = 35) and an estimator tracking it every 0.5 s, offset_m off in x and dv_mps off in vx;
+    and one static circle, tracked too, which the tracking metrics leave out."""
+    s, _ = load_scenario(
+        DEFAULT,
+        [
+            "world.circles=[{id=1, x_m=50.0, y_m=5.0, radius_m=2.0}]",
+            "world.polygons=[]",
+            "world.moving=[{id=7, kind='line', x0_m=10.0, y0_m=35.0, vx_mps=0.5, vy_mps=0.0}]",
+        ],
+    )
+    rec = _record(95.0, None, None)
+    for i in range(121):  # 0-60 s, the pass's span
+        t = 0.5 * i
+        cov = tuple(np.eye(6).ravel())
+        moving = Track(id=7, x=10.0 + 0.5 * t + offset_m, y=35.0, vx=0.5 + dv_mps, vy=0.0,
+                       ax=0.0, ay=0.0, radius=1.0, covariance=cov)  # fmt: skip
+        static = Track(id=1, x=53.0, y=5.0, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=2.0,
+                       covariance=cov)  # fmt: skip
+        rec.add("estimator", "tracks", ObstacleTracks(stamp=t, source="estimator", seq=i + 1,
+                                                      tracks=(moving, static)))  # fmt: skip
+    return mission_metrics(rec, s, World(s.world))
+
+
+def test_tracking_metrics_set_moving_tracks_and_their_extrapolation_against_truth() -> None:
+    exact = _tracked(0.0, 0.0)
+    assert exact["tracking_rms_m"] == exact["tracking_max_m"] == 0.0  # the 3 m static is out
+    assert exact["tracking_ahead_max_m"] == pytest.approx(0.0, abs=1e-12)
+    off = _tracked(0.3, 0.1)  # 0.3 m off now; 0.3 + 0.1 TRACK_AHEAD_S m off when extrapolated
+    assert off["tracking_rms_m"] == pytest.approx(0.3) and off["tracking_max_m"] == pytest.approx(
+        0.3
+    )
+    assert off["tracking_ahead_rms_m"] == pytest.approx(0.3 + 0.1 * TRACK_AHEAD_S)
+
+
+def test_a_run_without_moving_obstacles_has_no_tracking_metrics() -> None:
+    m = _metrics(20.0)  # one static circle, no moving obstacle
+    assert not any(k.startswith("tracking") for k in m)

@@ -9,10 +9,17 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
-from common.messages import PathMsg, StateEstimate, TruthState, VehicleStatus, VelocityCommand
+from common.messages import (
+    ObstacleTracks,
+    PathMsg,
+    StateEstimate,
+    TruthState,
+    VehicleStatus,
+    VelocityCommand,
+)
 from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record, trajectory_sha256
-from common.world import World
+from common.world import ObstacleState, World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import commander
 from services.mission.outcome import classify
@@ -32,6 +39,9 @@ START_UP_S = 1.0
 # |v| / R_min changes in one 0.05 s truth period at the acceleration limit (0.3 m/s^2 * 0.05
 # s / 5 m = 0.003 rad/s): a plant that bounds w by a speed one period old still passes.
 YAW_RATE_TOL_RPS = 0.005
+# `tracking_ahead_*` set a track, extrapolated as the planner extrapolates it (eq. (12)), this
+# far ahead against where its obstacle then is: about the look-ahead of a replan's pass
+TRACK_AHEAD_S = 2.0
 
 
 def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
@@ -92,6 +102,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
     m.update(_path_metrics(record, at("planner"), at(commander(s)), t, x, y, end))
     m.update(_estimation_metrics(record, at("estimator"), t, x, y))
+    m.update(_tracking_metrics(record, at("estimator"), world, s.planner.accel_horizon_s, t))
     statuses: list[VehicleStatus] = _typed(record, at("vehicle"), "status", VehicleStatus)
     if statuses:
         last = statuses[-1]
@@ -247,3 +258,34 @@ def _estimation_metrics(
         "estimation_rms_m": float(np.sqrt(np.mean(err**2))),
         "estimation_max_m": float(err.max()),
     }
+
+
+def _tracking_metrics(
+    record: Record, estimator: str, world: World, accel_horizon_s: float, t: np.ndarray
+) -> dict[str, Any]:
+    """How well the published tracks follow the world's moving obstacles (not other hulls):
+    position error at each track's stamp, and of the position it extrapolates TRACK_AHEAD_S on
+    against where the obstacle then is (what replans pass by). Coasting tracks count: they
+    are what the planner has."""
+    moving = {o.id for o in world.obstacles_at(float(t[0])) if o.moving}
+    now: list[float] = []
+    ahead: list[float] = []
+    for msg in _typed(record, estimator, "tracks", ObstacleTracks):
+        mine = [k for k in msg.tracks if k.id in moving]
+        if not mine or not t[0] <= msg.stamp <= t[-1]:
+            continue
+        truth = {o.id: o for o in world.obstacles_at(msg.stamp)}
+        later_t = msg.stamp + TRACK_AHEAD_S
+        later = {o.id: o for o in world.obstacles_at(later_t)} if later_t <= t[-1] else {}
+        for k in mine:
+            now.append(math.hypot(k.x - truth[k.id].x, k.y - truth[k.id].y))
+            if later:
+                p = ObstacleState.of_track(k).centre_at(TRACK_AHEAD_S, accel_horizon_s)
+                ahead.append(math.hypot(float(p[0]) - later[k.id].x, float(p[1]) - later[k.id].y))
+    out: dict[str, Any] = {}
+    for name, errs in (("tracking", now), ("tracking_ahead", ahead)):
+        if errs:
+            e = np.asarray(errs)
+            out[f"{name}_rms_m"] = float(np.sqrt(np.mean(e**2)))
+            out[f"{name}_max_m"] = float(e.max())
+    return out
