@@ -186,10 +186,11 @@ def test_the_words_survive_null_metrics() -> None:
     assert "inside the safety distance rho0 = 1.0 m" in describe(m)
 
 
-def _tracked(offset_m: float, dv_mps: float) -> dict[str, Any]:
+def _tracked(offset_m: float, dv_mps: float, until_s: float = 60.0) -> dict[str, Any]:
     """The pass of `_record` with one moving obstacle (id 7: a line at 0.5 m/s east along
-    y = 35) and an estimator tracking it every 0.5 s, offset_m off in x and dv_mps off in vx;
-    and one static circle, tracked too, which the tracking metrics leave out."""
+    y = 35) and an estimator tracking it every 0.5 s up to until_s, offset_m off in x and
+    dv_mps off in vx; and one static circle, tracked too, which the tracking metrics leave
+    out."""
     s, _ = load_scenario(
         DEFAULT,
         [
@@ -199,7 +200,7 @@ def _tracked(offset_m: float, dv_mps: float) -> dict[str, Any]:
         ],
     )
     rec = _record(95.0, None, None)
-    for i in range(121):  # 0-60 s, the pass's span
+    for i in range(round(until_s / 0.5) + 1):  # the pass spans 0-60 s
         t = 0.5 * i
         cov = tuple(np.eye(6).ravel())
         moving = Track(id=7, x=10.0 + 0.5 * t + offset_m, y=35.0, vx=0.5 + dv_mps, vy=0.0,
@@ -220,6 +221,16 @@ def test_tracking_metrics_set_moving_tracks_and_their_extrapolation_against_trut
         0.3
     )
     assert off["tracking_ahead_rms_m"] == pytest.approx(0.3 + 0.1 * TRACK_AHEAD_S)
+
+
+def test_tracking_metrics_are_named_and_null_when_nothing_was_measured() -> None:
+    # a run's key set does not depend on how far it got: no track yet, or none 2 s old
+    assert {k: v for k, v in _tracked(0.0, 0.0, until_s=-1.0).items() if "tracking" in k} == {
+        "tracking_rms_m": None,
+        "tracking_max_m": None,
+        "tracking_ahead_rms_m": None,
+        "tracking_ahead_max_m": None,
+    }
 
 
 def test_a_run_without_moving_obstacles_has_no_tracking_metrics() -> None:

@@ -266,8 +266,11 @@ def _tracking_metrics(
     """How well the published tracks follow the world's moving obstacles (not other hulls):
     position error at each track's stamp, and of the position it extrapolates TRACK_AHEAD_S on
     against where the obstacle then is (what replans pass by). Coasting tracks count: they
-    are what the planner has."""
+    are what the planner has. With moving obstacles in the world the keys are always there
+    (a run's key set does not depend on how far it got), null while nothing was measured."""
     moving = {o.id for o in world.obstacles_at(float(t[0])) if o.moving}
+    if not moving:
+        return {}
     now: list[float] = []
     ahead: list[float] = []
     for msg in _typed(record, estimator, "tracks", ObstacleTracks):
@@ -284,8 +287,7 @@ def _tracking_metrics(
                 ahead.append(math.hypot(float(p[0]) - later[k.id].x, float(p[1]) - later[k.id].y))
     out: dict[str, Any] = {}
     for name, errs in (("tracking", now), ("tracking_ahead", ahead)):
-        if errs:
-            e = np.asarray(errs)
-            out[f"{name}_rms_m"] = float(np.sqrt(np.mean(e**2)))
-            out[f"{name}_max_m"] = float(e.max())
+        e = np.asarray(errs)
+        out[f"{name}_rms_m"] = float(np.sqrt(np.mean(e**2))) if errs else None
+        out[f"{name}_max_m"] = float(e.max()) if errs else None
     return out
