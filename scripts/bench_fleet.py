@@ -16,7 +16,9 @@ receiver measured on the control loop's three hops (sensor/nav -> estimator, est
 -> planner, planner/cmd -> vehicle: from its sending, by the sender's mission clock, to its
 delivery, by the receiver's, negatives counted 0: transport and queueing on the real bus and
 the two clocks' offset, not the services' periods), p50 / p95 / max (the statistics carry
-no p99). Goal
+no p99); under each vehicle, each of its services' own part: how late its ticks ran (p50)
+and how long its step took (p50/p95: the core's step, the link model, encoding), so the
+slowest part is visible (the planner's step computes a 100-entry command sequence). Goal
 (issue 18): every vehicle's loop within 10 ms at N = 4; judged here on the sum of its hops'
 p95 (and shown with their max); the largest N that holds it is reported.
 """
@@ -32,7 +34,7 @@ from common.config.scenario import Scenario, scenario_from_raw
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
-from common.runtime.run import link_stats
+from common.runtime.run import link_stats, loop_times
 from common.world.check import check_scenario
 
 LANE_M = 6.0  # between two vehicles' lanes: hull to hull 5 m, well clear of rho0
@@ -42,6 +44,7 @@ LOOP = (
     ("planner", "cmd", "vehicle"),
 )
 LOOP_GOAL_MS = 10.0
+SERVICES = ("sensor", "estimator", "planner", "vehicle")  # a vehicle's services, loop order
 
 
 def fleet_raw(n: int, seconds: float, spread_s: float = 0.0) -> dict[str, Any]:
@@ -158,19 +161,35 @@ def realtime_loops(sizes: list[int], seconds: float, spread_s: float) -> None:
         raw["runtime"] = {"kind": "realtime", "time_scale": 1.0}
         raw["network"] = {"default": {"delay_s": 0.0}}
         s = scenario_from_raw(raw, f"fleet{n}-realtime", check=check_scenario)
-        links = link_stats(run_realtime(s, raw).record)
+        record = run_realtime(s, raw).record
+        links, times = link_stats(record), loop_times(record)
         worst = 0.0
+        slowest = ("", 0.0)  # the service whose core step took longest (p95)
         for v in s.vehicles:
             hops = [_hop(links, v.id, h) for h in LOOP]
             total = sum(h[1] for h in hops)
             worst = max(worst, total)
             cells = "   ".join(f"{h[0]:5.2f}/{h[1]:5.2f}/{h[2]:6.2f}" for h in hops)
             print(f" {n:2d}  {v.id:7s}  {cells}   {total:6.2f}", flush=True)
+            # each service's own part of the hops it sends: how late its tick ran, and its
+            # step (core, link model, encoding), p50/p95 (common/runtime/distributed/loop_times.py)
+            steps = []
+            for name in SERVICES:
+                t = times.get(f"{v.id}.{name}", {})
+                step95 = t.get("loop.step_p95_us", 0) / 1e3
+                if step95 > slowest[1]:
+                    slowest = (f"{v.id}.{name}", step95)
+                steps.append(
+                    f"{name} {t.get('loop.wake_p50_us', 0) / 1e3:4.2f} "
+                    f"{t.get('loop.step_p50_us', 0) / 1e3:4.2f}/{step95:4.2f}"
+                )
+            print(f"              woke late p50, step p50/p95: {'   '.join(steps)}")
         ok = worst <= LOOP_GOAL_MS
         held = n if ok else held
         print(
             f" {n:2d}  worst loop (sum of p95) {worst:.2f} ms: goal <= {LOOP_GOAL_MS:g} ms "
-            f"{'held' if ok else 'NOT held'}"
+            f"{'held' if ok else 'NOT held'}; slowest core step {slowest[0]} p95 "
+            f"{slowest[1]:.2f} ms"
         )
     print(f"largest N holding the realtime loop goal: {held or 'none'}")
 

@@ -51,14 +51,14 @@ import numpy as np
 
 from common.bus.certs import create_certs
 from common.config.scenario import load_scenario
-from common.messages import LinkStats, VehicleStatus
+from common.messages import VehicleStatus
 from common.runtime.distributed.acl import LAUNCHER
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.distributed.loop_times import PHASES
 from common.runtime.distributed.realtime_driver import run_realtime
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
-from common.runtime.run import link_stats
+from common.runtime.run import link_stats, loop_times
 from services.cli.core_commands import certs_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -208,11 +208,8 @@ def bench_realtime_latency(seconds: float, certs: Path | None = None) -> LoopLat
         )
         for link in LOOP_HOPS
     )
-    phases = tuple(
-        (name, {k: v for k, v in stats[-1].counters.items() if k.startswith("loop.")})
-        for name in LOOP_SERVICES
-        if (stats := [m for m in r.record.stream(name, "stats") if isinstance(m, LinkStats)])
-    )
+    times = loop_times(r.record)
+    phases = tuple((name, times[name]) for name in LOOP_SERVICES if name in times)
     return LoopLatency(
         phases=phases,
         p50_us=float(np.percentile(ages, 50) * 1e6),

@@ -13,11 +13,13 @@ import pytest
 
 from common.bus import Received
 from common.config.scenario import load_scenario
-from common.messages import NavFix, Tick, encode_routing
+from common.messages import LinkStats, NavFix, Tick, encode_routing
 from common.runtime.distributed.loop_times import PHASES, LoopTimes
 from common.runtime.distributed.realtime_service import MAX_DELIVERY_AHEAD_S, RealtimeService
 from common.runtime.distributed.service_process import ServiceSetup
 from common.runtime.model.core import Emit
+from common.runtime.model.record import Record
+from common.runtime.run import loop_times
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 NAV = ("sensor", "nav")
@@ -147,6 +149,18 @@ def test_loop_times_are_reported_as_microsecond_quantiles_per_phase() -> None:
     assert c["loop.step_p95_us"] == pytest.approx(950, rel=0.01)
     assert (c["loop.wake_max_us"], c["loop.step_max_us"]) == (100, 1000)
     assert c["loop.publish_p50_us"] == 5
+
+
+def test_a_runs_loop_times_are_each_services_last_ones() -> None:
+    # what the benchmarks read from a realtime run's record (scripts/bench runtime, fleet)
+    def stats(source: str, seq: int, counters: dict[str, int]) -> LinkStats:
+        return LinkStats(stamp=float(seq), source=source, seq=seq, links=(), counters=counters)
+
+    record = Record()
+    record.add("planner", "stats", stats("planner", 1, {"loop.step_p50_us": 900, "steps": 3}))
+    record.add("planner", "stats", stats("planner", 2, {"loop.step_p50_us": 4300, "steps": 9}))
+    record.add("vehicle", "stats", stats("vehicle", 1, {}))  # lockstep, inproc: no loop times
+    assert loop_times(record) == {"planner": {"loop.step_p50_us": 4300}}
 
 
 def test_a_realtime_hosts_statistics_carry_its_loop_times(svc: RealtimeService) -> None:

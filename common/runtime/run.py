@@ -87,6 +87,22 @@ def write_outputs(
     return metrics
 
 
+def loop_times(record: Record) -> dict[str, dict[str, int]]:
+    """Each realtime service's loop phases from its last statistics, by service: the
+    "loop.<phase>_<p50|p95|max>_us" counters (common/runtime/distributed/loop_times.py);
+    a service that never published one is absent (inproc and lockstep runs have none)."""
+    from common.messages import LinkStats
+
+    out: dict[str, dict[str, int]] = {}
+    for service, stream in record.keys():
+        if stream != "stats":
+            continue
+        msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
+        if msgs and (times := {k: v for k, v in msgs[-1].counters.items() if k[:5] == "loop."}):
+            out[service] = times
+    return out
+
+
 def link_stats(record: Record) -> dict[str, dict[str, Any]]:
     """The last LinkStats of every service, by link name: the sender's counters and modelled
     delays, and the delays the receiver measured (`measured_*`)."""
