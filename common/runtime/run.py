@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from common.config.scenario import Scenario
 from common.runtime.model.inproc import run_inproc
@@ -13,6 +14,9 @@ from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
 from common.runtime.model.silence import thresholds, unresponsive_s
+
+if TYPE_CHECKING:
+    from common.messages import LinkStats
 
 
 def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunResult:
@@ -87,18 +91,25 @@ def write_outputs(
     return metrics
 
 
-def loop_times(record: Record) -> dict[str, dict[str, int]]:
-    """Each realtime service's loop phases from its last statistics, by service: the
-    "loop.<phase>_<p50|p95|max>_us" counters (common/runtime/distributed/loop_times.py);
-    a service that never published one is absent (inproc and lockstep runs have none)."""
+def last_stats(record: Record) -> Iterator[tuple[str, LinkStats]]:
+    """(service, its last LinkStats) for every service that published statistics."""
     from common.messages import LinkStats
 
-    out: dict[str, dict[str, int]] = {}
     for service, stream in record.keys():
         if stream != "stats":
             continue
         msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
-        if msgs and (times := {k: v for k, v in msgs[-1].counters.items() if k[:5] == "loop."}):
+        if msgs:
+            yield service, msgs[-1]
+
+
+def loop_times(record: Record) -> dict[str, dict[str, int]]:
+    """Each realtime service's loop phases from its last statistics, by service: the
+    "loop.<phase>_<p50|p95|max>_us" counters (common/runtime/distributed/loop_times.py);
+    a service that never published one is absent (inproc and lockstep runs have none)."""
+    out: dict[str, dict[str, int]] = {}
+    for service, stats in last_stats(record):
+        if times := {k: v for k, v in stats.counters.items() if k.startswith("loop.")}:
             out[service] = times
     return out
 
@@ -106,38 +117,32 @@ def loop_times(record: Record) -> dict[str, dict[str, int]]:
 def link_stats(record: Record) -> dict[str, dict[str, Any]]:
     """The last LinkStats of every service, by link name: the sender's counters and modelled
     delays, and the delays the receiver measured (`measured_*`)."""
-    from common.messages import LinkStats
-
     out: dict[str, dict[str, Any]] = {}
-    for service, stream in record.keys():
-        if stream != "stats":
-            continue
-        msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
-        if msgs:
-            for c in msgs[-1].links:
-                out.setdefault(c.link, {}).update(
-                    {
-                        "sent": c.sent,
-                        "delivered": c.delivered,
-                        "dropped_loss": c.dropped_loss,
-                        "dropped_outage": c.dropped_outage,
-                        "dropped_queue": c.dropped_queue,
-                        "duplicated": c.duplicated,
-                        "delay_p50_s": c.delay_p50,
-                        "delay_p95_s": c.delay_p95,
-                        "delay_p99_s": c.delay_p99,
-                        "bytes_sent": c.bytes_sent,
-                        "bytes_per_message": round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
-                    }
-                )
-            for d in msgs[-1].measured:
-                out.setdefault(d.link, {}).update(
-                    {
-                        "measured_delay_p50_s": d.delay_p50,
-                        "measured_delay_p95_s": d.delay_p95,
-                        "measured_delay_max_s": d.delay_max,
-                    }
-                )
+    for _service, last in last_stats(record):
+        for c in last.links:
+            out.setdefault(c.link, {}).update(
+                {
+                    "sent": c.sent,
+                    "delivered": c.delivered,
+                    "dropped_loss": c.dropped_loss,
+                    "dropped_outage": c.dropped_outage,
+                    "dropped_queue": c.dropped_queue,
+                    "duplicated": c.duplicated,
+                    "delay_p50_s": c.delay_p50,
+                    "delay_p95_s": c.delay_p95,
+                    "delay_p99_s": c.delay_p99,
+                    "bytes_sent": c.bytes_sent,
+                    "bytes_per_message": round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
+                }
+            )
+        for d in last.measured:
+            out.setdefault(d.link, {}).update(
+                {
+                    "measured_delay_p50_s": d.delay_p50,
+                    "measured_delay_p95_s": d.delay_p95,
+                    "measured_delay_max_s": d.delay_max,
+                }
+            )
     return out
 
 
