@@ -347,6 +347,21 @@ class LinkCounters(WireRecord, frozen=True, kw_only=True):
     delay_p99: float
     bytes_sent: int = 0  # encoded bytes of every message offered to the link
 
+    def counts(self) -> dict[str, int | float]:
+        """The counters and modelled delays as a table row (metrics' link_stats, Foxglove's
+        /links): sent, delivered, each drop, duplicates, delay_p50/p95/p99_s."""
+        return {
+            "sent": self.sent,
+            "delivered": self.delivered,
+            "dropped_loss": self.dropped_loss,
+            "dropped_outage": self.dropped_outage,
+            "dropped_queue": self.dropped_queue,
+            "duplicated": self.duplicated,
+            "delay_p50_s": self.delay_p50,
+            "delay_p95_s": self.delay_p95,
+            "delay_p99_s": self.delay_p99,
+        }
+
     def validate(self) -> None:
         for name in (
             "sent",

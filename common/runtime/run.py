@@ -121,19 +121,9 @@ def link_stats(record: Record) -> dict[str, dict[str, Any]]:
     for _service, last in last_stats(record):
         for c in last.links:
             out.setdefault(c.link, {}).update(
-                {
-                    "sent": c.sent,
-                    "delivered": c.delivered,
-                    "dropped_loss": c.dropped_loss,
-                    "dropped_outage": c.dropped_outage,
-                    "dropped_queue": c.dropped_queue,
-                    "duplicated": c.duplicated,
-                    "delay_p50_s": c.delay_p50,
-                    "delay_p95_s": c.delay_p95,
-                    "delay_p99_s": c.delay_p99,
-                    "bytes_sent": c.bytes_sent,
-                    "bytes_per_message": round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
-                }
+                c.counts(),
+                bytes_sent=c.bytes_sent,
+                bytes_per_message=round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
             )
         for d in last.measured:
             out.setdefault(d.link, {}).update(

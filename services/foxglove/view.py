@@ -322,18 +322,7 @@ class FoxgloveView:
         for c in m.links:
             drops = c.dropped_loss + c.dropped_outage + c.dropped_queue
             self._links.setdefault(c.link, {"link": c.link}).update(
-                {
-                    "sent": c.sent,
-                    "delivered": c.delivered,
-                    "dropped_loss": c.dropped_loss,
-                    "dropped_outage": c.dropped_outage,
-                    "dropped_queue": c.dropped_queue,
-                    "duplicated": c.duplicated,
-                    "loss_fraction": drops / c.sent if c.sent else 0.0,
-                    "delay_p50_s": c.delay_p50,
-                    "delay_p95_s": c.delay_p95,
-                    "delay_p99_s": c.delay_p99,
-                }
+                c.counts(), loss_fraction=drops / c.sent if c.sent else 0.0
             )
         for d in m.measured:
             self._links.setdefault(d.link, {"link": d.link}).update(
