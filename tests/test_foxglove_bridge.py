@@ -8,6 +8,7 @@ the client receives, always with deadlines (helpers/launch_proc.py).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import signal
 import socket
@@ -27,7 +28,8 @@ from common.config.scenario import load_scenario
 from common.messages import Message, TruthState, encode
 from common.runtime.processes.children import free_port
 from services.foxglove.bridge import FoxgloveBridge
-from services.foxglove.channels import ViewChannels
+from services.foxglove.channels import SDK_CLIENT_LOGGER, ViewChannels
+from services.foxglove.serve import BridgeOptions, start_server
 from services.foxglove.view import ViewMessage
 
 WAIT_S = 60.0  # upper bound on any one wait; the happy paths take seconds
@@ -165,6 +167,56 @@ def test_a_port_in_use_is_a_clear_error() -> None:
         with Tidelink("foxglove", "--port", str(port), "--connect", "tcp/127.0.0.1:9") as t:
             assert t.wait(WAIT_S) == 1
     assert f"cannot serve on 127.0.0.1:{port}" in t.stderr and "--port" in t.stderr, t.stderr
+
+
+def test_a_subscription_refused_as_to_an_unknown_channel_is_mended_by_advertising_it_again() -> (
+    None
+):
+    # the SDK's server may refuse a subscription that overtakes its own bookkeeping of an
+    # advertisement (services/foxglove/channels.py); the bridge hears it through the SDK's
+    # log and advertises the channel again, with its newest message
+    channels = ViewChannels(foxglove.Context())
+    server = start_server(BridgeOptions(port=free_port()), channels)
+    try:
+        with FoxgloveClient(f"ws://127.0.0.1:{server.port}") as client:
+            client.wait_until(lambda: bool(client.server_infos), WAIT_S, "serverInfo")
+            vm = ViewMessage(
+                topic="/vehicle/pose_true",
+                schema_name="Pose",
+                schema_encoding="jsonschema",
+                schema=b'{"type": "object"}',
+                message_encoding="json",
+                data=b'{"x": 1}',
+            )
+            channels.log(vm, 1)  # advertised; the client subscribes, then gets it replayed
+
+            def served(n: int) -> bool:
+                channels.serve_subscriptions(0.0)  # the bridge's loop
+                return len(client.on(vm.topic)) >= n
+
+            client.wait_until(lambda: served(1), WAIT_S, "the first pose")
+            first = client.channel(vm.topic)["id"]
+            # the SDK's own words for a refusal, on its logger: a subscription to an id it
+            # never advertised (nothing of ours has it: nothing to mend)
+            client.ws.send(
+                json.dumps({"op": "subscribe", "subscriptions": [{"id": 99, "channelId": 999}]})
+            )
+            client.wait_until(lambda: not channels.lost.channel_ids.empty(), WAIT_S, "the refusal")
+            channels.serve_subscriptions(0.0)
+            assert channels.readvertised == 0
+            # the race itself cannot be forced: what the SDK logs when the client loses it
+            logging.getLogger(SDK_CLIENT_LOGGER).error(
+                "Client 127.0.0.1:1 attempted to subscribe to unknown channel: %d", first
+            )
+
+            client.wait_until(lambda: served(2), WAIT_S, "the pose again, advertised again")
+            assert client.channel(vm.topic)["id"] != first
+            assert channels.readvertised == 1
+            assert first not in client.channels  # unadvertised
+    finally:
+        server.stop()
+        channels.close()
+    assert channels.lost not in logging.getLogger(SDK_CLIENT_LOGGER).handlers
 
 
 # -- end to end ------------------------------------------------------------------------------

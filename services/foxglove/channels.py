@@ -5,12 +5,20 @@ what is logged afterwards. Every view message is complete in itself (view.py), s
 topic's newest message is kept and logged again when a client subscribes, and a client that
 joins mid-run sees the chart, the path and the tracks at once instead of after the next
 replan.
+
+A subscription the server refused as to an "unknown channel" is mended by advertising that
+channel again (`LostSubscriptions`): the SDK's server (foxglove-sdk 0.30, and its main branch
+of 2026-11) sends a channel's advertisement to a connected client before it records the
+channel as advertised to it, so a client that answers at once, on the same machine, may
+subscribe in between and be refused; it is not told again, and the topic stays dark for it
+(seen once in ~80 suite runs: a run's true pose never reached a test client).
 """
 
 from __future__ import annotations
 
 import logging
 import queue
+import re
 
 import foxglove
 from foxglove.websocket import ChannelView, Client, ServerListener
@@ -33,6 +41,26 @@ class SubscribeListener(ServerListener):
         self.subscribed.put(channel.topic)
 
 
+# the SDK's server logs a refused subscription through Python's logging (its Rust target as
+# the logger's name), naming the channel id
+SDK_CLIENT_LOGGER = "foxglove.websocket.connected_client"
+_UNKNOWN_CHANNEL = re.compile(r"subscribe to unknown channel: (\d+)")
+
+
+class LostSubscriptions(logging.Handler):
+    """Collects the ids of channels the server refused a client's subscription to as unknown
+    (module docstring). Called on the server's thread: it only enqueues."""
+
+    def __init__(self) -> None:
+        super().__init__(level=logging.ERROR)
+        self.channel_ids: queue.SimpleQueue[int] = queue.SimpleQueue()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        found = _UNKNOWN_CHANNEL.search(record.getMessage())
+        if found is not None:
+            self.channel_ids.put(int(found.group(1)))
+
+
 class ViewChannels:
     """Logs view messages on channels of a foxglove Context (created on a topic's first
     message, with that message's schema) and keeps each topic's newest message for clients
@@ -44,6 +72,9 @@ class ViewChannels:
         self._channels: dict[str, tuple[foxglove.Channel, tuple[str, str, bytes, str]]] = {}
         self._newest: dict[str, tuple[ViewMessage, int]] = {}
         self.logged = 0
+        self.lost = LostSubscriptions()
+        logging.getLogger(SDK_CLIENT_LOGGER).addHandler(self.lost)
+        self.readvertised = 0  # channels advertised again after a refused subscription
 
     def log(self, vm: ViewMessage, log_time_ns: int) -> None:
         """Log one view message at log_time_ns (Unix ns) on its topic's channel."""
@@ -59,8 +90,10 @@ class ViewChannels:
             self._channel(vm).log(vm.data, log_time=log_time_ns)
 
     def serve_subscriptions(self, timeout_s: float) -> None:
-        """Replay the topics clients subscribed to since the last call, waiting up to
+        """Advertise again the channels a subscription to was refused (module docstring),
+        then replay the topics clients subscribed to since the last call, waiting up to
         timeout_s for a first one (0: only those already there)."""
+        self._readvertise_lost()
         wait: float | None = timeout_s  # a first get may wait; the others take what is there
         while True:
             try:
@@ -81,6 +114,27 @@ class ViewChannels:
         for channel, _ in self._channels.values():
             channel.close()
         self._channels.clear()
+        logging.getLogger(SDK_CLIENT_LOGGER).removeHandler(self.lost)
+
+    def _readvertise_lost(self) -> None:
+        """Close and make again each channel a subscription to was refused: every client is
+        told it went and came (unadvertise, advertise under a new id), subscribes to it anew,
+        and gets its newest message replayed (`replay`)."""
+        while True:
+            try:
+                lost = self.lost.channel_ids.get_nowait()
+            except queue.Empty:
+                return
+            for topic, (channel, _) in list(self._channels.items()):
+                if channel.id() != lost:
+                    continue
+                newest = self._newest.get(topic)
+                channel.close()
+                del self._channels[topic]
+                self.readvertised += 1
+                log.info("a subscription to %s was refused as unknown; advertised it again", topic)
+                if newest is not None:
+                    self._channel(newest[0])  # again, under a new id
 
     def _channel(self, vm: ViewMessage) -> foxglove.Channel:
         schema = (vm.schema_name, vm.schema_encoding, vm.schema, vm.message_encoding)
