@@ -14,6 +14,7 @@ import signal
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from helpers.launch_proc import (
     REPO,
@@ -26,7 +27,7 @@ from helpers.launch_proc import (
 )
 
 from common.config.scenario import load_scenario
-from common.messages import TruthState, decode
+from common.messages import StateEstimate, TruthState, decode
 from common.runtime.model.inproc import run_inproc
 from common.runtime.processes.children import free_port
 from common.runtime.run import write_outputs
@@ -125,9 +126,10 @@ def test_a_restarted_vehicle_takes_up_where_its_hull_was(tmp_path: Path, out: Pa
     assert (
         "vehicle: resumed the hull from its truth at t=" in (out / "logs/vehicle.log").read_text()
     )
+    frames = read_recording(out / "run.mcap").frames
     truths = [
         m
-        for f in read_recording(out / "run.mcap").frames
+        for f in frames
         if (f.service, f.stream) == ("vehicle", "truth")
         and isinstance(m := decode(f.payload), TruthState)
     ]
@@ -138,8 +140,26 @@ def test_a_restarted_vehicle_takes_up_where_its_hull_was(tmp_path: Path, out: Pa
     assert gap > 0.5 and math.hypot(last.x, last.y) > 8.0  # was under way when killed
     # no faster than it could move meanwhile; nowhere near the start pose
     assert math.hypot(resumed.x - last.x, resumed.y - last.y) <= 2.0 * gap + 0.1
-    m = _metrics(out)
-    assert m["estimation_max_m"] < 5.0 and m["collisions"] == 0, m
+    # the estimate: while the hull was unobserved it could run off by no more than the
+    # distance it dead-reckoned meanwhile (a fixed bound fails when a loaded machine takes
+    # longer to restart; the teleport it guards against put it ~20 m off), and once truths
+    # flow again it converges back onto the hull
+    tt, tx, ty = (np.array([getattr(s, k) for s in truths]) for k in ("stamp", "x", "y"))
+    estimates = [
+        m
+        for f in frames
+        if (f.service, f.stream) == ("estimator", "state")
+        and isinstance(m := decode(f.payload), StateEstimate)
+        and tt[0] <= m.stamp <= tt[-1]
+    ]
+    et = np.array([e.stamp for e in estimates])
+    err = np.hypot(
+        np.array([e.x for e in estimates]) - np.interp(et, tt, tx),
+        np.array([e.y for e in estimates]) - np.interp(et, tt, ty),
+    )
+    assert err.max() <= 1.0 + last.v * gap, (err.max(), gap, last.v)
+    assert err[et > resumed.stamp + 3.0].max() < 1.0, err[et > resumed.stamp + 3.0].max()
+    assert _metrics(out)["collisions"] == 0
 
 
 def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
