@@ -46,11 +46,12 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from common.bus.certs import create_certs
-from common.config.scenario import load_scenario
+from common.config.scenario import Scenario, load_scenario
 from common.messages import VehicleStatus
 from common.runtime.distributed.acl import LAUNCHER
 from common.runtime.distributed.lockstep import run_lockstep
@@ -147,9 +148,7 @@ def bench_command(seed: int, runtime: str, out: Path) -> tuple[float, str]:
 
 def bench_floor() -> float:
     """ms per tick of the toy loop in lockstep (a warm fork server: the loop only)."""
-    tmp = Path(f"/tmp/tidelink-bench-floor-{os.getpid()}.toml")
-    tmp.write_text(FLOOR_TOML)
-    s, raw = load_scenario(tmp)
+    s, raw = _scenario_of(FLOOR_TOML)
     timer = _loop_timer()
     got = run_lockstep(s, raw)
     logging.getLogger("tidelink.lockstep").removeHandler(timer)
@@ -182,17 +181,26 @@ class LoopLatency:
     phases: tuple[tuple[str, dict[str, int]], ...] = ()
 
 
-def _loop_toml(seconds: float) -> Path:
-    tmp = Path("/tmp/tidelink-bench-loop.toml")
-    tmp.write_text(LOOP_TOML.format(seconds=seconds))
-    return tmp
+def _scenario_of(text: str, overrides: list[str] | None = None) -> tuple[Scenario, dict[str, Any]]:
+    """A scenario from TOML text, through a file that is removed again (nothing left in /tmp)."""
+    with tempfile.TemporaryDirectory(prefix="tidelink-bench-") as tmp:
+        path = Path(tmp) / "scenario.toml"
+        path.write_text(text)
+        return load_scenario(path, overrides)
+
+
+def _loop_scenario(
+    seconds: float, overrides: list[str] | None = None
+) -> tuple[Scenario, dict[str, Any]]:
+    """The test loop's scenario, `seconds` long."""
+    return _scenario_of(LOOP_TOML.format(seconds=seconds), overrides)
 
 
 def bench_realtime_latency(seconds: float, certs: Path | None = None) -> LoopLatency:
     """The test loop in realtime; with `certs` secured as `tidelink run --certs` secures it
     (mutual TLS, the router enforcing the access control generated from the dataflow)."""
     overrides = certs_overrides(None if certs is None else str(certs))
-    s, raw = load_scenario(_loop_toml(seconds), overrides)
+    s, raw = _loop_scenario(seconds, overrides)
     assert s.bus.secured == (certs is not None)
     t0 = time.perf_counter()
     r = run_realtime(s, raw)
@@ -223,7 +231,7 @@ def bench_realtime_latency(seconds: float, certs: Path | None = None) -> LoopLat
 def loop_certs(directory: Path, seconds: float) -> None:
     """The identities a secured run of the test loop presents: the clock (this process, the
     run's router) and every service of its dataflow."""
-    s, _ = load_scenario(_loop_toml(seconds))
+    s, _ = _loop_scenario(seconds)
     create_certs(directory, [LAUNCHER, *load_mission(s).dataflow.names])
 
 
@@ -426,7 +434,7 @@ def main() -> None:
     raw50, raw99 = raw_latency_us("2000")
     # the loop's own pace and path: one message per period (each process sleeps between,
     # and wakes for it), from a client through the router to a client
-    sensor = load_mission(load_scenario(_loop_toml(1.0))[0]).dataflow.service("sensor")
+    sensor = load_mission(_loop_scenario(1.0)[0]).dataflow.service("sensor")
     assert sensor.period_s is not None
     pace_ms = round(1e3 * sensor.period_s)  # one message per hop per sensor period
     paced50, paced99 = raw_latency_us(str(LOOP_PACED_SAMPLES), str(pace_ms), "router")

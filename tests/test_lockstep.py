@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import multiprocessing
+import tempfile
 import time
 from pathlib import Path
 
@@ -69,6 +70,30 @@ def test_a_dead_service_fails_lockstep_fast_and_names_it(
     # the message proves the exit itself was detected (a tick timeout says "timed out")
     with pytest.raises(ServiceFailed, match=r"service 'filter' exited with code 3"):
         run_lockstep(s, raw, tmp_path / "logs")
+
+
+def test_a_run_without_a_log_folder_leaves_nothing_behind_unless_it_fails(
+    testloop_toml: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    temp = tmp_path / "temp"  # where the run's temporary folders go
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    s, raw = load_scenario(testloop_toml, overrides=["run.max_time_s=3.0"])
+    assert run_lockstep(s, raw).reason == "max_time"
+    assert list(temp.glob("tidelink-*")) == []  # (multiprocessing keeps its pymp-*)
+    crashing = [
+        'run.mission_params.crash_service="filter"',
+        "run.mission_params.crash_at_s=1.0",
+    ]
+    s, raw = load_scenario(testloop_toml, overrides=crashing)
+    with pytest.raises(ServiceFailed, match=r"service 'filter' exited with code 3"):
+        run_lockstep(s, raw)
+    # the failure's evidence stays, and the log says where
+    (kept,) = temp.glob("tidelink-*")
+    assert (kept / "filter.log").is_file() and str(kept) in caplog.text
 
 
 def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> None:

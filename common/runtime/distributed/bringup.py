@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
+import shutil
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -106,9 +107,29 @@ def run_locally(
     service_module: str,
     make_driver: Callable[[RunContext], Driver],
 ) -> RunResult:
-    """A whole run in this process and its children (see local_run), driven by one driver."""
-    if log_dir is None:
-        log_dir = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
+    """A whole run in this process and its children (see local_run), driven by one driver.
+    Without a `log_dir` the services log to a temporary folder, removed after the run unless
+    the run raised (then kept, and named in the log: a sweep of library calls leaves no
+    litter, a failure its evidence)."""
+    if log_dir is not None:
+        return _run_locally(scenario, raw, log_dir, service_module, make_driver)
+    tmp = Path(tempfile.mkdtemp(prefix="tidelink-logs-"))
+    try:
+        result = _run_locally(scenario, raw, tmp, service_module, make_driver)
+    except BaseException:
+        log.error("the run failed; its services' logs are kept in %s", tmp)
+        raise
+    shutil.rmtree(tmp, ignore_errors=True)
+    return result
+
+
+def _run_locally(
+    scenario: Scenario,
+    raw: dict[str, Any],
+    log_dir: Path,
+    service_module: str,
+    make_driver: Callable[[RunContext], Driver],
+) -> RunResult:
     mission = load_mission(scenario)
     with local_run(scenario, raw, mission.dataflow, service_module, log_dir) as (side, sup):
         ctx = RunContext(scenario=scenario, mission=mission, keys=run_keys(scenario), sup=sup)
