@@ -371,8 +371,9 @@ def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_ano
         assert [x.split("/")[0] for x in sessions[1:]] == ["first", "second"]
         # both runs were shown from (about) their start, the second too: the bridge opened a
         # new session as soon as its router listened, without waiting out Zenoh's back-off
+        # (~6 s of wall clock, ~48 mission s at 8x; 10 s leaves a loaded machine 1.25 s)
         for name, stamps in zip(names, _run_segments(client), strict=True):
-            if not (stamps and min(stamps) < 4.0 and max(stamps) > 25.0):
+            if not (stamps and min(stamps) < 10.0 and max(stamps) > 25.0):
                 # in full (an assertion's message is cut short): what the client was told and
                 # sent, the frames it could not route, and the bridge's log
                 pytest.fail(
