@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -10,9 +13,11 @@ import pytest
 
 from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
+from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
 from services.planner.core import PlannerCore
-from services.planner.result import Pose2D
+from services.planner.replan import ReplanDecision, ReplanReason
+from services.planner.result import PlanResult, Pose2D
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
@@ -314,3 +319,52 @@ def test_the_clearance_margin_widens_with_the_measured_loop_delay() -> None:
         est = StateEstimate(stamp=0.1 * k, x=5.0, y=20.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
         fixed.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.1 * k + 1.0))
     assert fixed.clearance_margin_m == still.planner.clearance_margin_m
+
+
+class _Scripted(AtOnce[PlanResult]):
+    """Plans made at once, each passed through `edit` (the test's say on what they return)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.edit: Callable[[PlanResult], PlanResult] = lambda r: r
+
+    def start(self, work: Callable[[], PlanResult]) -> None:
+        super().start(lambda: self.edit(work()))
+
+
+@pytest.mark.parametrize("why", ["corridor", "infeasible"])
+def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
+    why: ReplanReason,
+) -> None:
+    """A "corridor" replan is a precaution: the path in force was still feasible. Its result
+    replaces that path only if it is an ordinary plan; a recovery (which may turn about into
+    the safety margin: fleet4 seed 8) or NO_PATH is declined and the path in force followed
+    on. A replan the path in force needs ("infeasible") takes whatever it gets."""
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    plans = _Scripted()
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core.deliver(_estimate(0.0))
+    (first,) = [e.msg for e in core.step(0.05) if e.stream == "path"]
+    assert isinstance(first, PathMsg) and first.status == "OK"
+    in_force = core.ref
+    asked = ReplanDecision(replan=True, reason=why, detail="a test's", conflict_s=math.inf)
+    core.policy.check = lambda *a, **k: asked  # type: ignore[method-assign]
+    recoveries = [
+        lambda r: dataclasses.replace(r, escape_m=6.3, reason="no curve leaves along the heading"),
+        lambda r: PlanResult(status="NO_PATH", reason="walled off"),
+    ]
+    for k, recovery in enumerate(recoveries):
+        plans.edit = recovery
+        t = 1.5 + 1.1 * k
+        core.deliver(_estimate(t - 0.05, x=5.0 + t))
+        out = core.step(t)
+        paths = [e.msg for e in out if e.stream == "path"]
+        assert [e for e in out if e.stream == "cmd"]  # commanding on, either way
+        if why == "corridor":
+            assert paths == [] and core.ref is in_force and core.declined == k + 1
+            # the interval before the next replan runs from this one (no re-asking each step)
+            assert core.policy.last_replan_t is not None and core.policy.last_replan_t >= t
+        else:
+            (made,) = paths
+            assert isinstance(made, PathMsg) and made.reason.startswith("infeasible")
+            assert core.declined == 0

@@ -110,6 +110,19 @@ def test_new_track_entering_the_corridor() -> None:
     assert not pol2.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(near.advanced(1.0),))).replan
 
 
+def test_a_declined_replan_counts_its_tracks_as_accounted_for_and_restarts_the_interval() -> None:
+    pol, _ = _planned()
+    near = moving_circle(id=9, x=50.0, y=5.0, vx=0.0, vy=(17.0 - 5.0) / 30.0, radius=1.0)
+    seen = Obstacles(moving=(near.advanced(1.0),))
+    assert pol.check(1.0, _on_path(1.0), GOAL, seen).reason == "corridor"
+    pol.on_kept(1.0, seen)  # the replan it asked for was declined (core.py): path kept
+    assert not pol.check(1.5, _on_path(1.5), GOAL, Obstacles(moving=(near.advanced(1.5),))).replan
+    assert not pol.check(3.0, _on_path(3.0), GOAL, Obstacles(moving=(near.advanced(3.0),))).replan
+    # ... and eq. (12)-(13) still judge it: should it head for the path, the path is infeasible
+    onto = dataclasses.replace(near.advanced(3.0), vy=(20.0 - near.advanced(3.0).y) / 27.0)
+    assert pol.check(3.0, _on_path(3.0), GOAL, Obstacles(moving=(onto,))).reason == "infeasible"
+
+
 def test_goal_change_triggers_and_replans_start_from_the_current_pose() -> None:
     pol, _ = _planned()
     new_goal = Pose2D(x=90.0, y=30.0, theta=0.0)

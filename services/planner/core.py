@@ -54,6 +54,9 @@ PLAN_LAGS_KEPT = 3
 PLAN_AHEAD_MAX_S = 10.0
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
 _ALONG_THE_PATH = ("infeasible", "corridor", "goal_changed")
+# replans asked while the path in force is still feasible (replan.py): their result replaces
+# it only if it is an ordinary plan (`_keeps_path_in_force`)
+PRECAUTIONS = ("corridor",)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -166,6 +169,7 @@ class PlannerCore:
         self.status_since = 0.0
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
+        self.declined = 0  # precautionary plans declined, the path in force kept
         self._judge = Plausibility.of_area(world.area)
         self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
@@ -330,6 +334,8 @@ class PlannerCore:
                 obstacles = self._obstacles(t_start)
             self._ask_plan(t, t_start, start, twist, obstacles, decision.reason)
         made = self.plans.result()
+        if made is not None and self._keeps_path_in_force(t, made):
+            made = None
         if made is not None:
             out.append(Emit(stream="path", msg=self._adopt(t, made)))
         elif not decision.replan and math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:
@@ -452,6 +458,31 @@ class PlannerCore:
             t0=t_plan,
         )
         self.plans.start(lambda: plan_flown(req, cfg, flight, plan_path))
+
+    def _keeps_path_in_force(self, t: float, result: PlanResult) -> bool:
+        """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still
+        feasible when it was asked) that can only turn about or leave by a recovery, which
+        may enter the safety margin, or found none: keep following the path in force, which
+        the replan check goes on judging (fleet4 seed 8: a corridor replan turned a vehicle
+        about on an arc 0.80 m from a static obstacle, inside rho0, where its path in force
+        kept clear). Returns whether it was declined."""
+        asked = self._asked
+        assert asked is not None
+        if asked.why not in PRECAUTIONS or self.ref is None:
+            return False
+        if result.ok and result.escape_m <= 0.0:
+            return False
+        self._asked = None
+        self._plan_lags.append(t - asked.asked_t)
+        self.policy.on_kept(asked.t_plan, asked.obstacles)
+        self.declined += 1
+        log.info(
+            "t=%.2f s: kept the path in force: the %s replan found %s",
+            t,
+            asked.why,
+            "no path" if not result.ok else f"only a recovery ({result.reason})",
+        )
+        return True
 
     def _adopt(self, t: float, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""

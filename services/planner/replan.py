@@ -105,6 +105,12 @@ class ReplanPolicy:
         gap, ids = _least_gaps(self._sample_gaps(obstacles, 0, 0.0), obstacles)
         self.known_ids = frozenset(ids[gap < self.cfg.corridor_halfwidth_m].tolist())
 
+    def on_kept(self, t: float, obstacles: Obstacles) -> None:
+        """A replan at time t was declined and the current path kept (core.py): the moving
+        obstacles it was asked with count as accounted for, and the interval runs from t."""
+        self.last_replan_t = t
+        self.known_ids |= {o.id for o in obstacles.moving}
+
     # --- the decision --------------------------------------------------------------------
     def check(self, t: float, pose: Pose2D, goal: Pose2D, obstacles: Obstacles) -> ReplanDecision:
         """Decide at time t; obstacles are given by their state at time t."""
