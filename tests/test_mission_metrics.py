@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 from common.config.scenario import Scenario, load_scenario
-from common.messages import ObstacleTracks, Track, TruthState
+from common.messages import LinkStats, ObstacleTracks, Track, TruthState
 from common.runtime.model.record import Record
 from common.world import World
 from services.cli.core_commands import mission_failure
 from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_metrics
 from services.mission.outcome import OUTCOMES, classify, describe, outcome_of
+from services.planner.core import PLANS_DECLINED
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 SPEED = 1.5  # m/s along y = 20
@@ -236,3 +237,16 @@ def test_tracking_metrics_are_named_and_null_when_nothing_was_measured() -> None
 def test_a_run_without_moving_obstacles_has_no_tracking_metrics() -> None:
     m = _metrics(20.0)  # one static circle, no moving obstacle
     assert not any(k.startswith("tracking") for k in m)
+
+
+def test_plans_declined_come_from_the_planners_last_statistics() -> None:
+    # a declined plan publishes no path (services/planner/core.py): the planner counts them
+    s = _scenario(24.0)
+    rec = _record(95.0, None, None)
+    assert mission_metrics(rec, s, World(s.world))["plans_declined"] == 0  # no statistics
+    for seq, n in ((1, 1), (2, 3)):
+        stats = LinkStats(
+            stamp=float(seq), source="planner", seq=seq, links=(), counters={PLANS_DECLINED: n}
+        )
+        rec.add("planner", "stats", stats)
+    assert mission_metrics(rec, s, World(s.world))["plans_declined"] == 3

@@ -15,7 +15,7 @@ from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
 from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
-from services.planner.core import PlannerCore
+from services.planner.core import PLANS_DECLINED, PlannerCore
 from services.planner.replan import ReplanDecision, ReplanReason
 from services.planner.result import PlanResult, Pose2D
 
@@ -362,6 +362,7 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
         assert [e for e in out if e.stream == "cmd"]  # commanding on, either way
         if why == "corridor":
             assert paths == [] and core.ref is in_force and core.declined == k + 1
+            assert core.stats_counters[PLANS_DECLINED] == k + 1  # the metric's source
             # the interval before the next replan runs from this one (no re-asking each step)
             assert core.policy.last_replan_t is not None and core.policy.last_replan_t >= t
         else:

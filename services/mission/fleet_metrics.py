@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 
 from common.config.scenario import Scenario
-from common.messages import LinkStats, TruthState
+from common.messages import TruthState
 from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record
 from common.world import World
-from services.mission.metrics import duration_s, mission_metrics
+from services.mission.metrics import duration_s, last_counters, mission_metrics
 from services.mission.outcome import classify
 
 
@@ -82,10 +82,7 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
 def _intent_tallies(record: Record, vid: str) -> tuple[dict[str, int], dict[str, int]]:
     """Vehicle vid's planner's steps by each other vehicle's intent and by its track, from the
     planner's last statistics (services/planner/intent.py: FleetIntents.counters)."""
-    stats = [
-        m for m in record.stream(qualified(vid, "planner"), "stats") if isinstance(m, LinkStats)
-    ]
-    counters = stats[-1].counters if stats else {}
+    counters = last_counters(record, qualified(vid, "planner"))
     by_intent = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("intent.")}
     by_track = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("track.")}
     return by_intent, by_track

@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
 from common.messages import (
+    LinkStats,
     ObstacleTracks,
     PathMsg,
     StateEstimate,
@@ -24,6 +25,7 @@ from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.reentry import reentries
+from services.planner.core import PLANS_DECLINED
 from services.planner.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -53,6 +55,13 @@ def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
 
 def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
     return [m for m in record.stream(service, stream) if isinstance(m, cls)]
+
+
+def last_counters(record: Record, service: str) -> dict[str, int]:
+    """The counters of a service's last statistics (a restarted process counts afresh);
+    none without statistics."""
+    stats: list[LinkStats] = _typed(record, service, "stats", LinkStats)
+    return dict(stats[-1].counters) if stats else {}
 
 
 def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = "") -> dict[str, Any]:
@@ -203,6 +212,9 @@ def _path_metrics(
     out: dict[str, Any] = {
         "replans": len(paths),
         "no_path_events": sum(1 for p in paths if p.status == "NO_PATH"),
+        # precautionary replans whose result was declined, the path in force kept (no path
+        # message: the planner counts them, services/planner/core.py)
+        "plans_declined": last_counters(record, planner).get(PLANS_DECLINED, 0),
         "control_actions": len(cmds),
     }
     if not ok:

@@ -57,6 +57,7 @@ _ALONG_THE_PATH = ("infeasible", "corridor", "goal_changed")
 # replans asked while the path in force is still feasible (replan.py): their result replaces
 # it only if it is an ordinary plan (`_keeps_path_in_force`)
 PRECAUTIONS = ("corridor",)
+PLANS_DECLINED = "plans_declined"  # its statistics counter of them (the metric of that name)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -262,8 +263,10 @@ class PlannerCore:
 
     @property
     def stats_counters(self) -> dict[str, int]:
-        """In a fleet, this planner's steps by each other vehicle's intent or track."""
-        return self.intents.counters if self.intents is not None else {}
+        """The precautionary plans this planner declined (PLANS_DECLINED), and, in a fleet,
+        its steps by each other vehicle's intent or track."""
+        fleet = self.intents.counters if self.intents is not None else {}
+        return {PLANS_DECLINED: self.declined, **fleet}
 
     def step(self, t: float) -> list[Emit]:
         if self.intents is not None and self.state is not None:
