@@ -336,12 +336,18 @@ class PlannerCore:
             if t_start != t_plan:
                 obstacles = self._obstacles(t_start)
             self._ask_plan(t, t_start, start, twist, obstacles, decision.reason)
-        made = self.plans.result()
-        if made is not None and self._keeps_path_in_force(t, made):
-            made = None
+        made, adopted = self.plans.result(), False
         if made is not None:
-            out.append(Emit(stream="path", msg=self._adopt(t, made)))
-        elif not decision.replan and math.isfinite(gap) and gap > 1.5 * self.cfg.period_s:
+            asked = self._plan_done(t)
+            if not self._keeps_path_in_force(t, asked, made):
+                out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
+                adopted = True
+        if (
+            not adopted
+            and not decision.replan
+            and math.isfinite(gap)
+            and gap > 1.5 * self.cfg.period_s
+        ):
             # steps were skipped (the estimate was stale): the vehicle ran on its buffer
             # meanwhile and the plan still holds, but the controller's own state (backstepping's
             # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
@@ -462,21 +468,35 @@ class PlannerCore:
         )
         self.plans.start(lambda: plan_flown(req, cfg, flight, plan_path))
 
-    def _keeps_path_in_force(self, t: float, result: PlanResult) -> bool:
+    def _plan_done(self, t: float) -> _Asked:
+        """A plan is made (step t): what it was asked for, its lag counted (and told, if
+        slow)."""
+        asked, self._asked = self._asked, None
+        assert asked is not None
+        self._plan_lags.append(t - asked.asked_t)  # 0 in virtual time: made within the step
+        if t - asked.asked_t > SLOW_PLAN_S:  # realtime only: in virtual time a plan is at once
+            log.info(
+                "t=%.2f s: a plan asked at t=%.2f s (%s, for t=%.2f s) took until now: the "
+                "path in force was followed meanwhile, unchecked (short of its conflict, if "
+                "infeasible)",
+                t,
+                asked.asked_t,
+                asked.why,
+                asked.t_plan,
+            )
+        return asked
+
+    def _keeps_path_in_force(self, t: float, asked: _Asked, result: PlanResult) -> bool:
         """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still
         feasible when it was asked) that can only turn about or leave by a recovery, which
         may enter the safety margin, or found none: keep following the path in force, which
         the replan check goes on judging (fleet4 seed 8: a corridor replan turned a vehicle
         about on an arc 0.80 m from a static obstacle, inside rho0, where its path in force
         kept clear). Returns whether it was declined."""
-        asked = self._asked
-        assert asked is not None
         if asked.why not in PRECAUTIONS or self.ref is None:
             return False
         if result.ok and result.escape_m <= 0.0:
             return False
-        self._asked = None
-        self._plan_lags.append(t - asked.asked_t)
         self.policy.on_kept(asked.t_plan, asked.obstacles)
         self.declined += 1
         log.info(
@@ -487,22 +507,9 @@ class PlannerCore:
         )
         return True
 
-    def _adopt(self, t: float, result: PlanResult) -> PathMsg:
+    def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
-        asked, self._asked = self._asked, None
-        assert asked is not None
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
-        self._plan_lags.append(t - asked.asked_t)  # 0 in virtual time: made within the step
-        if t - asked.asked_t > SLOW_PLAN_S:  # realtime only: in virtual time a plan is at once
-            log.info(
-                "t=%.2f s: a plan asked at t=%.2f s (%s, for t=%.2f s) took until now: the "
-                "path in force was followed meanwhile, unchecked (short of its conflict, if "
-                "infeasible)",
-                t,
-                asked.asked_t,
-                why,
-                t_plan,
-            )
         self.policy.on_planned(t_plan, result, self.goal, obstacles)
         self.last_result = result
         self.path_id += 1
