@@ -96,11 +96,9 @@ def last_stats(record: Record) -> Iterator[tuple[str, LinkStats]]:
     from common.messages import LinkStats
 
     for service, stream in record.keys():
-        if stream != "stats":
-            continue
-        msgs = [m for m in record.stream(service, stream) if isinstance(m, LinkStats)]
-        if msgs:
-            yield service, msgs[-1]
+        last = record.last_of(service, stream, LinkStats) if stream == "stats" else None
+        if last is not None:
+            yield service, last
 
 
 def loop_times(record: Record) -> dict[str, dict[str, int]]:

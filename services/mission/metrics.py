@@ -60,8 +60,8 @@ def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
 def last_counters(record: Record, service: str) -> dict[str, int]:
     """The counters of a service's last statistics (a restarted process counts afresh);
     none without statistics."""
-    stats: list[LinkStats] = _typed(record, service, "stats", LinkStats)
-    return dict(stats[-1].counters) if stats else {}
+    last = record.last_of(service, "stats", LinkStats)
+    return dict(last.counters) if last is not None else {}
 
 
 def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = "") -> dict[str, Any]:

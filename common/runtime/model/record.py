@@ -5,12 +5,14 @@ from __future__ import annotations
 import hashlib
 import logging
 from collections.abc import Iterable
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 
 from common.messages import Message, TruthState, replace
 from common.runtime.model.seqwindow import DEFAULT_MAX_GAP, SeqWindow
+
+M = TypeVar("M", bound=Message)
 
 log = logging.getLogger("tidelink.record")
 
@@ -81,6 +83,13 @@ class Record:
     def last(self, service: str, stream: str) -> Message | None:
         """The message with the highest seq on a stream so far (None if none)."""
         return self._last.get((service, stream))
+
+    def last_of(self, service: str, stream: str, kind: type[M]) -> M | None:
+        """The message of type `kind` with the highest seq on a stream (None if none)."""
+        for msg in reversed(self.stream(service, stream)):
+            if isinstance(msg, kind):
+                return msg
+        return None
 
     def message(self, service: str, stream: str, seq: int) -> Message | None:
         """The message recorded with `seq` on a stream (None if none)."""
