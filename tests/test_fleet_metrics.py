@@ -15,7 +15,8 @@ from common.messages import TruthState
 from common.runtime.model.record import Record
 from common.world.check import check_scenario
 from services.cli.core_commands import mission_failure
-from services.mission.fleet_metrics import fleet_metrics
+from services.launcher.plot import run_figure
+from services.mission.fleet_metrics import closest_approach, fleet_metrics
 from services.mission.outcome import describe
 
 SPEED, DT = 1.5, 0.05  # m/s along x; the vehicles' truth period (s)
@@ -109,3 +110,42 @@ def test_a_vehicles_breach_is_told_with_its_own_rho0_not_the_fleets_largest() ->
         "mission failed: goal reached, but auv1 came 0.30 m inside the safety distance "
         f"rho0 = 1.0 m for {one['time_below_rho0_s']:.1f} s (min clearance 0.70 m)"
     )
+
+
+def test_the_closest_approach_is_when_and_where_the_two_hulls_pass() -> None:
+    # auv1 east from x = 10, auv2 west from x = 90, 2.0 m + HULLS apart: they pass at x = 50
+    # after 40 m each at SPEED, t = 26.67 s (the nearest truth stamp of auv1's, DT apart)
+    s = _fleet(2.0 + HULLS, (1.0, 1.0))
+    rec = _record(s)
+    near = closest_approach(rec, s)
+    assert near is not None and (near.a, near.b) == ("auv1", "auv2")
+    assert near.gap_m == pytest.approx(2.0, abs=1e-3)  # the nearest stamps pass 5 cm apart in x
+    assert near.t_s == pytest.approx(40.0 / SPEED, abs=DT)
+    assert near.a_xy[0] == pytest.approx(50.0, abs=SPEED * DT)
+    assert near.b_xy[0] == pytest.approx(near.a_xy[0], abs=SPEED * DT)  # abreast
+    assert near.b_xy[1] - near.a_xy[1] == pytest.approx(2.0 + HULLS)
+    m = fleet_metrics(rec, s)
+    assert m["min_separation_t_s"] == near.t_s and m["min_separation_m"] == near.gap_m
+
+
+def test_a_fleet_plot_dots_every_track_in_time_and_marks_the_closest_approach() -> None:
+    s = _fleet(2.0 + HULLS, (1.0, 1.0))
+    rec = _record(s)
+    fig = run_figure(rec, s)
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.texts]
+    assert labels == [f"auv1-auv2: 2.00 m hull to hull, t = {40.0 / SPEED:.1f} s"]
+    # 80 m at SPEED: 53.3 s, so dots at 10 ... 50 s on each of the two tracks
+    dots = [ln for ln in ax.lines if ln.get_marker() == "." and len(ln.get_xdata()) > 0]
+    assert [len(ln.get_xdata()) for ln in dots] == [5, 5]
+    assert sorted(dots[0].get_xdata()) == pytest.approx([10 + SPEED * t for t in range(10, 60, 10)])
+
+
+def test_one_vehicle_alone_has_no_closest_approach() -> None:
+    s = _fleet(2.0 + HULLS, (1.0, 1.0))
+    rec = Record()
+    for key in ("auv1.vehicle",):
+        for msg in _record(s).stream(key, "truth"):
+            rec.add(key, "truth", msg)
+    assert closest_approach(rec, s) is None
+    assert fleet_metrics(rec, s)["min_separation_t_s"] is None

@@ -1,10 +1,11 @@
 """A PNG plot of a run: true trajectory, estimate, planned NURBS paths, obstacles and their
-tracks, start and goal (matplotlib, Agg canvas: no display needed)."""
+tracks, start and goal; a fleet's tracks dotted in time, with its closest approach marked
+(matplotlib, Agg canvas: no display needed)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,9 +14,14 @@ from common.messages import Message, ObstacleTracks, PathMsg, StateEstimate, Tru
 from common.runtime.model.dataflow import vehicle_of
 from common.runtime.model.record import Record
 from common.world import World
+from services.mission.fleet_metrics import closest_approach, fleet_truths
 from services.mission.metrics import path_points
 
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not with this module
+    from matplotlib.figure import Figure
+
 PATH_SAMPLES = 400  # points per planned path: smooth at this figure size
+TIME_MARK_S = 10.0  # a fleet's tracks are dotted this often (mission s)
 
 
 # one colour per vehicle of a fleet (matplotlib's qualitative palette)
@@ -39,6 +45,14 @@ def _of_type(record: Record, cls: type[Message], vehicle: str | None = None) -> 
 
 def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "") -> Path:
     """Draw the run into `path` (PNG) and return it."""
+    fig = run_figure(record, scenario, title=title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path
+
+
+def run_figure(record: Record, scenario: Scenario, *, title: str = "") -> Figure:
+    """The run's figure (plot_run's module docstring), not yet saved."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle, Polygon, Rectangle
@@ -94,6 +108,7 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
     if scenario.members:
         for k, (vid, member) in enumerate(scenario.members):
             _draw_vehicle(ax, record, member, vid, FLEET_COLOURS[k % len(FLEET_COLOURS)])
+        _draw_fleet_timing(ax, record, scenario)
     else:
         _draw_vehicle(ax, record, scenario, "", "")
     ax.set_aspect("equal")
@@ -108,9 +123,7 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
     )
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=8, frameon=False)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path
+    return fig
 
 
 def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour: str) -> None:
@@ -162,4 +175,37 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
     ax.plot(w.goal.x_m, w.goal.y_m, "*", color="tab:red", ms=13, label="goal")
     ax.add_patch(
         Circle((w.goal.x_m, w.goal.y_m), w.goal_tolerance_m, fc="none", ec="tab:red", lw=0.8)
+    )
+
+
+def _draw_fleet_timing(ax: Any, record: Record, scenario: Scenario) -> None:
+    """When the vehicles were where: a dot on every truth track each TIME_MARK_S (dots of the
+    same rank are the same instant: crossing tracks are a conflict only if their dots meet),
+    and the closest approach of two hulls, joined and labelled with its gap and time."""
+    truths = fleet_truths(record, scenario)
+    for k, (vid, _) in enumerate(scenario.members):
+        track = truths.get(vid)
+        if track is None or len(track) < 2:
+            continue
+        marks = np.arange(TIME_MARK_S, track[-1, 0], TIME_MARK_S)
+        ax.plot(
+            np.interp(marks, track[:, 0], track[:, 1]),
+            np.interp(marks, track[:, 0], track[:, 2]),
+            ".",
+            color=FLEET_COLOURS[k % len(FLEET_COLOURS)],
+            ms=5,
+        )
+    ax.plot([], [], ".", color="0.3", ms=5, label=f"where each was every {TIME_MARK_S:g} s")
+    near = closest_approach(record, scenario)
+    if near is None:
+        return
+    (ax_, ay_), (bx_, by_) = near.a_xy, near.b_xy
+    ax.plot([ax_, bx_], [ay_, by_], "k--", lw=1.0, label="closest approach")
+    ax.annotate(
+        f"{near.a}-{near.b}: {near.gap_m:.2f} m hull to hull, t = {near.t_s:.1f} s",
+        xy=((ax_ + bx_) / 2, (ay_ + by_) / 2),
+        xytext=(8, 8),
+        textcoords="offset points",
+        fontsize=8,
+        bbox={"boxstyle": "round", "fc": "white", "ec": "0.6", "alpha": 0.85},
     )

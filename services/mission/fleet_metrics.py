@@ -7,7 +7,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,19 +26,8 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     tallies = {vid: _intent_tallies(record, vid) for vid in per}
     for vid, (by_intent, by_track) in tallies.items():
         per[vid].update(_intent_metrics(by_intent, by_track))
-    truths = {
-        v.id: np.array(
-            [
-                (q.stamp, q.x, q.y)
-                for q in record.stream(qualified(v.id, "vehicle"), "truth")
-                if isinstance(q, TruthState)
-            ]
-        ).reshape(-1, 3)
-        for v in s.vehicles
-    }
-    radius = {v.id: v.vehicle.radius_m for v in s.vehicles}
     rho0 = {v.id: v.planner.rho0_m for v in s.vehicles}
-    sep = _separation(truths, radius, rho0)
+    sep = _separation(fleet_truths(record, s), _radii(s), rho0)
     reached = all(m.get("reached_goal", False) for m in per.values())
     arrivals = [m["travel_time_s"] for m in per.values() if m.get("reached_goal")]
     out: dict[str, Any] = {
@@ -54,6 +43,7 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
         "travel_time_s": max(arrivals, default=0.0),
         "min_separation_m": sep["min_separation_m"],
         "min_separation_pair": sep["pair"],
+        "min_separation_t_s": sep["closest"].t_s if sep["closest"] is not None else None,
         "vehicle_collisions": sep["collisions"],
         "collisions": sum(int(m.get("collisions", 0)) for m in per.values()),
         "min_clearance_m": min(
@@ -77,6 +67,44 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     out["success"] = out["outcome"] == "success"
     out["vehicles"] = per
     return out
+
+
+class Approach(NamedTuple):
+    """Where two hulls came closest: the pair, when, how far apart (hull to hull, m) and
+    both centres then."""
+
+    a: str
+    b: str
+    t_s: float
+    gap_m: float
+    a_xy: tuple[float, float]
+    b_xy: tuple[float, float]
+
+
+def fleet_truths(record: Record, s: Scenario) -> dict[str, np.ndarray]:
+    """Each vehicle's true track, (n, 3) rows (t, x, y) from its vehicle's truth stream."""
+    return {
+        v.id: np.array(
+            [
+                (q.stamp, q.x, q.y)
+                for q in record.stream(qualified(v.id, "vehicle"), "truth")
+                if isinstance(q, TruthState)
+            ]
+        ).reshape(-1, 3)
+        for v in s.vehicles
+    }
+
+
+def _radii(s: Scenario) -> dict[str, float]:
+    return {v.id: v.vehicle.radius_m for v in s.vehicles}
+
+
+def closest_approach(record: Record, s: Scenario) -> Approach | None:
+    """The two hulls of a fleet run that came closest, and where (None: fewer than two
+    vehicles with a track); the same comparison as the min_separation_m metric."""
+    rho0 = {v.id: v.planner.rho0_m for v in s.vehicles}
+    closest: Approach | None = _separation(fleet_truths(record, s), _radii(s), rho0)["closest"]
+    return closest
 
 
 def _intent_tallies(record: Record, vid: str) -> tuple[dict[str, int], dict[str, int]]:
@@ -136,11 +164,13 @@ def _deepest_breach(
 def _separation(
     truths: dict[str, np.ndarray], radius: dict[str, float], rho0: dict[str, float]
 ) -> dict[str, Any]:
-    """Smallest hull-to-hull distance between any two vehicles, how often two came into
-    contact, and the pair that came deepest inside the larger of their two rho0 (how deep,
-    that rho0, for how long); truths[id]: (n, 3) rows (t, x, y); the other's track is
-    interpolated to each stamp of one's, over the time both were published."""
+    """Smallest hull-to-hull distance between any two vehicles (and where: `closest`), how
+    often two came into contact, and the pair that came deepest inside the larger of their
+    two rho0 (how deep, that rho0, for how long); truths[id]: (n, 3) rows (t, x, y); the
+    other's track is interpolated to each stamp of one's, over the time both were
+    published."""
     best, pair, collisions = math.inf, "", 0
+    closest: Approach | None = None
     breach: dict[str, Any] = {
         "breach_m": 0.0,
         "breach_rho0_m": 0.0,
@@ -159,9 +189,12 @@ def _separation(
         gap = np.hypot(ta[both, 1] - bx, ta[both, 2] - by) - (radius[a] + radius[b])
         touching = gap < 0.0
         collisions += int(np.count_nonzero(touching[1:] & ~touching[:-1]) + int(touching[0]))
-        least = float(gap.min())
+        i = int(gap.argmin())
+        least = float(gap[i])
         if least < best:
             best, pair = least, f"{a}-{b}"
+            a_xy = (float(ta[both, 1][i]), float(ta[both, 2][i]))
+            closest = Approach(a, b, float(t[i]), least, a_xy, (float(bx[i]), float(by[i])))
         keep = max(rho0[a], rho0[b])
         if keep - least > breach["breach_m"]:
             breach.update(
@@ -170,4 +203,10 @@ def _separation(
                 breach_s=duration_s(t, gap < keep),
                 breach_pair=f"{a}-{b}",
             )
-    return {"min_separation_m": best, "pair": pair, "collisions": collisions, **breach}
+    return {
+        "min_separation_m": best,
+        "pair": pair,
+        "closest": closest,
+        "collisions": collisions,
+        **breach,
+    }
