@@ -1,6 +1,7 @@
 """A fleet's safety metrics on synthetic truth records: two vehicles passing each other at a
 chosen lateral offset, each with its own rho0, one maybe passing a circle; the deepest breach
-is said in its own terms (the vehicle's rho0, or the larger of a pair's)."""
+is said in its own terms (the vehicle's rho0, or the larger of a pair's), and the run plot
+marks when and where (the closest approach, each hull's nearest obstacle)."""
 
 from __future__ import annotations
 
@@ -149,3 +150,38 @@ def test_one_vehicle_alone_has_no_closest_approach() -> None:
             rec.add(key, "truth", msg)
     assert closest_approach(rec, s) is None
     assert fleet_metrics(rec, s)["min_separation_t_s"] is None
+
+
+def test_the_plot_says_where_a_vehicle_came_inside_its_rho0_of_an_obstacle() -> None:
+    # the circle 3.5 m south of auv1's line at x = 50 (as above): auv1 0.70 m from it there,
+    # 0.30 m inside its rho0, when it has run 40 m; auv2, 15 m north, keeps clear: no label
+    s = _fleet(15.0, (1.0, 1.5), [{"id": 1, "x_m": 50.0, "y_m": 16.5, "radius_m": 2.0}])
+    rec = _record(s)
+    one = fleet_metrics(rec, s)["vehicles"]["auv1"]
+    assert one["min_clearance_t_s"] == pytest.approx(40.0 / SPEED, abs=DT)
+    ax = run_figure(rec, s).axes[0]
+    said = [t.get_text() for t in ax.texts if "obstacle" in t.get_text()]
+    assert said == [
+        f"auv1: 0.70 m from an obstacle, t = {one['min_clearance_t_s']:.1f} s: 0.30 m inside rho0"
+    ]
+    crosses = [ln for ln in ax.lines if ln.get_marker() == "X" and len(ln.get_xdata()) > 0]
+    assert len(crosses) == 2  # one per vehicle, auv1's rimmed red
+    assert [ln.get_markeredgecolor() for ln in crosses].count("tab:red") == 1
+
+
+def test_a_single_vehicles_plot_always_says_how_near_it_came() -> None:
+    s = scenario_from_raw(
+        read_scenario_toml(REPO / "configs" / "default.toml"), "one.toml", check=check_scenario
+    )
+    rec = Record()
+    for i in range(41):  # x = 5 .. 13 m on y = 20: the circle at (20, 20), radius 4, ahead
+        rec.add("vehicle", "truth", TruthState(
+            stamp=i * DT * 2, source="vehicle", seq=i + 1, x=5.0 + 0.2 * i, y=20.0, theta=0.0,
+            v=2.0, w=0.0,
+        ))  # fmt: skip
+    gap = 20.0 - 4.0 - 13.0 - s.vehicle.radius_m  # the last state's hull to the circle
+    ax = run_figure(rec, s).axes[0]
+    assert [t.get_text() for t in ax.texts] == [
+        f"{gap:.2f} m from an obstacle, t = {40 * DT * 2:.1f} s"
+        + (f": {s.planner.rho0_m - gap:.2f} m inside rho0" if gap < s.planner.rho0_m else "")
+    ]

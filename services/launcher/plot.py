@@ -144,6 +144,7 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
             )
         ax.plot(w.start.x_m, w.start.y_m, "o", color=colour, ms=6)
         ax.plot(w.goal.x_m, w.goal.y_m, "*", color=colour, ms=12)
+        _mark_least_clearance(ax, truth, scenario, colour, vid)
         return
     for i, p in enumerate(paths):
         xy = path_points(p, PATH_SAMPLES)
@@ -176,12 +177,62 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
     ax.add_patch(
         Circle((w.goal.x_m, w.goal.y_m), w.goal_tolerance_m, fc="none", ec="tab:red", lw=0.8)
     )
+    _mark_least_clearance(ax, truth, scenario, "tab:blue", "")
+
+
+def _mark_least_clearance(
+    ax: Any, truth: list[TruthState], scenario: Scenario, colour: str, vid: str
+) -> None:
+    """A cross where the hull came nearest an obstacle (eq. (12), as min_clearance_m), rimmed
+    in red when inside rho0; labelled with the clearance and the time (a fleet vehicle's,
+    `vid`, only when inside rho0: the fleet's legend explains its crosses once)."""
+    if not truth:
+        return
+    t, x, y = (np.array([getattr(q, k) for q in truth]) for k in ("stamp", "x", "y"))
+    clear = World(scenario.world).clearance_many(x, y, scenario.vehicle.radius_m, t)
+    i = int(np.argmin(clear))
+    if not np.isfinite(clear[i]):
+        return  # nothing in the water to come near
+    inside = bool(clear[i] < scenario.planner.rho0_m)
+    label = None if vid else "nearest an obstacle" + (" (inside rho0)" if inside else "")
+    ax.plot(
+        x[i], y[i], "X", color=colour, mec="tab:red" if inside else "white", mew=1.2, ms=9,
+        label=label,
+    )  # fmt: skip
+    if vid and not inside:
+        return
+    _label(
+        ax,
+        scenario,
+        (f"{vid}: " if vid else "")
+        + f"{clear[i]:.2f} m from an obstacle, t = {t[i]:.1f} s"
+        + (f": {scenario.planner.rho0_m - clear[i]:.2f} m inside rho0" if inside else ""),
+        (float(x[i]), float(y[i])),
+    )
+
+
+def _label(ax: Any, scenario: Scenario, text: str, xy: tuple[float, float]) -> None:
+    """A boxed note by the point xy, on the side of it towards the area's centre (so that it
+    stays inside the drawn area, which the figure keeps its size for)."""
+    a = scenario.world.area
+    right = xy[0] > (a.x_min_m + a.x_max_m) / 2
+    top = xy[1] > (a.y_min_m + a.y_max_m) / 2
+    ax.annotate(
+        text,
+        xy=xy,
+        xytext=(-8 if right else 8, -14 if top else 10),
+        textcoords="offset points",
+        ha="right" if right else "left",
+        fontsize=8,
+        bbox={"boxstyle": "round", "fc": "white", "ec": "0.6", "alpha": 0.85},
+    )
 
 
 def _draw_fleet_timing(ax: Any, record: Record, scenario: Scenario) -> None:
     """When the vehicles were where: a dot on every truth track each TIME_MARK_S (dots of the
     same rank are the same instant: crossing tracks are a conflict only if their dots meet),
-    and the closest approach of two hulls, joined and labelled with its gap and time."""
+    and the closest approach of two hulls, joined and labelled with its gap and time; the
+    legend entry of every vehicle's cross nearest an obstacle."""
     truths = fleet_truths(record, scenario)
     for k, (vid, _) in enumerate(scenario.members):
         track = truths.get(vid)
@@ -196,16 +247,18 @@ def _draw_fleet_timing(ax: Any, record: Record, scenario: Scenario) -> None:
             ms=5,
         )
     ax.plot([], [], ".", color="0.3", ms=5, label=f"where each was every {TIME_MARK_S:g} s")
+    ax.plot(
+        [], [], "X", color="0.3", mec="tab:red", mew=1.2, ms=9,
+        label="nearest an obstacle (red rim: inside rho0)",
+    )  # fmt: skip
     near = closest_approach(record, scenario)
     if near is None:
         return
     (ax_, ay_), (bx_, by_) = near.a_xy, near.b_xy
     ax.plot([ax_, bx_], [ay_, by_], "k--", lw=1.0, label="closest approach")
-    ax.annotate(
+    _label(
+        ax,
+        scenario,
         f"{near.a}-{near.b}: {near.gap_m:.2f} m hull to hull, t = {near.t_s:.1f} s",
-        xy=((ax_ + bx_) / 2, (ay_ + by_) / 2),
-        xytext=(8, 8),
-        textcoords="offset points",
-        fontsize=8,
-        bbox={"boxstyle": "round", "fc": "white", "ec": "0.6", "alpha": 0.85},
+        ((ax_ + bx_) / 2, (ay_ + by_) / 2),
     )

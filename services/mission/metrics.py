@@ -144,6 +144,7 @@ def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> dict[str
     below = clear < rho0_m
     out: dict[str, Any] = {
         "min_clearance_m": float(clear.min()),
+        "min_clearance_t_s": float(t[int(np.argmin(clear))]),  # where to look in a recording
         "collisions": int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0])),
         "time_in_contact_s": duration_s(t, collided),
         "rho0_m": rho0_m,
