@@ -135,7 +135,7 @@ def bench_command(seed: int, runtime: str, out: Path) -> tuple[float, str]:
     exe = Path(sys.executable).parent / "tidelink"
     t0 = time.perf_counter()
     res = subprocess.run(
-        [str(exe), "run", str(ROOT / "configs" / "default.toml"), "--runtime", runtime]
+        [str(exe), "run", str(ROOT / "configs" / "default.toml"), "--runtime", runtime, "--no-plot"]
         + ["--seed", str(seed), "--out", str(out / f"{runtime}-{seed}"), "--json"],
         capture_output=True,
         text=True,

@@ -63,6 +63,8 @@ def test_run_exits_3_on_contact_says_when_and_writes_the_metrics(tmp_path: Path)
     assert float(said[1]) == round(m["first_contact_t_s"], 2)
     assert float(said[2]) == float(f"{m['min_clearance_m']:.3g}")
     assert json.loads((out / "metrics.json").read_text()) == m
+    # a run that failed is drawn too (where it hit is on the plot)
+    assert (out / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_run_exits_3_when_the_goal_is_not_reached(tmp_path: Path) -> None:
@@ -78,6 +80,7 @@ def test_run_exits_3_when_the_goal_is_not_reached(tmp_path: Path) -> None:
     m = json.loads((out / "metrics.json").read_text())
     assert m["success"] is False and m["collisions"] == 0
     assert float(said[1]) == round(m["final_distance_to_goal_m"], 1)
+    assert f"plot: {out / 'run.png'}" in r.stdout and (out / "run.png").is_file()
 
 
 # what issue 15 added to metrics.json: executed curvature, the safety distance, the outcome,
@@ -96,8 +99,9 @@ NEW_KEYS = {
 
 def test_a_default_run_has_every_metric_and_its_summary_says_the_outcome(tmp_path: Path) -> None:
     out = tmp_path / "default"
-    r = _cli("run", str(DEFAULT), "--runtime", "inproc", "--out", str(out))
+    r = _cli("run", str(DEFAULT), "--runtime", "inproc", "--out", str(out), "--no-plot")
     assert r.returncode == 0, r.stderr
+    assert not (out / "run.png").exists() and "plot:" not in r.stdout
     m = json.loads((out / "metrics.json").read_text())
     assert NEW_KEYS <= m.keys(), NEW_KEYS - m.keys()
     assert m["outcome"] == "success" and m["success"] is True and m["rho0_breach_m"] == 0.0

@@ -125,6 +125,11 @@ def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
     p.add_argument("--seed", type=int, default=None, help="override run.seed")
 
 
+def no_plot_arg(p: argparse.ArgumentParser) -> None:
+    """--no-plot: a command that runs a mission draws it into DIR/run.png unless told not to."""
+    p.add_argument("--no-plot", action="store_true", help="do not write DIR/run.png")
+
+
 def budget_arg(p: argparse.ArgumentParser) -> None:
     """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
     p.add_argument(
@@ -185,10 +190,17 @@ def cmd_run(a: argparse.Namespace) -> int:
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
     metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    plot = None
+    if not a.no_plot:
+        from services.launcher.plot import plot_result
+
+        plot = plot_result(result, scenario, out / "run.png")
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:
         print_metrics(metrics, out)
+        if plot is not None:
+            print(f"plot: {plot}")
     return report_outcome(metrics, json_output=a.json)
 
 
@@ -333,7 +345,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     budget_arg(c)
     c.set_defaults(func=cmd_check)
 
-    r = sub.add_parser("run", help="run one mission and write DIR/metrics.json")
+    r = sub.add_parser("run", help="run one mission and write DIR/metrics.json and DIR/run.png")
     scenario_args(r)
     r.add_argument(
         "--runtime",
@@ -344,6 +356,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    no_plot_arg(r)
     budget_arg(r)
     certs_args(r, identity=None)
     insecure_arg(r)

@@ -16,6 +16,7 @@ from services.cli.core_commands import (
     certs_overrides,
     check_exposure,
     insecure_arg,
+    no_plot_arg,
     print_metrics,
     report_outcome,
     scenario_args,
@@ -223,7 +224,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=0.5,
         help="seconds before the first restart, doubled for each further one",
     )
-    la.add_argument("--no-plot", action="store_true", help="do not write run.png")
+    no_plot_arg(la)
     la.add_argument(
         "--record",
         action="store_true",

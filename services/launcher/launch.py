@@ -34,7 +34,7 @@ from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
 from common.runtime.run import write_outputs
-from services.launcher.plot import plot_run
+from services.launcher.plot import plot_result
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
 from services.launcher.router import ROUTER, start_router
 
@@ -155,14 +155,7 @@ def launch(
     metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
     plot = None
     if opts.plot:
-        plot = plot_run(
-            result.record,
-            scenario,
-            out / "run.png",
-            title=f"{scenario.run.name} (seed {scenario.run.seed}, "
-            f"{scenario.controller.kind}, {kind}): {result.reason} at "
-            f"t={result.t_end:.1f} s",
-        )
+        plot = plot_result(result, scenario, out / "run.png")
     return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot)
 
 

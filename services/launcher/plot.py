@@ -13,6 +13,7 @@ from common.config.scenario import Scenario
 from common.messages import Message, ObstacleTracks, PathMsg, StateEstimate, TruthState
 from common.runtime.model.dataflow import vehicle_of
 from common.runtime.model.record import Record
+from common.runtime.model.result import RunResult
 from common.world import World
 from services.mission.fleet_metrics import closest_approach, fleet_truths
 from services.mission.metrics import path_points
@@ -49,6 +50,18 @@ def plot_run(record: Record, scenario: Scenario, path: Path, *, title: str = "")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     return path
+
+
+def plot_result(result: RunResult, scenario: Scenario, path: Path) -> Path:
+    """plot_run with the title every command gives a run's plot: its name, seed, controller,
+    runtime, how it ended and when."""
+    return plot_run(
+        result.record,
+        scenario,
+        path,
+        title=f"{scenario.run.name} (seed {scenario.run.seed}, {scenario.controller.kind}, "
+        f"{scenario.runtime.kind}): {result.reason} at t={result.t_end:.1f} s",
+    )
 
 
 def run_figure(record: Record, scenario: Scenario, *, title: str = "") -> Figure:
