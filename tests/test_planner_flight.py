@@ -14,6 +14,7 @@ from common.config.planner import PlannerConfig
 from common.config.scenario import load_scenario
 from common.config.world import CircleObstacleConfig
 from common.world import ObstacleState
+from common.world.geometry import Box
 from services.planner.controllers import Limits, make_controller
 from services.planner.flight import (
     FLIGHT_CURVATURE_FACTOR,
@@ -23,6 +24,7 @@ from services.planner.flight import (
     fly,
     plan_flown,
 )
+from services.planner.intent import IntentObstacle
 from services.planner.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.response import ResponseModel
@@ -120,6 +122,24 @@ def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
     assert soon < 0.0  # they meet
     # they would meet too, after the window: only where it is within it counts (metres away)
     assert late > 5.0
+
+
+def test_another_vehicles_broadcast_route_counts_over_the_whole_flight() -> None:
+    # the same meeting after the window, the crosser now another vehicle whose route (its
+    # plan, broadcast) comes down across the line: a plan, not a guess, so it counts
+    meet_s = FLIGHT_MOVING_S + 8.0
+    x_meet, v_other = 5.0 + V * meet_s, 1.0
+    ys = np.linspace(20.0 + v_other * meet_s, 0.0, 50)
+    xs = np.full_like(ys, x_meet)
+    s_route = 20.0 + v_other * meet_s - ys  # arc length down the route from its start
+    other = IntentObstacle(
+        id=9, x=x_meet, y=float(ys[0]), vx=0.0, vy=-v_other, ax=0.0, ay=0.0, radius=1.0,
+        moving=True, route_x=xs, route_y=ys, s_route=s_route, route_box=Box.of(xs, ys),
+        s0=0.0, speed=v_other,
+    )  # fmt: skip
+    f = fly(_straight(20.0), _request(moving=[other]), _flight(), 5.0)
+    assert f.min_clearance_m < 0.0 and not f.static  # they meet, and the flight says so
+    assert abs(f.t_s - meet_s) < 1.5
 
 
 def test_the_escape_stretch_is_not_held_to_rho0() -> None:

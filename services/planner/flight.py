@@ -37,6 +37,7 @@ from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from services.planner.clearance import StaticField, moving_distance
 from services.planner.controllers.base import Controller
+from services.planner.intent import IntentObstacle
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.planned_path import PlannedPath
 from services.planner.response import Pose, ResponseModel
@@ -50,7 +51,8 @@ FLIGHT_MAX_S = 90.0  # a flight ends at the path's end, or after this long (s)
 FLIGHT_CUSHION_M = 0.1
 # moving obstacles count over the flight's first seconds only, as far ahead as a command
 # sequence looks (controller.sequence.horizon_s): their prediction a minute ahead is a guess
-# (the plan's own check, at v_ref, covers them; replans judge them anew as they come)
+# (the plan's own check, at v_ref, covers them; replans judge them anew as they come). A
+# fleet vehicle's broadcast route (IntentObstacle) is its plan and counts throughout.
 FLIGHT_MOVING_S = 10.0
 FLIGHT_CURVATURE_FACTOR = 0.9  # the second plan aims its curvature this much lower
 # ... and failing that, a third avoids a disc this wide where the flight came nearest
@@ -109,10 +111,13 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, accel_horizon_s: 
     obs = req.obstacles
     d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
     d = d_static.copy()
+    # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
+    # flight, where a head-on pass tens of seconds on is decided (the rest: FLIGHT_MOVING_S)
+    intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
+    guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
     soon = t <= FLIGHT_MOVING_S
-    d[soon] = np.minimum(
-        d[soon], moving_distance(obs.moving, pts[soon], t[soon], accel_horizon_s)[0]
-    )
+    d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
+    d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
     d[np.asarray(flown) < result.escape_m] = math.inf  # the plan itself may pass nearer there
     j = int(np.argmin(d))
     x, y = float(pts[j, 0]), float(pts[j, 1])
