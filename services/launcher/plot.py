@@ -65,7 +65,7 @@ def plot_result(result: RunResult, scenario: Scenario, path: Path) -> Path:
 
 
 def run_figure(record: Record, scenario: Scenario, *, title: str = "") -> Figure:
-    """The run's figure (plot_run's module docstring), not yet saved."""
+    """The run's figure (as the module docstring says), not yet saved."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle, Polygon, Rectangle

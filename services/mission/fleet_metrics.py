@@ -26,7 +26,7 @@ def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
     tallies = {vid: _intent_tallies(record, vid) for vid in per}
     for vid, (by_intent, by_track) in tallies.items():
         per[vid].update(_intent_metrics(by_intent, by_track))
-    rho0 = {v.id: v.planner.rho0_m for v in s.vehicles}
+    rho0 = _rho0s(s)
     sep = _separation(fleet_truths(record, s), _radii(s), rho0)
     reached = all(m.get("reached_goal", False) for m in per.values())
     arrivals = [m["travel_time_s"] for m in per.values() if m.get("reached_goal")]
@@ -99,11 +99,14 @@ def _radii(s: Scenario) -> dict[str, float]:
     return {v.id: v.vehicle.radius_m for v in s.vehicles}
 
 
+def _rho0s(s: Scenario) -> dict[str, float]:
+    return {v.id: v.planner.rho0_m for v in s.vehicles}
+
+
 def closest_approach(record: Record, s: Scenario) -> Approach | None:
     """The two hulls of a fleet run that came closest, and where (None: fewer than two
     vehicles with a track); the same comparison as the min_separation_m metric."""
-    rho0 = {v.id: v.planner.rho0_m for v in s.vehicles}
-    closest: Approach | None = _separation(fleet_truths(record, s), _radii(s), rho0)["closest"]
+    closest: Approach | None = _separation(fleet_truths(record, s), _radii(s), _rho0s(s))["closest"]
     return closest
 
 
