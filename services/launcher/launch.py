@@ -22,7 +22,13 @@ from typing import Any
 from common.config.scenario import Scenario
 from common.runtime.distributed import lockstep, realtime_driver
 from common.runtime.distributed.acl import access_control, run_grants
-from common.runtime.distributed.bringup import RELEASE_S, ClockSide, clock_bus, run_keys
+from common.runtime.distributed.bringup import (
+    END_LINGER_S,
+    RELEASE_S,
+    ClockSide,
+    clock_bus,
+    run_keys,
+)
 from common.runtime.distributed.lockstep import Coordinator
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
@@ -205,8 +211,12 @@ def _run(
         driver = RealtimeDriver(ctx)
         result = _until_interrupted(driver, side, view)
         side.announce_end(result)
-    # the services leave on the stop Tick: let them close their sessions before any signal
-    sup.wait_exited(_joined(local, driver.alive), RELEASE_S)
+        # the services leave on the stop Tick, the clock's session still open (END_LINGER_S)
+        joined = _joined(local, driver.alive)
+        left = sup.wait_exited(joined, END_LINGER_S)
+    # one that missed the stop Tick leaves when the clock's token has gone CLOCK_GRACE_S
+    if not left:
+        sup.wait_exited(joined, RELEASE_S)
     return result
 
 

@@ -40,6 +40,10 @@ log = logging.getLogger("tidelink.run")
 
 DATAFLOW_ENCODING = "application/json"
 RELEASE_S = 10.0  # for services to leave by themselves at the end, before any signal
+# at most, for realtime services to leave on the stop Tick while the clock's session is still
+# open: closed at once, it could drop the RunEnd it had just queued for watchers (a Foxglove
+# client never saw a launched run's end, 1 launch in 3 beside two busy processes; 0 in 6 so)
+END_LINGER_S = 2.0
 CATCH_UP_S = 2.0  # at most, for the watch tap to see the last frames the driver recorded
 
 
@@ -147,7 +151,8 @@ def local_run(
     """This process is the router and the clock; each service is forked from the fork server.
 
     On exit the bus closes first (the clock's token vanishes, which releases the services),
-    then the services get RELEASE_S to leave by themselves before they are stopped.
+    then the services get RELEASE_S to leave by themselves before they are stopped; realtime
+    services, which leave on the stop Tick, get END_LINGER_S of that before the bus closes.
     """
     warm_up()  # the fork server imports the services while we open the router
     # [bus] listen: a fixed endpoint lets monitors on other machines join the run
@@ -169,6 +174,8 @@ def local_run(
                     argv = [name, "--scenario-json", str(raw_path), "--connect", endpoint]
                     sup.start(name, ["-m", service_module, *argv])
                 yield side, sup
+                if not lockstep:  # (lockstep services leave only once the clock's token goes)
+                    sup.wait_exited(sup.names(), END_LINGER_S)
         except BaseException:
             sup.stop()
             raise
