@@ -31,7 +31,7 @@ from services.launcher.launch import select_services
 from services.launcher.plot import _of_type
 from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
-from services.planner.intent import FleetIntents
+from services.planner.intent import FleetIntents, IntentObstacle
 from services.planner.plan import PlanRequest, plan_path
 from services.planner.replan import ReplanPolicy
 from services.planner.result import Obstacles, Pose2D
@@ -412,6 +412,19 @@ def test_a_vehicle_parked_at_its_goal_is_an_obstacle_even_to_those_ahead_in_prio
         (parked,), covered = first.obstacles(stamp + 0.5)
         assert covered == {100} and (parked.x, parked.y) == (x, 10.0)
         assert parked.centre_at(np.array([0.0, 60.0])).ravel().tolist() == [x, 10.0, x, 10.0]
+
+
+def test_another_vehicle_is_planned_around_wider_by_the_intent_margin() -> None:
+    # its route (under way) and its hull parked at the route's end are both widened: where
+    # it is comes from its estimate, and how near its route from its tracking
+    intents = FleetIntents({"auv2": (100, 0.5)}, max_age_s=2.0, margin_m=0.15)
+    intents.offer("auv2", _straight_path(0.0, 0.0, 30.0))
+    intents.offer("auv2", _estimate(1.0, 6.0))
+    (under_way,), _ = intents.obstacles(1.5)
+    intents.offer("auv2", _estimate(30.0, 29.5, v=0.0))
+    (parked,), _ = intents.obstacles(30.5)
+    assert isinstance(under_way, IntentObstacle) and not isinstance(parked, IntentObstacle)
+    assert under_way.radius == parked.radius == pytest.approx(0.65)
 
 
 def test_without_a_path_there_is_no_intent() -> None:

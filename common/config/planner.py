@@ -77,6 +77,10 @@ class PlannerConfig:
     # fleets: another vehicle's intent (its broadcast path, placed by its estimate) is used
     # while that estimate is at most this old; then its sonar track takes over
     intent_max_age_s: float = 2.0
+    # ... and its hull planned around this much wider: it flies its route only as closely as
+    # it tracks it, and is placed on it by its estimate (README "Fleets": the head-on pair's
+    # closest pass 1.03 m hull to hull without it, against rho0 = 1.0 m)
+    intent_margin_m: float = 0.15
     # who plans around whose intent (services/planner/intent.py): "priority", a vehicle gives
     # way to those listed before it in [[vehicles]]; "mutual", to every other vehicle
     deconfliction: Literal["priority", "mutual"] = "priority"
@@ -97,6 +101,7 @@ class PlannerConfig:
         for name in (
             "corridor_halfwidth_m",
             "deviation_threshold_m",
+            "intent_margin_m",
             "min_replan_interval_s",
             "first_plan_wait_s",
         ):

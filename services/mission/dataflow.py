@@ -199,6 +199,7 @@ def make_planner(
             earlier if s.planner.deconfliction == "priority" else None,
             ramps,
             parked_within_m=s.world.goal_tolerance_m,
+            margin_m=s.planner.intent_margin_m,
         ),
         pose_every_s=pose_every_s,
         intent_every_s=intent_every_s,

@@ -147,7 +147,8 @@ class FleetIntents:
     `gives_way_to` names those whose intents this vehicle plans around (None: all of them);
     `ramps` each one's speed ramp on a path (m/s^2; none: its speed taken as it is);
     `parked_within_m`: a vehicle whose estimate is this near its route's end, or past it,
-    is parked there (the goal tolerance).
+    is parked there (the goal tolerance); `margin_m`: each hull is planned around this much
+    wider (planner.intent_margin_m).
     """
 
     def __init__(
@@ -157,8 +158,11 @@ class FleetIntents:
         gives_way_to: frozenset[str] | None = None,
         ramps: Mapping[str, float] | None = None,
         parked_within_m: float = 1.0,
+        margin_m: float = 0.0,
     ) -> None:
-        self.vehicles = dict(vehicles)
+        # another vehicle is only as near its broadcast route as its estimate and its
+        # tracking put it, neither of which its intent shows
+        self.vehicles = {v: (oid, radius + margin_m) for v, (oid, radius) in vehicles.items()}
         self.max_age_s = max_age_s
         self.parked_within_m = parked_within_m
         self.ramps = dict(ramps or {})
