@@ -37,6 +37,8 @@ def test_defaults_are_valid_and_documented_values() -> None:
         ("min_replan_interval_s", float("inf")),
         ("first_plan_wait_s", -1.0),
         ("first_plan_wait_s", float("nan")),
+        ("intent_margin_m", -0.1),
+        ("intent_margin_m", float("inf")),
         ("penalty_clearance", -1.0),
         ("period_s", 0.0),
     ],
