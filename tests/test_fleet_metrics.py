@@ -140,6 +140,8 @@ def test_a_fleet_plot_dots_every_track_in_time_and_marks_the_closest_approach() 
     dots = [ln for ln in ax.lines if ln.get_marker() == "." and len(ln.get_xdata()) > 0]
     assert [len(ln.get_xdata()) for ln in dots] == [5, 5]
     assert sorted(dots[0].get_xdata()) == pytest.approx([10 + SPEED * t for t in range(10, 60, 10)])
+    # open water: no vehicle came near an obstacle, so the legend explains no cross
+    assert not [t for t in _legend(ax) if "nearest an obstacle" in t]
 
 
 def test_one_vehicle_alone_has_no_closest_approach() -> None:
@@ -166,7 +168,16 @@ def test_the_plot_says_where_a_vehicle_came_inside_its_rho0_of_an_obstacle() -> 
     ]
     crosses = [ln for ln in ax.lines if ln.get_marker() == "X" and len(ln.get_xdata()) > 0]
     assert len(crosses) == 2  # one per vehicle, auv1's rimmed red
+    assert [t for t in _legend(ax) if "nearest an obstacle" in t] == [
+        "nearest an obstacle (red rim: inside rho0)"
+    ]
     assert [ln.get_markeredgecolor() for ln in crosses].count("tab:red") == 1
+
+
+def _legend(ax: Any) -> list[str]:
+    """The texts of the figure's legend (the run plot puts it below the axes)."""
+    legend = ax.get_legend() or ax.figure.legends[0]
+    return [t.get_text() for t in legend.get_texts()]
 
 
 def test_a_single_vehicles_plot_always_says_how_near_it_came() -> None:

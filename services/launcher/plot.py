@@ -260,10 +260,12 @@ def _draw_fleet_timing(ax: Any, record: Record, scenario: Scenario) -> None:
             ms=5,
         )
     ax.plot([], [], ".", color="0.3", ms=5, label=f"where each was every {TIME_MARK_S:g} s")
-    ax.plot(
-        [], [], "X", color="0.3", mec="tab:red", mew=1.2, ms=9,
-        label="nearest an obstacle (red rim: inside rho0)",
-    )  # fmt: skip
+    w = scenario.world
+    if w.circles or w.polygons or w.moving:  # in open water no vehicle has a cross
+        ax.plot(
+            [], [], "X", color="0.3", mec="tab:red", mew=1.2, ms=9,
+            label="nearest an obstacle (red rim: inside rho0)",
+        )  # fmt: skip
     near = closest_approach(record, scenario)
     if near is None:
         return
