@@ -366,7 +366,14 @@ def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_ano
             client.pump(0.5)
             assert not client.closed
         names = [json.loads(m.data)["name"] for m in client.on("/run/info")]
-        assert names == ["first", "second"]
+        if names != ["first", "second"]:
+            # each attach announces its run once: a run announced twice was attached twice
+            # (fresh clone 92 once saw first, first, second); in full, with the bridge's log
+            pytest.fail(
+                f"runs announced {names}; arrivals {_arrivals(client)}; sessions "
+                f"{[s['sessionId'] for s in client.server_infos]}\nbridge log:\n"
+                f"{bridge.stderr[-6000:]}"
+            )
         sessions = [s["sessionId"] for s in client.server_infos]
         assert [x.split("/")[0] for x in sessions[1:]] == ["first", "second"]
         # both runs were shown from (about) their start, the second too: the bridge opened a
