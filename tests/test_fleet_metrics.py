@@ -175,9 +175,8 @@ def test_the_plot_says_where_a_vehicle_came_inside_its_rho0_of_an_obstacle() -> 
 
 
 def _legend(ax: Any) -> list[str]:
-    """The texts of the figure's legend (the run plot puts it below the axes)."""
-    legend = ax.get_legend() or ax.figure.legends[0]
-    return [t.get_text() for t in legend.get_texts()]
+    """The texts of the axes' legend (the run plot puts it below them)."""
+    return [t.get_text() for t in ax.get_legend().get_texts()]
 
 
 def test_a_single_vehicles_plot_always_says_how_near_it_came() -> None:
