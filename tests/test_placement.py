@@ -24,12 +24,13 @@ DEFAULT = REPO / "configs" / "default.toml"
 # it was measured with and the SIMD code numpy dispatches to on this CPU: a trajectory is
 # bit-exact only with the same floating-point code (a fresh install of numpy 2.4.6 / scipy
 # 1.17.1 moved it; so did a machine with AVX-512, on which numpy's vectorised sin/cos/exp
-# round differently: 7b6639b5... on the machine of 2026-11-26, 42edd711... on an AVX-512 one).
-# Re-pinned when the planner's clearance margin came to grow with the measured loop delay
-# (issue 16): 5431be1d... before. Elsewhere the test compares with the explicit placement.
+# round differently: 7b6639b5... on the machine of 2026-11-26, then 42edd711... on an AVX-512
+# one). Re-pinned when the planner's clearance margin came to grow with the measured loop delay
+# (issue 16): 5431be1d... before; and when planned curves came to keep that margin from the
+# area's edge too: 42edd711... before. Elsewhere the test compares with the explicit placement.
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
-        "42edd7111108c409fd7d0028d57d6b3e6076ac24f21fd224505d4fbed1982a5b"
+        "bc28f603ab0008407a26d32bc438212cd24f9f982dca333cde913b24a32d531c"
     ),
 }
 

@@ -137,6 +137,21 @@ def test_a_free_goal_heading_arrives_along_the_last_leg_a_fixed_one_turns_to_it(
         assert abs(math.atan2(end[1], end[0])) < 1e-3
 
 
+@pytest.mark.parametrize("x0", [95.0, 96.0, 96.5])
+def test_a_turn_beside_the_areas_edge_keeps_the_tracking_margin_from_it(x0: float) -> None:
+    # a U-turn a few metres from the east edge, in open water: the curve swings out towards
+    # the edge; its hull keeps the clearance margin from it, as from an obstacle (a path
+    # grazing the edge put a tracked vehicle outside the area, where no replan could start)
+    start, goal = Pose2D(x=x0, y=14.0, theta=0.0), Pose2D(x=x0, y=26.0, theta=math.pi)
+    req = _paper_request(obstacles=Obstacles(), start=start, goal=goal)
+    res = plan_path(req, CFG)
+    _verify(req, res)
+    curve = res.curve()
+    pts = curve.evaluate(np.linspace(curve.u_min, curve.u_max, N_DENSE), 0)[0]
+    hull_to_edge = req.area.x_max_m - req.vehicle_radius_m - float(pts[:, 0].max())
+    assert hull_to_edge >= CFG.clearance_margin_m - 1e-9
+
+
 def test_paper_field_plan_is_safe_smooth_and_near_optimal() -> None:
     req = _paper_request()
     res = plan_path(req, CFG)

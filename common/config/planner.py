@@ -51,7 +51,9 @@ class PlannerConfig:
     # (sample-count independent; ~ the total turning in rad on gentle bends): its weight in
     # metres of path length per unit of F_R; 0 leaves f_R out
     penalty_turn: float = 1.0
-    clearance_margin_m: float = 0.15  # refinement aims this far beyond the required clearance
+    # refinement aims this far beyond the required clearance, and keeps the hull this far
+    # inside the area's edge
+    clearance_margin_m: float = 0.15
     # ... and this much further per second of the loop's measured delay (the estimate's age as
     # it arrives plus the downlink delay the commands are compensated for): the vehicle follows
     # the path on a state predicted that far ahead, and the prediction's error grows with it

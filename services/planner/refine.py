@@ -257,7 +257,13 @@ def refine(
     """One refinement round: minimise eq. (9) over the free control points."""
     obj = Objective(prob, curve, per_span, wts)
     lay = obj.lay
-    lo, hi = lay.bounds(prob.area, prob.vehicle_radius_m, 4.0 * prob.r_min_m + 10.0)
+    # the area's edge gets the allowance obstacles get (the hull tracked off its path by the
+    # margin stays in; eq. (10) itself asks only the hull inside, as the final check does):
+    # a path grazing the edge put fleet4's auv1 outside it, where no replan could start
+    a = prob.area
+    room = 0.5 * min(a.x_max_m - a.x_min_m, a.y_max_m - a.y_min_m)
+    edge_m = min(prob.vehicle_radius_m + wts.clear_margin_m, max(prob.vehicle_radius_m, room))
+    lo, hi = lay.bounds(a, edge_m, 4.0 * prob.r_min_m + 10.0)
     x0 = lay.to_x(curve.ctrl)
     if max_iter > 0 and lay.dim:
         solve = lbfgsb if method == "lbfgsb" else levenberg_marquardt
