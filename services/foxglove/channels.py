@@ -4,7 +4,9 @@ A Foxglove WebSocket server does not latch: a client that subscribes to a topic 
 what is logged afterwards. Every view message is complete in itself (view.py), so each
 topic's newest message is kept and logged again when a client subscribes, and a client that
 joins mid-run sees the chart, the path and the tracks at once instead of after the next
-replan.
+replan. A topic's first message travels only so: no client has its channel before it is
+advertised, and logging it at once as well reached a client twice when its subscription
+overtook the log.
 
 A subscription the server refused as to an "unknown channel" is mended by advertising that
 channel again (`LostSubscriptions`): the SDK's server (foxglove-sdk 0.30, and its main branch
@@ -77,10 +79,17 @@ class ViewChannels:
         self.readvertised = 0  # channels advertised again after a refused subscription
 
     def log(self, vm: ViewMessage, log_time_ns: int) -> None:
-        """Log one view message at log_time_ns (Unix ns) on its topic's channel."""
-        self._channel(vm).log(vm.data, log_time=log_time_ns)
+        """Log one view message at log_time_ns (Unix ns) on its topic's channel; a topic's
+        first message only advertises the channel, and reaches each client that subscribes
+        through `replay`: logged as well, it reached twice a client whose subscription came
+        between the advertisement and the log (a run's /run/info shown twice, seen once)."""
         self._newest[vm.topic] = (vm, log_time_ns)
         self.logged += 1
+        channel = self._known(vm)
+        if channel is None:
+            self._advertise(vm)
+            return
+        channel.log(vm.data, log_time=log_time_ns)
 
     def replay(self, topic: str) -> None:
         """Log a topic's newest message again (a client just subscribed to it)."""
@@ -137,13 +146,23 @@ class ViewChannels:
                     self._channel(newest[0])  # again, under a new id
 
     def _channel(self, vm: ViewMessage) -> foxglove.Channel:
-        schema = (vm.schema_name, vm.schema_encoding, vm.schema, vm.message_encoding)
+        return self._known(vm) or self._advertise(vm)
+
+    def _known(self, vm: ViewMessage) -> foxglove.Channel | None:
+        """The topic's channel if it is advertised with vm's schema (one advertised with
+        another is closed)."""
         known = self._channels.get(vm.topic)
-        if known is not None and known[1] == schema:
+        if known is not None and known[1] == _schema(vm):
             return known[0]
         if known is not None:  # the view never does this; a newer tidelink on the bus might
-            log.warning("%s changed its schema to %s; re-advertising it", vm.topic, schema[0])
+            log.warning("%s changed its schema to %s; re-advertising it", vm.topic, vm.schema_name)
             known[0].close()
+            del self._channels[vm.topic]
+        return None
+
+    def _advertise(self, vm: ViewMessage) -> foxglove.Channel:
+        """A new channel for vm's topic and schema (every client is told of it)."""
+        schema = _schema(vm)
         channel = foxglove.Channel(
             vm.topic,
             schema=foxglove.Schema(
@@ -154,3 +173,8 @@ class ViewChannels:
         )
         self._channels[vm.topic] = (channel, schema)
         return channel
+
+
+def _schema(vm: ViewMessage) -> tuple[str, str, bytes, str]:
+    """What a channel is advertised with: a view message's schema and encoding."""
+    return (vm.schema_name, vm.schema_encoding, vm.schema, vm.message_encoding)
