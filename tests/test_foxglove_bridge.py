@@ -170,6 +170,7 @@ def test_a_port_in_use_is_a_clear_error() -> None:
 
 
 def _pose(data: bytes) -> ViewMessage:
+    """A view message on the true pose's topic carrying `data` (JSON)."""
     return ViewMessage(
         topic="/vehicle/pose_true",
         schema_name="Pose",

@@ -140,8 +140,8 @@ def test_a_free_goal_heading_arrives_along_the_last_leg_a_fixed_one_turns_to_it(
 @pytest.mark.parametrize("x0", [95.0, 96.0, 96.5])
 def test_a_turn_beside_the_areas_edge_keeps_the_tracking_margin_from_it(x0: float) -> None:
     # a U-turn a few metres from the east edge, in open water: the curve swings out towards
-    # the edge; its hull keeps the clearance margin from it, as from an obstacle (a path
-    # grazing the edge put a tracked vehicle outside the area, where no replan could start)
+    # the edge; its hull keeps the clearance margin from it, as from an obstacle (on a path
+    # grazing the edge a vehicle's predicted pose left the area: no replan could start there)
     start, goal = Pose2D(x=x0, y=14.0, theta=0.0), Pose2D(x=x0, y=26.0, theta=math.pi)
     req = _paper_request(obstacles=Obstacles(), start=start, goal=goal)
     res = plan_path(req, CFG)
