@@ -369,34 +369,3 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
             (made,) = paths
             assert isinstance(made, PathMsg) and made.reason.startswith("infeasible")
             assert core.declined == 0
-
-
-def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None:
-    """flight.py makes a plan again slower when no faster one flies clear of rho0: the core
-    then follows it at that speed (the controller's cruise cap), tells it in the path message
-    (another vehicle predicts its intent with it) and judges the path's passing times at it
-    (eq. (13)); the next plan made for cruise speed restores it."""
-    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
-    plans = _Scripted()
-    slow = 0.5 * s.vehicle.cruise_speed_mps
-    plans.edit = lambda r: dataclasses.replace(r, v_ref_mps=slow)
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
-    core.deliver(_estimate(0.0))
-    (made,) = _paths(core.step(0.05))
-    assert made.status == "OK" and made.v_ref == slow
-    assert core.ref is not None and core.ref.v_ref == slow and core.policy.v_ref == slow
-    top = 0.0
-    for k in range(1, 40):  # 4 s along it, the vehicle at the speed commanded
-        t = 0.05 + 0.1 * k
-        core.deliver(_estimate(t - 0.05, x=5.0 + slow * t))
-        (cmd,) = _cmds(core.step(t))
-        top = max(top, cmd.v, *cmd.v_next)
-    assert slow - 0.01 < top <= slow + 1e-9
-    plans.edit = lambda r: r
-    core.policy.check = lambda *a, **k: ReplanDecision(  # type: ignore[method-assign]
-        replan=True, reason="infeasible", detail="a test's"
-    )
-    t = 4.15
-    core.deliver(_estimate(t - 0.05, x=5.0 + slow * t))
-    (again,) = _paths(core.step(t))
-    assert again.v_ref == s.vehicle.cruise_speed_mps == core.policy.v_ref

@@ -507,10 +507,6 @@ class PlannerCore:
         )
         return True
 
-    def _speed_of(self, result: PlanResult) -> float:
-        """The speed a plan is followed at: the one it was made for (flight.py), else cruise."""
-        return self.vehicle.cruise_speed_mps if result.v_ref_mps is None else result.v_ref_mps
-
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
@@ -520,7 +516,7 @@ class PlannerCore:
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
         if result.ok:
-            self.ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
+            self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
             self.controller.reset()
             return PathMsg(
                 stamp=t,
@@ -536,7 +532,7 @@ class PlannerCore:
                 length=result.length_m,
                 f_l=result.f_l,
                 max_curvature=result.max_curvature,
-                v_ref=self._speed_of(result),
+                v_ref=self.vehicle.cruise_speed_mps,
             )
         self.ref = None
         return PathMsg(

@@ -19,10 +19,9 @@ FLIGHT_CUSHION_M, its curvature aimed FLIGHT_CURVATURE_FACTOR lower; if that fli
 keep rho0 + FLIGHT_CUSHION_M either (a squeeze at a bend can be too narrow for the wider
 margin: fleet4 seed 17, between polygon 2 and the area's north edge), once more around a disc
 of FLIGHT_DETOUR_M where the first flight came nearest a static obstacle, so the search takes
-another way; and then (that, too, near a static obstacle only) for FLIGHT_SLOW_FACTOR of the
-speed, flown at it. The plan whose flight clears the most is adopted (the first when none
-fares better), with the speed it was made for (`PlanResult.v_ref_mps`); either way its
-reason says what the flight found. Pure: the same floats in every runtime.
+another way. The plan whose flight clears the most is adopted (the first when none fares
+better); either way its reason says what the flight found. Pure: the same floats in every
+runtime.
 """
 
 from __future__ import annotations
@@ -58,15 +57,6 @@ FLIGHT_MOVING_S = 10.0
 FLIGHT_CURVATURE_FACTOR = 0.9  # the second plan aims its curvature this much lower
 # ... and failing that, a third avoids a disc this wide where the flight came nearest
 FLIGHT_DETOUR_M = 0.5
-# ... and failing that, where it came nearest a static obstacle, a fourth is made (and flown)
-# for this fraction of the request's speed: the yaw response's lag costs a slower vehicle less
-# of the path, so it holds a bend it ran wide (fleet4 seed 75 inproc: a turn south of obstacle
-# 2 flown 0.31 m wide and 0.18 m inside rho0 at cruise speed, whatever the margin or detour;
-# for half of it the flight cleared rho0 + 0.21 m). Not near a moving obstacle: there slower
-# only meets it at another time, which is a choice of when to pass, not of how well the
-# path is held (tried: fleet4 inproc seed 24 then crawled into obstacle 11's weave). The
-# vehicle follows it at that speed until its next replan.
-FLIGHT_SLOW_FACTOR = 0.5
 ARRIVED_M = 0.5  # a flight within this of the path's end, slower than ARRIVED_MPS, is over
 ARRIVED_MPS = 0.05
 
@@ -170,18 +160,12 @@ def plan_flown(req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, plan: Plan
     around = _detour(req, cfg, f1)
     if around is not None:
         tried.append(("made again around where it came nearest", around, cfg))
-    if f1.static:  # (near a moving obstacle slower would only pass it at another time)
-        slower = replace(req, v_ref_mps=req.v_ref_mps * FLIGHT_SLOW_FACTOR)
-        tried.append((f"made again for {slower.v_ref_mps:.2f} m/s", slower, cfg))
     best, best_f, how = first, f1, ""
     for what, q, c in tried:
         again = plan(q, c)
         if not again.ok:
             continue
-        if q.v_ref_mps != req.v_ref_mps:
-            again = replace(again, v_ref_mps=q.v_ref_mps)
-        # judged among the real obstacles, at the speed it was made for
-        f = fly(again, replace(req, v_ref_mps=q.v_ref_mps), fm, cfg.accel_horizon_s)
+        f = fly(again, req, fm, cfg.accel_horizon_s)  # judged among the real obstacles
         if f.min_clearance_m > best_f.min_clearance_m:
             best, best_f, how = again, f, what
         if best_f.min_clearance_m >= keep:

@@ -70,8 +70,7 @@ class ReplanPolicy:
     ) -> None:
         self.cfg = cfg
         self.r = vehicle_radius_m
-        self.cruise = v_ref_mps
-        self.v_ref = v_ref_mps  # the speed of the path in force (a slower plan's: flight.py)
+        self.v_ref = v_ref_mps
         self.n_samples = n_samples
         self.pts: FloatArray | None = None  # (K, 2) samples of the current path
         self.s: FloatArray = np.zeros(0)  # (K,) arc length of each sample
@@ -95,7 +94,6 @@ class ReplanPolicy:
         self.s_now = 0.0
         self.last_check_t = t
         self.escape_m = result.escape_m
-        self.v_ref = self.cruise if result.v_ref_mps is None else result.v_ref_mps
         if not result.ok:
             self.pts = None
             return
