@@ -15,7 +15,7 @@ from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
 from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
-from services.planner.core import PLANS_DECLINED, PlannerCore
+from services.planner.core import PLANS_DECLINED, PRECAUTIONS, PlannerCore
 from services.planner.replan import ReplanDecision, ReplanReason
 from services.planner.result import PlanResult, Pose2D
 
@@ -332,14 +332,14 @@ class _Scripted(AtOnce[PlanResult]):
         super().start(lambda: self.edit(work()))
 
 
-@pytest.mark.parametrize("why", ["corridor", "infeasible"])
+@pytest.mark.parametrize("why", ["corridor", "cruise", "infeasible"])
 def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
     why: ReplanReason,
 ) -> None:
-    """A "corridor" replan is a precaution: the path in force was still feasible. Its result
-    replaces that path only if it is an ordinary plan; a recovery (which may turn about into
-    the safety margin: fleet4 seed 8) or NO_PATH is declined and the path in force followed
-    on. A replan the path in force needs ("infeasible") takes whatever it gets."""
+    """A "corridor" or "cruise" replan is a precaution: the path in force was still feasible.
+    Its result replaces that path only if it is an ordinary plan; a recovery (which may turn
+    about into the safety margin: fleet4 seed 8) or NO_PATH is declined and the path in force
+    followed on. A replan the path in force needs ("infeasible") takes whatever it gets."""
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     plans = _Scripted()
     core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
@@ -360,7 +360,7 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
         out = core.step(t)
         paths = [e.msg for e in out if e.stream == "path"]
         assert [e for e in out if e.stream == "cmd"]  # commanding on, either way
-        if why == "corridor":
+        if why in PRECAUTIONS:
             assert paths == [] and core.ref is in_force and core.declined == k + 1
             assert core.stats_counters[PLANS_DECLINED] == k + 1  # the metric's source
             # the interval before the next replan runs from this one (no re-asking each step)
@@ -369,3 +369,34 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
             (made,) = paths
             assert isinstance(made, PathMsg) and made.reason.startswith("infeasible")
             assert core.declined == 0
+
+
+def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None:
+    """flight.py makes a plan again slower when no faster one flies clear of rho0: the core
+    then follows it at that speed (the controller's cruise cap), tells it in the path message
+    (another vehicle predicts its intent with it) and judges the path's passing times at it
+    (eq. (13)); the next plan made for cruise speed restores it."""
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    plans = _Scripted()
+    slow = 0.5 * s.vehicle.cruise_speed_mps
+    plans.edit = lambda r: dataclasses.replace(r, v_ref_mps=slow)
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core.deliver(_estimate(0.0))
+    (made,) = _paths(core.step(0.05))
+    assert made.status == "OK" and made.v_ref == slow
+    assert core.ref is not None and core.ref.v_ref == slow and core.policy.v_ref == slow
+    top = 0.0
+    for k in range(1, 40):  # 4 s along it, the vehicle at the speed commanded
+        t = 0.05 + 0.1 * k
+        core.deliver(_estimate(t - 0.05, x=5.0 + slow * t))
+        (cmd,) = _cmds(core.step(t))
+        top = max(top, cmd.v, *cmd.v_next)
+    assert slow - 0.01 < top <= slow + 1e-9
+    plans.edit = lambda r: r
+    core.policy.check = lambda *a, **k: ReplanDecision(  # type: ignore[method-assign]
+        replan=True, reason="infeasible", detail="a test's"
+    )
+    t = 4.15
+    core.deliver(_estimate(t - 0.05, x=5.0 + slow * t))
+    (again,) = _paths(core.step(t))
+    assert again.v_ref == s.vehicle.cruise_speed_mps == core.policy.v_ref

@@ -21,6 +21,7 @@ from services.planner.flight import (
     FLIGHT_CURVATURE_FACTOR,
     FLIGHT_CUSHION_M,
     FLIGHT_MOVING_S,
+    FLIGHT_SLOW_FACTOR,
     FlightModel,
     fly,
     plan_flown,
@@ -154,20 +155,26 @@ def test_the_escape_stretch_is_not_held_to_rho0() -> None:
 class _Planner:
     """A stand-in for plan_path: a straight path farther from y = 20 the wider the margin
     asked, or NO_PATH from the second call on (`fail_again`), but for a request with a disc
-    more than the scenario's: then, with `detour`, a path 5 m to the side; records the
-    configs and requests asked."""
+    more than the scenario's: then, with `detour`, a path 5 m to the side; and, with
+    `slow_ok`, for a request slower than the first: the first's path; records the configs
+    and requests asked."""
 
-    def __init__(self, *, fail_again: bool = False, detour: bool = False) -> None:
+    def __init__(
+        self, *, fail_again: bool = False, detour: bool = False, slow_ok: bool = False
+    ) -> None:
         self.asked: list[PlannerConfig] = []
         self.requests: list[PlanRequest] = []
         self.fail_again = fail_again
         self.detour = detour
+        self.slow_ok = slow_ok
 
     def __call__(self, req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
         self.asked.append(cfg)
         self.requests.append(req)
         if self.detour and len(req.obstacles.circles) > len(self.requests[0].obstacles.circles):
             return _straight(15.0)
+        if self.slow_ok and req.v_ref_mps < self.requests[0].v_ref_mps:
+            return _straight(20.0)
         if self.fail_again and len(self.asked) > 1:
             return PlanResult(status="NO_PATH", reason="no feasible curve")
         return _straight(20.0 - 4.0 * (cfg.clearance_margin_m - CFG.clearance_margin_m))
@@ -207,9 +214,33 @@ def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -
     planner = _Planner(fail_again=True)
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
     got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
-    assert len(planner.asked) == 3  # wider, then around a disc where it came nearest
+    assert len(planner.asked) == 4  # wider, around a disc where it came nearest, slower
     assert got.ok and got.control_points[0, 1] == 20.0
     assert "fared no better" in got.reason
+
+
+def test_a_bend_flown_wide_at_any_margin_is_made_again_slower_and_flown_at_that_speed() -> None:
+    # turning hard the other way as it starts, the vehicle runs the start of its path wide at
+    # cruise speed (no wider plan is found here); slower, its yaw lag costs less of the path
+    planner = _Planner(fail_again=True, slow_ok=True)
+    req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.17, x=9.0),))
+    keep = CFG.rho0_m + FLIGHT_CUSHION_M
+    at_cruise = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG)
+    assert at_cruise.min_clearance_m < keep
+    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    slower = planner.requests[-1]
+    assert math.isclose(slower.v_ref_mps, V * FLIGHT_SLOW_FACTOR)
+    assert planner.asked[-1] is CFG  # the margins as asked: only the speed differs
+    assert got.ok and got.v_ref_mps == slower.v_ref_mps  # the speed it is to be followed at
+    assert f"made again for {slower.v_ref_mps:.2f} m/s" in got.reason
+    flown = fly(got, slower, _flight(w0=W_MAX), CFG)
+    assert flown.off_path_m < at_cruise.off_path_m and flown.min_clearance_m >= keep
+    # ... until a turning radius past where its flight came nearest, then at cruise again
+    assert got.slow_until_m == pytest.approx(flown.path_s_m + req.r_min_m)
+    assert 0.0 < got.slow_until_m < got.length_m
+    # a plan that flies clear at cruise speed is kept at it
+    clear = plan_flown(_request(), CFG, _flight(), _Planner())
+    assert clear.ok and clear.v_ref_mps is None
 
 
 def test_a_squeeze_too_narrow_for_the_wider_margin_is_left_for_another_way() -> None:
@@ -227,7 +258,7 @@ def test_a_squeeze_too_narrow_for_the_wider_margin_is_left_for_another_way() -> 
     assert "made again around where it came nearest" in got.reason
 
 
-def test_no_detour_round_a_moving_obstacle_it_will_be_elsewhere() -> None:
+def test_neither_a_detour_nor_slower_round_a_moving_obstacle_it_will_be_elsewhere() -> None:
     # the mover crosses just ahead of the vehicle: its flight comes near it, not near a wall
     mover = ObstacleState(
         id=9, x=12.0, y=20.0 + R + 1.05 + 1.0 + 4.0, vx=0.0, vy=-1.0, ax=0.0, ay=0.0,
@@ -238,7 +269,7 @@ def test_no_detour_round_a_moving_obstacle_it_will_be_elsewhere() -> None:
     flown = fly(_straight(20.0), req, _flight(), CFG)
     assert not flown.static and flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
     plan_flown(req, CFG, _flight(), planner)
-    assert len(planner.asked) == 2  # wider only
+    assert len(planner.asked) == 2  # wider only: slower would meet it at another time
 
 
 def test_no_path_is_not_flown() -> None:

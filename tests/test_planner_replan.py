@@ -148,3 +148,28 @@ def test_short_of_the_start_only_the_offset_to_the_side_deviates() -> None:
     aside = Pose2D(x=START.x - 1.0, y=23.0, theta=0.0)
     d = pol.check(3.5, aside, GOAL, NONE)
     assert d.replan and d.reason == "deviation" and d.detail.startswith("3.00 m"), d
+
+
+def test_a_slower_plan_asks_for_cruise_speed_once_past_where_it_was_slowed() -> None:
+    # flight.py made the plan for half the speed, to hold a bend 30 m along it: past that the
+    # vehicle would crawl to its goal with no other event to replan on
+    res = plan_path(
+        PlanRequest(start=START, goal=GOAL, v_ref_mps=V / 2, vehicle_radius_m=R_VEH), CFG
+    )
+    slowed = dataclasses.replace(res, v_ref_mps=V / 2, slow_until_m=30.0)
+    pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
+    pol.on_planned(0.0, slowed, GOAL, NONE)
+
+    def at(t: float) -> Pose2D:
+        return Pose2D(x=START.x + V / 2 * t, y=20.0, theta=0.0)
+
+    for t in np.arange(1.0, 59.0, 1.0):  # 0.75 m/s for 30 m: 40 s
+        d = pol.check(float(t), at(float(t)), GOAL, NONE)
+        if START.x + V / 2 * t - START.x < 29.5:
+            assert not d.replan, (t, d)
+        elif d.replan:
+            break
+    assert d.replan and d.reason == "cruise" and "back to 1.50 m/s" in d.detail
+    assert 30.0 <= V / 2 * t <= 31.0
+    pol.on_planned(t, res, GOAL, NONE)  # a plan at cruise speed ends it
+    assert not pol.check(t + 2.0, Pose2D(x=START.x + 1.5, y=20.0, theta=0.0), GOAL, NONE).replan

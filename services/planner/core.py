@@ -53,10 +53,10 @@ PLAN_LAGS_KEPT = 3
 # a plan made for where the vehicle will be is made for at most this far ahead (s)
 PLAN_AHEAD_MAX_S = 10.0
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
-_ALONG_THE_PATH = ("infeasible", "corridor", "goal_changed")
+_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "goal_changed")
 # replans asked while the path in force is still feasible (replan.py): their result replaces
 # it only if it is an ordinary plan (`_keeps_path_in_force`)
-PRECAUTIONS = ("corridor",)
+PRECAUTIONS = ("corridor", "cruise")
 PLANS_DECLINED = "plans_declined"  # its statistics counter of them (the metric of that name)
 
 
@@ -507,6 +507,10 @@ class PlannerCore:
         )
         return True
 
+    def _speed_of(self, result: PlanResult) -> float:
+        """The speed a plan is followed at: the one it was made for (flight.py), else cruise."""
+        return self.vehicle.cruise_speed_mps if result.v_ref_mps is None else result.v_ref_mps
+
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
@@ -516,7 +520,7 @@ class PlannerCore:
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
         if result.ok:
-            self.ref = PathArcReference(PlannedPath(result.curve()), self.vehicle.cruise_speed_mps)
+            self.ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
             self.controller.reset()
             return PathMsg(
                 stamp=t,
@@ -532,7 +536,7 @@ class PlannerCore:
                 length=result.length_m,
                 f_l=result.f_l,
                 max_curvature=result.max_curvature,
-                v_ref=self.vehicle.cruise_speed_mps,
+                v_ref=self._speed_of(result),
             )
         self.ref = None
         return PathMsg(

@@ -10,7 +10,9 @@ last replan, so noisy tracks cannot make the planner chatter):
                 not counted over the plan's escape_m, which it may pass closer: leaving the
                 margin, or contact, is what that stretch is for);
   corridor      a tracked moving obstacle the current plan did not account for is predicted
-                to come within corridor_halfwidth_m of the path ahead when the vehicle passes.
+                to come within corridor_halfwidth_m of the path ahead when the vehicle passes;
+  cruise        the path in force was made for less than cruise speed (flight.py: a bend no
+                faster flight held clear of rho0) and the vehicle is past its slow_until_m.
 The core adds one event of its own, ahead of these and of the interval:
   resumed       it sent no command for longer than the vehicle's hold_after_s (and
                 max_estimate_age_s): it was stopped, or its uplink was out, while the vehicle
@@ -35,7 +37,7 @@ from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
 ReplanReason = Literal[
-    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "resumed"
+    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "cruise", "resumed"
 ]
 
 
@@ -70,7 +72,8 @@ class ReplanPolicy:
     ) -> None:
         self.cfg = cfg
         self.r = vehicle_radius_m
-        self.v_ref = v_ref_mps
+        self.cruise = v_ref_mps
+        self.v_ref = v_ref_mps  # the speed of the path in force (a slower plan's: flight.py)
         self.n_samples = n_samples
         self.pts: FloatArray | None = None  # (K, 2) samples of the current path
         self.s: FloatArray = np.zeros(0)  # (K,) arc length of each sample
@@ -79,6 +82,7 @@ class ReplanPolicy:
         self.last_replan_t: float | None = None
         self.s_now = 0.0  # progress along the path (m), monotone
         self.escape_m = 0.0  # the current plan's first escape_m may pass static obstacles closer
+        self.slow_until_m = math.inf  # a slower plan's arc length past which cruise resumes
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
         # per (path, static obstacle set) and sliced at every check, not recomputed (it was
@@ -94,6 +98,8 @@ class ReplanPolicy:
         self.s_now = 0.0
         self.last_check_t = t
         self.escape_m = result.escape_m
+        self.v_ref = self.cruise if result.v_ref_mps is None else result.v_ref_mps
+        self.slow_until_m = result.slow_until_m
         if not result.ok:
             self.pts = None
             return
@@ -167,6 +173,13 @@ class ReplanPolicy:
                     reason="corridor",
                     detail=f"moving obstacle {ids[k]} predicted {gap[k]:.2f} m from the path",
                 )
+        if self.v_ref < self.cruise and self.s_now >= self.slow_until_m:
+            return ReplanDecision(
+                replan=True,
+                reason="cruise",
+                detail=f"{self.s_now:.1f} m along a path made for {self.v_ref:.2f} m/s, past "
+                f"where it was slowed: back to {self.cruise:.2f} m/s",
+            )
         return ReplanDecision(replan=False)
 
     # --- helpers -------------------------------------------------------------------------

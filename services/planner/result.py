@@ -92,6 +92,12 @@ class PlanResult:
     # the heading change of the arc a recovery starts with (recover.py; > 0 to the left):
     # 0 when the curve leaves straight ahead
     turn_rad: float = 0.0
+    # the speed the plan was made and flown for, when slower than the request's cruise speed
+    # (flight.py: a plan no faster flight kept rho0 on); None: the request's v_ref_mps
+    v_ref_mps: float | None = None
+    # a slower plan's arc length (from its start) past which the place it was slowed for lies
+    # behind: there the replan policy asks for a plan at cruise speed again (replan.py)
+    slow_until_m: float = math.inf
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property
