@@ -400,3 +400,28 @@ def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None
     core.deliver(_estimate(t - 0.05, x=5.0 + slow * t))
     (again,) = _paths(core.step(t))
     assert again.v_ref == s.vehicle.cruise_speed_mps == core.policy.v_ref
+
+
+def test_a_way_aside_is_kept_until_a_plan_reaches_the_goal() -> None:
+    """evade.py: a way aside (short of the goal) stays in force when a replan finds no path
+    (its NO_PATH judged going on along it as good as any way aside); a plan to the goal, or a
+    new way aside that clears more, replaces it."""
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    plans = _Scripted()
+    plans.edit = lambda r: dataclasses.replace(r, short_of_goal=True)
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core.deliver(_estimate(0.0))
+    (aside,) = _paths(core.step(0.05))
+    assert aside.status == "OK" and core.last_result is not None
+    in_force = core.ref
+    plans.edit = lambda r: PlanResult(status="NO_PATH", reason="walled off")
+    t = 1.15
+    core.deliver(_estimate(t - 0.05, x=5.0 + t))
+    out = core.step(t)
+    assert _paths(out) == [] and core.ref is in_force and _cmds(out)  # kept, commanding on
+    plans.edit = lambda r: r
+    t = 2.25
+    core.deliver(_estimate(t - 0.05, x=5.0 + t))
+    (made,) = _paths(core.step(t))
+    assert made.status == "OK" and made.reason.startswith("aside") and core.ref is not in_force
+    assert core.last_result is not None and not core.last_result.short_of_goal

@@ -173,3 +173,20 @@ def test_a_slower_plan_asks_for_cruise_speed_once_past_where_it_was_slowed() -> 
     assert 30.0 <= V / 2 * t <= 31.0
     pol.on_planned(t, res, GOAL, NONE)  # a plan at cruise speed ends it
     assert not pol.check(t + 2.0, Pose2D(x=START.x + 1.5, y=20.0, theta=0.0), GOAL, NONE).replan
+
+
+def test_a_way_aside_asks_for_the_goal_again_at_every_interval() -> None:
+    # evade.py: no plan reached the goal, and the vehicle steps aside from a moving obstacle
+    res = plan_path(
+        PlanRequest(
+            start=START, goal=Pose2D(x=15.0, y=20.0, theta=0.0), v_ref_mps=V, vehicle_radius_m=R_VEH
+        ),
+        CFG,
+    )
+    pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
+    pol.on_planned(0.0, dataclasses.replace(res, short_of_goal=True), GOAL, NONE)
+    assert not pol.check(0.5, _on_path(0.5), GOAL, NONE).replan  # the minimum interval
+    d = pol.check(1.0, _on_path(1.0), GOAL, NONE)
+    assert d.replan and d.reason == "aside" and "short of the goal" in d.detail
+    pol.on_planned(1.0, res, GOAL, NONE)  # an ordinary plan ends it
+    assert not pol.check(2.0, _on_path(1.0), GOAL, NONE).replan

@@ -31,10 +31,11 @@ from common.world import ObstacleState
 from services.planner.command_link import CommandLink, Prediction
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.flight import FlightModel, plan_flown
+from services.planner.evade import plan_or_step_aside
+from services.planner.flight import FlightModel
 from services.planner.intent import FleetIntents
 from services.planner.path_arc_reference import PathArcReference
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
@@ -53,7 +54,7 @@ PLAN_LAGS_KEPT = 3
 # a plan made for where the vehicle will be is made for at most this far ahead (s)
 PLAN_AHEAD_MAX_S = 10.0
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
-_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "goal_changed")
+_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed")
 # replans asked while the path in force is still feasible (replan.py): their result replaces
 # it only if it is an ordinary plan (`_keeps_path_in_force`)
 PRECAUTIONS = ("corridor", "cruise")
@@ -170,7 +171,7 @@ class PlannerCore:
         self.status_since = 0.0
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
-        self.declined = 0  # precautionary plans declined, the path in force kept
+        self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
         self._judge = Plausibility.of_area(world.area)
         self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
@@ -466,7 +467,9 @@ class PlannerCore:
             start=(here.x, here.y, here.theta, *twist),
             t0=t_plan,
         )
-        self.plans.start(lambda: plan_flown(req, cfg, flight, plan_path))
+        last = self.last_result
+        aside = last if self.ref is not None and last is not None and last.short_of_goal else None
+        self.plans.start(lambda: plan_or_step_aside(req, cfg, flight, aside))
 
     def _plan_done(self, t: float) -> _Asked:
         """A plan is made (step t): what it was asked for, its lag counted (and told, if
@@ -492,10 +495,17 @@ class PlannerCore:
         may enter the safety margin, or found none: keep following the path in force, which
         the replan check goes on judging (fleet4 seed 8: a corridor replan turned a vehicle
         about on an arc 0.80 m from a static obstacle, inside rho0, where its path in force
-        kept clear). Returns whether it was declined."""
-        if asked.why not in PRECAUTIONS or self.ref is None:
+        kept clear); and a NO_PATH found while the vehicle steps aside (evade.py), which
+        judged going on along the way aside as good as any. Returns whether it was declined."""
+        if self.ref is None:
             return False
-        if result.ok and result.escape_m <= 0.0:
+        stepping_aside = self.last_result is not None and self.last_result.short_of_goal
+        if stepping_aside:
+            # a way aside (evade.py) is kept until a plan reaches the goal or a better way
+            # aside is found: its NO_PATH judged going on along it as good as any other
+            if result.ok:
+                return False
+        elif asked.why not in PRECAUTIONS or (result.ok and result.escape_m <= 0.0):
             return False
         self.policy.on_kept(asked.t_plan, asked.obstacles)
         self.declined += 1

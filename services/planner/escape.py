@@ -82,7 +82,7 @@ class Escape:
 
     def point_at(self, s: float) -> tuple[float, float]:
         """The point at arc length s along the way out."""
-        xy = _points(self.start, np.array([self.turn_rad]), self.radius_m, np.array([s]))
+        xy = points_along(self.start, np.array([self.turn_rad]), self.radius_m, np.array([s]))
         return float(xy[0, 0, 0]), float(xy[0, 0, 1])
 
     def duration_s(self, v_ref_mps: float) -> float:
@@ -163,7 +163,7 @@ def _elevate(pw: FloatArray) -> FloatArray:
     return out
 
 
-def _points(start: Pose2D, turns: FloatArray, radius: float, s: FloatArray) -> FloatArray:
+def points_along(start: Pose2D, turns: FloatArray, radius: float, s: FloatArray) -> FloatArray:
     """Points (J, K, 2) at arc lengths s (K,) along each way out (J turns): the arc, then
     straight. On the arc, with signed radius rho and heading change a = s / rho (eq. (7)
     integrated at a constant twist, as predict_pose):
@@ -214,7 +214,7 @@ def sweep(
 ) -> Sweep:
     """Sample the ways out that turn by `turns` (J,) on arcs of radius_m, up to length_m."""
     s = np.arange(0.0, length_m + STEP_M, STEP_M)  # (K,)
-    pts = _points(start, turns, radius_m, s)  # (J, K, 2)
+    pts = points_along(start, turns, radius_m, s)  # (J, K, 2)
     t_pass = np.broadcast_to(s[None, :] / v_ref, pts.shape[:2])  # when it gets there
     flat = pts.reshape(-1, 2)
     d = np.minimum(
@@ -226,8 +226,8 @@ def sweep(
         float(static.distance(here)[0][0]),
         float(moving_distance(moving, here, np.zeros(1), accel_horizon_s)[0][0]),
     )
-    a = _to_edge(area, pts[..., 0], pts[..., 1])
-    a0 = float(_to_edge(area, np.array(start.x), np.array(start.y)))
+    a = to_edge(area, pts[..., 0], pts[..., 1])
+    a0 = float(to_edge(area, np.array(start.x), np.array(start.y)))
     return Sweep(s=s, d=d, a=a, d0=d0, a0=a0)
 
 
@@ -307,7 +307,7 @@ def find_escapes(
     return out
 
 
-def _to_edge(area: AreaConfig, x: FloatArray, y: FloatArray) -> FloatArray:
+def to_edge(area: AreaConfig, x: FloatArray, y: FloatArray) -> FloatArray:
     """Distance from points to the nearest edge of the area, negative outside it."""
     return np.minimum(
         np.minimum(x - area.x_min_m, area.x_max_m - x),

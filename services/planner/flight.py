@@ -36,6 +36,7 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
+from common.world.geometry import FloatArray
 from services.planner.clearance import StaticField, moving_distance
 from services.planner.controllers.base import Controller
 from services.planner.intent import IntentObstacle
@@ -108,21 +109,31 @@ class FlightModel:
     t0: float
 
 
-def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, cfg: PlannerConfig) -> Flight:
-    """Fly an OK plan (see the module docstring) and measure its clearance against what it
-    must keep."""
-    accel_horizon_s = cfg.accel_horizon_s
+@dataclass(frozen=True, eq=False)
+class Flown:
+    """A plan's flight: its reference, the positions (N, 2) every control period, their times
+    (s after the start), the distance flown to each, and the state where it ends."""
+
+    ref: PathArcReference
+    pts: FloatArray
+    t: FloatArray
+    dist: FloatArray
+    last: Pose
+
+
+def flown(result: PlanResult, req: PlanRequest, fm: FlightModel) -> Flown:
+    """An OK plan flown (see the module docstring)."""
     ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as PlannerCore._adopt resets it for a new path
     pose = fm.start
     end = ref.point_at_s(ref.length)
     n = max(1, math.ceil(min(FLIGHT_MAX_S, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
-    xs, ys, flown = [pose[0]], [pose[1]], [0.0]
+    xs, ys, dist = [pose[0]], [pose[1]], [0.0]
     for k in range(n):
         v, w = ctrl.command(fm.t0 + k * fm.step_s, pose, ref)
         nxt = fm.model.advance(pose, v, w, fm.step_s)
-        flown.append(flown[-1] + math.hypot(nxt[0] - pose[0], nxt[1] - pose[1]))
+        dist.append(dist[-1] + math.hypot(nxt[0] - pose[0], nxt[1] - pose[1]))
         pose = nxt
         xs.append(pose[0])
         ys.append(pose[1])
@@ -130,6 +141,15 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, cfg: PlannerConfi
             break
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
+    return Flown(ref=ref, pts=pts, t=t, dist=np.asarray(dist), last=pose)
+
+
+def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, cfg: PlannerConfig) -> Flight:
+    """Fly an OK plan (see the module docstring) and measure its clearance against what it
+    must keep."""
+    accel_horizon_s = cfg.accel_horizon_s
+    f = flown(result, req, fm)
+    ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
     obs = req.obstacles
     d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
     d = d_static.copy()
@@ -140,7 +160,6 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, cfg: PlannerConfi
     soon = t <= FLIGHT_MOVING_S
     d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
     d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
-    gone = np.asarray(flown)
     d[gone < result.escape_m] = math.inf  # the plan itself may pass nearer there
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
     # turning radius on, rho0 alone is kept; beyond, the cushion too (fleet4 seed 64, inproc:

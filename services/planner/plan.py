@@ -227,13 +227,9 @@ def _plan(
         curve, chk, n, met_moving = _fit_and_check(prob, waypoints, cfg, clk)
         rounds += n
         if chk.ok:
-            return PlanResult(
-                status="OK",
+            return PlanResult.of_curve(
+                curve,
                 reason="",
-                degree=curve.degree,
-                control_points=curve.ctrl,
-                weights=curve.weights,
-                knots=curve.knots,
                 grid_path=waypoints,
                 length_m=chk.length_m,
                 f_l=chk.length_m / d_min,

@@ -3,6 +3,8 @@
 Events (any one triggers a replan, but never sooner than min_replan_interval_s after the
 last replan, so noisy tracks cannot make the planner chatter):
   no_path       there is no usable path yet (none planned, or the last attempt failed);
+  aside         the path in force only steps aside, short of the goal (evade.py): try the
+                goal again;
   goal_changed  the goal moved;
   deviation     the vehicle is farther than deviation_threshold_m from its path;
   infeasible    the rest of the path violates eq. (12)-(13): some obstacle (static, or moving
@@ -37,7 +39,15 @@ from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
 
 ReplanReason = Literal[
-    "", "no_path", "goal_changed", "deviation", "infeasible", "corridor", "cruise", "resumed"
+    "",
+    "no_path",
+    "goal_changed",
+    "deviation",
+    "infeasible",
+    "corridor",
+    "cruise",
+    "aside",
+    "resumed",
 ]
 
 
@@ -83,6 +93,7 @@ class ReplanPolicy:
         self.s_now = 0.0  # progress along the path (m), monotone
         self.escape_m = 0.0  # the current plan's first escape_m may pass static obstacles closer
         self.slow_until_m = math.inf  # a slower plan's arc length past which cruise resumes
+        self.short_of_goal = False  # the path in force steps aside, short of the goal
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
         # per (path, static obstacle set) and sliced at every check, not recomputed (it was
@@ -100,6 +111,7 @@ class ReplanPolicy:
         self.escape_m = result.escape_m
         self.v_ref = self.cruise if result.v_ref_mps is None else result.v_ref_mps
         self.slow_until_m = result.slow_until_m
+        self.short_of_goal = result.short_of_goal
         if not result.ok:
             self.pts = None
             return
@@ -127,6 +139,12 @@ class ReplanPolicy:
             return ReplanDecision(replan=False, detail="within the minimum replan interval")
         if self.pts is None:
             return ReplanDecision(replan=True, reason="no_path", detail="no usable path")
+        if self.short_of_goal:
+            return ReplanDecision(
+                replan=True,
+                reason="aside",
+                detail="the path in force steps aside, short of the goal",
+            )
         if self.goal is None or _moved(self.goal, goal):
             return ReplanDecision(replan=True, reason="goal_changed", detail="the goal moved")
         i_now, dev = self._progress(t, pose)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -98,6 +98,9 @@ class PlanResult:
     # a slower plan's arc length (from its start) past which the place it was slowed for lies
     # behind: there the replan policy asks for a plan at cruise speed again (replan.py)
     slow_until_m: float = math.inf
+    # a way aside that stops short of the goal (evade.py: no plan reaches it, and holding is
+    # in a moving obstacle's way); the replan policy tries the goal again at every interval
+    short_of_goal: bool = False
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property
@@ -108,3 +111,15 @@ class PlanResult:
         if not self.ok:
             raise ValueError(f"no curve: {self.reason}")
         return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)
+
+    @staticmethod
+    def of_curve(curve: NurbsCurve, **fields: Any) -> PlanResult:
+        """An OK plan of `curve`, with the rest of its fields as given."""
+        return PlanResult(
+            status="OK",
+            degree=curve.degree,
+            control_points=curve.ctrl,
+            weights=curve.weights,
+            knots=curve.knots,
+            **fields,
+        )

@@ -1,0 +1,247 @@
+"""Stepping aside: a vehicle with no plan to its goal moves out of a moving obstacle's way.
+
+A plan that reaches no goal (NO_PATH) stops the vehicle where it is (core.py `follow`). That
+is safe among static obstacles, but a moving one's track may run through where it stops:
+fleet4 seed 57 (inproc), auv1 found no plan past obstacle 11's weave from t = 58.75 s,
+braked on its heading (the speed loop's lag: 4.6 m in 4.5 s), and the weave ran into it.
+
+So when the vehicle, held (its stop flown on the response model: response.py), would come
+within rho0 of a moving obstacle (eq. (12)-(13), obstacles where they will be, tracked ones
+and other vehicles' intents alike) over the next EVADE_S, it takes a way aside instead: an
+arc no tighter than ARC_RADIUS_FACTOR R_min (as a recovery's, recover.py) turning either way
+up to a half turn, then straight, ending every LENGTH_STEP_M up to EVADE_S at cruise speed,
+where the vehicle stops. The ways are swept (escape.py: never into contact, nor out of the
+area), each held at its end for the rest of EVADE_S; the SHORTLIST of them that clear the
+most (up to rho0 + FLIGHT_CUSHION_M, then the shortest, then the smallest turn) are flown by
+the controller (flight.py), and the one whose flight, then held, clears the most is taken,
+if it clears GAIN_M more than holding. Its path ends short of the goal (`short_of_goal`):
+the replan policy tries the goal again at every interval (replan.py, `no_path`). Pure: the
+same floats in every runtime.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from common.config.planner import PlannerConfig
+from common.world.geometry import FloatArray
+from services.planner.clearance import StaticField, moving_distance
+from services.planner.escape import (
+    DEPTH_STEP_M,
+    N_TURNS,
+    Escape,
+    points_along,
+    sweep,
+    to_edge,
+)
+from services.planner.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
+from services.planner.plan import plan_path
+from services.planner.recover import ARC_RADIUS_FACTOR
+from services.planner.response import Pose
+from services.planner.result import PlanRequest, PlanResult
+
+EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
+LENGTH_STEP_M = 1.0  # the ways aside end every this far along
+SHORTLIST = 6  # of the swept ways, this many (the best) are flown
+GAIN_M = 0.1  # a way aside is taken if its flight clears this much more than holding
+
+
+def plan_or_step_aside(
+    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None = None
+) -> PlanResult:
+    """The plan to the goal, flown (flight.py); without one, a way aside when holding (or
+    going on along `aside`, the way aside in force) is in a moving obstacle's way (module
+    docstring), else the NO_PATH."""
+    result = plan_flown(req, cfg, fm, plan_path)
+    if result.ok:
+        return result
+    way = step_aside(req, cfg, fm, aside)
+    if way is None:
+        return result
+    return replace(way, reason=f"{result.reason}; {way.reason}")
+
+
+def step_aside(
+    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None = None
+) -> PlanResult | None:
+    """A path aside (module docstring), or None when holding, or going on along `aside`,
+    is as good."""
+    moving = req.obstacles.moving
+    if not moving:
+        return None
+    r, v = req.vehicle_radius_m, req.v_ref_mps
+    static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
+    if aside is None:
+        how = "held"
+        stay = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start)
+    else:
+        how = "going on along the way aside in force"
+        f = flown(aside, req, fm)
+        stay = _held_on(fm, f.pts, f.t, f.last)
+    stay_clear = _clearance(stay, req, cfg, static)
+    if stay_clear >= cfg.rho0_m:
+        return None
+    radius = ARC_RADIUS_FACTOR * req.r_min_m
+    turns = np.linspace(-math.pi, math.pi, N_TURNS)
+    sw = sweep(
+        req.start,
+        turns,
+        radius,
+        v * EVADE_S,
+        static,
+        moving,
+        req.area,
+        v_ref=v,
+        accel_horizon_s=cfg.accel_horizon_s,
+    )
+    ends = np.searchsorted(sw.s, np.arange(LENGTH_STEP_M, v * EVADE_S + 1e-9, LENGTH_STEP_M))
+    ends = ends[ends < len(sw.s)]
+    free = sw.deeper(r, r)[:, ends] <= 1e-9  # (J, E) never into contact, nor out of the area
+    on_way = np.minimum.accumulate(sw.d, axis=1)[:, ends]  # (J, E) the least on the way there
+    # held at its end from when it gets there (at cruise speed) to EVADE_S
+    t_hold = np.arange(0.0, EVADE_S + 1e-9, fm.step_s)
+    end_pts = points_along(req.start, turns, radius, sw.s[ends])  # (J, E, 2)
+    flat = np.repeat(end_pts.reshape(-1, 2), len(t_hold), axis=0)
+    d_end = moving_distance(
+        moving, flat, np.tile(t_hold, len(turns) * len(ends)), cfg.accel_horizon_s
+    )[0].reshape(len(turns), len(ends), len(t_hold))
+    arrive = sw.s[ends] / v  # (E,)
+    d_end = np.where(t_hold[None, None, :] >= arrive[None, :, None], d_end, np.inf).min(axis=2)
+    score = np.minimum(on_way, d_end) - r  # (J, E)
+    # where it stops it must be able to turn about, as a recovery turns (recover.py), to
+    # plan on from there: stopped facing an edge or a wall, no forward curve leaves
+    heading = req.start.theta + np.sign(turns)[:, None] * np.minimum(
+        np.abs(turns)[:, None], sw.s[ends][None, :] / radius
+    )  # (J, E)
+    room = _turning_room(end_pts, heading, radius, r, static, req)
+    cap = cfg.rho0_m + FLIGHT_CUSHION_M
+    # a way that ends on its arc is the same as any larger turn's up to there: one of each
+    ways = {
+        (_turn(float(turns[j]), float(sw.s[ends[e]]), radius), int(e)): (int(j), int(e))
+        for j, e in zip(*np.nonzero(free), strict=True)
+    }
+    cands = sorted(
+        ways.values(),
+        key=lambda je: (
+            not room[je],
+            -round(min(float(score[je]), cap) / DEPTH_STEP_M),
+            float(sw.s[ends[je[1]]]),
+            abs(float(turns[je[0]])),
+        ),
+    )
+    best: tuple[bool, float, PlanResult] | None = None
+    for j, e in cands[:SHORTLIST]:
+        length = float(sw.s[ends[e]])
+        esc = Escape(
+            start=req.start,
+            radius_m=radius,
+            turn_rad=_turn(float(turns[j]), length, radius),
+            length_m=length,
+            start_clearance_m=stay_clear,
+            end_clearance_m=float(score[j, e]),
+        )
+        way = _as_plan(esc, req, cfg)
+        f = flown(way, req, fm)
+        got = _clearance(_held_on(fm, f.pts, f.t, f.last), req, cfg, static)
+        # where the flight stops (past the way's end, as the speed loop lags)
+        x, y, th = f.last[:3]
+        can_turn = bool(
+            _turning_room(np.array([[[x, y]]]), np.array([[th]]), radius, r, static, req)[0, 0]
+        )
+        if got >= stay_clear + GAIN_M and (best is None or (can_turn, got) > best[:2]):
+            best = (can_turn, got, way)
+    if best is None:
+        return None
+    _, got, way = best
+    return replace(
+        way,
+        reason=f"{how}, it would come within {stay_clear:.2f} m of a moving obstacle: steps "
+        f"aside {way.length_m:.1f} m (turning {math.degrees(way.turn_rad):+.0f} deg), flown "
+        f"clearing {got:.2f} m, then holds",
+        min_clearance_m=got,
+    )
+
+
+def _turn(turn: float, length: float, radius: float) -> float:
+    """A way that ends on its arc turns only as far as it gets."""
+    return float(np.sign(turn)) * min(abs(turn), length / radius)
+
+
+def _held_on(
+    fm: FlightModel, pts: FloatArray, t: FloatArray, last: Pose
+) -> tuple[FloatArray, FloatArray]:
+    """Positions pts at times t (a flight, ending in state `last`), then the vehicle stopped
+    (the stop command on the response model) every control period up to EVADE_S."""
+    n = math.ceil((EVADE_S - float(t[-1])) / fm.step_s)
+    if n <= 0:
+        return pts, t
+    pose = last
+    more = []
+    for _ in range(n):
+        pose = fm.model.advance(pose, 0.0, 0.0, fm.step_s)
+        more.append((pose[0], pose[1]))
+    return (
+        np.vstack([pts, np.array(more)]),
+        np.concatenate([t, float(t[-1]) + fm.step_s * np.arange(1, n + 1)]),
+    )
+
+
+def _turning_room(
+    ends: FloatArray,
+    heading: FloatArray,
+    radius: float,
+    r: float,
+    static: StaticField,
+    req: PlanRequest,
+) -> np.ndarray:
+    """(J, E) whether a full circle of `radius` to either side of each end pose keeps the
+    hull free of static obstacles and in the area (eq. (10))."""
+    a = np.linspace(0.0, 2.0 * math.pi, 24, endpoint=False)
+    ok = np.zeros(ends.shape[:2], dtype=bool)
+    for side in (1.0, -1.0):
+        cx = ends[..., 0] - side * radius * np.sin(heading)
+        cy = ends[..., 1] + side * radius * np.cos(heading)
+        px = cx[..., None] + radius * np.cos(a)
+        py = cy[..., None] + radius * np.sin(a)
+        edge = to_edge(req.area, px, py)
+        pts = np.stack([px, py], axis=-1).reshape(-1, 2)
+        d = (
+            static.distance(pts)[0].reshape(px.shape)
+            if not static.empty
+            else np.full(px.shape, np.inf)
+        )
+        ok |= np.all((edge >= r) & (d >= r), axis=-1)
+    return ok
+
+
+def _clearance(
+    track: tuple[FloatArray, FloatArray], req: PlanRequest, cfg: PlannerConfig, static: StaticField
+) -> float:
+    """The least hull clearance of positions at times (s from the request's start) to every
+    obstacle (eq. (12)-(13): moving ones where they will be then)."""
+    pts, t = track
+    d = np.minimum(
+        static.distance(pts)[0],
+        moving_distance(req.obstacles.moving, pts, t, cfg.accel_horizon_s)[0],
+    )
+    return float(d.min()) - req.vehicle_radius_m
+
+
+def _as_plan(esc: Escape, req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
+    """A way aside as a path: the exact arc and straight run (escape.py), short of the goal."""
+    a = np.array([req.start.x, req.start.y])
+    return PlanResult.of_curve(
+        esc.curve(cfg.nurbs_degree),
+        reason="",
+        grid_path=np.vstack([a, np.array(esc.point_at(esc.length_m))]),
+        length_m=esc.length_m,
+        f_l=0.0,
+        max_curvature=1.0 / esc.radius_m if esc.turn_rad else 0.0,
+        min_clearance_m=esc.end_clearance_m,
+        escape_m=esc.length_m,  # swept clear of contact: the policy judges it by moving ones
+        turn_rad=esc.turn_rad,
+        short_of_goal=True,
+    )
