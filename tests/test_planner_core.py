@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import math
@@ -419,6 +420,12 @@ def test_a_way_aside_is_kept_until_a_plan_reaches_the_goal() -> None:
     core.deliver(_estimate(t - 0.05, x=5.0 + t))
     out = core.step(t)
     assert _paths(out) == [] and core.ref is in_force and _cmds(out)  # kept, commanding on
+    # run to its end, the vehicle stops either way, and the NO_PATH is told (and alarmed on)
+    ended = copy.deepcopy(core)
+    ended.policy.s_now = float(ended.policy.s[-1])
+    ended.deliver(_estimate(2.2, x=7.2))
+    (told,) = _paths(ended.step(2.25))
+    assert told.status == "NO_PATH" and ended.ref is None
     plans.edit = lambda r: r
     t = 2.25
     core.deliver(_estimate(t - 0.05, x=5.0 + t))

@@ -32,7 +32,7 @@ from services.planner.command_link import CommandLink, Prediction
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.evade import plan_or_step_aside
-from services.planner.flight import FlightModel
+from services.planner.flight import ARRIVED_M, FlightModel
 from services.planner.intent import FleetIntents
 from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
@@ -499,7 +499,12 @@ class PlannerCore:
         judged going on along the way aside as good as any. Returns whether it was declined."""
         if self.ref is None:
             return False
-        stepping_aside = self.last_result is not None and self.last_result.short_of_goal
+        last = self.last_result
+        # at its end the vehicle stops either way: the NO_PATH is then told (the launcher's
+        # alarm on a NO_PATH that lasts), not kept silent behind a way aside run out
+        stepping_aside = (
+            last is not None and last.short_of_goal and self.policy.remaining_m > ARRIVED_M
+        )
         if stepping_aside:
             # a way aside (evade.py) is kept until a plan reaches the goal or a better way
             # aside is found: its NO_PATH judged going on along it as good as any other

@@ -129,6 +129,11 @@ class ReplanPolicy:
         self.last_replan_t = t
         self.known_ids |= {o.id for o in obstacles.moving}
 
+    @property
+    def remaining_m(self) -> float:
+        """Arc length of the path in force ahead of the vehicle's progress (0 without one)."""
+        return float(self.s[-1]) - self.s_now if self.pts is not None else 0.0
+
     # --- the decision --------------------------------------------------------------------
     def check(self, t: float, pose: Pose2D, goal: Pose2D, obstacles: Obstacles) -> ReplanDecision:
         """Decide at time t; obstacles are given by their state at time t."""
