@@ -12,11 +12,14 @@ arc no tighter than ARC_RADIUS_FACTOR R_min (as a recovery's, recover.py) turnin
 up to a half turn, then straight, ending every LENGTH_STEP_M up to EVADE_S at cruise speed,
 where the vehicle stops. The ways are swept (escape.py: never into contact, nor out of the
 area), each held at its end for the rest of EVADE_S; the SHORTLIST of them that clear the
-most (up to rho0 + FLIGHT_CUSHION_M, then the shortest, then the smallest turn) are flown by
-the controller (flight.py), and the one whose flight, then held, clears the most is taken,
+most (those that end where a full circle of that radius is free to one side first: stopped
+facing an edge or a wall, no curve leaves; then up to rho0 + FLIGHT_CUSHION_M, then the
+shortest, then the smallest turn) are flown by the controller (flight.py), and the one whose
+flight, then held, clears the most (one that stops with room to turn about first) is taken
 if it clears GAIN_M more than holding. Its path ends short of the goal (`short_of_goal`):
-the replan policy tries the goal again at every interval (replan.py, `no_path`). Pure: the
-same floats in every runtime.
+the replan policy tries the goal again at every interval (replan.py, `aside`); while it is in
+force, what a new way aside must beat is going on along it (core.py keeps it over a NO_PATH
+until its end). Pure: the same floats in every runtime.
 """
 
 from __future__ import annotations
