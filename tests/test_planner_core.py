@@ -33,8 +33,8 @@ def _core(overrides: list[str] | None = None, *, wait_for_tracks: bool = False) 
     return PlannerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
-def _estimate(stamp: float, x: float = 5.0, y: float = 20.0) -> Delivery:
-    est = StateEstimate(stamp=stamp, x=x, y=y, theta=0.0, v=1.0, w=0.0, covariance=COV)
+def _estimate(stamp: float, x: float = 5.0, y: float = 20.0, v: float = 1.0) -> Delivery:
+    est = StateEstimate(stamp=stamp, x=x, y=y, theta=0.0, v=v, w=0.0, covariance=COV)
     return Delivery(source="estimator", stream="state", msg=est, t=stamp + 0.05)
 
 
@@ -245,10 +245,11 @@ def _tracks(stamp: float, *tracks: Track) -> Delivery:
 
 def test_the_first_plan_waits_for_tracks_then_sees_the_moving_obstacle() -> None:
     core = _core(wait_for_tracks=True)
-    # the estimator publishes (empty) tracks from its first period on, before any scan
+    # the estimator publishes (empty) tracks from its first period on, before any scan; the
+    # vehicle, told to stay still, is at rest
     for k in range(6):
         t = 0.05 + 0.1 * k
-        core.deliver(_estimate(t - 0.05))
+        core.deliver(_estimate(t - 0.05, v=0.0))
         core.deliver(_tracks(t - 0.05))
         out = core.step(t)
         assert _paths(out) == []  # no plan yet: the vehicle is told to stay still
@@ -258,14 +259,15 @@ def test_the_first_plan_waits_for_tracks_then_sees_the_moving_obstacle() -> None
     parked = Track(
         id=40, x=12.0, y=20.0, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=1.5, covariance=COV6
     )
-    core.deliver(_estimate(0.6))
+    core.deliver(_estimate(0.6, v=0.0))
     core.deliver(_tracks(0.6, parked))
     (path,) = _paths(core.step(0.65))
     assert path.status == "OK"
     assert core.last_result is not None
     # eq. (12)-(13): the plan keeps clear of the track it waited for. Heading at it from
     # 6 m, no curve within R_min leaves along the heading: the plan first turns away on an
-    # arc, which may enter the safety margin (recover.py), never the hull
+    # arc, which may enter the safety margin (recover.py: at rest, holding first cannot
+    # help, evade.py), never the hull
     res = core.last_result
     assert res.min_clearance_m >= (core.cfg.rho0_m if res.turn_rad == 0.0 else 0.0), res
 

@@ -231,6 +231,10 @@ def test_a_start_heading_at_an_obstacle_turns_on_an_arc_instead_of_stopping_for_
     d = _hull_clearance(pts)
     assert d.min() > 0.0  # the arc may pass inside the margin, never into contact
     assert d[s >= res.escape_m].min() >= CFG.rho0_m - 1e-6
+    # and the plan says how far into it (below the start's clearance, or rho0 if less)
+    on_arc = d[s <= ARC * abs(res.turn_rad)]
+    entered = max(0.0, min(float(d[0]), CFG.rho0_m) - float(on_arc.min()))
+    assert res.margin_entered_m == pytest.approx(entered, abs=0.02)
 
 
 def test_a_start_too_near_an_obstacle_it_heads_at_is_no_path() -> None:

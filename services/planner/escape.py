@@ -344,4 +344,5 @@ def prepend_escape(esc: Escape, rest: PlanResult, goal: Pose2D) -> PlanResult:
         min_clearance_m=min(esc.start_clearance_m, rest.min_clearance_m),
         escape_m=esc.length_m + rest.escape_m,
         turn_rad=esc.turn_rad,
+        margin_entered_m=esc.deeper_m,
     )

@@ -1,4 +1,5 @@
-"""Stepping aside: a vehicle with no plan to its goal moves out of a moving obstacle's way.
+"""Stepping aside and holding first: a vehicle keeps out of a moving obstacle's way and out
+of the safety margin while no plan, or only a recovery into the margin, is found.
 
 A plan that reaches no goal (NO_PATH) stops the vehicle where it is (core.py `follow`). That
 is safe among static obstacles, but a moving one's track may run through where it stops:
@@ -19,13 +20,29 @@ flight, then held, clears the most (one that stops with room to turn about first
 if it clears GAIN_M more than holding. Its path ends short of the goal (`short_of_goal`):
 the replan policy tries the goal again at every interval (replan.py, `aside`); while it is in
 force, what a new way aside must beat is going on along it (core.py keeps it over a NO_PATH
-until its end). Pure: the same floats in every runtime.
+until its end).
+
+It steps aside too when holding is clear of every obstacle but would stop the vehicle where
+no such circle keeps rho0 (a wall ahead), while where it is one does (`trapped`: from that
+stop only a recovery into the margin turns it about): then the ways that stop with that
+room come first, and one is taken if its flight keeps rho0. Fleet4 seed 82 (inproc): auv3,
+NO_PATH for 4 s heading at polygon 4, braked to 2 m off it and could then only turn along it
+0.48 m from it.
+
+And a plan whose recovery turns into the margin (recover.py, `margin_entered_m`) waits while
+the vehicle still moves at HOLD_FIRST_FACTOR of cruise speed or more and holding keeps rho0
+with that room: the planner answers NO_PATH ("holds first"), the vehicle brakes, and the
+next replans try again from nearer rest, where the moving obstacles that blocked a way
+keeping the margin may have passed (fleet4 seed 82: auv3 turned into the margin of obstacle
+3 at t = 24.35 s, 0.25 m deep, where 1.1 s later a recovery keeping it was found). Slower
+than that, holding no longer changes where the vehicle is, and the recovery is taken.
+Pure: the same floats in every runtime.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,21 +67,70 @@ EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
 LENGTH_STEP_M = 1.0  # the ways aside end every this far along
 SHORTLIST = 6  # of the swept ways, this many (the best) are flown
 GAIN_M = 0.1  # a way aside is taken if its flight clears this much more than holding
+# a recovery into rho0 waits while the vehicle, holding, is faster than this share of cruise
+HOLD_FIRST_FACTOR = 0.25
 
 
 def plan_or_step_aside(
     req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None = None
 ) -> PlanResult:
-    """The plan to the goal, flown (flight.py); without one, a way aside when holding (or
-    going on along `aside`, the way aside in force) is in a moving obstacle's way (module
-    docstring), else the NO_PATH."""
+    """The plan to the goal, flown (flight.py), unless it enters the safety margin where
+    holding keeps out of it (module docstring: holds first); without one, a way aside when
+    holding (or going on along `aside`, the way aside in force) is in a moving obstacle's way
+    or traps the vehicle, else the NO_PATH."""
     result = plan_flown(req, cfg, fm, plan_path)
     if result.ok:
-        return result
+        moving_on = fm.start[3] >= HOLD_FIRST_FACTOR * req.v_ref_mps
+        if result.margin_entered_m <= 0.0 or not moving_on or not req.obstacles.moving:
+            return result
+        held = _holding(req, cfg, fm, aside)
+        if held.threatened or held.trapped:
+            return result
+        return PlanResult(
+            status="NO_PATH",
+            reason=f"{result.reason}, {result.margin_entered_m:.2f} m into rho0, where "
+            f"{held.how} keeps {held.clear_m:.2f} m: holds first",
+            grid_path=result.grid_path,
+            timing=result.timing,
+        )
     way = step_aside(req, cfg, fm, aside)
     if way is None:
         return result
     return replace(way, reason=f"{result.reason}; {way.reason}")
+
+
+@dataclass(frozen=True)
+class Holding:
+    """What holding (or going on along the way aside in force, then holding) comes to over
+    EVADE_S: its least clearance, whether the vehicle then has room to turn about (hull
+    free, rho0 kept: `_rooms_at`), and so whether it is in a moving obstacle's way
+    (`threatened`) or, clear of every obstacle, would stop where it can no longer turn about
+    outside rho0 while where it is now it can (`trapped`)."""
+
+    how: str
+    clear_m: float
+    rooms: tuple[bool, bool]
+    threatened: bool
+    trapped: bool
+
+
+def _holding(
+    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None
+) -> Holding:
+    static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
+    if aside is None:
+        how = "holding"
+        pts, t, stop = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start)
+    else:
+        how = "going on along the way aside in force"
+        f = flown(aside, req, fm)
+        pts, t, stop = _held_on(fm, f.pts, f.t, f.last)
+    clear = _clearance((pts, t), req, cfg, static)
+    radius = ARC_RADIUS_FACTOR * req.r_min_m
+    rooms = _rooms_at(stop, radius, static, req, cfg)
+    threatened = clear < cfg.rho0_m
+    trapped = not threatened and not rooms[1] and _rooms_at(fm.start, radius, static, req, cfg)[1]
+    return Holding(how=how, clear_m=clear, rooms=rooms, threatened=threatened, trapped=trapped)
 
 
 def step_aside(
@@ -75,18 +141,12 @@ def step_aside(
     moving = req.obstacles.moving
     if not moving:
         return None
+    held = _holding(req, cfg, fm, aside)
+    if not (held.threatened or held.trapped):
+        return None
+    how, stay_clear, threatened, trapped = held.how, held.clear_m, held.threatened, held.trapped
     r, v = req.vehicle_radius_m, req.v_ref_mps
     static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
-    if aside is None:
-        how = "held"
-        stay = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start)
-    else:
-        how = "going on along the way aside in force"
-        f = flown(aside, req, fm)
-        stay = _held_on(fm, f.pts, f.t, f.last)
-    stay_clear = _clearance(stay, req, cfg, static)
-    if stay_clear >= cfg.rho0_m:
-        return None
     radius = ARC_RADIUS_FACTOR * req.r_min_m
     turns = np.linspace(-math.pi, math.pi, N_TURNS)
     sw = sweep(
@@ -120,6 +180,8 @@ def step_aside(
         np.abs(turns)[:, None], sw.s[ends][None, :] / radius
     )  # (J, E)
     room = _turning_room(end_pts, heading, radius, r, static, req)
+    # trapped: ways that leave room to turn about outside rho0 come next (else all alike)
+    room_kept = _turning_room(end_pts, heading, radius, r + cfg.rho0_m, static, req) | (not trapped)
     cap = cfg.rho0_m + FLIGHT_CUSHION_M
     # a way that ends on its arc is the same as any larger turn's up to there: one of each
     ways = {
@@ -130,12 +192,13 @@ def step_aside(
         ways.values(),
         key=lambda je: (
             not room[je],
+            not room_kept[je],
             -round(min(float(score[je]), cap) / DEPTH_STEP_M),
             float(sw.s[ends[je[1]]]),
             abs(float(turns[je[0]])),
         ),
     )
-    best: tuple[bool, float, PlanResult] | None = None
+    best: tuple[tuple[bool, bool], float, PlanResult] | None = None
     for j, e in cands[:SHORTLIST]:
         length = float(sw.s[ends[e]])
         esc = Escape(
@@ -148,22 +211,27 @@ def step_aside(
         )
         way = _as_plan(esc, req, cfg)
         f = flown(way, req, fm)
-        got = _clearance(_held_on(fm, f.pts, f.t, f.last), req, cfg, static)
+        got_pts, got_t, _ = _held_on(fm, f.pts, f.t, f.last)
+        got = _clearance((got_pts, got_t), req, cfg, static)
         # where the flight stops (past the way's end, as the speed loop lags)
-        x, y, th = f.last[:3]
-        can_turn = bool(
-            _turning_room(np.array([[[x, y]]]), np.array([[th]]), radius, r, static, req)[0, 0]
-        )
-        if got >= stay_clear + GAIN_M and (best is None or (can_turn, got) > best[:2]):
-            best = (can_turn, got, way)
+        turns_there, kept_there = _rooms_at(f.last, radius, static, req, cfg)
+        rooms = (turns_there, kept_there or not trapped)
+        # better than holding: clearer by GAIN_M, or (trapped) as clear up to rho0 with room
+        gains = got >= stay_clear + GAIN_M or (trapped and kept_there and got >= cfg.rho0_m)
+        if gains and (best is None or (rooms, got) > best[:2]):
+            best = (rooms, got, way)
     if best is None:
         return None
     _, got, way = best
+    why = (
+        f"it would come within {stay_clear:.2f} m of a moving obstacle"
+        if threatened
+        else "it would stop with no room to turn about outside rho0"
+    )
     return replace(
         way,
-        reason=f"{how}, it would come within {stay_clear:.2f} m of a moving obstacle: steps "
-        f"aside {way.length_m:.1f} m (turning {math.degrees(way.turn_rad):+.0f} deg), flown "
-        f"clearing {got:.2f} m, then holds",
+        reason=f"{how}, {why}: steps aside {way.length_m:.1f} m (turning "
+        f"{math.degrees(way.turn_rad):+.0f} deg), flown clearing {got:.2f} m, then holds",
         min_clearance_m=got,
     )
 
@@ -175,12 +243,13 @@ def _turn(turn: float, length: float, radius: float) -> float:
 
 def _held_on(
     fm: FlightModel, pts: FloatArray, t: FloatArray, last: Pose
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, Pose]:
     """Positions pts at times t (a flight, ending in state `last`), then the vehicle stopped
-    (the stop command on the response model) every control period up to EVADE_S."""
+    (the stop command on the response model) every control period up to EVADE_S; and the
+    state it is left in."""
     n = math.ceil((EVADE_S - float(t[-1])) / fm.step_s)
     if n <= 0:
-        return pts, t
+        return pts, t, last
     pose = last
     more = []
     for _ in range(n):
@@ -189,6 +258,20 @@ def _held_on(
     return (
         np.vstack([pts, np.array(more)]),
         np.concatenate([t, float(t[-1]) + fm.step_s * np.arange(1, n + 1)]),
+        pose,
+    )
+
+
+def _rooms_at(
+    pose: Pose, radius: float, static: StaticField, req: PlanRequest, cfg: PlannerConfig
+) -> tuple[bool, bool]:
+    """Whether a vehicle stopped at `pose` has room to turn about (`_turning_room`): with
+    its hull free, and keeping the safety margin rho0 (else a recovery's arc enters it)."""
+    x, y, th = pose[:3]
+    at, heading, r = np.array([[[x, y]]]), np.array([[th]]), req.vehicle_radius_m
+    return (
+        bool(_turning_room(at, heading, radius, r, static, req)[0, 0]),
+        bool(_turning_room(at, heading, radius, r + cfg.rho0_m, static, req)[0, 0]),
     )
 
 

@@ -58,7 +58,8 @@ def turn_then_plan(
     the less the better: arcs that keep the margin rho0_m (never below min(start, r + rho0))
     come first, then they are tried by how much nearer than the start they take the hull (in
     steps of DEPTH_STEP_M), then by how far their end heading is from the leg's; at most
-    MAX_ESCAPES of them.
+    MAX_ESCAPES of them. The plan says how far below min(start, r + rho0) its arc goes
+    (`margin_entered_m`): a vehicle still under way holds first instead (evade.py).
     """
     lead = failed.grid_path[1] - failed.grid_path[0] if len(failed.grid_path) >= 2 else None
     if lead is None:
@@ -83,7 +84,8 @@ def turn_then_plan(
     free = sw.deeper(r + BEYOND_M, r)[rows, end] <= 0.0  # hull free, in the area, to the end
     # eq. (12)-(13): an arc that keeps the safety margin (never below min(start, r + rho0))
     # comes before any that enters it; a start outside the margin then stays outside
-    kept = sw.deeper(r + rho0_m, r)[rows, end] <= 0.0
+    entered = sw.deeper(r + rho0_m, r)[rows, end]
+    kept = entered <= 0.0
     depth = sw.deeper(math.inf, r)[rows, end]  # how much nearer than at the start
     order = sorted(
         np.flatnonzero(free),
@@ -103,6 +105,7 @@ def turn_then_plan(
             length_m=radius * abs(turn),
             start_clearance_m=sw.d0 - r,
             end_clearance_m=float(sw.d[j, end[j]]) - r,
+            deeper_m=float(entered[j]),
         )
         again = _plan_after(req, esc, plan)
         if again.ok:

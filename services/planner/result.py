@@ -92,6 +92,9 @@ class PlanResult:
     # the heading change of the arc a recovery starts with (recover.py; > 0 to the left):
     # 0 when the curve leaves straight ahead
     turn_rad: float = 0.0
+    # how far that recovery's way out goes below min(the start's clearance, rho0): into the
+    # safety margin, or deeper into it (escape.py `deeper_m`); 0 when it keeps out
+    margin_entered_m: float = 0.0
     # the speed the plan was made and flown for, when slower than the request's cruise speed
     # (flight.py: a plan no faster flight kept rho0 on); None: the request's v_ref_mps
     v_ref_mps: float | None = None
