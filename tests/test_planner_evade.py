@@ -6,13 +6,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers.planner_world import circle
+from helpers.planner_world import circle, default_scenario
 
-from common.config.scenario import load_scenario
 from common.world import ObstacleState
 from services.planner import evade
 from services.planner.controllers import Limits, make_controller
@@ -27,8 +25,7 @@ from services.planner.flight import FlightModel, flown
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.response import ResponseModel
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
-SCENARIO = load_scenario(DEFAULT)[0]
+SCENARIO = default_scenario()
 CFG = SCENARIO.planner
 R = SCENARIO.vehicle.radius_m
 V = SCENARIO.vehicle.cruise_speed_mps

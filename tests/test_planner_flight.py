@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.planner_world import default_scenario
 
 from common.config.planner import PlannerConfig
-from common.config.scenario import load_scenario
 from common.config.world import CircleObstacleConfig
 from common.world import ObstacleState
 from common.world.geometry import Box
@@ -31,8 +30,7 @@ from services.planner.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.response import ResponseModel
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
-SCENARIO = load_scenario(DEFAULT)[0]
+SCENARIO = default_scenario()
 CFG = SCENARIO.planner
 R = SCENARIO.vehicle.radius_m
 V = SCENARIO.vehicle.cruise_speed_mps
