@@ -15,6 +15,7 @@ flight around the estimate's age plus the downlink delay: ~(age + delay) / perio
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,14 +26,12 @@ from services.planner.response import Pose, ResponseModel
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class Sent:
-    """One command as sent: its expected arrival at the vehicle and its schedule there."""
+    """One command as sent: its stamp, its expected arrival at the vehicle and its schedule
+    there (the stamp kept apart from the schedule's starts: predictions compare it often)."""
 
+    stamp: float
     arrival: float
     schedule: Schedule
-
-    @property
-    def stamp(self) -> float:
-        return self.schedule.starts[0]
 
 
 class CommandTimeline:
@@ -54,7 +53,7 @@ class CommandTimeline:
         """Record a command stamped `stamp` with entries (vs[k], ws[k]) every step_s (the values
         as the vehicle will read them off the wire), expected at the vehicle at `arrival`."""
         sched = Schedule.of_command(stamp, step_s, vs, ws, self._watchdog, self._v_min)
-        self.sent.append(Sent(arrival=arrival, schedule=sched))
+        self.sent.append(Sent(stamp=sched.starts[0], arrival=arrival, schedule=sched))
 
     def _in_force(self, t: float) -> Sent | None:
         """The newest command (by stamp) expected to have arrived by time t, if any."""
@@ -83,13 +82,12 @@ class CommandTimeline:
         t = t_a
         while t < t_b:
             cur = self._in_force(t)
-            # the command in force lasts until a newer one arrives
-            newer = [
-                s.arrival
-                for s in self.sent
-                if s.arrival > t and (cur is None or s.stamp > cur.stamp)
-            ]
-            end = min([t_b, *newer])
+            # the command in force lasts until a newer one arrives (by t_b at the latest)
+            end = t_b
+            newer_than = -math.inf if cur is None else cur.stamp
+            for s in self.sent:
+                if t < s.arrival < end and s.stamp > newer_than:
+                    end = s.arrival
             sched = Schedule() if cur is None else cur.schedule
             # within, the applied command changes only at the schedule's own transitions
             for c in sorted({end, *sched.transitions_between(t, end)}):
