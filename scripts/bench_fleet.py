@@ -18,7 +18,8 @@ delivery, by the receiver's, negatives counted 0: transport and queueing on the 
 the two clocks' offset, not the services' periods), p50 / p95 / max (the statistics carry
 no p99); under each vehicle, each of its services' own part: how late its ticks ran (p50)
 and how long its step took (p50/p95: the core's step, the link model, encoding), so the
-slowest part is visible (the planner's step computes a 100-entry command sequence). Goal
+slowest part is visible, and, after a step, how long preparing the next one took (the
+planner's command sequence: services/planner/sequence.py, "Prepared tails"). Goal
 (issue 18): every vehicle's loop within 10 ms at N = 4; judged here on the sum of its hops'
 p95 (and shown with their max); the largest N that holds it is reported.
 """
@@ -179,11 +180,18 @@ def realtime_loops(sizes: list[int], seconds: float, spread_s: float) -> None:
                 step95 = t.get("loop.step_p95_us", 0) / 1e3
                 if step95 > slowest[1]:
                     slowest = (f"{v.id}.{name}", step95)
+                # and, after the step is out, preparing the next one (the planner's
+                # command sequence, core.Prepares): off the hop, but on the same cores
+                prep = t.get("loop.prepare_p50_us")
                 steps.append(
                     f"{name} {t.get('loop.wake_p50_us', 0) / 1e3:4.2f} "
                     f"{t.get('loop.step_p50_us', 0) / 1e3:4.2f}/{step95:4.2f}"
+                    + ("" if prep is None else f" (+{prep / 1e3:4.2f})")
                 )
-            print(f"              woke late p50, step p50/p95: {'   '.join(steps)}")
+            print(
+                "              woke late p50, step p50/p95 (+ preparing the next, p50): "
+                + "   ".join(steps)
+            )
         ok = worst <= LOOP_GOAL_MS
         held = n if ok else held
         print(

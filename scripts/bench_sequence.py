@@ -2,7 +2,8 @@
 
 For each controller and horizon (0 = single commands, the baseline measured in the same run):
 the planner's control step on the default mission's first plan, timed on this thread's CPU
-clock, and its command's wire bytes (services/experiments/sequence_cost.py, which the
+clock, then its preparing the next step (the rest of the rollout, computed once the command
+is out), and its command's wire bytes (services/experiments/sequence_cost.py, which the
 networked-control report quotes too). Ratios are against the first horizon.
 
 --model adds the accuracy of the planner's vehicle model (services/planner/response.py)
@@ -34,12 +35,13 @@ def main_steps(steps: int, horizons: list[float]) -> None:
     print(f"planner control step vs command horizon ({steps} steps, CPU time of this thread)")
     print(
         f"{'controller':13s} {'horizon s':>9s} {'entries':>7s} {'bytes':>6s} {'x bytes':>7s} "
-        f"{'step p50 ms':>11s} {'p95 ms':>7s} {'x time':>7s}"
+        f"{'step p50 ms':>11s} {'p95 ms':>7s} {'x time':>7s} {'then prepare p50 ms':>19s}"
     )
     for r in cost_table(steps, tuple(horizons)):
         print(
             f"{r.controller:13s} {r.horizon_s:9.1f} {r.entries:7d} {r.bytes:6.0f} "
             f"{r.bytes_ratio:7.1f} {r.step_p50_ms:11.2f} {r.step_p95_ms:7.2f} {r.time_ratio:7.1f}"
+            f" {r.prepare_p50_ms:19.2f}"
         )
 
 

@@ -168,6 +168,94 @@ def test_a_sequence_is_the_controller_rolled_on_a_copy(kind: str) -> None:
     assert (vs[4], ws[4]) == alone.command(t + 4 * 0.1, p, CIRCLE)
 
 
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_the_first_entries_are_the_same_floats_whatever_is_computed_after_them(kind: str) -> None:
+    # a step computes entries 0..last only (prepared tails): they must be the entries of
+    # the whole sequence, bit for bit, the stop tail's cap (set by the horizon) included
+    pose = (0.5, -0.3, 0.1, 1.6, 0.05)
+    tl = _timeline()
+    tl.add(0.2, 0.45, 0.1, [1.0] * 10, [0.08] * 10)
+    ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
+    args = dict(n=30, step_s=0.1, arrival=0.75, timeline=tl, model=MODEL, stop_mps2=0.5)
+    whole = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, **args)  # type: ignore[arg-type]
+    for last in (0, 1, 6, 30, 40):
+        part = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, last=last, **args)  # type: ignore[arg-type]
+        k = min(last, 30) + 1
+        assert part == (whole[0][:k], whole[1][:k])
+    assert whole[0][-1] == 0.0  # the stop tail brakes to rest by the horizon's end
+
+
+def _twins() -> tuple[PlannerCore, PlannerCore]:
+    """A planner with prepared tails (the default fresh_s) and one computing every entry in
+    the step, both at a 0.2 s downlink delay."""
+    every = _core(["controller.sequence.fresh_s=10"], downlink_s=0.2)
+    return _core(downlink_s=0.2), every
+
+
+def _feed(core: PlannerCore, k: int) -> VelocityCommand:
+    """Step k (t = 0.05 + 0.1 k) on an estimate along y = 20 at 1.2 m/s, then prepare the next
+    (times as a runtime gives them: whole microseconds)."""
+    t = round(0.05 + 0.1 * k, 6)
+    core.deliver(_estimate(t - 0.05, t - 0.02, x=5.0 + 1.2 * (t - 0.05), v=1.2))
+    cmd = _cmd(core, t)
+    core.prepare(round(0.05 + 0.1 * (k + 1), 6))
+    return cmd
+
+
+def test_a_step_computes_the_entries_due_soon_and_takes_the_rest_prepared() -> None:
+    core, every = _twins()
+    n, fresh = 100, SCENARIO.controller.sequence.fresh_s
+    # entries up to fresh_s past the next command's arrival (0.1 s + the 0.2 s downlink)
+    last = core.link.fresh_last(0.05, 0.05 + 0.2)
+    assert last == round((0.2 + 0.1 + fresh) / 0.1) < n
+    for k in range(8):
+        prepared = core.link._prepared
+        assert (prepared is None) is (k == 0)
+        assert prepared is None or prepared.t == round(0.05 + 0.1 * k, 6)
+        got, want = _feed(core, k), _feed(every, k)
+        # entry 0 and the entries after it up to `last`: the same floats as every entry
+        # computed in the step (no command is lost here, so both predict the same state)
+        assert (got.v, got.w) == (want.v, want.w)
+        assert got.v_next[:last] == want.v_next[:last] and got.w_next[:last] == want.w_next[:last]
+        if k == 0:  # nothing was prepared before the first step: all computed in it
+            assert got == want
+            continue
+        # the later ones: those prepared after the step before (quantised on the wire),
+        # a prediction one period older, close to the fresh ones
+        assert prepared is not None
+        for mine, theirs in ((got.v_next, prepared.vs), (got.w_next, prepared.ws)):
+            assert mine[last:] == pytest.approx(theirs[last + 1 :], abs=1e-3)
+        assert (got.v_next[last:], got.w_next[last:]) != (want.v_next[last:], want.w_next[last:])
+        assert got.v_next[last:] == pytest.approx(want.v_next[last:], abs=0.05)
+        assert got.w_next[last:] == pytest.approx(want.w_next[last:], abs=0.05)
+
+
+@pytest.mark.parametrize("change", ["new stop", "controller restart", "another step time"])
+def test_a_prepared_sequence_holds_only_for_the_step_path_and_controller_it_was_made_for(
+    change: str,
+) -> None:
+    core, every = _twins()
+    for k in range(3):
+        _feed(core, k), _feed(every, k)
+    assert core.link._prepared is not None
+    if change == "new stop":  # the path found unsafe ahead: the speed profile stops sooner
+        for c in (core, every):
+            assert c.ref is not None
+            c.ref.stop_at(30.0)
+    elif change == "controller restart":
+        for c in (core, every):
+            c.link.restart(c.controller)
+    k = 4 if change == "another step time" else 3  # a step skipped: prepared for 0.35 s
+    assert _feed(core, k) == _feed(every, k)  # every entry computed in the step
+
+
+def test_no_sequence_is_prepared_when_the_next_step_computes_every_entry() -> None:
+    for sets in (["controller.sequence.fresh_s=10"], ["controller.sequence.horizon_s=0"]):
+        core = _core(sets, downlink_s=0.2)
+        _feed(core, 0)
+        assert core.link._prepared is None
+
+
 def _state(ctrl: object) -> dict[str, object]:
     """A controller's mutable state, for comparison (its config objects are shared)."""
     return {k: vars(v) if k == "speed" else v for k, v in vars(ctrl).items()}

@@ -13,7 +13,7 @@ import pytest
 
 from common.bus import Received
 from common.config.scenario import load_scenario
-from common.messages import LinkStats, NavFix, Tick, encode_routing
+from common.messages import LinkStats, NavFix, StateEstimate, Tick, encode_routing
 from common.runtime.distributed.loop_times import PHASES, LoopTimes
 from common.runtime.distributed.realtime_service import MAX_DELIVERY_AHEAD_S, RealtimeService
 from common.runtime.distributed.service_process import ServiceSetup
@@ -172,3 +172,97 @@ def test_a_realtime_hosts_statistics_carry_its_loop_times(svc: RealtimeService) 
     assert set(stats.counters) == {
         f"loop.{phase}_{q}_us" for phase in PHASES for q in ("p50", "p95", "max")
     }
+
+
+class _Logged(_Sent):
+    """A publisher that notes each put in a log shared with the core's prepare."""
+
+    def __init__(self, stream: str, log: list[str]) -> None:
+        super().__init__()
+        self.stream, self.log = stream, log
+
+    def put_bytes(self, data: bytes, attachment: bytes | None = None) -> None:
+        self.log.append(f"put {self.stream}")
+        super().put_bytes(data, attachment)
+
+
+def _planner(delay_s: float) -> tuple[RealtimeService, float]:
+    """A realtime planner at its first step, an estimate in hand; and its first step's time."""
+    _, raw = load_scenario(
+        DEFAULT,
+        [
+            "planner.first_plan_wait_s=0",
+            f"runtime.prepare_delay_s={delay_s}",
+            "runtime.time_scale=1",  # mission time is wall time: the test takes milliseconds
+        ],
+    )
+    svc = RealtimeService(ServiceSetup.of("planner", raw, "tcp/127.0.0.1:7447"))
+    first_s = svc.host.next_step_us / 1e6
+    _at(svc, first_s + 0.001)  # its first step is due
+    est = StateEstimate(
+        stamp=0.0, x=5.0, y=20.0, theta=0.0, v=0.0, w=0.0, covariance=(0.0,) * 25, seq=1
+    )
+    svc.host.accept(est, "estimator", "state", (0,), -1)
+    return svc, first_s
+
+
+def _logged(
+    svc: RealtimeService, monkeypatch: pytest.MonkeyPatch
+) -> tuple[dict[str, Any], list[str]]:
+    """Publishers and the core's prepare, noting each put and prepare in one log."""
+    log: list[str] = []
+    core_prepare = svc.host.core.prepare  # type: ignore[attr-defined]
+
+    def prepare(t_next: float) -> None:
+        log.append(f"prepare {t_next:.3f}")
+        core_prepare(t_next)
+
+    monkeypatch.setattr(svc.host.core, "prepare", prepare)
+    return {s: _Logged(s, log) for s in svc.host.streams}, log
+
+
+def _at(svc: RealtimeService, mission_s: float) -> None:
+    """Set the service's clock to mission_s now (a first step that plans takes ~0.1 s)."""
+    svc.t0 = time.monotonic() - mission_s / svc.scale
+
+
+def test_a_realtime_planner_prepares_its_next_step_once_its_command_is_out(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    svc, first_s = _planner(0.0)
+    pubs, log = _logged(svc, monkeypatch)
+    svc._run_due(pubs)
+    # at once, for its next step, once the command went out
+    assert log[-1] == f"prepare {first_s + svc.host.period_us / 1e6:.3f}"
+    assert "put cmd" in log[:-1]
+    # its statistics say how long preparing took, apart from the tick's phases
+    assert {"loop.prepare_p50_us", "loop.prepare_max_us"} <= set(svc.times.counters())
+
+
+def test_a_realtime_planner_prepares_its_next_step_after_the_delay(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    svc, first_s = _planner(0.05)  # the default is 0.02 s (runtime.prepare_delay_s)
+    pubs, log = _logged(svc, monkeypatch)
+    svc._run_due(pubs)
+    assert "put cmd" in log and not any(e.startswith("prepare") for e in log)
+    assert svc._prepare_at_us == round((first_s + 0.05) * 1e6)  # when the loop wakes for it
+    _at(svc, first_s + 0.02)
+    svc._run_due(pubs)
+    assert not any(e.startswith("prepare") for e in log)  # not yet
+    _at(svc, first_s + 0.055)
+    svc._run_due(pubs)
+    assert log[-1] == f"prepare {first_s + 0.1:.3f}" and svc._prepare_at_us is None
+
+
+def test_a_prepare_still_waiting_when_the_next_step_is_due_runs_before_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    svc, first_s = _planner(0.5)  # longer than the 0.1 s period
+    pubs, log = _logged(svc, monkeypatch)
+    svc._run_due(pubs)
+    _at(svc, first_s + 0.101)  # the next step is due, the prepare (due at +0.5 s) is not
+    del log[:]
+    svc._run_due(pubs)
+    assert log[0] == f"prepare {first_s + 0.1:.3f}"  # first, for the step now due
+    assert "put cmd" in log[1:]

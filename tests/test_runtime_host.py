@@ -204,3 +204,52 @@ def test_in_virtual_time_the_delay_a_receiver_measures_is_the_modelled_one() -> 
             # samples: measured up to 6 % at p95 of ~130 samples. A delivery one period late
             # would be 100 % off.
             assert v[f"measured_delay_{q}_s"] == pytest.approx(v[f"delay_{q}_s"], rel=0.1), name
+
+
+class Preparing(Listener):
+    """A listener that prepares its next step (core.Prepares) and logs what it sees then."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.prepared: list[tuple[float, int, int]] = []  # (t_next, steps, deliveries) then
+
+    def prepare(self, t_next: float) -> None:
+        self.prepared.append((t_next, len(self.steps), len(self.got)))
+
+
+def test_a_core_prepares_after_each_step_for_the_next_one_and_only_then() -> None:
+    flow = Dataflow.declare(TALKER, _listener(wake=True, period=0.25))
+    core = Preparing()
+    host = Host(flow, "listener", core, NetworkModel(NetworkConfig(), seed=1))
+    assert host.prepare() is False  # nothing stepped yet
+    host.run_tick(1, 0)  # the step at 0
+    assert host.prepare() is True and core.prepared == [(0.25, 1, 0)]
+    assert host.prepare() is False  # once per step
+    cmd = VelocityCommand(stamp=0.0, v=0.0, w=0.0, path_id=0, source="talker", seq=1)
+    host.accept(cmd, "talker", "cmd", (100_000,), 1)
+    host.run_tick(2, 100_000)  # a wake delivery, no step: nothing to prepare
+    assert core.got and host.prepare() is False
+    host.run_tick(3, 250_000)
+    assert host.prepare() is True and core.prepared[-1] == (0.5, 2, 1)
+
+
+def test_inproc_lets_a_core_prepare_after_each_of_its_steps(testloop_toml: Path) -> None:
+    from tests.helpers import testloop
+
+    steps: list[float] = []
+    prepared: list[float] = []
+
+    class PreparingFilter(testloop.Filter):
+        def step(self, t: float) -> list[Emit]:
+            steps.append(t)
+            return super().step(t)
+
+        def prepare(self, t_next: float) -> None:
+            prepared.append(t_next)
+
+    s, _ = load_scenario(testloop_toml, ["run.max_time_s=1.0"])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(testloop, "Filter", PreparingFilter)
+        run_inproc(s)
+    # after every step, for the one after it (the filter steps every 0.1 s)
+    assert len(steps) >= 10 and prepared == pytest.approx([t + 0.1 for t in steps])

@@ -129,9 +129,17 @@ class SequenceConfig:
     # acceleration bound times the time left in the horizon): a buffer that runs out leaves
     # it stopped where its path goes, not running on blind then braking heading-held (HOLD)
     stop_tail: bool = True
+    # how long past the next command's expected arrival the entries are computed in the step,
+    # on the newest state (s): they are what the vehicle applies while the next command is
+    # late or lost up to this long. The later ones are taken from the sequence prepared after
+    # the step before, once its command was out (a prediction one period older), so a command
+    # goes out after a few controller evaluations instead of one per entry. >= horizon_s:
+    # every entry in the step (sequence.py, "Prepared tails")
+    fresh_s: float = 0.5
 
     def __post_init__(self) -> None:
         nonneg("horizon_s", self.horizon_s)
+        nonneg("fresh_s", self.fresh_s)
 
     def entries(self, period_s: float) -> int:
         """Future entries n of a command at control period period_s (0: off)."""

@@ -53,10 +53,18 @@ class RuntimeConfig:
     stats_period_s: float = 1.0  # virtual seconds between LinkStats publications
     start_timeout_s: float = 30.0  # for every service process to declare liveliness
     tick_timeout_s: float = 30.0  # lockstep: a service that does not acknowledge a tick fails
+    # realtime only: how long after its step (mission s) a core prepares its next one (the
+    # planner's command sequence past its first entries, core.Prepares), out of the way of the
+    # work the step's outputs set off at that instant (the vehicle applying the command; in a
+    # fleet, every vehicle's services stepping at the same instants); never later than its
+    # next step. 0: at once, once the outputs are out. Lockstep and inproc prepare at once.
+    prepare_delay_s: float = 0.02
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.time_scale <= 1000:
             raise ConfigValueError("time_scale", "must be in [0.01, 1000]")
+        if not 0.0 <= self.prepare_delay_s <= 10.0:
+            raise ConfigValueError("prepare_delay_s", "must be in [0, 10] s")
         for name in ("stats_period_s", "start_timeout_s", "tick_timeout_s"):
             if getattr(self, name) <= 0:
                 raise ConfigValueError(name, "must be > 0")

@@ -1,10 +1,13 @@
 """What command sequences cost: message size and planner step time against the horizon.
 
 A PlannerCore on the default mission's first plan is fed estimates of a vehicle following it
-(a slow lateral weave, no replans) and stepped at its control period; every step is timed on
-this thread's CPU clock (the planner's whole step: prediction, controller rollout, message)
-and every command encoded (the wire bytes, envelope included). Used by
-scripts/bench_sequence.py and by the networked-control report (networked.py).
+(a slow lateral weave, no replans) and stepped at its control period, preparing its next step
+after each one as every runtime has it do (core.Prepares); every step is timed on this
+thread's CPU clock (what the command waits for: prediction, the entries computed on the newest
+state, the message), and so is every prepare after it (the rest of the rollout, for the next
+step: services/planner/sequence.py, "Prepared tails"), and every command encoded (the wire
+bytes, envelope included). Used by scripts/bench_sequence.py and by the networked-control
+report (networked.py).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ class CostRow:
     step_p50_ms: float
     step_p95_ms: float
     time_ratio: float
+    prepare_p50_ms: float  # preparing the next step after each (0: nothing to prepare)
 
 
 def _scenario(kind: str, horizon_s: float) -> Scenario:
@@ -57,8 +61,11 @@ def _scenario(kind: str, horizon_s: float) -> Scenario:
     return s
 
 
-def bench_steps(kind: str, horizon_s: float, steps: int) -> tuple[list[float], list[int]]:
-    """(CPU seconds of each planner step, bytes of each command) along the first plan."""
+def bench_steps(
+    kind: str, horizon_s: float, steps: int, *, prepared: list[float] | None = None
+) -> tuple[list[float], list[int]]:
+    """(CPU seconds of each planner step, bytes of each command) along the first plan; the CPU
+    seconds of preparing after each step are appended to `prepared`, if given."""
     s = _scenario(kind, horizon_s)
     core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=0.05)
     start = s.world.start
@@ -89,11 +96,15 @@ def bench_steps(kind: str, horizon_s: float, steps: int) -> tuple[list[float], l
         core.deliver(Delivery(source="estimator", stream="state", msg=est, t=t - 0.05))
         c0 = time.thread_time()
         out = core.step(t)
-        dt = time.thread_time() - c0
+        c1 = time.thread_time()
+        core.prepare(0.05 + (k + 1) * period)  # the next step's time, as that step computes it
+        c2 = time.thread_time()
         if any(e.stream == "path" for e in out):
             continue  # a replan's time is the planner benchmark's (scripts/bench_planner.py)
         (cmd,) = [e.msg for e in out if isinstance(e.msg, VelocityCommand)]
-        times.append(dt)
+        times.append(c1 - c0)
+        if prepared is not None:
+            prepared.append(c2 - c1)
         sizes.append(len(encode(cmd, source="planner", seq=k, sent=t)))
     return times, sizes
 
@@ -104,7 +115,8 @@ def cost_table(steps: int = 200, horizons: tuple[float, ...] = HORIZONS_S) -> li
     for kind in CONTROLLERS:
         base_t = base_b = math.nan
         for h in horizons:
-            times, sizes = bench_steps(kind, h, steps)
+            prepared: list[float] = []
+            times, sizes = bench_steps(kind, h, steps, prepared=prepared)
             p50, p95 = (1e3 * float(np.percentile(times, q)) for q in (50, 95))
             size = float(np.median(sizes))
             if h == horizons[0]:
@@ -120,6 +132,7 @@ def cost_table(steps: int = 200, horizons: tuple[float, ...] = HORIZONS_S) -> li
                     step_p50_ms=p50,
                     step_p95_ms=p95,
                     time_ratio=p50 / base_t,
+                    prepare_p50_ms=1e3 * float(np.median(prepared)) if prepared else 0.0,
                 )
             )
     return rows

@@ -11,7 +11,9 @@ Issue 16, the planner side:
   the estimate with the commands already sent, in flight included (timeline.py, the vehicle
   modelled by response.py), to now and to the time this command takes effect (now + the
   downlink delay), and each command carries the controller's commands over the horizon
-  (sequence.py);
+  (sequence.py): those the vehicle may apply before the next command is fresh_s overdue
+  computed in the step, the rest prepared after the step before (`prepare`, sequence.py's
+  "Prepared tails"), so the command goes out after a few controller evaluations;
 - with them off (the ablation): single commands, each computed as before sequences existed,
   the controller predicting the estimate forward with its constant twist over the estimate's
   age plus the downlink delay.
@@ -19,6 +21,7 @@ Issue 16, the planner side:
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 from common.config.controller import ControllerConfig
@@ -28,8 +31,9 @@ from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Controller, predict_pose
+from services.planner.controllers.speed import stop_of
 from services.planner.response import Pose, ResponseModel
-from services.planner.sequence import command_sequence
+from services.planner.sequence import Prepared, command_sequence
 from services.planner.timeline import CommandTimeline
 
 # the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
@@ -62,6 +66,10 @@ class CommandLink:
         self.compensate = controller.delay_compensation
         self.entries = controller.sequence.entries(planner.period_s)  # n; 0: single commands
         self.step_s = round(planner.period_s * 1000) / 1000  # the wire's whole milliseconds
+        self.fresh_s = controller.sequence.fresh_s
+        self._prepared: Prepared | None = None  # the sequence the last step made for the next
+        self._last_basis: tuple[float, Pose] | None = None  # (t, state predicted) of a sequence
+        self._restarts = 0  # controller restarts: a sequence prepared before one is void
         self.model = ResponseModel.from_vehicle(vehicle)
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
@@ -128,6 +136,18 @@ class CommandLink:
         at_effect = self.timeline.predict(now, t, effect_t, self.model)
         return Prediction(now=now, effect_t=effect_t, at_effect=at_effect)
 
+    def restart(self, controller: Controller) -> None:
+        """Restart the controller (its state is as old as a silence, or a new path is taken):
+        a sequence prepared by it before is void."""
+        controller.reset()
+        self._restarts += 1
+
+    def fresh_last(self, t: float, effect_t: float) -> int:
+        """The last entry a step at t computes on the newest state: the vehicle may apply it
+        before the next command (due at effect_t + step_s) is fresh_s overdue."""
+        due = effect_t - t + self.step_s + self.fresh_s
+        return min(self.entries, int(due / self.step_s + 1e-9))
+
     def control(
         self,
         t: float,
@@ -136,22 +156,65 @@ class CommandLink:
         est: StateEstimate,
         pred: Prediction,
     ) -> tuple[list[float], list[float]]:
-        """The commands (vs, ws), each (n + 1,), for t, t + step_s, ..., t + n step_s."""
+        """The commands (vs, ws), each (n + 1,), for t, t + step_s, ..., t + n step_s: the
+        first ones computed now, the rest from the sequence prepared for this step if it holds
+        (sequence.py)."""
         if not self.entries:  # as before sequences: the controller compensates the latency
             latency = max(0.0, t - est.stamp) + self.downlink_s
             v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
             return [v], [w]
+        prepared, self._prepared = self._prepared, None
+        self._last_basis = (t, pred.now)
+        last = self.fresh_last(t, pred.effect_t)
+        if prepared is None or last >= self.entries or not prepared.holds(t, ref, self._restarts):
+            last = self.entries
+        vs, ws = self._sequence(controller, ref, t, pred.now, pred.effect_t, last=last)
+        if last < self.entries:
+            assert prepared is not None
+            vs.extend(prepared.vs[last + 1 :])
+            ws.extend(prepared.ws[last + 1 :])
+        return vs, ws
+
+    def prepare(self, t_next: float, controller: Controller, ref: ArcLengthReference) -> None:
+        """After a step's command is out: the whole sequence for the step at t_next, on a copy
+        of the controller, from the state predicted then under the commands sent (this step's
+        included); that step computes its first entries afresh and takes the rest from it."""
+        basis, self._last_basis = self._last_basis, None
+        if basis is None or self.fresh_last(t_next, t_next + self.downlink_s) >= self.entries:
+            return  # no sequence this step, or the next one computes every entry anyway
+        t, now = basis
+        start = self.timeline.predict(now, t, t_next, self.model)
+        vs, ws = self._sequence(
+            copy.deepcopy(controller), ref, t_next, start, t_next + self.downlink_s, scratch=True
+        )
+        self._prepared = Prepared(
+            t=t_next, ref=ref, stop_s=stop_of(ref), restarts=self._restarts, vs=vs, ws=ws
+        )
+
+    def _sequence(
+        self,
+        controller: Controller,
+        ref: ArcLengthReference,
+        t: float,
+        pose: Pose,
+        arrival: float,
+        *,
+        last: int | None = None,
+        scratch: bool = False,
+    ) -> tuple[list[float], list[float]]:
         return command_sequence(
             controller,
             ref,
             t,
-            pred.now,
+            pose,
             n=self.entries,
             step_s=self.step_s,
-            arrival=pred.effect_t,
+            arrival=arrival,
             timeline=self.timeline,
             model=self.model,
             stop_mps2=self.stop_mps2,
+            last=last,
+            scratch=scratch,
         )
 
     def stop(self) -> tuple[list[float], list[float]]:

@@ -287,6 +287,11 @@ class PlannerCore:
                 out.append(Emit(stream="intent", msg=self._intent))
         return out
 
+    def prepare(self, t_next: float) -> None:
+        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        if self.commands and self.ref is not None and not self.arrived:
+            self.link.prepare(t_next, self.controller, self.ref)
+
     def _step(self, t: float) -> list[Emit]:
         if self.state is None:
             return []
@@ -353,7 +358,7 @@ class PlannerCore:
             # meanwhile and the plan still holds, but the controller's own state (backstepping's
             # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
             # the silence: restart it from where the vehicle is
-            self.controller.reset()
+            self.link.restart(self.controller)
         if self.commands:
             out.append(self._command(t, pred.effect_t, self._follow(t, s, pred)))
         return out
@@ -536,7 +541,7 @@ class PlannerCore:
             self.path_status, self.status_since = result.status, t
         if result.ok:
             self.ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
-            self.controller.reset()
+            self.link.restart(self.controller)
             return PathMsg(
                 stamp=t,
                 path_id=self.path_id,

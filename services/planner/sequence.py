@@ -31,14 +31,29 @@ backstepping virtual reference, the speed ramp): entry 0 comes from the controll
 which is advanced once per step as without sequences, and entries 1..n from a deep copy of it,
 which is thrown away: the real controller's state never sees a predicted pose, and the whole
 computation is a function of the planner's inputs (the same floats in every runtime).
+
+Prepared tails (controller.sequence.fresh_s): of the n + 1 entries, the vehicle applies only
+those up to the next command's arrival (at t + T + the downlink delay), unless that command is
+lost or late. So a step computes on the newest state only the entries up to fresh_s past
+that arrival (`last`), and takes the rest from the sequence the step before prepared for it
+(`Prepared`), once its own command was out: the same rollout, run from the state then
+predicted for this step's time. Entry k of a command is then u(t + kT | t) while it may
+still be applied with the next command on time or up to fresh_s late, and u(t + kT | t - T)
+beyond (a prediction one period older, needed only after a loss or in an outage); the step
+that sends the command, which is the sample-to-actuation latency of the loop, costs a few
+controller evaluations instead of n + 1. A prepared sequence holds only for the step it was
+made for, on the same path stopping at the same place, with the controller not restarted
+since (`Prepared.holds`); otherwise the step computes every entry, as with fresh_s >= n T.
 """
 
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Controller
+from services.planner.controllers.speed import stop_of
 from services.planner.response import Pose, ResponseModel
 from services.planner.timeline import CommandTimeline
 
@@ -55,21 +70,27 @@ def command_sequence(
     timeline: CommandTimeline,
     model: ResponseModel,
     stop_mps2: float = 0.0,
+    last: int | None = None,
+    scratch: bool = False,
 ) -> tuple[list[float], list[float]]:
-    """(vs, ws), each (n + 1,): the commands for t, t + step_s, ..., t + n step_s, from the
-    state `pose` predicted for t, the new command expected at the vehicle at `arrival`;
-    stop_mps2 > 0 brings the vehicle to rest at the end (the stop tail)."""
+    """(vs, ws), each (last + 1,): the commands for t, t + step_s, ..., t + last step_s of a
+    sequence of n + 1 (last: n by default), from the state `pose` predicted for t, the new
+    command expected at the vehicle at `arrival`; stop_mps2 > 0 brings the vehicle to rest by
+    t + n step_s (the stop tail). Entry k is the same floats whatever `last` is. `scratch`: the
+    controller is a copy to be thrown away, stepped for every entry (no copy is made)."""
     t_end = t + n * step_s
+    last = n if last is None else min(last, n)
 
     def tail(t_k: float, v: float) -> float:
         return v if stop_mps2 <= 0.0 else min(v, stop_mps2 * max(0.0, t_end - t_k))
 
     v, w = controller.command(t, pose, ref)
     vs, ws = [tail(t, v)], [w]
-    if n <= 0:
+    if last <= 0:
         return vs, ws
-    roll = copy.deepcopy(controller)  # the real controller's state must not see predictions
-    for k in range(1, n + 1):
+    # the real controller's state must not see predictions
+    roll = controller if scratch else copy.deepcopy(controller)
+    for k in range(1, last + 1):
         t_a, t_b = t + (k - 1) * step_s, t + k * step_s
         if t_a < arrival:  # until this command arrives, the vehicle applies the ones before it
             mid = min(arrival, t_b)
@@ -81,3 +102,26 @@ def command_sequence(
         vs.append(tail(t_b, v))
         ws.append(w)
     return vs, ws
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class Prepared:
+    """A whole sequence made after one step for the next (at `t`), on path `ref` stopping at
+    `stop_s`, by a controller restarted `restarts` times: the entries that step takes as they
+    are."""
+
+    t: float
+    ref: ArcLengthReference
+    stop_s: float
+    restarts: int
+    vs: list[float]
+    ws: list[float]
+
+    def holds(self, t: float, ref: ArcLengthReference, restarts: int) -> bool:
+        """Whether it was made for a step at t on `ref` as it is now, by the controller as it is."""
+        return (
+            t == self.t
+            and ref is self.ref
+            and stop_of(ref) == self.stop_s
+            and restarts == self.restarts
+        )

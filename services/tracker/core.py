@@ -109,7 +109,12 @@ class TrackerCore:
             self.ref = None
             return
         self.ref = PathArcReference(PlannedPath(curve), p.v_ref)
-        self.controller.reset()
+        self.link.restart(self.controller)
+
+    def prepare(self, t_next: float) -> None:
+        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        if self.ref is not None and not self.arrived:
+            self.link.prepare(t_next, self.controller, self.ref)
 
     def step(self, t: float) -> list[Emit]:
         if self.state is None:
@@ -124,7 +129,9 @@ class TrackerCore:
         pred = self.link.predict(t, s)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
         if math.isfinite(gap) and gap > 1.5 * self.period_s:
-            self.controller.reset()  # steps were skipped: restart from where the vehicle is
+            self.link.restart(
+                self.controller
+            )  # steps were skipped: restart from where the vehicle is
         ref = None if self.arrived else self.ref
         vs, ws = follow(self.link, self.controller, ref, t, s, pred)
         self.last_cmd_t = t

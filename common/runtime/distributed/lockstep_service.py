@@ -85,6 +85,9 @@ class LockstepService:
                 if tick.stop:
                     self._await_release(inbox)
                     return 0
+                # off the tick's critical path: the coordinator goes on meanwhile, and the
+                # next tick for this service waits in its inbox until this is done
+                self.host.prepare()
                 if len(self.acks) > MAX_ACKS_KEPT:  # the feeders' acks of ticks gone by
                     self.acks = {key: a for key, a in self.acks.items() if key[1] >= tick.tick}
 

@@ -1,4 +1,4 @@
-"""Where a realtime service's loop spends its time: waking late, stepping, publishing."""
+"""Where a realtime service's loop spends its time: waking late, stepping, publishing, preparing."""
 
 from __future__ import annotations
 
@@ -10,7 +10,10 @@ from common.netmodel.stats import DurationHistogram
 #            step), or after the loop took the message it hands over from its inbox
 #   step     Host.run_tick: hand-overs, the core's step, the link model, encoding
 #   publish  the Zenoh puts of what the tick emitted
+# and, after them, off the path from the tick's inputs to its outputs:
+#   prepare  Host.prepare: the core's work for its next step (core.Prepares), per step
 PHASES = ("wake", "step", "publish")
+PREPARE = "prepare"
 QUANTILES = {"p50": 0.5, "p95": 0.95}
 
 
@@ -20,15 +23,20 @@ class LoopTimes:
     latency went, service by service."""
 
     def __init__(self) -> None:
-        self._phases = {p: DurationHistogram() for p in PHASES}
+        self._phases = {p: DurationHistogram() for p in (*PHASES, PREPARE)}
 
     def record(self, wake_s: float, step_s: float, publish_s: float) -> None:
         """One tick's phases (s)."""
         for phase, d in zip(PHASES, (wake_s, step_s, publish_s), strict=True):
             self._phases[phase].record(max(0.0, d))
 
+    def record_prepare(self, prepare_s: float) -> None:
+        """How long the core prepared its next step after one (s)."""
+        self._phases[PREPARE].record(max(0.0, prepare_s))
+
     def counters(self) -> dict[str, int]:
-        """p50, p95 and max of each phase in microseconds; empty before the first tick."""
+        """p50, p95 and max of each phase in microseconds; a phase never timed (before the first
+        tick; prepare for a core that does not) has none."""
         out: dict[str, int] = {}
         for phase, h in self._phases.items():
             if h.count == 0:

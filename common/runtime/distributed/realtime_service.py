@@ -82,6 +82,9 @@ class RealtimeService:
         self._bus: Bus | None = None
         self.times = LoopTimes()
         self.host.runtime_counters = self.times.counters
+        # when (mission us) the core prepares its next step (core.Prepares), while one waits
+        self.prepare_delay_us = to_us(setup.scenario.runtime.prepare_delay_s)
+        self._prepare_at_us: int | None = None
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -98,6 +101,8 @@ class RealtimeService:
                 timeout = None
                 if self.t0 is not None:
                     nxt = self.host.next_event_us()
+                    if self._prepare_at_us is not None:
+                        nxt = min(nxt, self._prepare_at_us)
                     timeout = max(0.0, (nxt - self.now_us()) / 1e6 / self.scale)
                 if self.clock_lost_at is not None:
                     left = self.clock_lost_at + CLOCK_GRACE_S - time.monotonic()
@@ -131,9 +136,13 @@ class RealtimeService:
             return
         now = self.now_us()
         woke_at = time.perf_counter()
+        if self._prepare_at_us is not None and self._prepare_at_us <= now:
+            self._prepare()  # its time has come
         # a step that fell behind by whole periods skips them (see the class docstring)
         self.skipped += self.host.skip_missed(now)
         while (t_us := self.host.next_event_us()) <= now:
+            if self._prepare_at_us is not None:
+                self._prepare()  # before the core sees anything more
             self.ticks += 1
             woke = time.perf_counter()
             # the core sees the scheduled event time; late wake-ups do not skew periods
@@ -144,6 +153,17 @@ class RealtimeService:
             if out:  # the ticks on a message's way through (a loop's latency is theirs)
                 late_s = (now - t_us) / 1e6 / self.scale + (woke - woke_at)
                 self.times.record(late_s, stepped - woke, time.perf_counter() - stepped)
+            if self.host.prepare_pending:  # the next step's work that waits for none of its inputs
+                self._prepare_at_us = t_us + self.prepare_delay_us
+                if self.prepare_delay_us <= 0:
+                    self._prepare()
+
+    def _prepare(self) -> None:
+        """Let the core prepare its next step now (RuntimeConfig.prepare_delay_s)."""
+        self._prepare_at_us = None
+        start = time.perf_counter()
+        if self.host.prepare():
+            self.times.record_prepare(time.perf_counter() - start)
 
     def _take(self, inbox: Inbox, timeout: float | None) -> bool:
         """Wait up to `timeout` for an event and take it; while catching up, take every event

@@ -69,6 +69,17 @@ class RestartsFilters(Protocol):
 
 
 @runtime_checkable
+class Prepares(Protocol):
+    """A core with work for its next step that needs none of that step's inputs: the runtime
+    calls `prepare(t_next)` once the outputs of a step are published (in lockstep, once it has
+    acknowledged the tick), so the work is off the path from its inputs to its outputs; the
+    next step takes the result only if it runs at t_next. Deterministic in every runtime: it
+    sees the core as the step left it, before anything is delivered to the next one."""
+
+    def prepare(self, t_next: float) -> None: ...
+
+
+@runtime_checkable
 class Resumes(Protocol):
     """A core whose state outlives its process: restarted mid-run, it takes up from the
     newest messages its previous process published, by stream (the vehicle's plant: a real

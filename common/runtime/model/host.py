@@ -38,6 +38,7 @@ from common.runtime.model.core import (
     Delivery,
     Emit,
     JudgesInputs,
+    Prepares,
     QueuePolicy,
     RestartsFilters,
     Resumes,
@@ -107,6 +108,10 @@ class Host:
         self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
+        # the core prepares its next step once a step's outputs are out (core.Prepares); the
+        # time of the next step, set by a tick that stepped, until `prepare` is called
+        self._prepares = isinstance(core, Prepares)
+        self._prepare_for: float | None = None
         self.drops = InputDrops(name)
         self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
         # counters of the runtime around this host, carried in its statistics beside the
@@ -206,12 +211,29 @@ class Host:
             self._ready = []
             emits.extend(self.core.step(t))
             self.next_step_us += self.period_us
+            if self._prepares:
+                self._prepare_for = self.next_step_us / 1e6
         out = [self._publish(e.stream, e.msg, tick, t_us) for e in emits]
         if t_us >= self.next_stats_us:
             out.append(self.publish_stats(tick, t_us))
             while self.next_stats_us <= t_us:
                 self.next_stats_us += self.stats_period_us
         return out
+
+    @property
+    def prepare_pending(self) -> bool:
+        """Whether the core may prepare its next step now (a step ran since it last did)."""
+        return self._prepare_for is not None
+
+    def prepare(self) -> bool:
+        """After a tick that stepped, once its outputs are published: let the core prepare
+        its next step (core.Prepares). True if it did."""
+        t_next, self._prepare_for = self._prepare_for, None
+        if t_next is None:
+            return False
+        assert isinstance(self.core, Prepares)
+        self.core.prepare(t_next)
+        return True
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
         """NEWEST inputs keep their last delivery; the others their last max_queued."""

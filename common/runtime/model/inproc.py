@@ -59,6 +59,7 @@ def run_inproc(scenario: Scenario) -> RunResult:
         due = [n for n in sorted(hosts) if hosts[n].next_event_us() <= t_us]
         for name in due:
             route(hosts[name].run_tick(tick, t_us), name, tick, hosts, record)
+            hosts[name].prepare()  # as the distributed runtimes do, once the outputs are out
         end = mission.observe(record)
         if end is not None:
             reason = end

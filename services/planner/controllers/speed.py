@@ -42,6 +42,12 @@ def cruise_speed(ref: ArcLengthReference, limits: Limits) -> float:
     return clamp(ref.v_ref, limits.v_min, limits.v_max)
 
 
+def stop_of(ref: ArcLengthReference) -> float:
+    """Where the speed profile brings the vehicle to rest on `ref` (m of arc length): its end,
+    or sooner where the reference says so (the planner's path found unsafe ahead)."""
+    return float(getattr(ref, "stop_s", ref.length))
+
+
 def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Limits) -> float:
     """v_target(s) of the module docstring (m/s), before the ramp."""
     v = cruise_speed(ref, limits)
@@ -61,8 +67,7 @@ def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Li
                 k_max = k
         if k_max * v > w_room:
             v = w_room / k_max
-    stop_s = getattr(ref, "stop_s", ref.length)
-    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(stop_s - s, 0.0)))
+    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(stop_of(ref) - s, 0.0)))
     return clamp(v, limits.v_min, limits.v_max)
 
 
