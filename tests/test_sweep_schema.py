@@ -161,3 +161,17 @@ def test_the_readme_example_is_a_valid_experiment(tmp_path: Path) -> None:
     assert len(runs) == 2 * 3 * 3  # 2 values x 3 controllers x 3 seeds
     link = scenario_from_raw(runs[-1].raw).network.links
     assert [o.link for o in link] == ["planner/cmd->vehicle"]
+
+
+def test_the_prepared_tails_sweep_pairs_every_fault_with_and_without_them() -> None:
+    runs = _plan("networked/prepared.toml")
+    assert len(runs) == 5 * 2 * 3 * 20 and len({r.run_id for r in runs}) == len(runs)
+    fresh: dict[str, set[float]] = {}
+    for r in runs:
+        s = scenario_from_raw(r.raw)
+        fresh.setdefault(r.labels["tail"], set()).add(s.controller.sequence.fresh_s)
+        assert s.controller.sequence.horizon_s == 10.0  # sequences on in every cell
+    # prepared: the default; all-fresh: as long as the horizon, every entry in the step
+    assert fresh == {"prepared": {0.5}, "all-fresh": {10.0}}
+    faults = {r.labels["fault"] for r in runs}
+    assert faults == {"loss50pct", "burst20", "outage10s", "outage20s", "delay1s"}
