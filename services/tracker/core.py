@@ -129,9 +129,8 @@ class TrackerCore:
         pred = self.link.predict(t, s)
         gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
         if math.isfinite(gap) and gap > 1.5 * self.period_s:
-            self.link.restart(
-                self.controller
-            )  # steps were skipped: restart from where the vehicle is
+            # steps were skipped: restart from where the vehicle is
+            self.link.restart(self.controller)
         ref = None if self.arrived else self.ref
         vs, ws = follow(self.link, self.controller, ref, t, s, pred)
         self.last_cmd_t = t
