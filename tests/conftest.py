@@ -1,4 +1,5 @@
-"""Shared fixtures: scenario files for the runtime self-test loop."""
+"""Shared fixtures (scenario files for the runtime self-test loop, certificates), and the
+hook that keeps the tests of one module-scoped fixture on one pytest-xdist worker."""
 
 from __future__ import annotations
 
@@ -69,3 +70,21 @@ def other_certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     directory = tmp_path_factory.mktemp("other-certs")
     create_certs(directory, DEFAULT_IDENTITIES)
     return directory
+
+
+# first: pytest-xdist reads the groups in its own hook of the same name
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests sharing a module-scoped fixture form one xdist group (`--dist loadgroup`, as
+    scripts/test runs them): a module fixture is computed once per worker that runs one of its
+    tests, and the expensive ones are whole runs (a realtime launch with remote recorders, a
+    sweep): spread over two workers, test_recording's launch ran three times (~75 s)."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        for name in info.names_closure:
+            defs = info.name2fixturedefs.get(name)
+            if defs and defs[-1].scope == "module":
+                item.add_marker(pytest.mark.xdist_group(f"{item.path.stem}.{name}"))
+                break

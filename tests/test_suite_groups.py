@@ -1,0 +1,42 @@
+"""The suite's own scheduling: tests of one module-scoped fixture share one xdist worker."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+TESTS = Path(__file__).resolve().parent
+
+MODULE = """
+import os
+import pytest
+
+@pytest.fixture(scope="module")
+def costly():
+    with open("computed.txt", "a") as fh:
+        fh.write(os.environ.get("PYTEST_XDIST_WORKER", "none") + "\\n")
+
+def test_one(costly): pass
+def test_two(costly): pass
+def test_three(costly): pass
+def test_other(): pass
+"""
+
+
+def test_a_module_fixture_is_computed_once_on_two_workers(tmp_path: Path) -> None:
+    # scripts/test's phases run `-n 2 --dist loadgroup`: were the fixture's tests spread over
+    # both workers, a fixture that is a whole launch would run twice (pytest 9.2 broke this
+    # silently: pytest-xdist#1386, hence the pin in pyproject.toml)
+    shutil.copy(TESTS / "conftest.py", tmp_path / "conftest.py")
+    (tmp_path / "test_shared.py").write_text(MODULE)
+    r = subprocess.run(
+        [sys.executable, "-m", "pytest", "-n", "2", "--dist", "loadgroup", "-p",
+         "no:cacheprovider", "-q", "-o", "addopts=", "test_shared.py"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "4 passed" in r.stdout, r.stdout
+    computed = (tmp_path / "computed.txt").read_text().split()
+    assert len(computed) == 1 and computed[0].startswith("gw"), computed
