@@ -5,13 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from common.bus import Bus, Publisher
-from common.messages import Tick, encode
-
-# uses of a set of recipients before it gets a publisher of its own. A lockstep fleet's due
-# sets vary (its look-ahead splits ticks): 16 vehicles met 188-214 sets in ~3200 ticks, most
-# once or twice, and declaring their publishers cost the coordinator 1.6 s of a 37 s run
-# (p50 2.4 ms, up to 40 ms each, on the tick's path); until then, one copy to each recipient
-DECLARE_AFTER = 4
+from common.messages import Tick
 
 
 class TickSender:
@@ -34,24 +28,11 @@ class TickSender:
         self._express = express
         self._all = tuple(sorted(services))
         self._pubs: dict[tuple[str, ...], Publisher] = {}
-        self._uses: dict[tuple[str, ...], int] = {}
 
     def put(self, tick: Tick) -> None:
         to = self._all if tick.stop or not tick.due else tuple(sorted(tick.due))
-        if to not in self._pubs and len(to) > 1 and to != self._all:
-            uses = self._uses[to] = self._uses.get(to, 0) + 1
-            if uses < DECLARE_AFTER:
-                # a set of recipients met rarely: a copy to each on its own key, which its
-                # subscription (Keys.ticks_for) matches as it matches the set's
-                data = encode(tick)
-                for name in to:
-                    self._publisher((name,)).put_bytes(data)
-                return
-        self._publisher(to).put(tick)
-
-    def _publisher(self, to: tuple[str, ...]) -> Publisher:
         pub = self._pubs.get(to)
         if pub is None:
             key = self._bus.keys.tick(to)
             pub = self._pubs[to] = self._bus.publisher_on(key, express=self._express)
-        return pub
+        pub.put(tick)
