@@ -13,7 +13,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -215,6 +215,52 @@ class _GarbageTrickle:
         self.clock[0] += timeout / 2 + 1e-3
         self.delivered += 1
         return ("tidelink/r/v/peer/nav", b"\xc1", None)
+
+
+@contextmanager
+def router(endpoint: str) -> Iterator[subprocess.Popen[str]]:
+    """`tidelink router` listening on `endpoint`, its ready line read; killed on the way out."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "services.cli", "router", "--listen", endpoint, "--insecure"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert proc.stdout is not None
+        ready, _, _ = select.select([proc.stdout], [], [], WAIT_S)
+        assert ready and "listening on" in proc.stdout.readline()
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=WAIT_S)
+        assert proc.stdout is not None
+        proc.stdout.close()
+
+
+def _until(what: str, cond: Callable[[], bool]) -> None:
+    deadline = time.monotonic() + WAIT_S
+    while not cond():
+        assert time.monotonic() < deadline, f"not {what} within {WAIT_S} s"
+        time.sleep(0.02)  # polling the session's state (Zenoh reports no event for it here)
+
+
+@pytest.mark.slow
+def test_a_client_knows_when_it_is_cut_off_from_its_router_and_rejoins_one_that_returns() -> None:
+    # a realtime service tells "the launcher is gone" from "I am cut off" by this: cut off,
+    # every token it saw vanishes with its router, the clock's too (realtime_service.py)
+    endpoint, keys = _setup("c")
+    with router(endpoint) as first:
+        with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
+            _until("connected", bus.connected)
+            first.kill()
+            first.wait(timeout=WAIT_S)
+            _until("cut off", lambda: not bus.connected())
+            with router(endpoint):  # a router back on the same endpoint: the client retries
+                _until("reconnected", bus.connected)
 
 
 def test_inbox_get_honours_its_timeout_while_garbage_trickles_in() -> None:

@@ -11,6 +11,7 @@ with the reason where a namespace cannot be created.
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -24,7 +25,10 @@ pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 SERVICES = ("estimator", "planner", "sensor", "vehicle")
 PORT = 7447
 WAIT_S = 60.0
-SCALE = "8"
+SCALE = "4"
+# How long (wall s) the planner's host stays cut off at least: past its Zenoh lease (10 s, when
+# its session notices the router is gone) plus the realtime service's CLOCK_GRACE_S (3 s)
+OUTAGE_S = 15.0
 # The default scenario (lossy network profile) in open water, with the goal 60 m east of the
 # start (reached at t ~ 42 s; at x8 ~ 5 s). Open water because of what a real partition does
 # that the modelled outages do not: TCP delivers the planner's backlog when the link returns,
@@ -115,13 +119,17 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
             launcher.wait_for(r"to goal\s+([1-3]?\d|4[0-5])\.\d m", WAIT_S)
             assert "mode RUN -> HOLD" not in launcher.stderr
             hosts.link("planner", "down")  # the planner's host is cut off: no commands
+            cut_at = time.monotonic()
             try:
                 try:
                     mark = len(launcher.err)
                     launcher.wait_for(r"vehicle: mode RUN -> HOLD", WAIT_S, start=mark)
                     launcher.wait_for(r"vehicle: mode HOLD -> FAILSAFE", WAIT_S, start=mark)
-                    # keep it down until a progress line (one every 2 s) shows FAILSAFE too
+                    # keep it down until a progress line (one every 2 s) shows FAILSAFE too,
+                    # and past the planner's Zenoh lease and the clock's grace: cut off
+                    # itself, it loses the clock's token too, and must wait to rejoin
                     launcher.wait_for(r"t=.* mode FAILSAFE", WAIT_S, start=mark)
+                    time.sleep(max(0.0, cut_at + OUTAGE_S - time.monotonic()))
                 finally:
                     hosts.link("planner", "up")
                 launcher.wait_for(r"vehicle: mode FAILSAFE -> RUN", WAIT_S, start=mark)

@@ -439,6 +439,13 @@ class Bus:
         sub = self.session.liveliness().declare_subscriber(key_expr, on_sample, history=True)
         self._keep(sub)
 
+    def connected(self) -> bool:
+        """Whether this session has a transport to any router or peer now: a client whose
+        host is cut off has none (after its lease), and every token it saw vanished with it,
+        whether or not their owners are still there."""
+        info = self.session.info
+        return bool(info.routers_zid()) or bool(info.peers_zid())
+
     def alive_now(self, key_expr: str, *, timeout_s: float = 1.0) -> list[str]:
         """The liveliness tokens present on `key_expr` now (a query, answered within
         timeout_s): what a tool that has just joined a run reports before any event."""

@@ -51,7 +51,10 @@ class RuntimeConfig:
     kind: Literal["inproc", "lockstep", "realtime"] = "inproc"
     time_scale: float = 1.0  # realtime only: 5.0 runs five times faster than the wall clock
     stats_period_s: float = 1.0  # virtual seconds between LinkStats publications
-    start_timeout_s: float = 30.0  # for every service process to declare liveliness
+    # for every service process to declare liveliness; in realtime also how long the launcher
+    # waits for a service whose token vanished, and a service cut off from its router waits
+    # to rejoin it
+    start_timeout_s: float = 30.0
     tick_timeout_s: float = 30.0  # lockstep: a service that does not acknowledge a tick fails
     # realtime only: how long after its step (mission s) a core prepares its next one (the
     # planner's command sequence past its first entries, core.Prepares), out of the way of the

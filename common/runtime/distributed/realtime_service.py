@@ -37,6 +37,10 @@ MAX_DELIVERY_AHEAD_S = 60.0
 # router closes a client it could not reach (a host cut off for over a second, see
 # common/bus/session.py), the client reconnects and sees the token again within ~0.1 s
 # (measured in tests/test_netns_launch.py); a launcher that is really gone never returns.
+# The grace counts only while this session is connected: cut off itself (its host's link
+# down past its Zenoh lease), a service saw every token vanish, the clock's with them, and
+# says nothing of the launcher until it is back; it waits to rejoin for as long as the
+# launcher waits for a service that left (`runtime.start_timeout_s`).
 CLOCK_GRACE_S = 3.0
 # How long (wall seconds) a restarted core that resumes waits for the run's tap to answer
 # with what its previous process published (the launcher's tap answers within milliseconds)
@@ -78,6 +82,8 @@ class RealtimeService:
         self.ticks = 0
         self.skipped = 0  # periods skipped because the loop fell behind
         self.clock_lost_at: float | None = None  # wall time the clock's token vanished
+        self.cut_off_at: float | None = None  # wall time this session was seen cut off
+        self.rejoin_timeout_s = setup.scenario.runtime.start_timeout_s
         self._catching_up = False  # the last Tick moved the clock by more than CATCH_UP_S
         self._bus: Bus | None = None
         self.times = LoopTimes()
@@ -210,8 +216,32 @@ class RealtimeService:
         self.host.count_dropped(service, stream, n, "inbox full (the loop fell behind)")
 
     def _clock_gone(self) -> bool:
-        """Whether the clock's token has been gone for CLOCK_GRACE_S: the run is over."""
-        if self.clock_lost_at is None or time.monotonic() < self.clock_lost_at + CLOCK_GRACE_S:
+        """Whether the clock's token has been gone for CLOCK_GRACE_S while this session was
+        connected, or this session has been cut off for rejoin_timeout_s: the run is over."""
+        if self.clock_lost_at is None:
+            return False
+        now = time.monotonic()
+        if self._bus is not None and not self._bus.connected():
+            if self.cut_off_at is None:
+                self.cut_off_at = now
+                log.warning(
+                    "%s: cut off from the router; waiting up to %.0f s to rejoin",
+                    self.name,
+                    self.rejoin_timeout_s,
+                )
+            if now < self.cut_off_at + self.rejoin_timeout_s:
+                self.clock_lost_at = now  # the grace starts once we are back
+                return False
+            log.info("%s: could not rejoin the router; stopping", self.name)
+            return True
+        if self.cut_off_at is not None:
+            log.info(
+                "%s: rejoined the router %.1f s after finding itself cut off",
+                self.name,
+                now - self.cut_off_at,
+            )
+            self.cut_off_at = None
+        if now < self.clock_lost_at + CLOCK_GRACE_S:
             return False
         log.info("%s: the mission clock went away; stopping", self.name)
         return True
@@ -222,7 +252,7 @@ class RealtimeService:
             if ev.alive:
                 if self.clock_lost_at is not None:
                     log.info("%s: the mission clock is back", self.name)
-                self.clock_lost_at = None
+                self.clock_lost_at = self.cut_off_at = None
             elif self.clock_lost_at is None:
                 log.info(
                     "%s: the mission clock's token vanished; waiting %.0f s for it",
