@@ -41,7 +41,10 @@ def start_router(
     # a restarted router would not bring the run back: every session's state (subscriptions,
     # liveliness tokens, the services' view of the clock) goes with the old one
     child = sup.start(
-        ROUTER, args, never_because="the router is never restarted: the run's sessions go with it"
+        ROUTER,
+        args,
+        never_because="the router is never restarted: the run's sessions go with it",
+        spawned=True,  # up while the fork server imports what the services need
     )
     deadline = time.monotonic() + timeout_s
     while READY_LINE not in child.tail(50):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import multiprocessing
 import os
 import signal
@@ -12,12 +11,12 @@ import subprocess
 import sys
 import time
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
 from common.runtime.processes.forkserver import fork_module
+from common.runtime.processes.parent_death import die_with
 
 
 def connectable(endpoint: str) -> str:
@@ -91,28 +90,6 @@ class Child:
         return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
 
 
-# Linux's prctl, looked up once here: the child between fork and exec must not load anything
-_PRCTL: Callable[..., int] | None = None
-if sys.platform.startswith("linux"):
-    _PRCTL = ctypes.CDLL(None, use_errno=True).prctl
-PR_SET_PDEATHSIG = 1
-
-
-def _die_with(parent: int) -> Callable[[], None]:
-    """What the child runs before exec: SIGTERM it when its parent dies, however it dies (a
-    SIGKILLed launcher left its router listening for good). SIGTERM, not SIGKILL: the child
-    still closes its Zenoh session and its own children in order. Linux ties this to the
-    thread that started the child: ours start from the thread that supervises them."""
-
-    def arm() -> None:
-        if _PRCTL is not None:
-            _PRCTL(PR_SET_PDEATHSIG, signal.SIGTERM)
-            if os.getppid() != parent:  # the parent died before the line above
-                os._exit(1)
-
-    return arm
-
-
 def spawn(
     name: str,
     args: list[str],
@@ -141,25 +118,34 @@ def spawn(
         stdin=subprocess.DEVNULL,
         env=full_env,
         start_new_session=group,
-        preexec_fn=_die_with(os.getpid()),
+        preexec_fn=die_with(os.getpid()),
     )
     return Child(name, proc, log_path, fh, group)
 
 
-def fork(name: str, module: str, argv: list[str], log_dir: Path, *, append: bool = False) -> Child:
+def fork(
+    name: str,
+    module: str,
+    argv: list[str],
+    log_dir: Path,
+    *,
+    group: bool = False,
+    append: bool = False,
+) -> Child:
     """Start `module.main(argv)` forked from the pre-imported fork server (forkserver.py),
-    logging to log_dir/<name>.log: like spawn(name, ["-m", module, *argv]), without the
-    interpreter start-up and imports. For local service processes of a run. append=True
-    keeps an earlier log of the same name (a restarted service).
+    logging to log_dir/<name>.log: like spawn(name, ["-m", module, *argv], group=group),
+    without the interpreter start-up and imports. For local service processes of a run.
+    append=True keeps an earlier log of the same name (a restarted service).
 
     In a daemonic process (a Dask worker running a sweep's run, say), which multiprocessing
     forbids to have children of its own, it is exactly that spawn instead.
     """
     if multiprocessing.current_process().daemon:
-        return spawn(name, ["-m", module, *argv], log_dir, append=append)
+        return spawn(name, ["-m", module, *argv], log_dir, group=group, append=append)
     log_dir.mkdir(parents=True, exist_ok=True)
     log_path = log_dir / f"{name}.log"
-    return Child(name, fork_module(module, argv, log_path, append=append), log_path)
+    proc = fork_module(module, argv, log_path, append=append, group=group)
+    return Child(name, proc, log_path, group=group)
 
 
 def stop_all(children: list[Child], *, grace_s: float = 3.0) -> None:

@@ -24,6 +24,8 @@ from collections.abc import Iterator
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 
+from common.runtime.processes.parent_death import die_with
+
 # What the fork server imports once (its children find them already loaded). A mission
 # module not listed here is imported by each child, which is slower but just as correct.
 PRELOAD = (
@@ -53,8 +55,16 @@ def warm_up() -> None:
     forkserver.ensure_running()
 
 
-def _child(module: str, argv: list[str], log_path: str, env: dict[str, str], append: bool) -> None:
-    """Runs in the forked process: log to the file, then `module.main(argv)`, exit with it."""
+def _child(
+    module: str, argv: list[str], log_path: str, env: dict[str, str], append: bool, group: bool
+) -> None:
+    """Runs in the forked process: die with the fork server (which dies with the process that
+    started it), lead a process group of its own if `group`, log to the file, then
+    `module.main(argv)`, exit with it."""
+    _let_the_server_go()
+    die_with(os.getppid())()
+    if group:
+        os.setsid()  # a terminal's Ctrl-C reaches its supervisor, which stops it in order
     keep = os.O_APPEND if append else os.O_TRUNC
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | keep, 0o644)
     os.dup2(fd, 1)
@@ -68,6 +78,23 @@ def _child(module: str, argv: list[str], log_path: str, env: dict[str, str], app
     code = importlib.import_module(module).main(argv)
     sys.stdout.flush()
     sys.exit(code)
+
+
+def _let_the_server_go() -> None:
+    """Close this child's copy of the write end of the fork server's "alive" pipe.
+
+    multiprocessing hands it to every child it forks (so that the child could fork through
+    the same server); the server exits when the pipe's last writer is gone. While a child
+    held it, the server outlived the process that started it (a SIGKILLed launcher), and so
+    did its children, whose parent-death signal waits for the server: they lingered until
+    their own timeouts (30 s). Our children never fork through it."""
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver, "_forkserver", None)
+    fd = getattr(server, "_forkserver_alive_fd", None)
+    if fd is not None:
+        os.close(fd)
+        server._forkserver_alive_fd = None  # type: ignore[union-attr]
 
 
 class ForkedProcess:
@@ -108,11 +135,13 @@ def fork_module(
     env: dict[str, str] | None = None,
     *,
     append: bool = False,
+    group: bool = False,
 ) -> ForkedProcess:
-    """Start `module.main(argv)` in a process forked from the fork server, logging to a file."""
+    """Start `module.main(argv)` in a process forked from the fork server, logging to a file;
+    `group`: leading a process group (a session) of its own, as children.spawn's."""
     proc = _context().Process(
         target=_child,
-        args=(module, argv, str(log_path), dict(env or {}), append),
+        args=(module, argv, str(log_path), dict(env or {}), append, group),
         name=f"tidelink:{module}",
         daemon=True,  # multiprocessing terminates any left at our exit: none is orphaned
     )

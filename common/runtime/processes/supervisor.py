@@ -1,10 +1,11 @@
 """Supervise named OS processes: restart them by policy with back-off, report exits, stop all.
 
-Processes are either spawned, each leading its own process group (children.spawn), so a
-terminal's Ctrl-C reaches only the launcher, which then stops every group in order: SIGINT,
-SIGTERM, SIGKILL, each after a grace period; or forked from the pre-imported fork server
-(children.fork: a run's local services, ready in milliseconds). Nothing here blocks: `poll()`
-is called from the driver's loop and returns what happened since the last call.
+Processes are either spawned (children.spawn) or forked from the pre-imported fork server
+(children.fork: a run's services, ready in milliseconds, a restarted one too), each leading
+its own process group, so a terminal's Ctrl-C reaches only the launcher, which then stops
+every group in order: SIGINT, SIGTERM, SIGKILL, each after a grace period. Nothing here
+blocks: `poll()` is called from the driver's loop and returns what happened since the last
+call.
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class _Entry:
     reported: bool = False  # this incarnation's exit has been seen
     pids: list[int] = field(default_factory=list)
     never_because: str = ""  # why this process is never restarted, whatever the policies
+    forked: bool = False  # forked from the fork server (else spawned), restarts too
 
 
 class Supervisor:
@@ -129,15 +131,19 @@ class Supervisor:
         policy: RestartPolicy | None = None,
         *,
         never_because: str = "",
+        spawned: bool = False,
     ) -> Child:
         """Start `python <args>` as `name`, logging to log_dir/<name>.log (forked: the args
         must be `-m MODULE ...`, whose `main(argv)` runs in the forked process).
-        `never_because`: this process is never restarted, and its exit says why."""
+        `never_because`: this process is never restarted, and its exit says why. `spawned`:
+        a fresh interpreter even here (one that needs none of the fork server's imports and
+        should not wait for them, the router)."""
         if name in self._entries:
             raise ValueError(f"{name!r} is already supervised")
-        if self.forked and args[:1] != ["-m"]:
+        forked = self.forked and not spawned
+        if forked and args[:1] != ["-m"]:
             raise ValueError(f"{name}: a forked process runs a module: expected -m MODULE ...")
-        child = self._launch(name, args, append=False)
+        child = self._launch(name, args, forked=forked, append=False)
         self._entries[name] = _Entry(
             name,
             args,
@@ -145,6 +151,7 @@ class Supervisor:
             child,
             pids=[child.proc.pid],
             never_because=never_because,
+            forked=forked,
         )
         self._write_pids()
         return child
@@ -199,15 +206,15 @@ class Supervisor:
         e.child.close_log()
         with e.child.log_path.open("a") as fh:  # where each incarnation starts
             fh.write(f"--- {time.strftime('%H:%M:%S')} restart {e.restarts} of {e.name!r} ---\n")
-        e.child = self._launch(e.name, e.args, append=True)
+        e.child = self._launch(e.name, e.args, forked=e.forked, append=True)
         e.reported = False
         e.pids.append(e.child.proc.pid)
         self._write_pids()
         return Restarted(name=e.name, attempt=e.restarts, pid=e.child.proc.pid)
 
-    def _launch(self, name: str, args: list[str], *, append: bool) -> Child:
-        if self.forked:
-            return fork(name, args[1], args[2:], self.log_dir, append=append)
+    def _launch(self, name: str, args: list[str], *, forked: bool, append: bool) -> Child:
+        if forked:
+            return fork(name, args[1], args[2:], self.log_dir, group=True, append=append)
         return spawn(name, args, self.log_dir, group=True, append=append)
 
     def wait_exited(self, names: list[str], timeout_s: float) -> bool:
