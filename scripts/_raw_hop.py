@@ -2,12 +2,15 @@
 
     _raw_hop.py N        one-way hop, peer to peer, one sample a millisecond: prints
                          "p50_us p99_us"
-    _raw_hop.py N MS [router]
+    _raw_hop.py N MS [router] [fast]
                          the same, one sample every MS milliseconds (a loop's pace: between
                          samples each process sleeps, and pays its wake-up on the next);
                          with `router`, from a client through a router to a client, as a
                          service's message goes (this process the router, its subscriber a
-                         second session of it)
+                         second session of it); with `fast`, over the quickest transport
+                         Zenoh has here, not the one tidelink uses: a Unix socket instead
+                         of TCP on loopback, and Zenoh's lowlatency transport (no transmit
+                         queue or task: the putting thread writes the socket; no QoS)
     _raw_hop.py rtt N    round trip through a router, the shape of a lockstep tick: this
                          process is a router (as the lockstep coordinator is), the child a
                          client that answers each ping; prints "p50_us p99_us"
@@ -18,10 +21,12 @@ The child publishes CLOCK_MONOTONIC stamps (system-wide on Linux).
 from __future__ import annotations
 
 import json
+import os
 import socket
 import struct
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
@@ -29,24 +34,31 @@ import numpy as np
 import zenoh
 
 
-def _conf(listen: str | None, connect: str | None, mode: str = "peer") -> zenoh.Config:
+def _conf(
+    listen: str | None, connect: str | None, mode: str = "peer", fast: bool = False
+) -> zenoh.Config:
     c = zenoh.Config()
     c.insert_json5("mode", json.dumps(mode))
     c.insert_json5("scouting/multicast/enabled", "false")
     c.insert_json5("scouting/delay", "0")
     c.insert_json5("listen/endpoints", json.dumps([listen] if listen else []))
     c.insert_json5("connect/endpoints", json.dumps([connect] if connect else []))
+    if fast:  # both ends of a link must agree on it
+        c.insert_json5("transport/unicast/lowlatency", "true")
+        c.insert_json5("transport/unicast/qos/enabled", "false")
     return c
 
 
-def _endpoint() -> str:
+def _endpoint(fast: bool = False) -> str:
+    if fast:  # a socket file of its own (Zenoh removes it on close)
+        return f"unixsock-stream/{tempfile.gettempdir()}/tidelink-raw-hop-{os.getpid()}.sock"
     with socket.socket() as so:
         so.bind(("127.0.0.1", 0))
         return f"tcp/127.0.0.1:{so.getsockname()[1]}"
 
 
-def child(endpoint: str, n: int, interval_s: float, mode: str) -> None:
-    with zenoh.open(_conf(None, endpoint, mode)) as s:
+def child(endpoint: str, n: int, interval_s: float, mode: str, fast: bool) -> None:
+    with zenoh.open(_conf(None, endpoint, mode, fast)) as s:
         pub = s.declare_publisher("bench/hop", reliability=zenoh.Reliability.RELIABLE)
         time.sleep(0.5)  # benchmark warm-up: let the subscription propagate (not a test)
         for _ in range(n):
@@ -55,8 +67,8 @@ def child(endpoint: str, n: int, interval_s: float, mode: str) -> None:
         pub.put(b"")
 
 
-def parent(n: int, interval_s: float = 0.001, via_router: bool = False) -> None:
-    endpoint = _endpoint()
+def parent(n: int, interval_s: float = 0.001, via_router: bool = False, fast: bool = False) -> None:
+    endpoint = _endpoint(fast)
     mode = "client" if via_router else "peer"
     lat: list[int] = []
     done = threading.Event()
@@ -69,10 +81,12 @@ def parent(n: int, interval_s: float = 0.001, via_router: bool = False) -> None:
             return
         lat.append(now - struct.unpack("<q", b)[0])
 
-    router = zenoh.open(_conf(endpoint, None, "router")) if via_router else None
-    with zenoh.open(_conf(None, endpoint, mode) if via_router else _conf(endpoint, None)) as s:
+    router = zenoh.open(_conf(endpoint, None, "router", fast)) if via_router else None
+    with zenoh.open(
+        _conf(None, endpoint, mode, fast) if via_router else _conf(endpoint, None, fast=fast)
+    ) as s:
         sub = s.declare_subscriber("bench/hop", on)
-        args = ["child", endpoint, str(n), str(interval_s), mode]
+        args = ["child", endpoint, str(n), str(interval_s), mode, "fast" if fast else "tcp"]
         proc = subprocess.Popen([sys.executable, __file__, *args])
         done.wait(timeout=60 + 2 * n * interval_s)
         proc.wait(timeout=10)
@@ -126,11 +140,12 @@ def rtt_parent(n: int) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1] == "child":
-        child(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), sys.argv[5])
+        child(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), sys.argv[5], sys.argv[6] == "fast")
     elif sys.argv[1] == "rtt-child":
         rtt_child(sys.argv[2])
     elif sys.argv[1] == "rtt":
         rtt_parent(int(sys.argv[2]))
     else:
         ms = float(sys.argv[2]) if len(sys.argv) > 2 else 1.0
-        parent(int(sys.argv[1]), ms / 1e3, sys.argv[3:4] == ["router"])
+        flags = sys.argv[3:]
+        parent(int(sys.argv[1]), ms / 1e3, "router" in flags, "fast" in flags)

@@ -14,7 +14,9 @@
    step, its publishing: common/runtime/distributed/loop_times.py, from each service's
    statistics), so the slowest part is visible; and against a second baseline, the raw hop
    at the loop's pace and on its path (one message per period, client -> router -> client:
-   each process sleeps between messages and pays its wake-up, ~4x a hop at 1 kHz here);
+   each process sleeps between messages and pays its wake-up, ~4x a hop at 1 kHz here), and
+   the same over the quickest transport Zenoh has here (a Unix socket, its lowlatency
+   transport): the floor under three such hops, whatever tidelink does above it;
 5. the same loop secured as `tidelink run --certs DIR` runs it (issue 13: every service over
    mutual TLS to the run's router, which enforces the access control generated from the
    loop's dataflow) against plain, runs interleaved plain, secured, plain, secured, ...
@@ -77,6 +79,7 @@ event_driven = true
 LOOP_HOPS = ("sensor/nav->filter", "filter/state->ctrl", "ctrl/cmd->plant")
 LOOP_SERVICES = ("sensor", "filter", "ctrl", "plant")
 LOOP_PACED_SAMPLES = 150  # raw hops at the loop's pace (15 s at 10 Hz)
+LOOP_GOAL_P50_US = 1000.0  # issue 18: the realtime loop's p50, sensor sample to command applied
 
 FLOOR_TOML = """
 [run]
@@ -438,6 +441,9 @@ def main() -> None:
     assert sensor.period_s is not None
     pace_ms = round(1e3 * sensor.period_s)  # one message per hop per sensor period
     paced50, paced99 = raw_latency_us(str(LOOP_PACED_SAMPLES), str(pace_ms), "router")
+    # the same over the quickest transport Zenoh offers here (not tidelink's): the floor
+    # under any loop of three such hops on this machine
+    fast50, fast99 = raw_latency_us(str(LOOP_PACED_SAMPLES), str(pace_ms), "router", "fast")
     sec = None
     if a.secured_rounds > 0:
         sec = bench_secured_latency(a.realtime_s, a.secured_rounds)
@@ -454,6 +460,12 @@ def main() -> None:
     print(
         f"  ... at the loop's pace            p50 {paced50:8.0f} us   p99 {paced99:8.0f} us"
         f"   (client -> router -> client, one every {pace_ms} ms)"
+    )
+    print(
+        f"  ... over the quickest transport   p50 {fast50:8.0f} us   p99 {fast99:8.0f} us"
+        "   (the same through a Unix socket, Zenoh's lowlatency transport): three such hops"
+        f" p50 {3 * fast50 / 1e3:.2f} ms against issue 18's loop goal p50 <= "
+        f"{LOOP_GOAL_P50_US / 1e3:g} ms"
     )
     print(
         f"  loop / (3 raw hops)               p50 {rt50 / (3 * raw50):8.2f}x  p99 "
