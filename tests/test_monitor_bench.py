@@ -10,7 +10,9 @@ from types import ModuleType
 
 import pytest
 
-pytestmark = [pytest.mark.slow, pytest.mark.exclusive]  # it measures the loop
+# a real launch on the wall clock, beside the other shared realtime tests: it asserts that the
+# script measures, never how fast (what the machine's load could change is the benchmark's)
+pytestmark = [pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
 
