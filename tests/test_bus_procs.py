@@ -245,7 +245,7 @@ def _until(what: str, cond: Callable[[], bool]) -> None:
     deadline = time.monotonic() + WAIT_S
     while not cond():
         assert time.monotonic() < deadline, f"not {what} within {WAIT_S} s"
-        time.sleep(0.02)  # polling the session's state (Zenoh reports no event for it here)
+        time.sleep(0.02)  # polling Bus.connected(), the state a realtime service itself reads
 
 
 @pytest.mark.slow
