@@ -46,6 +46,23 @@ FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics a
 GONE_GRACE_S = 0.5  # after a service's token went: its last frames may still be on their way
 
 
+class GoneGrace:
+    """Whether every service's token has been gone for `grace_s`, each counted from when its
+    own token was first seen gone (all at once, not one after another)."""
+
+    def __init__(self, names: set[str], grace_s: float) -> None:
+        self.names = names
+        self.grace_s = grace_s
+        self.gone_at: dict[str, float] = {}
+
+    def over(self, alive: set[str], now: float) -> bool:
+        for name in self.names - alive:
+            self.gone_at.setdefault(name, now)
+        return all(
+            name not in alive and now - self.gone_at[name] > self.grace_s for name in self.names
+        )
+
+
 class RealtimeDriver:
     """Drives one realtime run; `sup` runs the local services, others join over Zenoh."""
 
@@ -223,14 +240,8 @@ class RealtimeDriver:
         frames were taken: liveliness and data reach this process by different paths, in
         either order (a flood's or a restart's final counts were lost that way)."""
         deadline = time.monotonic() + FINAL_STATS_S
-        gone_at: dict[str, float] = {}
-
-        def done(name: str) -> bool:
-            if name in self.alive:
-                return False
-            return time.monotonic() - gone_at.setdefault(name, time.monotonic()) > GONE_GRACE_S
-
-        while not all(done(n) for n in self.names):
+        grace = GoneGrace(self.names, GONE_GRACE_S)
+        while not grace.over(self.alive, time.monotonic()):
             if time.monotonic() > deadline or self.stop.hurry:
                 break
             self.take(inbox.get(timeout=0.05))
