@@ -502,7 +502,7 @@ def test_fleet4_in_lockstep_equals_inproc(
     # vehicle at its goal, no contact, no two hulls within rho0, in both runtimes (~45 s of
     # inproc, ~50 s of lockstep here); seed 3 over the first 30 s, the four vehicles' first
     # encounters (from ~15 s on), to keep the suite's time (its whole run was checked too).
-    # Not every seed succeeds (README "Fleets": 10 of seeds 1-12 in inproc; seed 1's auv4
+    # Not every seed succeeds (docs/notes/0041: 10 of seeds 1-12 in inproc; seed 1's auv4
     # ends 0.22 m inside rho0 of obstacle 4 after a turn away from auv2's path)
     sets = [f"run.seed={seed}"] + ([] if max_time_s is None else [f"run.max_time_s={max_time_s}"])
     s, raw = load_scenario(FLEET4, sets, check=check_scenario)
@@ -622,7 +622,7 @@ def test_fleet4_launched_in_realtime_reaches_every_goal_without_contact(
     # until 2026-12-03, for room on the cores: since the services are forked from the fork
     # server (no 16 interpreters importing numpy and scipy as the clock starts) three 1x
     # launches here skipped 1-3 vehicle periods each of ~3600, all four vehicles arriving
-    # clean. Earlier record (README "Fleets"): on 2026-11-28's machine at 1x 17 successes in
+    # clean. Earlier record (docs/notes/0014): on 2026-11-28's machine at 1x 17 successes in
     # 20, none with a contact, two rho0 breaches and one vehicle stuck in NO_PATH (which this
     # test would fail). A rho0 breach is reported (outcome rho0_breach) and let through
     # here: rho0 in realtime fleets is issue 18's open item, not a regression here.
