@@ -8,7 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from common.config.errors import ConfigError
 from services.cli import build_parser
+from services.cli.core_commands import check_exposure
 from services.cli.reference_docs import GENERATOR, pages
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,25 +67,40 @@ def _argv(line: str) -> list[str]:
     return argv
 
 
+GUIDES = [README, *sorted((ROOT / "docs").glob("*.md"))]  # the user guides, not the notes
+
+
 def test_the_readme_shows_commands() -> None:
     assert len(_shown_commands(README.read_text())) >= 10
 
 
-@pytest.mark.parametrize("line", _shown_commands(README.read_text()))
-def test_every_command_the_readme_shows_parses(line: str) -> None:
+@pytest.mark.parametrize(
+    "doc, line",
+    [(doc, line) for doc in GUIDES for line in _shown_commands(doc.read_text())],
+    ids=lambda v: v.name if isinstance(v, Path) else v,
+)
+def test_every_command_the_guides_show_parses(doc: Path, line: str) -> None:
     argv = _argv(line)
     try:
-        build_parser().parse_args(argv[1:])
+        a = build_parser().parse_args(argv[1:])
     except SystemExit as exc:
-        pytest.fail(f"README shows a command tidelink refuses ({exc.code}): {line}")
+        pytest.fail(f"{doc.name} shows a command tidelink refuses ({exc.code}): {line}")
+    listen = getattr(a, "listen", None)
+    if listen and hasattr(a, "insecure"):  # a router beyond loopback needs --certs or --insecure
+        try:
+            check_exposure(
+                [listen] if isinstance(listen, str) else listen, bool(a.certs), a.insecure
+            )
+        except ConfigError as exc:
+            pytest.fail(f"{doc.name} shows a command tidelink refuses (exit 2, {exc}): {line}")
     for arg in argv[1:]:
         for path in re.findall(r"(?:configs|scripts)/[\w./-]+", arg):
             if path.startswith("configs/") and not path.endswith(".toml"):
                 continue
-            assert (ROOT / path).exists(), f"README's `{line}` names {path}, which is not there"
+            assert (ROOT / path).exists(), f"{doc.name}'s `{line}` names {path}, which is not there"
 
 
-DOCS = [README, *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs").glob("*/*.md"))]
+DOCS = [*GUIDES, *sorted((ROOT / "docs").glob("*/*.md"))]
 
 
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
