@@ -23,9 +23,11 @@ merges this file's tables over it, key by key (an array such as `world.circles` 
 whole). Unknown keys, wrong types, out-of-range or inconsistent values are errors naming the
 file and the key.
 
-Every command that takes a scenario also takes `--set KEY=VALUE`: a dotted key path and a
-TOML value, e.g. `--set network.default.loss_p=0.2` or `--set 'controller.kind="fuzzy_pid"'`
-(bare words are read as strings too).
+The commands that load a scenario (`check`, `run`, `launch`, `service`, `graph`, `acl`,
+`chaos`) take `--set KEY=VALUE` to override a key: a dotted key path and a TOML value, e.g.
+`--set network.default.loss_p=0.2` or `--set 'controller.kind="fuzzy_pid"'` (bare words are
+read as strings too); an experiment file overrides keys the same way
+([experiments.md](experiments.md)).
 
 Units are in the key names: `_m` metres, `_s` seconds, `_mps` metres per second, `_mps2`
 metres per second squared, `_rad` radians, `_rps` radians per second, `_ps` per second, `_hz`
