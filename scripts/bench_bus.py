@@ -27,7 +27,7 @@ acknowledged before the next; a turn's rate is its messages / (last decoded - fi
 stamped). Rounds are repeated; medians are shown. The load average is printed: on a busy
 machine the rates and latencies mean little.
 
-Mutual TLS (the secured bus, README "Security"): each round also runs the typed-inbox /
+Mutual TLS (the secured bus, docs/security.md): each round also runs the typed-inbox /
 raw-queue pair over tls/ with certificates of a CA made for this run (common/bus/certs.py,
 in a temporary directory), right after the same pair over tcp/, and tls/tcp ratios are
 printed per pattern. The two sessions are peers, so there is no router and no access

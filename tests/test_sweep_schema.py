@@ -148,9 +148,9 @@ def test_tables_and_arrays_of_tables_are_valid_override_values(tmp_path: Path) -
     assert net.outages[0].service == "sensor" and net.outages[0].end_s == 2.0
 
 
-def test_the_readme_example_is_a_valid_experiment(tmp_path: Path) -> None:
-    readme = (ROOT / "README.md").read_text()
-    section = readme[readme.index("### Experiments: `tidelink sweep`") :]
+def test_the_documented_example_is_a_valid_experiment(tmp_path: Path) -> None:
+    guide = (ROOT / "docs" / "experiments.md").read_text()
+    section = guide[guide.index("## `tidelink sweep`") :]
     example = section[
         section.index("```toml\n") + 8 : section.index("```\n", section.index("```toml\n") + 8)
     ]

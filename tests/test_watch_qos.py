@@ -68,7 +68,7 @@ def test_a_stopped_watcher_stalls_neither_the_tap_nor_another_watcher() -> None:
             finally:
                 stopped.signal(signal.SIGCONT)
         router.signal(signal.SIGINT)
-    # BLOCK here stalled the publisher 4.6 s and the other subscriber 5 s (README)
+    # BLOCK here stalled the publisher 4.6 s and the other subscriber 5 s (docs/notes/0002)
     assert worst_put < 0.5, f"the tap's put blocked {worst_put:.2f} s"
     assert len(gaps) >= SECONDS - 2
     assert max(gaps[1:]) < 0.5, f"the other watcher starved: gaps {gaps}"

@@ -299,7 +299,7 @@ class Bus:
         self.cfg = cfg
         self.keys = keys
         # under mTLS: whose certificate this session presents; a router may also enforce an
-        # access control (README "Security")
+        # access control (docs/security.md)
         self.identity = identity
         self.access_control = access_control
         # low_latency: subscription callbacks run on Zenoh's network thread instead of being
@@ -371,7 +371,7 @@ class Bus:
         and priority DATA_LOW. A router forwards a BLOCK sample to a subscriber that stopped
         reading by waiting (measured here: the publisher and every other subscriber stalled
         ~5 s until the router closed the stalled session); a DROP sample is dropped for
-        that subscriber alone, so no watcher can slow the run (README "Remote monitoring").
+        that subscriber alone, so no watcher can slow the run (docs/monitoring.md).
 
         `last`: BLOCK instead, for the one message a run sends after its loop is over (the
         RunEnd), which a slow watcher must not lose: behind a subscriber that had stopped

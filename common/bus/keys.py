@@ -104,7 +104,7 @@ class Keys:
         """The dataflow queryables of one run and vehicle, or of any (None: a wildcard)."""
         return f"{_prefix(run, vehicle)}/dataflow"
 
-    # -- what tools outside the run see (common/bus/tap.py, README "Remote monitoring") -----
+    # -- what tools outside the run see (common/bus/tap.py, docs/monitoring.md) -------------
     def watch(self, service: str, stream: str) -> str:
         """The monitoring copy of a stream, republished by the run's watch tap (DROP)."""
         return f"{self.root}/{WATCH}/{service}/{stream}"

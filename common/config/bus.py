@@ -23,7 +23,7 @@ class BusConfig:
     # Off by default: multicast leaves loopback and lets unrelated runs find each other.
     multicast_scouting: bool = False
     # "mtls": every endpoint is tls/ (tcp/ ones are served as tls/ on the same address) and
-    # every process presents a certificate of the run's CA; README "Security"
+    # every process presents a certificate of the run's CA; docs/security.md
     security: Literal["none", "mtls"] = "none"
     # the directory `tidelink certs` wrote (ca.pem, <identity>.pem/.key); needed for "mtls"
     certs: str = ""

@@ -175,7 +175,7 @@ class ControllerConfig:
     # the vehicle is asks for each turn late and the vehicle swings wide of it. On in
     # configs/fleet4.toml (inproc, NURBS, seeds 1-12: rho0 kept in 10 -> 12, worst cross-track
     # error 1.35 -> 0.57 m). Off by default: with single commands (sequence.horizon_s = 0)
-    # after an 8 s planner outage it ended 3 of 8 seeds in contact against 0 (README "Fleets").
+    # after an 8 s planner outage it ended 3 of 8 seeds in contact against 0 (docs/notes/0020).
     # The immune fuzzy PID has no feed-forward to lead.
     yaw_lag_lead: bool = False
     sequence: SequenceConfig = field(default_factory=SequenceConfig)  # shared by every controller

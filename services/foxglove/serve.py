@@ -1,5 +1,5 @@
 """`tidelink foxglove`'s process: a Foxglove WebSocket server fed by the bridge, across runs
-and the routers they bring (README "Remote monitoring")."""
+and the routers they bring (docs/monitoring.md)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ class BridgeOptions:
     """Where the runs are (a router's endpoint), which to show, where to serve the app."""
 
     connect: str = "tcp/127.0.0.1:7447"
-    certs: str | None = None  # mTLS with these certificates (README "Security")
+    certs: str | None = None  # mTLS with these certificates (docs/security.md)
     identity: str = "monitor"  # whose certificate to present
     run: str | None = None  # None: the first run that is on (then the next, and so on)
     vehicle: str | None = None

@@ -57,7 +57,7 @@ class MonitorOptions:
     the polls crosses the link); `every_frame` receives every tapped frame instead."""
 
     connect: str
-    certs: str | None = None  # mTLS with these certificates (README "Security")
+    certs: str | None = None  # mTLS with these certificates (docs/security.md)
     identity: str = "monitor"  # whose certificate to present
     run: str | None = None
     vehicle: str | None = None

@@ -1,7 +1,7 @@
 """Least-privilege Zenoh access control for a run, generated from its declared dataflow.
 
 Each identity (a certificate's common name) gets exactly what its code does on the bus
-(README "Security"):
+(docs/security.md):
 - a service puts its own output streams, its stats and its lockstep acks, subscribes to its
   inputs, to their publishers' acks and to the ticks addressed to it, declares only its own
   liveliness token, and may ask the tap for its own newest frames (a restarted vehicle
@@ -107,7 +107,7 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
     )
     # any run on this router (a watcher need not name the run), but through the watch tap
     # only: a monitor that subscribed to the BLOCK control streams and stopped reading could
-    # stall the run (README "Remote monitoring"); the tap carries every stream anyway
+    # stall the run (docs/monitoring.md); the tap carries every stream anyway
     out[MONITOR] = Grants(
         subscribe=(Keys.any_watch(),),
         query=(Keys.any_latest(), Keys.any_scenario(), Keys.dataflow_selector()),

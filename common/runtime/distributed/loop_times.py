@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from common.netmodel.stats import DurationHistogram
 
-# what is timed per tick that published something, in wall seconds (README "Benchmarks":
-# scripts/bench runtime)
+# what is timed per tick that published something, in wall seconds (scripts/bench
+# runtime prints them)
 #   wake     how late the loop ran the tick after it was due: after its timer (a periodic
 #            step), or after the loop took the message it hands over from its inbox
 #   step     Host.run_tick: hand-overs, the core's step, the link model, encoding
