@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import signal
 import socket
 from collections import deque
@@ -280,61 +279,6 @@ def out(tmp_path: Path) -> Any:
     d = tmp_path / "run"
     yield d
     kill_recorded(d / "pids.json")
-
-
-@pytest.mark.slow
-def test_a_foxglove_client_gets_a_launched_run_it_joined_late(out: Path) -> None:
-    rp, wp = free_port(), free_port()
-    router = f"tcp/127.0.0.1:{rp}"
-    s, _ = load_scenario(DEFAULT)
-    launch_args = ("launch", str(DEFAULT), "--listen", router, "--out", str(out), "--no-plot")
-    launch_args += ("--time-scale", "6", "--set", "run.max_time_s=40.0")
-    with Tidelink(*launch_args) as launch:
-        launch.wait_for(r"launch: t=\s*\d", WAIT_S)  # the mission is under way: join late
-        with Tidelink("foxglove", "--connect", router, "--port", str(wp)) as bridge:
-            bridge.wait_for(f"serving Foxglove on ws://127.0.0.1:{wp}", WAIT_S)
-            with FoxgloveClient(f"ws://127.0.0.1:{wp}") as client:
-                assert client.subprotocol == "foxglove.sdk.v1"
-                joined = bridge.wait_for(r"watching run demo/auv1 \(joined with the newest "
-                                         r"frame of (\d+) streams\)", WAIT_S)  # fmt: skip
-                # truth, status, nav, obstacles, state, tracks, path, cmd (+ stats)
-                assert int(joined.group(1)) >= 8, bridge.stderr
-                client.wait_until(
-                    lambda: all(client.on(t) for t in PROTOBUF_TOPICS), WAIT_S, "scene messages"
-                )
-                assert client.server_infos[0]["name"] == "tidelink"
-                for topic, schema_name in PROTOBUF_TOPICS.items():
-                    ch = client.channel(topic)
-                    assert (ch["encoding"], ch["schemaName"]) == ("protobuf", schema_name)
-                pose = _decode(client, "/vehicle/pose_true")
-                p, q = pose["pose"]["position"], pose["pose"]["orientation"]
-                assert pose["frame_id"] == "world"
-                assert 0.0 <= p["x"] <= 100.0 and 0.0 <= p["y"] <= 40.0
-                assert q["x"] == q["y"] == 0.0 and math.hypot(q["z"], q["w"]) == pytest.approx(1.0)
-                assert pose["timestamp"]["seconds"] > 0  # mission time, past the start
-                # the path was planned before the bridge existed: it came by late join, and a
-                # NURBS path of this mission runs to the goal
-                path = _entities(_decode(client, "/planner/path"))["path"]
-                end = path["lines"][0]["points"][-1]
-                g = s.world.goal
-                assert math.hypot(end["x"] - g.x_m, end["y"] - g.y_m) < 1e-6
-                static = _entities(_decode(client, "/scene/static"))
-                ids = {f"obstacle/{c.id}" for c in s.world.circles}
-                ids |= {f"obstacle/{q.id}" for q in s.world.polygons}
-                assert ids <= set(static)
-                tracks = _entities(_decode(client, "/scene/tracks"))
-                assert all(k.startswith("track/") for k in tracks)
-                # exit 3: cut at max_time short of the goal, the mission is no success
-                assert launch.wait(WAIT_S) == 3, launch.stderr
-                bridge.wait_for("run demo/auv1 is over", WAIT_S)
-                client.wait_until(lambda: bool(client.on("/run/end")), WAIT_S, "/run/end")
-                assert json.loads(client.on("/run/end")[-1].data)["reason"] == "max_time"
-                # the run is over, the bridge is not: the client stays connected
-                client.pump(0.5)
-                assert not client.closed and bridge.proc.poll() is None
-            bridge.signal(signal.SIGTERM)
-            assert bridge.wait(WAIT_S) == 0, bridge.stderr
-            assert "stopping on SIGTERM" in bridge.stderr
 
 
 def _run(name: str, router: str, out: Path, max_time_s: float) -> Tidelink:

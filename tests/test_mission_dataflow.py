@@ -3,13 +3,12 @@ and the declaration served by a live run (a real launch, queried from another pr
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from helpers.launch_proc import REPO, Tidelink, kill_recorded
+from helpers.launch_proc import REPO
 
 from common.config.scenario import load_scenario
 from common.messages import (
@@ -23,7 +22,6 @@ from common.messages import (
     VelocityCommand,
 )
 from common.runtime.model.core import QueuePolicy, ServiceCore
-from common.runtime.processes.children import free_port
 from services.mission.dataflow import auv_dataflow
 
 DEFAULT = REPO / "configs" / "default.toml"
@@ -116,52 +114,3 @@ def test_graph_needs_a_scenario_or_a_live_run() -> None:
     )
     assert res.returncode == 1
     assert "give a SCENARIO file, or --connect ENDPOINT" in res.stderr
-
-
-@pytest.mark.slow
-def test_a_live_run_serves_its_dataflow_to_a_tool_without_the_scenario(tmp_path: Path) -> None:
-    out = tmp_path / "run"
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    try:
-        with Tidelink(
-            "launch",
-            str(DEFAULT),
-            "--listen",
-            endpoint,
-            "--out",
-            str(out),
-            "--no-plot",
-            "--time-scale",
-            "4",
-            "--set",
-            'run.name="seen"',
-        ) as launch:
-            launch.wait_for(r"mission clock started", WAIT_S)
-            q = subprocess.run(
-                [
-                    sys.executable,
-                    "-m",
-                    "services.cli",
-                    "graph",
-                    "--connect",
-                    endpoint,
-                    "--json",
-                    "--timeout",
-                    "10",
-                ],
-                cwd=REPO,
-                capture_output=True,
-                text=True,
-                timeout=120,
-                check=False,
-            )
-            launch.signal(2)  # the answer is all we need: Ctrl-C ends the run
-            launch.wait(WAIT_S)
-    finally:
-        kill_recorded(out / "pids.json")
-    assert q.returncode == 0, q.stderr
-    (line,) = q.stdout.splitlines()
-    got = json.loads(line)
-    assert got["title"] == "dataflow of live run tidelink/seen/auv1/dataflow"
-    expected = auv_dataflow(load_scenario(DEFAULT)[0]).describe()
-    assert {k: got[k] for k in expected} == expected

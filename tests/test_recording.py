@@ -1,6 +1,7 @@
-"""Recording runs end to end: `launch --record`, remote `tidelink record` (to the end, and
-killed or stopped mid-run), `tidelink metrics` against the run's own metrics.json, and
-`tidelink replay` seen by a Watcher as a live run.
+"""Recording runs end to end: a lockstep `launch --record` read back with the mcap package,
+`tidelink metrics` against the run's own metrics.json, `tidelink replay` seen by a Watcher and
+by `tidelink monitor` as a live run, recordings of runs that fail or are stopped. The remote
+recorders of a realtime launch are tests/test_live_run.py's.
 
 Every process is the real CLI in its own session (helpers/launch_proc.py); the tests wait on
 the lines they print, on files and on exits, always with deadlines.
@@ -14,15 +15,14 @@ import signal
 import time
 from collections import Counter
 from collections.abc import Iterator
-from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 from helpers.launch_proc import Tidelink, judged_exit, kill_recorded
-from mcap.exceptions import McapError
-from mcap.reader import NonSeekingReader, make_reader
+from helpers.recordings import frames, metrics_of, tidelink_metrics, without_wall
+from mcap.reader import make_reader
 
 from common.bus import Bus, Keys, Liveliness
 from common.bus.watcher import WatchedFrame, Watcher
@@ -34,7 +34,7 @@ from common.runtime.processes.children import free_port
 from services.foxglove.view import PLANNER_PATH, POSE_TRUE, SCENE_STATIC
 from services.launcher.router import wait_for_endpoint
 from services.recording.metrics import rebuild_record
-from services.recording.reader import AliveEvent, Recording, read_recording
+from services.recording.reader import AliveEvent, read_recording
 
 pytestmark = pytest.mark.slow
 
@@ -42,24 +42,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 WAIT_S = 90.0  # upper bound on any one wait; a run here takes a few seconds
 SERVICES = {"estimator", "planner", "sensor", "vehicle"}
-
-
-def _metrics(path: Path) -> dict[str, Any]:
-    return dict(json.loads(path.read_text()))
-
-
-def _tidelink_metrics(mcap: Path) -> dict[str, Any]:
-    with Tidelink("metrics", str(mcap), "--json") as t:
-        assert t.wait(WAIT_S) == 0, t.stderr
-        return dict(json.loads(t.stdout))
-
-
-def _without_wall(m: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in m.items() if k != "wall_s"}
-
-
-def _frames(rec: Recording) -> Counter[tuple[str, str, bytes, bytes | None]]:
-    return Counter((f.service, f.stream, f.payload, f.attachment) for f in rec.frames)
 
 
 # -- a lockstep launch, recorded in-process ---------------------------------------------------
@@ -100,7 +82,7 @@ def test_a_recorded_lockstep_launch_reads_back_with_the_mcap_package(lockstep_ru
         (lockstep_run / "scenario.json").read_text()
     )
     (end,) = got.pop("runtime/end")
-    run_metrics = _metrics(lockstep_run / "metrics.json")
+    run_metrics = metrics_of(lockstep_run / "metrics.json")
     assert isinstance(end, RunEnd)
     assert (end.reason, end.stamp, end.ticks) == (
         run_metrics["end_reason"],
@@ -134,11 +116,11 @@ def test_a_recording_carries_the_foxglove_view_of_the_run(lockstep_run: Path) ->
 
 
 def test_metrics_recomputed_from_a_lockstep_recording_equal_the_runs(lockstep_run: Path) -> None:
-    recomputed = _tidelink_metrics(lockstep_run / "run.mcap")
-    own = _metrics(lockstep_run / "metrics.json")
+    recomputed = tidelink_metrics(lockstep_run / "run.mcap")
+    own = metrics_of(lockstep_run / "metrics.json")
     assert "wall_s" in own and "wall_s" not in recomputed
     assert recomputed["trajectory_sha256"] == own["trajectory_sha256"]
-    assert recomputed == _without_wall(own)
+    assert recomputed == without_wall(own)
 
 
 def test_a_replay_is_a_live_run_to_a_watcher_in_another_process(
@@ -164,11 +146,11 @@ def test_a_replay_is_a_live_run_to_a_watcher_in_another_process(
         **rec.scenario_raw,
         "run": {**rec.scenario_raw["run"], "name": "again"},
     }
-    frames = [f for f in seen.frames if f.service != "runtime"]
-    want = _frames(rec)
+    heard = [f for f in seen.frames if f.service != "runtime"]
+    want = frames(rec)
     (end_frame,) = [k for k in want if k[0] == "runtime"]
     del want[end_frame]
-    assert Counter((f.service, f.stream, f.payload, f.attachment) for f in frames) == want
+    assert Counter((f.service, f.stream, f.payload, f.attachment) for f in heard) == want
     assert [decode(f.payload) for f in seen.frames if f.service == "runtime"] == [rec.end]
     # asked mid-run, the newest frame of each stream so far: each one a recorded frame
     assert seen.latest
@@ -225,132 +207,7 @@ def _watch_until_gone(watcher: Watcher, keys: Keys) -> Seen:
     return seen
 
 
-# -- a realtime launch, recorded in-process and by remote recorders ---------------------------
-@dataclass
-class RealtimeRun:
-    out: Path  # the launch's folder: metrics.json, run.mcap (in-process)
-    full: Tidelink  # a remote recorder to the end
-    killed: Tidelink  # SIGKILLed mid-run
-    stopped: Tidelink  # SIGTERMed mid-run
-    files: dict[str, Path]
-    mid_run: bool  # the launch still ran when the two were stopped
-
-
-KILL_AT_BYTES = 256 * 1024  # the killed recorder's file by then holds several chunks
-
-
-@pytest.fixture(scope="module")
-def realtime_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealtimeRun]:
-    d = tmp_path_factory.mktemp("realtime")
-    out, endpoint = d / "run", f"tcp/127.0.0.1:{free_port()}"
-    # 4x, not 8x: three remote recorders beside the run's own, on 2 cores, and the watch
-    # copies they take are sent DROP: at 8x one lost 26 of 1811 frames once (a fresh clone)
-    scale = ("--time-scale", "4")
-    files = {name: d / f"{name}.mcap" for name in ("full", "killed", "stopped")}
-    with ExitStack() as stack:
-        stack.callback(kill_recorded, out / "pids.json")
-        # the vehicle joins from "another host" once the recorders listen: they see it all
-        launch = stack.enter_context(
-            Tidelink(
-                "launch", str(SCENARIO), "--out", str(out), "--no-plot", "--record",
-                "--listen", endpoint, "--only", "estimator,planner,sensor", *scale,
-            )
-        )  # fmt: skip
-        rec = {
-            name: stack.enter_context(Tidelink("record", "--connect", endpoint, "-o", str(f)))
-            for name, f in files.items()
-        }
-        for r in rec.values():
-            r.wait_for(r"recording run small/auv1", WAIT_S)
-        vehicle = stack.enter_context(
-            Tidelink("service", "vehicle", str(SCENARIO), "--connect", endpoint, *scale)
-        )
-        deadline = time.monotonic() + WAIT_S
-        while not files["killed"].exists() or files["killed"].stat().st_size < KILL_AT_BYTES:
-            assert time.monotonic() < deadline, rec["killed"].stderr
-            assert launch.proc.poll() is None, launch.stderr
-            time.sleep(0.05)  # polling a file another process writes
-        mid_run = launch.proc.poll() is None
-        os.killpg(rec["killed"].proc.pid, signal.SIGKILL)
-        rec["stopped"].signal(signal.SIGTERM)
-        assert launch.wait(WAIT_S) == judged_exit(out), launch.stderr
-        for p in (rec["full"], rec["killed"], rec["stopped"], vehicle):
-            p.wait(WAIT_S)
-        yield RealtimeRun(out, rec["full"], rec["killed"], rec["stopped"], files, mid_run)
-
-
-def test_a_remote_recording_holds_every_frame_of_the_run(realtime_run: RealtimeRun) -> None:
-    r = realtime_run
-    assert r.full.proc.returncode == 0, r.full.stderr
-    assert "lost: none" in r.full.stdout
-    assert "the run: goal at t=" in r.full.stdout
-    remote, local = read_recording(r.files["full"]), read_recording(r.out / "run.mcap")
-    assert remote.truncation is None and local.truncation is None
-    assert (remote.recorder, local.recorder) == ("record", "launch")
-    assert len(local.frames) > 1000
-    assert _frames(remote) == _frames(local)  # byte for byte, attachments included
-    assert remote.end == local.end is not None
-
-
-def test_metrics_recomputed_from_realtime_recordings_equal_the_runs(
-    realtime_run: RealtimeRun,
-) -> None:
-    own = _without_wall(_metrics(realtime_run.out / "metrics.json"))
-    assert own["runtime"] == "realtime" and own["end_reason"] == "goal"
-    assert _tidelink_metrics(realtime_run.out / "run.mcap") == own
-    assert _tidelink_metrics(realtime_run.files["full"]) == own
-
-
-def _by_stream(frames: list[Any]) -> dict[str, list[bytes]]:
-    out: dict[str, list[bytes]] = {}
-    for f in frames:
-        out.setdefault(f"{f.service}/{f.stream}", []).append(f.payload)
-    return out
-
-
-def _is_prefix(part: dict[str, list[bytes]], whole: dict[str, list[bytes]]) -> bool:
-    return all(whole[k][: len(v)] == v for k, v in part.items())
-
-
-def test_a_recorder_killed_mid_run_leaves_a_file_read_up_to_its_last_chunk(
-    realtime_run: RealtimeRun,
-) -> None:
-    r = realtime_run
-    assert r.mid_run
-    assert r.killed.proc.returncode == -signal.SIGKILL
-    path = r.files["killed"]
-    # the mcap package's own reader, front to back, up to where the file stops
-    got: list[tuple[str, bytes]] = []
-    with path.open("rb") as fh:
-        try:
-            for _, channel, message in NonSeekingReader(fh).iter_messages(log_time_order=False):
-                if channel.metadata.get("tidelink") == "frame":
-                    meta = channel.metadata
-                    got.append((f"{meta['service']}/{meta['stream']}", message.data))
-        except McapError:
-            pass  # the unfinished chunk at the end
-    assert len(got) >= 100
-    rec = read_recording(path)
-    assert rec.truncation is not None and rec.end is None
-    assert [(f"{f.service}/{f.stream}", f.payload) for f in rec.frames] == got
-    # each stream's frames are the first ones of the full recording: nothing torn or skipped
-    full = read_recording(r.files["full"])
-    assert _is_prefix(_by_stream(rec.frames), _by_stream(full.frames))
-    assert len(rec.frames) < len(full.frames)
-
-
-def test_a_recorder_stopped_by_sigterm_closes_its_file(realtime_run: RealtimeRun) -> None:
-    r = realtime_run
-    assert r.mid_run
-    assert r.stopped.proc.returncode == 130, r.stopped.stderr
-    assert "the run: stopped by SIGTERM" in r.stopped.stdout
-    with r.files["stopped"].open("rb") as fh:
-        assert make_reader(fh).get_summary() is not None  # closed: summary and footer
-    rec = read_recording(r.files["stopped"])
-    assert rec.truncation is None
-    full = read_recording(r.files["full"])
-    assert _is_prefix(_by_stream(rec.frames), _by_stream(full.frames))
-    assert 0 < len(rec.frames) < len(full.frames)
+# -- recorders and launches that end early ----------------------------------------------------
 
 
 def test_a_recorder_without_a_run_says_so_and_waits(tmp_path: Path) -> None:
@@ -398,7 +255,7 @@ def test_metrics_of_a_recording_with_a_restarted_service_equal_the_runs(tmp_path
     # both lives kept apart, as the realtime driver keeps them (none taken for a repeat)
     record = rebuild_record(rec, ["ctrl", "filter", "plant", "sensor"])
     assert len(record.stream("filter", "state")) == len(state)
-    assert _tidelink_metrics(out / "run.mcap") == _without_wall(_metrics(out / "metrics.json"))
+    assert tidelink_metrics(out / "run.mcap") == without_wall(metrics_of(out / "metrics.json"))
 
 
 CRASHING = """
