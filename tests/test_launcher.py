@@ -178,6 +178,9 @@ def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
     assert 0.0 < m["t_end_s"] < 600.0
     assert "mission failed at t=" in (out / "logs" / "launch.log").read_text()
     assert not [p for pids in _pids(out).values() for p in pids if alive(p)]
+    # the others left on the run's stop Tick, not seconds later when its clock had gone
+    for name in ("ctrl", "plant", "sensor"):
+        assert "clock went away" not in (out / "logs" / f"{name}.log").read_text(), name
 
 
 def test_on_failure_backs_off_doubling_then_gives_up(tmp_path: Path, out: Path) -> None:
