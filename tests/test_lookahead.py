@@ -26,6 +26,7 @@ from common.runtime.model.record import Record
 from common.runtime.processes.children import free_port
 
 DEFAULT = REPO / "configs" / "default.toml"
+SHORT = REPO / "configs" / "experiments" / "scenarios" / "short.toml"
 
 
 def _default() -> Lookahead:
@@ -106,7 +107,7 @@ def test_ticks_start_early_in_a_lockstep_run_and_it_still_equals_inproc(
 def _forge_acks(endpoint: str, run: Tidelink) -> int:
     """While the run lasts, put on the planner's ack key a message that is no ack, and an ack
     that claims to be the vehicle's; returns how many of each were put."""
-    keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
+    keys = Keys("short", "auv1")  # the short scenario's run and vehicle
     n = 0
     with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
         pub = bus.publisher_on(keys.ack("planner"))
@@ -134,7 +135,7 @@ def _exited(run: Tidelink, within_s: float) -> bool:
 def test_forged_acks_change_nothing(tmp_path: Path) -> None:
     out = tmp_path / "run"
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", str(DEFAULT), "--runtime", "lockstep", "--listen", endpoint]
+    launch = ["launch", str(SHORT), "--runtime", "lockstep", "--listen", endpoint]
     try:
         with Tidelink(*launch, "--no-plot", "--out", str(out)) as run:
             run.wait_for(r"mission clock started", 120.0)
@@ -144,6 +145,6 @@ def test_forged_acks_change_nothing(tmp_path: Path) -> None:
         kill_recorded(out / "pids.json")
     assert forged > 100  # put while it ran
     m = json.loads((out / "metrics.json").read_text())
-    ref = inproc(load_scenario(DEFAULT)[0])
+    ref = inproc(load_scenario(SHORT)[0])
     assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
     assert (m["end_reason"], m["t_end_s"]) == ("goal", ref.t_end)

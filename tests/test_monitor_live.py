@@ -23,7 +23,7 @@ from common.runtime.processes.children import free_port
 pytestmark = pytest.mark.slow
 
 WAIT_S = 60.0
-DEFAULT = "configs/default.toml"
+SHORT = "configs/experiments/scenarios/short.toml"
 SMALL = "configs/experiments/scenarios/small.toml"  # ~35 s to its goal
 
 
@@ -78,10 +78,10 @@ def test_a_sigstopped_monitor_leaves_a_lockstep_trajectory_bit_identical(
 ) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     # a slower lockstep run (the coordinator waits for a monitor-free wall pace anyway)
-    launch = ["launch", DEFAULT, "--runtime", "lockstep", "--listen", endpoint, "--out", str(out)]
+    launch = ["launch", SHORT, "--runtime", "lockstep", "--listen", endpoint, "--out", str(out)]
     code, err = _with_a_stopped_monitor(launch, endpoint)
     assert code == 0, err
-    s, _ = load_scenario(DEFAULT)
+    s, _ = load_scenario(SHORT)
     expected = inproc(s).metrics["trajectory_sha256"]
     assert _metrics(out)["trajectory_sha256"] == expected
 

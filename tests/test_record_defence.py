@@ -22,16 +22,16 @@ from common.runtime.processes.children import free_port
 pytestmark = pytest.mark.slow
 
 WAIT_S = 120.0
-DEFAULT = "configs/default.toml"
+SHORT = "configs/experiments/scenarios/short.toml"
 SOURCES = ("", "vehicle", "planner")  # "" and "planner": wrong_source; "vehicle": seq_jump
-EVERY = 200  # inject after every 200th real truth state (10 s of mission time)
-LAST = 1000  # ... up to seq 1000 (t = 50 s), well before the real arrival (~65 s)
+EVERY = 100  # inject after every 100th real truth state (5 s of mission time)
+LAST = 400  # ... up to seq 400 (t = 20 s), well before the real arrival (~27 s)
 
 
 def _inject(endpoint: str, run: Tidelink) -> int:
     """Watch the real truth stream; after each EVERY-th state put one forgery per SOURCES on
     the vehicle's truth key. Returns how many rounds were put."""
-    keys = Keys("demo", "auv1")  # the default scenario's run and vehicle
+    keys = Keys("short", "auv1")  # the short scenario's run and vehicle
     rounds = 0
     with Bus(BusConfig(mode="client", connect=(endpoint,)), keys) as bus:
         pub = bus.publisher_on(keys.stream("vehicle", "truth"))
@@ -44,8 +44,8 @@ def _inject(endpoint: str, run: Tidelink) -> int:
             real = ev.msg
             if real.source != "vehicle" or real.seq >= 2**62 or real.seq % EVERY:
                 continue
-            for source in SOURCES:  # at configs/default.toml's goal, (95, 20)
-                at_goal = dict(x=95.0, y=20.0, theta=0.0, v=0.0, w=0.0)
+            for source in SOURCES:  # at the short scenario's goal, (36, 20)
+                at_goal = dict(x=36.0, y=20.0, theta=0.0, v=0.0, w=0.0)
                 pub.put(TruthState(stamp=real.stamp, source=source, seq=2**62, **at_goal))
             rounds += 1
     return rounds
@@ -59,9 +59,9 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
 ) -> None:
     out = tmp_path / "run"
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    launch = ["launch", DEFAULT, "--runtime", runtime, "--listen", endpoint, "--no-plot"]
+    launch = ["launch", SHORT, "--runtime", runtime, "--listen", endpoint, "--no-plot"]
     try:
-        with Tidelink(*launch, "--time-scale", "8", "--out", str(out)) as run:
+        with Tidelink(*launch, "--time-scale", "4", "--out", str(out)) as run:
             run.wait_for(r"mission clock started", WAIT_S)
             rounds = _inject(endpoint, run)
             assert run.wait(WAIT_S) == 0, run.stderr
@@ -77,8 +77,8 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(
     }
     assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
     if runtime == "lockstep":  # the whole run, exactly as if nobody had interfered
-        ref = inproc(load_scenario(Path(DEFAULT))[0])
+        ref = inproc(load_scenario(Path(SHORT))[0])
         assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
         assert m["t_end_s"] == ref.t_end
-    else:  # the real vehicle's arrival, not a forged one at 10 s
-        assert m["t_end_s"] > 55.0 and m["travel_time_s"] > 55.0
+    else:  # the real vehicle's arrival, not a forged one at 5 s
+        assert m["t_end_s"] > 25.0 and m["travel_time_s"] > 25.0

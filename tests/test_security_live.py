@@ -19,6 +19,7 @@ from common.runtime.processes.children import free_port
 
 WAIT_S = 120.0
 DEFAULT = str(REPO / "configs" / "default.toml")
+SHORT = str(REPO / "configs" / "experiments" / "scenarios" / "short.toml")
 
 
 def cli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
@@ -39,17 +40,17 @@ def test_a_rogue_with_a_monitor_certificate_changes_nothing(certs: Path, tmp_pat
     planner's token: the vehicle applies none of them (the trajectory is the plain inproc
     run's, bit for bit), the mission ends normally, and the rogue watched it all along, as
     did `tidelink monitor` with the same certificate."""
-    plain = inproc(load_scenario(DEFAULT)[0]).metrics
+    plain = inproc(load_scenario(SHORT)[0]).metrics
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "secured"
     common = ["--connect", endpoint, "--certs", str(certs)]
     try:
         with (
-            Tidelink.python("-m", "helpers.rogue", *common) as rogue,
+            Tidelink.python("-m", "helpers.rogue", *common, "--run", "short") as rogue,
             Tidelink("monitor", *common, "--json") as monitor,
             Tidelink(
                 "launch",
-                DEFAULT,
+                SHORT,
                 "--runtime",
                 "lockstep",
                 "--listen",
