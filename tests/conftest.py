@@ -1,5 +1,5 @@
 """Shared fixtures (scenario files for the runtime self-test loop, certificates), and the
-hook that keeps the tests of one module-scoped fixture on one pytest-xdist worker."""
+hook that groups tests on pytest-xdist workers (exclusive ones; a module fixture's)."""
 
 from __future__ import annotations
 
@@ -75,11 +75,14 @@ def other_certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # first: pytest-xdist reads the groups in its own hook of the same name
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests sharing a module-scoped fixture form one xdist group (`--dist loadgroup`, as
-    scripts/test runs them): a module fixture is computed once per worker that runs one of its
-    tests, and the expensive ones are whole runs (a realtime launch with remote recorders, a
-    sweep): spread over two workers, test_recording's launch ran three times (~75 s)."""
+    """xdist groups (`--dist loadgroup`, as scripts/test runs them): the tests marked
+    exclusive form one group, so they run one after another on one worker while the others
+    take the lighter wall-clock tests; the tests sharing a module-scoped fixture form one, so
+    the fixture (a whole launch, a sweep) runs once, not once per worker that runs one."""
     for item in items:
+        if item.get_closest_marker("exclusive") is not None:
+            item.add_marker(pytest.mark.xdist_group("exclusive"))
+            continue
         info = getattr(item, "_fixtureinfo", None)
         if info is None:
             continue

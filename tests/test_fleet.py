@@ -488,9 +488,8 @@ goal = {{ x_m = 50.0, y_m = 20.0 }}
     assert m["min_separation_m"] >= s.planner.rho0_m and m["outcome"] == "success"
 
 
-# deterministic, but exclusive: its 17 processes should have the 2 cores to themselves
+@pytest.mark.deterministic
 @pytest.mark.slow
-@pytest.mark.exclusive
 def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     # 16 service processes and the clock over one Zenoh session each, over the first 30 s:
     # the four vehicles' first encounters (from ~15 s on); the whole mission is the test below

@@ -41,7 +41,7 @@ def _hog(stop_at: float) -> None:
         pass
 
 
-@pytest.mark.exclusive  # its hogs would take the cores from the tests beside it
+@pytest.mark.deterministic  # the point: no load changes a lockstep run, its hogs' included
 def test_lockstep_is_deterministic_under_cpu_load(testloop_toml: Path, tmp_path: Path) -> None:
     s, raw = load_scenario(testloop_toml)
     first = run_lockstep(s, raw, tmp_path / "a")

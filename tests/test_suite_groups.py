@@ -1,4 +1,5 @@
-"""The suite's own scheduling: tests of one module-scoped fixture share one xdist worker."""
+"""The suite's own scheduling: tests of one module-scoped fixture share one xdist worker, and
+so do the tests marked exclusive, one after another."""
 
 from __future__ import annotations
 
@@ -22,6 +23,12 @@ def test_one(costly): pass
 def test_two(costly): pass
 def test_three(costly): pass
 def test_other(): pass
+
+@pytest.mark.exclusive
+@pytest.mark.parametrize("n", range(4))
+def test_alone(n):
+    with open("alone.txt", "a") as fh:
+        fh.write(os.environ.get("PYTEST_XDIST_WORKER", "none") + "\n")
 """
 
 
@@ -33,10 +40,13 @@ def test_a_module_fixture_is_computed_once_on_two_workers(tmp_path: Path) -> Non
     (tmp_path / "test_shared.py").write_text(MODULE)
     r = subprocess.run(
         [sys.executable, "-m", "pytest", "-n", "2", "--dist", "loadgroup", "-p",
-         "no:cacheprovider", "-q", "-o", "addopts=", "test_shared.py"],
+         "no:cacheprovider", "-q", "-o", "addopts=", "-o", "markers=exclusive",
+         "test_shared.py"],
         cwd=tmp_path, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "4 passed" in r.stdout, r.stdout
+    assert "8 passed" in r.stdout, r.stdout
     computed = (tmp_path / "computed.txt").read_text().split()
     assert len(computed) == 1 and computed[0].startswith("gw"), computed
+    alone = (tmp_path / "alone.txt").read_text().split()
+    assert len(alone) == 4 and len(set(alone)) == 1 and alone[0].startswith("gw"), alone
