@@ -28,7 +28,7 @@ def test_other(): pass
 @pytest.mark.parametrize("n", range(4))
 def test_alone(n):
     with open("alone.txt", "a") as fh:
-        fh.write(os.environ.get("PYTEST_XDIST_WORKER", "none") + "\n")
+        fh.write(os.environ.get("PYTEST_XDIST_WORKER", "none") + "\\n")
 """
 
 
