@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -220,6 +221,7 @@ def test_an_override_creates_a_missing_section(tmp_path: Path) -> None:
         ("network.default.delay_s=-1", "network.default.delay_s", "expected a finite value >= 0"),
         ("run.bogus=1", "run.bogus", "unknown key"),
         ("runtime.kind=warp", "runtime.kind", "'warp' is not one of"),
+        ("bus.lease_s=0", "bus.lease_s", "must be 0.1 to 3600 s"),
         # command sequences (issue 16): what the vehicle would refuse is a config error
         ("controller.sequence.horizon_s=-1", "controller.sequence.horizon_s", ">= 0"),
         ("controller.jitter_margin_k=-0.5", "controller.jitter_margin_k", ">= 0"),
@@ -488,3 +490,12 @@ def test_a_goal_without_a_heading_leaves_it_free_and_a_bad_one_is_named(tmp_path
     assert err.key == "world.goal.theta_rad" and "expected a number" in err.problem
     default = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
     assert load_scenario(default)[0].world.goal.theta_rad == 0.0
+
+
+def test_the_bus_lease_is_zenohs_in_milliseconds() -> None:
+    from common.bus.session import zenoh_config
+    from common.config.bus import BusConfig
+
+    assert json.loads(zenoh_config(BusConfig()).get_json("transport/link/tx/lease")) == 10_000
+    short = zenoh_config(BusConfig(lease_s=2.5))
+    assert json.loads(short.get_json("transport/link/tx/lease")) == 2_500

@@ -20,15 +20,19 @@ import pytest
 from helpers.launch_proc import REPO, Tidelink, alive, judged_exit, kill_recorded
 from helpers.netns import NetnsLab, Veth, ip, lab_or_skip, link_bytes
 
+from common.runtime.distributed.realtime_service import CLOCK_GRACE_S
+
 pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 
 SERVICES = ("estimator", "planner", "sensor", "vehicle")
 PORT = 7447
 WAIT_S = 60.0
 SCALE = "4"
-# How long (wall s) the planner's host stays cut off at least: past its Zenoh lease (10 s, when
-# its session notices the router is gone) plus the realtime service's CLOCK_GRACE_S (3 s)
-OUTAGE_S = 15.0
+# The sessions' Zenoh lease (bus.lease_s; 10 s by default), and how long (wall s) the planner's
+# host stays cut off at least: past its lease (when its session notices the router is gone)
+# plus the realtime service's CLOCK_GRACE_S, when a service without its router used to stop
+LEASE_S = 2.0
+OUTAGE_S = LEASE_S + CLOCK_GRACE_S + 2.0
 # The default scenario (lossy network profile) in open water, with the goal 60 m east of the
 # start (reached at t ~ 42 s; at x8 ~ 5 s). Open water because of what a real partition does
 # that the modelled outages do not: TCP delivers the planner's backlog when the link returns,
@@ -41,6 +45,7 @@ SETS = (
     "world.goal.x_m=65.0",
     "world.goal.y_m=20.0",
     "run.max_time_s=150.0",
+    f"bus.lease_s={LEASE_S}",
 )
 
 

@@ -42,6 +42,7 @@ def zenoh_config(
         # peers/routers: retry connecting so start order between processes does not matter
         conf.insert_json5("connect/timeout_ms", json.dumps(-1))
     conf.insert_json5("connect/exit_on_failure", json.dumps(False))
+    conf.insert_json5("transport/link/tx/lease", json.dumps(round(cfg.lease_s * 1000)))
     if cfg.mode == "client":
         # a client cut off from its router retries every second, not after a backoff that
         # doubles up to 4 s (Zenoh's default): once a host's link is back its services

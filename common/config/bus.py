@@ -27,6 +27,9 @@ class BusConfig:
     security: Literal["none", "mtls"] = "none"
     # the directory `tidelink certs` wrote (ca.pem, <identity>.pem/.key); needed for "mtls"
     certs: str = ""
+    # how long a silent peer (a host cut off, a frozen process) keeps its session, and so its
+    # liveliness tokens: Zenoh's lease (it sends keep-alives 4 times a lease)
+    lease_s: float = 10.0
 
     def __post_init__(self) -> None:
         for name in ("listen", "connect"):
@@ -42,6 +45,8 @@ class BusConfig:
                         f'{ep!r} is a TLS endpoint: it needs security = "mtls" and a certs '
                         "directory (--certs DIR)",
                     )
+        if not 0.1 <= self.lease_s <= 3600.0:
+            raise ConfigValueError("lease_s", f"{self.lease_s!r} s: must be 0.1 to 3600 s")
         if self.mode == "client" and not self.connect:
             raise ConfigValueError(
                 "connect", "a client must connect to at least one router endpoint"
