@@ -29,7 +29,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 
 PORT = 7447
 WAIT_S = 60.0
-RUN_S = 14.0  # mission seconds at time scale 1: ~28 monitor updates
+RUN_S = 8.0  # mission seconds at time scale 1: ~16 monitor updates
 SHAPER = ("64kbit", "4kb", "400ms")  # rate, burst, latency
 RATE_KBIT = 64.0
 TRUTH = "vehicle/truth"
@@ -159,7 +159,7 @@ def test_a_polling_monitor_shows_the_vehicle_within_1_s_over_64_kbit(
             # exit 3: a mission cut at max_time short of the goal is no success
             assert launcher.wait(WAIT_S) == 3, launcher.stderr
             polled_code = stop(polled, WAIT_S)
-            full_code = stop(full, 30.0)  # it may still be working through a backlog
+            full_code = stop(full, 3.0)  # its backlog is evidence, not asserted: cut it short
     finally:
         kill_recorded(out / "pids.json")
 
@@ -186,7 +186,7 @@ def test_a_polling_monitor_shows_the_vehicle_within_1_s_over_64_kbit(
     msg = "\n".join(report) + f"\nmonitor stderr:\n{polled.stderr}"
     assert polled_code == 0, msg  # it saw the run end
     assert p.joined, msg
-    # it followed the vehicle to the end: about one update per 0.5 s of the 25 s mission
+    # it followed the vehicle to the end: about one update per 0.5 s of the mission
     assert p.last_stamp >= RUN_S - 1.0 and len(p.ages) >= 0.6 * RUN_S / 0.5, msg
     a = np.asarray(p.ages)
     assert np.percentile(a, 95) <= MAX_AGE_S and a.max() <= MAX_AGE_S, msg
