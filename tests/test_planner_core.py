@@ -180,7 +180,7 @@ def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
     # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods);
     # 8 s is beyond what the vehicle runs on blind (its buffer of horizon_s, then hold_after_s),
     # and the last command's buffer ran out more than the 1.5 s before the newest estimate
-    # that the planner looks back at the commands for the yaw rate (command_link.py)
+    # that the planner looks back at the commands for the yaw rate (command/link.py)
     assert core.resume_after_s == horizon_s + core.vehicle.watchdog.hold_after_s < 8.0
     if stepped_in_the_gap:
         for j in range(1, 81):

@@ -2,7 +2,7 @@
 
 The command it sends crosses the modelled network to the vehicle, so the network sits inside
 the control loop; the planner measures the delays, predicts the vehicle to the time its
-command takes effect and sends sequences of commands over a horizon (command_link.py).
+command takes effect and sends sequences of commands over a horizon (command/link.py).
 Static obstacles come from the chart (the scenario's world); moving ones from the
 estimator's tracks, predicted with their velocity and acceleration (paper §2).
 """
@@ -28,17 +28,17 @@ from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
-from services.planner.command_link import CommandLink, Prediction
+from services.planner.command.link import CommandLink, Prediction
 from services.planner.controllers.base import Controller, Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.evade import plan_or_step_aside
-from services.planner.flight import ARRIVED_M, FlightModel
-from services.planner.intent import FleetIntents
-from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
+from services.planner.safety.evade import plan_or_step_aside
+from services.planner.safety.flight import ARRIVED_M, FlightModel
+from services.planner.safety.intent import FleetIntents
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 log = logging.getLogger("tidelink.planner")
 
@@ -130,7 +130,7 @@ class PlannerCore:
         self.plans: Deferred[PlanResult] = AtOnce() if plans is None else plans
         self._asked: _Asked | None = None  # what the plan being made was asked for
         self._plan_lags: deque[float] = deque(maxlen=PLAN_LAGS_KEPT)  # how long plans took
-        # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
+        # in a fleet, the other vehicles' broadcast estimates and paths (safety/intent.py)
         self.intents = intents
         self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
         self._next_pose_t = 0.0
@@ -144,7 +144,7 @@ class PlannerCore:
         self.vehicle = vehicle
         self.world = world
         self.kind = controller.kind
-        # delays measured, the state predicted, commands (sequences) sent: command_link.py
+        # delays measured, the state predicted, commands (sequences) sent: command/link.py
         self.link = CommandLink(
             planner, controller, vehicle, expected_downlink_s=expected_downlink_s
         )
@@ -288,7 +288,7 @@ class PlannerCore:
         return out
 
     def prepare(self, t_next: float) -> None:
-        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        """Once this step's command is out: the sequence for the step at t_next (command/link)."""
         if self.commands and self.ref is not None and not self.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 

@@ -33,10 +33,10 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import Box, FloatArray
-from services.planner.clearance import StaticField
-from services.planner.intent import IntentObstacle
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
+from services.planner.safety.clearance import StaticField
+from services.planner.safety.intent import IntentObstacle
 
 ReplanReason = Literal[
     "",

@@ -4,7 +4,7 @@ With ``controller.placement = "onboard"`` the planner (maybe at a topside statio
 thin acoustic link) sends paths only, and this core, on the vehicle's node, computes the
 commands from the onboard estimate: the same controller, speed profile, prediction and
 command sequences as the planner's own (services/planner/core.py `follow`,
-services/planner/command_link.py), on a link that is local. A late or lost path costs
+services/planner/command/link.py), on a link that is local. A late or lost path costs
 nothing but freshness: the tracker keeps following the last one it holds.
 """
 
@@ -20,12 +20,12 @@ from common.config.world import WorldConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.messages import PathMsg, StateEstimate, VehicleStatus
 from common.runtime.model.core import Delivery, Emit
-from services.planner.command_link import CommandLink
+from services.planner.command.link import CommandLink
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.core import follow, judge_state, judge_status
-from services.planner.path_arc_reference import PathArcReference
-from services.planner.planned_path import PlannedPath, curve_of
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath, curve_of
 
 log = logging.getLogger("tidelink.tracker")
 
@@ -112,7 +112,7 @@ class TrackerCore:
         self.link.restart(self.controller)
 
     def prepare(self, t_next: float) -> None:
-        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        """Once this step's command is out: the sequence for the step at t_next (command/link)."""
         if self.ref is not None and not self.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 

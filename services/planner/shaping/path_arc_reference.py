@@ -14,7 +14,7 @@ from bisect import bisect_left, bisect_right
 
 import numpy as np
 
-from services.planner.planned_path import PlannedPath
+from services.planner.shaping.planned_path import PlannedPath
 
 
 class PathArcReference:

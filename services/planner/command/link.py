@@ -29,12 +29,12 @@ from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
+from services.planner.command.response import Pose, ResponseModel
+from services.planner.command.sequence import Prepared, command_sequence
+from services.planner.command.timeline import CommandTimeline
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Controller, predict_pose
 from services.planner.controllers.speed import stop_of
-from services.planner.response import Pose, ResponseModel
-from services.planner.sequence import Prepared, command_sequence
-from services.planner.timeline import CommandTimeline
 
 # the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
 YAW_SETTLE_TAUS = 3.0

@@ -25,8 +25,9 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.scalar import wrap_angle
-from services.planner.clearance import StaticField
-from services.planner.escape import (
+from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField
+from services.planner.safety.escape import (
     BEYOND_M,
     DEPTH_STEP_M,
     MAX_ESCAPES,
@@ -35,7 +36,6 @@ from services.planner.escape import (
     prepend_escape,
     sweep,
 )
-from services.planner.result import PlanRequest, PlanResult
 
 Plan = Callable[[PlanRequest], PlanResult]  # the pipeline, with no further recovery
 

@@ -9,11 +9,11 @@ from typing import Literal
 import numpy as np
 
 from common.world.geometry import FloatArray
-from services.planner.clearance import moving_distance
-from services.planner.fit import FitProblem
-from services.planner.nurbs_curve import NurbsCurve, curvature
-from services.planner.refine import gauss_legendre
-from services.planner.turning import turn_penalty
+from services.planner.safety.clearance import moving_distance
+from services.planner.shaping.fit import FitProblem
+from services.planner.shaping.nurbs_curve import NurbsCurve, curvature
+from services.planner.shaping.refine import gauss_legendre
+from services.planner.shaping.turning import turn_penalty
 
 FailKind = Literal["", "curvature", "static", "moving", "area"]
 

@@ -29,9 +29,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from common.world.geometry import FloatArray
-from services.planner.fit import FitProblem, Layout
-from services.planner.nurbs_curve import NurbsCurve, rational_basis
-from services.planner.turning import turn_cost
+from services.planner.shaping.fit import FitProblem, Layout
+from services.planner.shaping.nurbs_curve import NurbsCurve, rational_basis
+from services.planner.shaping.turning import turn_cost
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
 _BAND_K = 0.1  # curvature hinges within this fraction of the target do too

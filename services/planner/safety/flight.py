@@ -37,13 +37,13 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField, moving_distance
+from services.planner.command.response import Pose, ResponseModel
 from services.planner.controllers.base import Controller
-from services.planner.intent import IntentObstacle
-from services.planner.path_arc_reference import PathArcReference
-from services.planner.planned_path import PlannedPath
-from services.planner.response import Pose, ResponseModel
 from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.safety.intent import IntentObstacle
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 FLIGHT_MAX_S = 90.0  # a flight ends at the path's end, or after this long (s)
 # a flight must keep rho0 + this (rho0 alone for a turning radius past an escape, which ends

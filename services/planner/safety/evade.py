@@ -48,8 +48,11 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField, moving_distance
-from services.planner.escape import (
+from services.planner.command.response import Pose
+from services.planner.plan import plan_path
+from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.safety.escape import (
     DEPTH_STEP_M,
     N_TURNS,
     Escape,
@@ -57,11 +60,8 @@ from services.planner.escape import (
     sweep,
     to_edge,
 )
-from services.planner.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
-from services.planner.plan import plan_path
-from services.planner.recover import ARC_RADIUS_FACTOR
-from services.planner.response import Pose
-from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
+from services.planner.safety.recover import ARC_RADIUS_FACTOR
 
 EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
 LENGTH_STEP_M = 1.0  # the ways aside end every this far along
