@@ -22,14 +22,15 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
-from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
+from common.guard import Reason, first_reason
+from common.messages import ObstacleTracks, PathMsg, StateEstimate
 from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
+from services.planner.command.inputs import LoopInputs, judge_state
 from services.planner.command.link import CommandLink, Prediction
-from services.planner.controllers.base import Controller, Limits
+from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy
@@ -70,35 +71,6 @@ class _Asked:
     obstacles: Obstacles
     why: str
     asked_t: float
-
-
-def judge_state(j: Plausibility, m: StateEstimate, now: float) -> Reason | None:
-    """Why an estimate is implausible (stamp, pose, speeds), or None."""
-    return first_reason(
-        j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
-    )
-
-
-def judge_status(j: Plausibility, m: VehicleStatus, now: float) -> Reason | None:
-    """Why a vehicle status is implausible (stamp, measured delay), or None."""
-    return first_reason(j.stamp(m.stamp, now), j.delay(m.delay_s, m.delay_jitter_s))
-
-
-def follow(
-    link: CommandLink,
-    controller: Controller,
-    ref: PathArcReference | None,
-    t: float,
-    s: StateEstimate,
-    pred: Prediction,
-) -> Commands:
-    """The controller's commands (sequence) on `ref`, or a stop without a feasible path
-    (rather than drive into something). Every path leaves along the vehicle's heading, a
-    way out of contact included (recover.py: arcs within R_min), so the controller follows
-    it from the start."""
-    if ref is None:
-        return link.stop()
-    return link.control(t, controller, ref, s, pred)
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -160,7 +132,8 @@ class PlannerCore:
         )
         self.limits = Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
         self.controller = make_controller(controller, self.limits)
-        self.state: StateEstimate | None = None
+        # the newest plausible estimate; the link told of estimates and statuses (their delays)
+        self.inputs = LoopInputs(world.area, self.link, log)
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
         self.path_id = 0
@@ -172,8 +145,6 @@ class PlannerCore:
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
         self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
-        self._judge = Plausibility.of_area(world.area)
-        self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
@@ -185,53 +156,26 @@ class PlannerCore:
         """Keep the newest estimate and tracks by stamp, unless implausible: a stamp from the
         future (an estimate that never ages, which would hold the place of every later one),
         a pose outside the world, more tracks than a message may carry (planning work grows
-        with them) are rejected, counted and logged. Newest by stamp, not the last handed
-        over: a backlog (a planner woken after a stall) or a reordering link may hand an older
-        estimate over after a newer one."""
+        with them) are rejected, counted and logged (command/inputs.py)."""
         msg = d.msg
         other = vehicle_of(d.source)
         if self.intents is not None and other in self.intents.vehicles:
-            if not isinstance(msg, StateEstimate) or self._judge_state(msg, d.t) is None:
+            j = self.inputs.judge
+            if not isinstance(msg, StateEstimate) or judge_state(j, msg, d.t) is None:
                 self.intents.offer(other, msg)
             return []
-        if isinstance(msg, StateEstimate):
-            stream, why = "state", self._judge_state(msg, d.t)
-        elif isinstance(msg, ObstacleTracks):
-            stream, why = "tracks", self._judge_tracks(msg, d.t)
-        elif isinstance(msg, VehicleStatus):
-            stream, why = "status", self._judge_status(msg, d.t)
+        if isinstance(msg, ObstacleTracks):
+            why = self._judge_tracks(msg, d.t)
+            if why is not None:
+                self.inputs.reject("tracks", why, d.t, msg)
+            elif self.tracks is None or msg.stamp >= self.tracks.stamp:
+                self.tracks = msg
         else:
-            return []
-        if why is not None:
-            self._rejects.warn(
-                f"{stream}.{why}",
-                d.t,
-                "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
-                d.t,
-                stream,
-                why,
-                msg.source,
-                msg.stamp,
-                msg.seq,
-            )
-        elif isinstance(msg, StateEstimate):
-            self.link.on_estimate(d.t, msg)  # late ones too: their delay is real
-            if self.state is None or msg.stamp >= self.state.stamp:
-                self.state = msg
-        elif isinstance(msg, VehicleStatus):
-            self.link.on_status(msg)
-        elif self.tracks is None or msg.stamp >= self.tracks.stamp:
-            self.tracks = msg
+            self.inputs.offer(d.t, msg)
         return []
 
-    def _judge_state(self, m: StateEstimate, now: float) -> Reason | None:
-        return judge_state(self._judge, m, now)
-
-    def _judge_status(self, m: VehicleStatus, now: float) -> Reason | None:
-        return judge_status(self._judge, m, now)
-
     def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
-        j = self._judge
+        j = self.inputs.judge
         why = first_reason(j.stamp(m.stamp, now), j.items(len(m.tracks)))
         for k in m.tracks:
             if why is not None:
@@ -243,8 +187,8 @@ class PlannerCore:
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
-        """Estimates and track sets rejected, by '<stream>.<reason>'."""
-        return dict(self._rejects.counts)
+        """Estimates, statuses and track sets rejected, by '<stream>.<reason>'."""
+        return self.inputs.rejected
 
     def _obstacles(self, t: float) -> Obstacles:
         moving: list[ObstacleState] = []
@@ -270,14 +214,14 @@ class PlannerCore:
         return {PLANS_DECLINED: self.declined, **fleet}
 
     def step(self, t: float) -> list[Emit]:
-        if self.intents is not None and self.state is not None:
+        if self.intents is not None and self.inputs.state is not None:
             self.intents.tally(t)
         out = self._step(t)
         # a fleet's planner broadcasts the estimate it plans from: others take it, with its
         # path, as its intent while it comes (a dead planner's vehicle is a track again)
-        if self.pose_every_s > 0.0 and self.state is not None and t >= self._next_pose_t:
+        if self.pose_every_s > 0.0 and self.inputs.state is not None and t >= self._next_pose_t:
             self._next_pose_t = t + self.pose_every_s - 1e-9
-            out.append(Emit(stream="pose", msg=self.state))
+            out.append(Emit(stream="pose", msg=self.inputs.state))
         if self.intent_every_s > 0.0:
             made = [e.msg for e in out if e.stream == "path" and isinstance(e.msg, PathMsg)]
             if made:
@@ -293,9 +237,9 @@ class PlannerCore:
             self.link.prepare(t_next, self.controller, self.ref)
 
     def _step(self, t: float) -> list[Emit]:
-        if self.state is None:
+        if self.inputs.state is None:
             return []
-        s = self.state
+        s = self.inputs.state
         out: list[Emit] = []
         if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
             self.arrived = True
@@ -365,7 +309,7 @@ class PlannerCore:
 
     def _follow(self, t: float, s: StateEstimate, pred: Prediction) -> Commands:
         """The controller's commands on the path in force (a stop without one)."""
-        return follow(self.link, self.controller, self.ref, t, s, pred)
+        return self.link.follow(t, self.controller, self.ref, s, pred)
 
     def _command(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         self.last_cmd_t = t

@@ -217,6 +217,22 @@ class CommandLink:
             scratch=scratch,
         )
 
+    def follow(
+        self,
+        t: float,
+        controller: Controller,
+        ref: ArcLengthReference | None,
+        est: StateEstimate,
+        pred: Prediction,
+    ) -> tuple[list[float], list[float]]:
+        """The controller's commands (sequence) on `ref`, or a stop without a feasible path
+        (rather than drive into something). Every path leaves along the vehicle's heading, a
+        way out of contact included (safety/recover.py: arcs within R_min), so the controller
+        follows it from the start."""
+        if ref is None:
+            return self.stop()
+        return self.control(t, controller, ref, est, pred)
+
     def stop(self) -> tuple[list[float], list[float]]:
         """Commands that stop the vehicle (and keep it stopped over the horizon)."""
         zeros = [0.0] * (self.entries + 1)
