@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import overload
 
 import numpy as np
@@ -104,25 +104,7 @@ def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObs
     dx, dy = x_ahead - x, y_ahead - y
     n = math.hypot(dx, dy)
     vx, vy = (v * dx / n, v * dy / n) if n > 1e-9 else (0.0, 0.0)
-    return IntentObstacle(  # not dataclasses.replace: it inspects the fields on every call
-        id=o.id,
-        x=x,
-        y=y,
-        vx=vx,
-        vy=vy,
-        ax=o.ax,
-        ay=o.ay,
-        radius=o.radius,
-        moving=o.moving,
-        route_x=o.route_x,
-        route_y=o.route_y,
-        s_route=o.s_route,
-        route_box=o.route_box,
-        s0=s0,
-        speed=v,
-        cruise=o.cruise,
-        ramp=o.ramp,
-    )
+    return replace(o, x=x, y=y, vx=vx, vy=vy, s0=s0, speed=v)
 
 
 # a broadcast path as a route: polyline x, y; arc length at each point; the points' box
