@@ -266,10 +266,8 @@ class PlannerCore:
                 replan=False, detail="the first plan waits for the first obstacle tracks"
             )
         elif math.isfinite(gap) and gap > self.resume_after_s:
-            # no command for so long that the vehicle's watchdog has made it hold: it has
-            # coasted off the plan while the planner was stopped or its uplink was out. The
-            # plan and the controller's state are stale: before commanding again, plan
-            # afresh from the newest estimate (the one in hand, checked fresh above).
+            # no command for so long that the vehicle's watchdog made it hold, off the plan:
+            # plan and controller state are stale, so plan afresh from the (fresh) estimate
             decision = ReplanDecision(
                 replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
             )
@@ -277,10 +275,8 @@ class PlannerCore:
             decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
             if self.ref is not None and math.isfinite(decision.conflict_s):
-                # the path in force is unsafe ahead: until its replacement is made (seconds,
-                # in realtime; in virtual time it is made in this step and this has no
-                # effect), slow down to stop short of the first point of conflict instead of
-                # following it there at cruise speed
+                # the path in force is unsafe ahead: until its replacement is in force (seconds,
+                # in realtime; at once in virtual time), stop short of the first conflict
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
             t_start, start, twist = self._plan_start(t_plan, here, pred, decision.reason)
             if t_start != t_plan:
@@ -298,10 +294,8 @@ class PlannerCore:
             and math.isfinite(gap)
             and gap > 1.5 * self.cfg.period_s
         ):
-            # steps were skipped (the estimate was stale): the vehicle ran on its buffer
-            # meanwhile and the plan still holds, but the controller's own state (backstepping's
-            # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
-            # the silence: restart it from where the vehicle is
+            # steps were skipped (a stale estimate): the plan holds, but the controller's state
+            # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
             out.append(self._command(t, pred.effect_t, self._follow(t, s, pred)))
@@ -364,12 +358,11 @@ class PlannerCore:
         self, t_plan: float, here: Pose2D, pred: Prediction, why: str
     ) -> tuple[float, Pose2D, tuple[float, float]]:
         """When and where a plan asked now should start, and the vehicle's twist (v, w) then:
-        where the vehicle will be on the path
-        in force once the plan is made, as long as the last plans took (the median of the
-        last PLAN_LAGS_KEPT). A plan of seconds made from where the vehicle was when it was
-        asked starts metres behind it by the time it is in force (measured on realtime
-        fleet4: a plan of 4.4 s began 6.5 m behind its vehicle, which replanned at once for
-        the deviation). In virtual time a plan is made within its step: t_plan and `here`.
+        where the vehicle will be on the path in force once the plan is made, as long as the
+        last plans took (the median of the last PLAN_LAGS_KEPT). A plan of seconds made from
+        where the vehicle was when it was asked starts metres behind it by the time it is in
+        force, and the vehicle replans at once for the deviation. In virtual time a plan is
+        made within its step: t_plan and `here`.
         Only for a vehicle on its path (not off it, nor after a silence) and at most up to the
         stop short of a conflict (PathArcReference.stop_s)."""
         lag = min(median(self._plan_lags), PLAN_AHEAD_MAX_S) if self._plan_lags else 0.0
@@ -442,9 +435,9 @@ class PlannerCore:
         """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still
         feasible when it was asked) that can only turn about or leave by a recovery, which
         may enter the safety margin, or found none: keep following the path in force, which
-        the replan check goes on judging (fleet4 seed 8: a corridor replan turned a vehicle
-        about on an arc 0.80 m from a static obstacle, inside rho0, where its path in force
-        kept clear); and a NO_PATH found while the vehicle steps aside (evade.py), which
+        the replan check goes on judging (such a turn about can pass inside rho0 of a static
+        obstacle the path in force keeps clear of); and a NO_PATH found while the vehicle
+        steps aside (evade.py), which
         judged going on along the way aside as good as any. Returns whether it was declined."""
         if self.ref is None:
             return False

@@ -209,11 +209,9 @@ def _plan(
         if path is None:
             clk.lap("search_s")
             if len(discs) and not unswept:
-                # the swept discs block where a moving obstacle may be over a window of
-                # time: a conservative stand-in for eq. (13) that walls the start off when
-                # the vehicle is near an obstacle's track (it would pass behind it, or let
-                # it pass). Search the static field then: the refinement and the check
-                # judge eq. (12)-(13) at the times the curve passes.
+                # the swept discs, a conservative stand-in for eq. (13), wall the start off
+                # near an obstacle's track: search the static field, and let the refinement
+                # and the check judge eq. (12)-(13) at the times the curve passes
                 discs, unswept = np.zeros((0, 3)), True
                 continue
             moving = " and moving ones where predicted" if len(discs) else ""

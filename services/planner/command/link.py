@@ -1,6 +1,5 @@
 """The planner's end of the networked loop: delays measured, the state predicted, commands sent.
 
-Issue 16, the planner side:
 - delays measured, not assumed: the uplink delay is the median age of the estimates as they
   arrive (common/control/delay.py); the downlink delay is the vehicle's own measurement on
   commands (VehicleStatus: median + jitter_margin_k x jitter), the network's configured delay
@@ -127,9 +126,9 @@ class CommandLink:
         # the estimator carried its newest fused fix to the stamp at constant twist: back along
         # that arc to the fix, then forward with the commands the vehicle was applying since
         x, y, th, v, w = predict_pose(pose, -est.predicted_s)
-        # the yaw rate there: the filter's is noisy (~0.1 rad/s rms, a differenced compass),
-        # while the yaw loop follows the commands: run it over the commands of the last
-        # YAW_SETTLE_TAUS time constants, from the filter's rate (left with e^-3 of its error)
+        # the yaw rate there: the filter's is noisy (a differenced compass), so the yaw loop is
+        # run over the commands of the last YAW_SETTLE_TAUS time constants from it (left with
+        # e^-3 of its error; docs/notes/planner-yaw-rate-from-commands.md)
         w = self.timeline.predict(pose, t_b - settle, t_b, self.model)[4]
         now = self.timeline.predict((x, y, th, v, w), t_b, t, self.model)
         effect_t = t + self.downlink_s

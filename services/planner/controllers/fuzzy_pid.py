@@ -28,8 +28,7 @@ error's direction). No curvature feed-forward (the integral carries the steady t
 curves): this is the published baseline.
 
 Speed: the shared profile (speed.py: cruise cap, ramp, curvature slow-down, stop at the end),
-as for the other two controllers, so that they differ in how they steer only (a former
-v_ref / (1 + |e|) slow-down was tidelink's, not the literature's, and is gone). Gains in
+as for the other two controllers, so that they differ in how they steer only. Gains in
 FuzzyPidGains; delay compensation as for every controller (ControllerConfig.
 delay_compensation).
 """

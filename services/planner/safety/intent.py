@@ -20,7 +20,7 @@ listed before it in [[vehicles]] and leaves those after it to plan around its ow
 their intents are fresh it ignores their tracks too, so two vehicles never both swerve the
 same way at once. A vehicle whose intent goes stale is an obstacle to everyone again, and so
 is one parked at the end of its route (its goal): it will not move again, so it can give way
-to no one (a vehicle ahead in priority that ignored one drove through it, seed 22 of fleet4).
+to no one (a vehicle ahead in priority that ignored it would drive through it).
 A parked vehicle is where its estimate puts it, at rest, not at its route's last point (a
 vehicle that overshot its goal is past it).
 """
@@ -85,7 +85,7 @@ class IntentObstacle(ObstacleState):
         if not self._rising():
             return self.speed * t_s
         t_up = (self.cruise - self.speed) / self.ramp
-        # a plain float for one time: numpy's scalar arithmetic costs microseconds a step
+        # a plain float for one time: numpy's scalar arithmetic is far slower on one value
         up = min(t_s, t_up) if isinstance(t_s, float) else np.minimum(t_s, t_up)
         return self.speed * up + 0.5 * self.ramp * up * up + self.cruise * (t_s - up)
 

@@ -3,8 +3,9 @@
 Any-angle paths come from pruning the optimal grid path with line-of-sight shortcuts that
 use Theta*'s parent test (a shortcut must be free and no dearer than the grid path it
 replaces). Theta* itself is not implemented: its per-expansion line-of-sight and
-cost-integral checks cost ~100 ms per replan in Python on this grid, against a few ms for
-Dijkstra in C plus pruning; the NURBS refinement straightens the path further anyway.
+cost-integral checks in Python cost far more than Dijkstra in C plus this pruning
+(docs/notes/planner-dijkstra-and-pruning-not-theta-star.md); the NURBS refinement
+straightens the path further anyway.
 """
 
 from __future__ import annotations

@@ -259,8 +259,8 @@ def refine(
     lay = obj.lay
     # the area's edge gets the allowance obstacles get (the hull tracked off its path by the
     # margin stays in; eq. (10) itself asks only the hull inside, as the final check does):
-    # on a path grazing the edge, fleet4's auv1 replanned from a pose (its estimate predicted
-    # ahead) just outside it, from where no replan could start
+    # on a path grazing the edge, a pose predicted ahead can fall just outside the area,
+    # from where no replan can start
     a = prob.area
     room = 0.5 * min(a.x_max_m - a.x_min_m, a.y_max_m - a.y_min_m)
     edge_m = min(prob.vehicle_radius_m + wts.clear_margin_m, max(prob.vehicle_radius_m, room))
