@@ -1,5 +1,6 @@
-"""Stepping aside and holding first: a vehicle keeps out of a moving obstacle's way and out
-of the safety margin while no plan, or only a recovery into the margin, is found.
+"""Stepping aside and holding first: out of a moving obstacle's way and of the safety margin.
+
+While no plan, or only a recovery into the margin, is found, the vehicle keeps out of both.
 
 A plan that reaches no goal (NO_PATH) stops the vehicle where it is (CommandLink.follow). That
 is safe among static obstacles, but a moving one's track may run through where it stops: the

@@ -1,5 +1,4 @@
-"""A planned path flown before it is adopted: the controller on the response model, rho0 in
-execution.
+"""A plan flown before it is adopted: the controller on the response model, rho0 in execution.
 
 The plan keeps the hull rho0 from every obstacle (eq. (12)-(13)) and its turns within R_min
 (eq. (20)), but the vehicle flies it with a lag: its yaw rate follows the command with a time
