@@ -1,4 +1,4 @@
-"""Experiment: should the refinement optimise the NURBS weights too (services/planner/fit.py)?
+"""Experiment: should the refinement optimise the NURBS weights too (planner shaping/fit.py)?
 
 Each plan's final curve (plan_path: weights 1) is refined further two ways with the same
 iteration budget: (a) the control points only, as the planner does (Levenberg-Marquardt and
@@ -26,19 +26,19 @@ from common.config.scenario import load_scenario
 from common.config.world import CircleObstacleConfig
 from common.world import World
 from common.world.geometry import FloatArray
-from services.planner.check import check_curve
-from services.planner.clearance import StaticField
-from services.planner.costmap import build_costmap
-from services.planner.nurbs_curve import NurbsCurve, curvature, rational_basis
 from services.planner.plan import Obstacles, PlanRequest, Pose2D, fit_problem, plan_path
-from services.planner.refine import (
+from services.planner.safety.clearance import StaticField
+from services.planner.search.costmap import build_costmap
+from services.planner.shaping.check import check_curve
+from services.planner.shaping.nurbs_curve import NurbsCurve, curvature, rational_basis
+from services.planner.shaping.refine import (
     Objective,
     RefineWeights,
     gauss_legendre,
     levenberg_marquardt,
     quadrature,
 )
-from services.planner.turning import turn_penalty
+from services.planner.shaping.turning import turn_penalty
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 STEP = 0.05  # L-BFGS-B variable scale (m for points, log units for weights)

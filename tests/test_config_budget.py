@@ -26,10 +26,10 @@ from common.runtime.model.record import Record
 from common.world.check import check_scenario
 from services.experiments.grid import expand
 from services.experiments.schema import load_experiment
-from services.planner.clearance import StaticField
-from services.planner.costmap import build_costmap
 from services.planner.plan import PlanRequest, plan_path
-from services.planner.search import _structure
+from services.planner.safety.clearance import StaticField
+from services.planner.search.costmap import build_costmap
+from services.planner.search.graph import _structure
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "configs" / "default.toml"

@@ -30,10 +30,10 @@ from services.launcher.launch import select_services
 from services.launcher.plot import _of_type
 from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
-from services.planner.intent import FleetIntents, IntentObstacle
 from services.planner.plan import PlanRequest, plan_path
 from services.planner.replan import ReplanPolicy
 from services.planner.result import Obstacles, Pose2D
+from services.planner.safety.intent import FleetIntents, IntentObstacle
 from services.sensor.core import SensorCore
 from services.vehicle.core import VehicleCore
 

@@ -129,7 +129,8 @@ def test_the_planner_keeps_the_last_plausible_estimate() -> None:
     core.deliver(_estimate(1.79e9, 0.1))  # an estimate that would never grow stale
     core.deliver(_estimate(0.1, 0.15, x=1e300))
     core.deliver(_estimate(0.1, 0.15, v=500.0))
-    assert core.state is not None and core.state.stamp == 0.0 and core.state.x == 5.0
+    state = core.inputs.state
+    assert state is not None and state.stamp == 0.0 and state.x == 5.0
     assert core.inputs_rejected == {"state.future": 1, "state.out_of_range": 2}
     out = core.step(0.2)
     assert any(e.stream == "cmd" for e in out)

@@ -9,7 +9,7 @@ from geomdl import NURBS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from services.planner.nurbs_curve import (
+from services.planner.shaping.nurbs_curve import (
     NurbsCurve,
     averaged_knots,
     basis_local,
@@ -17,7 +17,7 @@ from services.planner.nurbs_curve import (
     curvature,
     rational_basis,
 )
-from services.planner.planned_path import PlannedPath
+from services.planner.shaping.planned_path import PlannedPath
 
 
 def _random_curve(rng: np.random.Generator) -> NurbsCurve:

@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from services.planner.nurbs_curve import NurbsCurve, clamped_uniform_knots
-from services.planner.path_arc_reference import PathArcReference
-from services.planner.planned_path import PlannedPath
+from services.planner.shaping.nurbs_curve import NurbsCurve, clamped_uniform_knots
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 
 def _path() -> PlannedPath:

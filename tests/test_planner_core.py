@@ -180,7 +180,7 @@ def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
     # uplink is out) or does not step at all (SIGSTOP: the realtime loop skips the periods);
     # 8 s is beyond what the vehicle runs on blind (its buffer of horizon_s, then hold_after_s),
     # and the last command's buffer ran out more than the 1.5 s before the newest estimate
-    # that the planner looks back at the commands for the yaw rate (command_link.py)
+    # that the planner looks back at the commands for the yaw rate (command/link.py)
     assert core.resume_after_s == horizon_s + core.vehicle.watchdog.hold_after_s < 8.0
     if stepped_in_the_gap:
         for j in range(1, 81):
@@ -195,7 +195,7 @@ def test_after_a_gap_the_first_command_is_planned_from_the_newest_estimate(
         core.deliver(_along(stamp))
     out = core.step(t_wake)
     newest = max(backlog)
-    assert core.state is not None and core.state.stamp == newest
+    assert core.inputs.state is not None and core.inputs.state.stamp == newest
     (path,) = _paths(out)
     assert (path.status, path.reason) == ("OK", "resumed")
     # the new path starts at the newest estimate, not where the old plan left off; with
@@ -232,7 +232,8 @@ def test_an_estimate_from_the_future_cannot_hold_the_place_of_later_ones() -> No
     assert core.inputs_rejected == {"state.future": 1}
     core.deliver(_estimate(1.1, x=6.5))
     core.deliver(_estimate(0.9, x=4.0))  # late and older: not taken over the newer one
-    assert core.state is not None and (core.state.stamp, core.state.x) == (1.1, 6.5)
+    state = core.inputs.state
+    assert state is not None and (state.stamp, state.x) == (1.1, 6.5)
 
 
 # --- the first plan waits for the first obstacle tracks (issue 15, finding 5) ---------------

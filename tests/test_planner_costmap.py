@@ -11,8 +11,8 @@ from matplotlib.path import Path as MplPath
 from common.config.planner import PlannerConfig, grid_shape
 from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
 from common.world.geometry import vertices_array
-from services.planner.clearance import StaticField
-from services.planner.costmap import build_costmap, repulsive_cost, smoothing_kernel
+from services.planner.safety.clearance import StaticField
+from services.planner.search.costmap import build_costmap, repulsive_cost, smoothing_kernel
 
 R_VEH = default_scenario().vehicle.radius_m
 NO_DISCS = np.zeros((0, 3))

@@ -1,4 +1,4 @@
-"""A plan flown before it is adopted (services/planner/flight.py): the controller on the
+"""A plan flown before it is adopted (services/planner/safety/flight.py): the controller on the
 response model measures how near the vehicle will come, and a plan it would fly inside rho0
 is made again wider."""
 
@@ -15,8 +15,10 @@ from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from common.world import ObstacleState
 from common.world.geometry import Box
+from services.planner.command.response import ResponseModel
 from services.planner.controllers import Limits, make_controller
-from services.planner.flight import (
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
+from services.planner.safety.flight import (
     FLIGHT_CURVATURE_FACTOR,
     FLIGHT_CUSHION_M,
     FLIGHT_MOVING_S,
@@ -25,10 +27,8 @@ from services.planner.flight import (
     fly,
     plan_flown,
 )
-from services.planner.intent import IntentObstacle
-from services.planner.nurbs_curve import clamped_uniform_knots
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.response import ResponseModel
+from services.planner.safety.intent import IntentObstacle
+from services.planner.shaping.nurbs_curve import clamped_uniform_knots
 
 SCENARIO = default_scenario()
 CFG = SCENARIO.planner

@@ -10,15 +10,10 @@ from helpers.planner_world import circle, default_obstacles, default_scenario, p
 
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
-from services.planner.clearance import StaticField
-from services.planner.costmap import CostMap, build_costmap
-from services.planner.search import (
-    directions,
-    edge_weights,
-    prune_path,
-    segment_cost,
-    shortest_path,
-)
+from services.planner.safety.clearance import StaticField
+from services.planner.search.costmap import CostMap, build_costmap
+from services.planner.search.graph import directions, edge_weights, shortest_path
+from services.planner.search.prune import prune_path, segment_cost
 
 CFG = PlannerConfig()
 R_VEH = 0.1  # the hand-built geometries below are sized for this vehicle radius (m)

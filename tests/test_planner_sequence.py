@@ -14,11 +14,11 @@ from common.config.controller import ControllerConfig
 from common.config.scenario import load_scenario
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand, encode
 from common.runtime.model.core import Delivery
+from services.planner.command.response import ResponseModel
+from services.planner.command.sequence import command_sequence
+from services.planner.command.timeline import CommandTimeline
 from services.planner.controllers import Circle, Limits, make_controller
 from services.planner.core import PlannerCore
-from services.planner.response import ResponseModel
-from services.planner.sequence import command_sequence
-from services.planner.timeline import CommandTimeline
 from services.vehicle.dynamics import PlantParams, rk4_step
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"

@@ -117,9 +117,10 @@ class SpeedConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class SequenceConfig:
-    """Packet-based predictive commands (services/planner/sequence.py): every command carries
-    the controller's commands for the times ahead, one per control period (planner.period_s),
-    computed on the state predicted along them; the vehicle applies the one for its time."""
+    """Packet-based predictive commands (services/planner/command/sequence.py): every command
+    carries the controller's commands for the times ahead, one per control period
+    (planner.period_s), computed on the state predicted along them; the vehicle applies the one
+    for its time."""
 
     # how far ahead a command reaches (s); 0 = off: single commands, each computed from the
     # estimate as before sequences existed (the ablation). 10 s of buffer carry the vehicle

@@ -84,7 +84,7 @@ class PlannerConfig:
     # head-on pair's closest passes inproc, but fleet4 seed 22 at 1x in realtime then touched
     # an obstacle in 4 launches of 6, none of 4 without (docs/notes/0023)
     intent_margin_m: float = 0.0
-    # who plans around whose intent (services/planner/intent.py): "priority", a vehicle gives
+    # who plans around whose intent (services/planner/safety/intent.py): "priority", a vehicle gives
     # way to those listed before it in [[vehicles]]; "mutual", to every other vehicle
     deconfliction: Literal["priority", "mutual"] = "priority"
 

@@ -5,7 +5,7 @@ measured by scripts/bench_budget.py (which prints each estimate beside the real 
 or duration):
 
 - the planner's peak memory in one replan: its grid has nx * ny cells (`grid_shape`, the
-  shape services/planner/costmap.py allocates) and a replan holds, per cell, the cost map
+  shape services/planner/search/costmap.py allocates) and a replan holds, per cell, the cost map
   and the search graph (one arc per neighbour: 8 or 16);
 - the run's record: every message a run publishes is kept in memory until its metrics are
   computed (common/runtime/model/record.py), the services' rates times run.max_time_s;

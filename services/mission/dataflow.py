@@ -173,12 +173,12 @@ def make_planner(
     ramps: Mapping[str, float] | None = None,
 ) -> PlannerCore:
     """The planner; in a fleet `others` maps the other vehicles' ids to (obstacle id, hull
-    radius), whose broadcast intents it plans around (services/planner/intent.py): all of
+    radius), whose broadcast intents it plans around (services/planner/safety/intent.py): all of
     them, or with planner.deconfliction = "priority" those `earlier` in [[vehicles]]; `ramps`
     their speed ramps on a path."""
     from common.runtime.deferred import InThread
     from services.planner.core import PlannerCore
-    from services.planner.intent import FleetIntents
+    from services.planner.safety.intent import FleetIntents
 
     s = ctx.scenario
     # delay compensation starts from the downlink's modelled delay (planner/cmd -> vehicle)

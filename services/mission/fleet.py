@@ -42,7 +42,7 @@ from common.runtime.model.dataflow import (
 from common.world import World
 from services.mission.dataflow import auv_dataflow, make_planner, make_sensor, make_vehicle
 
-# what a planner hears of each other vehicle: its intent (services/planner/intent.py)
+# what a planner hears of each other vehicle: its intent (services/planner/safety/intent.py)
 INTENT: tuple[tuple[str, str, type[Message]], ...] = (
     ("planner", "pose", StateEstimate),
     ("planner", "intent", PathMsg),

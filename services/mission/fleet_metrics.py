@@ -112,7 +112,7 @@ def closest_approach(record: Record, s: Scenario) -> Approach | None:
 
 def _intent_tallies(record: Record, vid: str) -> tuple[dict[str, int], dict[str, int]]:
     """Vehicle vid's planner's steps by each other vehicle's intent and by its track, from the
-    planner's last statistics (services/planner/intent.py: FleetIntents.counters)."""
+    planner's last statistics (services/planner/safety/intent.py: FleetIntents.counters)."""
     counters = last_counters(record, qualified(vid, "planner"))
     by_intent = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("intent.")}
     by_track = {k.split(".", 1)[1]: n for k, n in counters.items() if k.startswith("track.")}

@@ -26,7 +26,7 @@ from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.reentry import reentries
 from services.planner.core import PLANS_DECLINED
-from services.planner.planned_path import curve_of
+from services.planner.shaping.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
 # within this distance of the first planned path at the moment the command is issued.

@@ -1,4 +1,32 @@
-"""Planner service: cost map, graph search, NURBS fit and refinement, replan policy, controllers.
+"""Planner service: a NURBS path within R_min around the obstacles, tracked over the network.
+
+The pipeline, stage by stage, with the sub-package that holds each (paper equations):
+
+    PlanRequest         result.py: start, goal, area, obstacles, vehicle radius, R_min
+        |
+    cost map            search/costmap.py      eq. (5)-(6) potential, eq. (17) smoothing;
+        |               search/prediction.py   moving obstacles blocked where they will be
+    graph search        search/graph.py        eq. (15)-(16) shortest path on the grid
+        |
+    prune               search/prune.py        any-angle waypoints
+        |
+    NURBS fit           shaping/fit.py         control polygon, eq. (10) boundary tangents
+        |
+    refine              shaping/refine.py      eq. (8)-(9) penalties, eq. (19) turning cost
+        |
+    check               shaping/check.py       eq. (12)-(13) clearance, eq. (20) curvature
+        |                                      (plan.py runs these stages: a PlanResult)
+    planned path        shaping/planned_path.py, shaping/path_arc_reference.py (on s)
+        |
+    controller          controllers/           NURBS tracker, Backstepping, immune fuzzy PID
+        |
+    command sequence    command/               predicted over the measured delays, sent
+
+    Around it, the safety monitor (safety/): clearance.py, the exact distances every stage
+    uses; recover.py and escape.py, ways out near or in contact; flight.py, a plan flown on
+    the response model before it is adopted; evade.py, stepping aside or holding first;
+    intent.py, the other vehicles of a fleet as obstacles with known trajectories.
+    core.py is the service core; replan.py decides when to plan again.
 
 Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
 
@@ -12,12 +40,12 @@ Obstacles use the world's types (common.config.world circles and polygons, commo
 ObstacleState for moving ones); the area is the scenario's AreaConfig.
 """
 
-from services.planner.nurbs_curve import NurbsCurve
-from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import PlanRequest, PlanResult, PlanTiming, plan_path
-from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy, replan_request
 from services.planner.result import Obstacles, Pose2D
+from services.planner.shaping.nurbs_curve import NurbsCurve
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 __all__ = [
     "NurbsCurve",

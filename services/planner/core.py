@@ -2,7 +2,7 @@
 
 The command it sends crosses the modelled network to the vehicle, so the network sits inside
 the control loop; the planner measures the delays, predicts the vehicle to the time its
-command takes effect and sends sequences of commands over a horizon (command_link.py).
+command takes effect and sends sequences of commands over a horizon (command/link.py).
 Static obstacles come from the chart (the scenario's world); moving ones from the
 estimator's tracks, predicted with their velocity and acceleration (paper §2).
 """
@@ -22,23 +22,24 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
-from common.messages import ObstacleTracks, PathMsg, StateEstimate, VehicleStatus
+from common.guard import Reason, first_reason
+from common.messages import ObstacleTracks, PathMsg, StateEstimate
 from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
-from services.planner.command_link import CommandLink, Prediction
-from services.planner.controllers.base import Controller, Limits
+from services.planner.command.inputs import LoopInputs, judge_state
+from services.planner.command.link import CommandLink, Prediction
+from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.evade import plan_or_step_aside
-from services.planner.flight import ARRIVED_M, FlightModel
-from services.planner.intent import FleetIntents
-from services.planner.path_arc_reference import PathArcReference
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.planned_path import PlannedPath
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
+from services.planner.safety.evade import plan_or_step_aside
+from services.planner.safety.flight import ARRIVED_M, FlightModel
+from services.planner.safety.intent import FleetIntents
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 log = logging.getLogger("tidelink.planner")
 
@@ -72,35 +73,6 @@ class _Asked:
     asked_t: float
 
 
-def judge_state(j: Plausibility, m: StateEstimate, now: float) -> Reason | None:
-    """Why an estimate is implausible (stamp, pose, speeds), or None."""
-    return first_reason(
-        j.stamp(m.stamp, now), j.position(m.x, m.y), j.angle(m.theta), j.speed(m.v), j.rate(m.w)
-    )
-
-
-def judge_status(j: Plausibility, m: VehicleStatus, now: float) -> Reason | None:
-    """Why a vehicle status is implausible (stamp, measured delay), or None."""
-    return first_reason(j.stamp(m.stamp, now), j.delay(m.delay_s, m.delay_jitter_s))
-
-
-def follow(
-    link: CommandLink,
-    controller: Controller,
-    ref: PathArcReference | None,
-    t: float,
-    s: StateEstimate,
-    pred: Prediction,
-) -> Commands:
-    """The controller's commands (sequence) on `ref`, or a stop without a feasible path
-    (rather than drive into something). Every path leaves along the vehicle's heading, a
-    way out of contact included (recover.py: arcs within R_min), so the controller follows
-    it from the start."""
-    if ref is None:
-        return link.stop()
-    return link.control(t, controller, ref, s, pred)
-
-
 def _flat(a: np.ndarray) -> tuple[float, ...]:
     return tuple(float(v) for v in np.asarray(a, dtype=np.float64).ravel())
 
@@ -130,7 +102,7 @@ class PlannerCore:
         self.plans: Deferred[PlanResult] = AtOnce() if plans is None else plans
         self._asked: _Asked | None = None  # what the plan being made was asked for
         self._plan_lags: deque[float] = deque(maxlen=PLAN_LAGS_KEPT)  # how long plans took
-        # in a fleet, the other vehicles' broadcast estimates and paths (services/planner/intent.py)
+        # in a fleet, the other vehicles' broadcast estimates and paths (safety/intent.py)
         self.intents = intents
         self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
         self._next_pose_t = 0.0
@@ -144,7 +116,7 @@ class PlannerCore:
         self.vehicle = vehicle
         self.world = world
         self.kind = controller.kind
-        # delays measured, the state predicted, commands (sequences) sent: command_link.py
+        # delays measured, the state predicted, commands (sequences) sent: command/link.py
         self.link = CommandLink(
             planner, controller, vehicle, expected_downlink_s=expected_downlink_s
         )
@@ -160,7 +132,8 @@ class PlannerCore:
         )
         self.limits = Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
         self.controller = make_controller(controller, self.limits)
-        self.state: StateEstimate | None = None
+        # the newest plausible estimate; the link told of estimates and statuses (their delays)
+        self.inputs = LoopInputs(world.area, self.link, log)
         self.tracks: ObstacleTracks | None = None
         self.ref: PathArcReference | None = None
         self.path_id = 0
@@ -172,8 +145,6 @@ class PlannerCore:
         self.arrived = False
         self.stale_skips = 0  # steps without a command because the estimate was too old
         self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
-        self._judge = Plausibility.of_area(world.area)
-        self._rejects = RateLimitedLog(log)
         self.last_cmd_t: float | None = None  # when the last command was sent
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
@@ -185,53 +156,26 @@ class PlannerCore:
         """Keep the newest estimate and tracks by stamp, unless implausible: a stamp from the
         future (an estimate that never ages, which would hold the place of every later one),
         a pose outside the world, more tracks than a message may carry (planning work grows
-        with them) are rejected, counted and logged. Newest by stamp, not the last handed
-        over: a backlog (a planner woken after a stall) or a reordering link may hand an older
-        estimate over after a newer one."""
+        with them) are rejected, counted and logged (command/inputs.py)."""
         msg = d.msg
         other = vehicle_of(d.source)
         if self.intents is not None and other in self.intents.vehicles:
-            if not isinstance(msg, StateEstimate) or self._judge_state(msg, d.t) is None:
+            j = self.inputs.judge
+            if not isinstance(msg, StateEstimate) or judge_state(j, msg, d.t) is None:
                 self.intents.offer(other, msg)
             return []
-        if isinstance(msg, StateEstimate):
-            stream, why = "state", self._judge_state(msg, d.t)
-        elif isinstance(msg, ObstacleTracks):
-            stream, why = "tracks", self._judge_tracks(msg, d.t)
-        elif isinstance(msg, VehicleStatus):
-            stream, why = "status", self._judge_status(msg, d.t)
+        if isinstance(msg, ObstacleTracks):
+            why = self._judge_tracks(msg, d.t)
+            if why is not None:
+                self.inputs.reject("tracks", why, d.t, msg)
+            elif self.tracks is None or msg.stamp >= self.tracks.stamp:
+                self.tracks = msg
         else:
-            return []
-        if why is not None:
-            self._rejects.warn(
-                f"{stream}.{why}",
-                d.t,
-                "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
-                d.t,
-                stream,
-                why,
-                msg.source,
-                msg.stamp,
-                msg.seq,
-            )
-        elif isinstance(msg, StateEstimate):
-            self.link.on_estimate(d.t, msg)  # late ones too: their delay is real
-            if self.state is None or msg.stamp >= self.state.stamp:
-                self.state = msg
-        elif isinstance(msg, VehicleStatus):
-            self.link.on_status(msg)
-        elif self.tracks is None or msg.stamp >= self.tracks.stamp:
-            self.tracks = msg
+            self.inputs.offer(d.t, msg)
         return []
 
-    def _judge_state(self, m: StateEstimate, now: float) -> Reason | None:
-        return judge_state(self._judge, m, now)
-
-    def _judge_status(self, m: VehicleStatus, now: float) -> Reason | None:
-        return judge_status(self._judge, m, now)
-
     def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
-        j = self._judge
+        j = self.inputs.judge
         why = first_reason(j.stamp(m.stamp, now), j.items(len(m.tracks)))
         for k in m.tracks:
             if why is not None:
@@ -243,8 +187,8 @@ class PlannerCore:
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
-        """Estimates and track sets rejected, by '<stream>.<reason>'."""
-        return dict(self._rejects.counts)
+        """Estimates, statuses and track sets rejected, by '<stream>.<reason>'."""
+        return self.inputs.rejected
 
     def _obstacles(self, t: float) -> Obstacles:
         moving: list[ObstacleState] = []
@@ -270,14 +214,14 @@ class PlannerCore:
         return {PLANS_DECLINED: self.declined, **fleet}
 
     def step(self, t: float) -> list[Emit]:
-        if self.intents is not None and self.state is not None:
+        if self.intents is not None and self.inputs.state is not None:
             self.intents.tally(t)
         out = self._step(t)
         # a fleet's planner broadcasts the estimate it plans from: others take it, with its
         # path, as its intent while it comes (a dead planner's vehicle is a track again)
-        if self.pose_every_s > 0.0 and self.state is not None and t >= self._next_pose_t:
+        if self.pose_every_s > 0.0 and self.inputs.state is not None and t >= self._next_pose_t:
             self._next_pose_t = t + self.pose_every_s - 1e-9
-            out.append(Emit(stream="pose", msg=self.state))
+            out.append(Emit(stream="pose", msg=self.inputs.state))
         if self.intent_every_s > 0.0:
             made = [e.msg for e in out if e.stream == "path" and isinstance(e.msg, PathMsg)]
             if made:
@@ -288,14 +232,14 @@ class PlannerCore:
         return out
 
     def prepare(self, t_next: float) -> None:
-        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        """Once this step's command is out: the sequence for the step at t_next (command/link)."""
         if self.commands and self.ref is not None and not self.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 
     def _step(self, t: float) -> list[Emit]:
-        if self.state is None:
+        if self.inputs.state is None:
             return []
-        s = self.state
+        s = self.inputs.state
         out: list[Emit] = []
         if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
             self.arrived = True
@@ -322,10 +266,8 @@ class PlannerCore:
                 replan=False, detail="the first plan waits for the first obstacle tracks"
             )
         elif math.isfinite(gap) and gap > self.resume_after_s:
-            # no command for so long that the vehicle's watchdog has made it hold: it has
-            # coasted off the plan while the planner was stopped or its uplink was out. The
-            # plan and the controller's state are stale: before commanding again, plan
-            # afresh from the newest estimate (the one in hand, checked fresh above).
+            # no command for so long that the vehicle's watchdog made it hold, off the plan:
+            # plan and controller state are stale, so plan afresh from the (fresh) estimate
             decision = ReplanDecision(
                 replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
             )
@@ -333,10 +275,8 @@ class PlannerCore:
             decision = self.policy.check(t_plan, here, self.goal, obstacles)
         if decision.replan:
             if self.ref is not None and math.isfinite(decision.conflict_s):
-                # the path in force is unsafe ahead: until its replacement is made (seconds,
-                # in realtime; in virtual time it is made in this step and this has no
-                # effect), slow down to stop short of the first point of conflict instead of
-                # following it there at cruise speed
+                # the path in force is unsafe ahead: until its replacement is in force (seconds,
+                # in realtime; at once in virtual time), stop short of the first conflict
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
             t_start, start, twist = self._plan_start(t_plan, here, pred, decision.reason)
             if t_start != t_plan:
@@ -354,10 +294,8 @@ class PlannerCore:
             and math.isfinite(gap)
             and gap > 1.5 * self.cfg.period_s
         ):
-            # steps were skipped (the estimate was stale): the vehicle ran on its buffer
-            # meanwhile and the plan still holds, but the controller's own state (backstepping's
-            # virtual reference, run on by the clock; integrals; the speed ramp) is as old as
-            # the silence: restart it from where the vehicle is
+            # steps were skipped (a stale estimate): the plan holds, but the controller's state
+            # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
             out.append(self._command(t, pred.effect_t, self._follow(t, s, pred)))
@@ -365,7 +303,7 @@ class PlannerCore:
 
     def _follow(self, t: float, s: StateEstimate, pred: Prediction) -> Commands:
         """The controller's commands on the path in force (a stop without one)."""
-        return follow(self.link, self.controller, self.ref, t, s, pred)
+        return self.link.follow(t, self.controller, self.ref, s, pred)
 
     def _command(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         self.last_cmd_t = t
@@ -420,12 +358,11 @@ class PlannerCore:
         self, t_plan: float, here: Pose2D, pred: Prediction, why: str
     ) -> tuple[float, Pose2D, tuple[float, float]]:
         """When and where a plan asked now should start, and the vehicle's twist (v, w) then:
-        where the vehicle will be on the path
-        in force once the plan is made, as long as the last plans took (the median of the
-        last PLAN_LAGS_KEPT). A plan of seconds made from where the vehicle was when it was
-        asked starts metres behind it by the time it is in force (measured on realtime
-        fleet4: a plan of 4.4 s began 6.5 m behind its vehicle, which replanned at once for
-        the deviation). In virtual time a plan is made within its step: t_plan and `here`.
+        where the vehicle will be on the path in force once the plan is made, as long as the
+        last plans took (the median of the last PLAN_LAGS_KEPT). A plan of seconds made from
+        where the vehicle was when it was asked starts metres behind it by the time it is in
+        force, and the vehicle replans at once for the deviation. In virtual time a plan is
+        made within its step: t_plan and `here`.
         Only for a vehicle on its path (not off it, nor after a silence) and at most up to the
         stop short of a conflict (PathArcReference.stop_s)."""
         lag = min(median(self._plan_lags), PLAN_AHEAD_MAX_S) if self._plan_lags else 0.0
@@ -498,9 +435,9 @@ class PlannerCore:
         """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still
         feasible when it was asked) that can only turn about or leave by a recovery, which
         may enter the safety margin, or found none: keep following the path in force, which
-        the replan check goes on judging (fleet4 seed 8: a corridor replan turned a vehicle
-        about on an arc 0.80 m from a static obstacle, inside rho0, where its path in force
-        kept clear); and a NO_PATH found while the vehicle steps aside (evade.py), which
+        the replan check goes on judging (such a turn about can pass inside rho0 of a static
+        obstacle the path in force keeps clear of); and a NO_PATH found while the vehicle
+        steps aside (evade.py), which
         judged going on along the way aside as good as any. Returns whether it was declined."""
         if self.ref is None:
             return False

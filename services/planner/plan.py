@@ -22,14 +22,6 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
 from common.world.geometry import FloatArray
-from services.planner.check import CurveCheck, check_curve
-from services.planner.clearance import StaticField, moving_distance
-from services.planner.costmap import CostMap, build_costmap
-from services.planner.fit import FitProblem, initial_curve, resample
-from services.planner.nurbs_curve import NurbsCurve
-from services.planner.prediction import passing_discs, predicted_discs
-from services.planner.recover import leave_then_plan, turn_then_plan
-from services.planner.refine import RefineWeights, refine
 from services.planner.result import (
     Obstacles,
     PlanRequest,
@@ -38,7 +30,16 @@ from services.planner.result import (
     PlanTiming,
     Pose2D,
 )
-from services.planner.search import prune_path, shortest_path
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.safety.recover import leave_then_plan, turn_then_plan
+from services.planner.search.costmap import CostMap, build_costmap
+from services.planner.search.graph import shortest_path
+from services.planner.search.prediction import passing_discs, predicted_discs
+from services.planner.search.prune import prune_path
+from services.planner.shaping.check import CurveCheck, check_curve
+from services.planner.shaping.fit import FitProblem, initial_curve, resample
+from services.planner.shaping.nurbs_curve import NurbsCurve
+from services.planner.shaping.refine import RefineWeights, refine
 
 __all__ = [
     "Obstacles",
@@ -208,11 +209,9 @@ def _plan(
         if path is None:
             clk.lap("search_s")
             if len(discs) and not unswept:
-                # the swept discs block where a moving obstacle may be over a window of
-                # time: a conservative stand-in for eq. (13) that walls the start off when
-                # the vehicle is near an obstacle's track (it would pass behind it, or let
-                # it pass). Search the static field then: the refinement and the check
-                # judge eq. (12)-(13) at the times the curve passes.
+                # the swept discs, a conservative stand-in for eq. (13), wall the start off
+                # near an obstacle's track: search the static field, and let the refinement
+                # and the check judge eq. (12)-(13) at the times the curve passes
                 discs, unswept = np.zeros((0, 3)), True
                 continue
             moving = " and moving ones where predicted" if len(discs) else ""

@@ -33,10 +33,10 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import Box, FloatArray
-from services.planner.clearance import StaticField
-from services.planner.intent import IntentObstacle
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
+from services.planner.safety.clearance import StaticField
+from services.planner.safety.intent import IntentObstacle
 
 ReplanReason = Literal[
     "",
@@ -96,8 +96,8 @@ class ReplanPolicy:
         self.short_of_goal = False  # the path in force steps aside, short of the goal
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
-        # per (path, static obstacle set) and sliced at every check, not recomputed (it was
-        # over half of the planner's step).
+        # per (path, static obstacle set) and sliced at every check, not recomputed at every
+        # step (docs/notes/planner-replan-static-distances-cached.md).
         self._static_for: tuple[object, object] | None = None
         self._static_d: FloatArray = np.zeros(0)
 

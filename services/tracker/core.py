@@ -2,9 +2,9 @@
 
 With ``controller.placement = "onboard"`` the planner (maybe at a topside station, across a
 thin acoustic link) sends paths only, and this core, on the vehicle's node, computes the
-commands from the onboard estimate: the same controller, speed profile, prediction and
-command sequences as the planner's own (services/planner/core.py `follow`,
-services/planner/command_link.py), on a link that is local. A late or lost path costs
+commands from the onboard estimate: the same controller, speed profile, prediction, command
+sequences and input checks as the planner's own (services/planner/command/: link.py
+`CommandLink.follow`, inputs.py), on a link that is local. A late or lost path costs
 nothing but freshness: the tracker keeps following the last one it holds.
 """
 
@@ -17,15 +17,15 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
-from common.messages import PathMsg, StateEstimate, VehicleStatus
+from common.guard import first_reason
+from common.messages import PathMsg
 from common.runtime.model.core import Delivery, Emit
-from services.planner.command_link import CommandLink
+from services.planner.command.inputs import LoopInputs
+from services.planner.command.link import CommandLink
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
-from services.planner.core import follow, judge_state, judge_status
-from services.planner.path_arc_reference import PathArcReference
-from services.planner.planned_path import PlannedPath, curve_of
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath, curve_of
 
 log = logging.getLogger("tidelink.tracker")
 
@@ -47,53 +47,30 @@ class TrackerCore:
         self.controller = make_controller(
             controller, Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
         )
-        self.state: StateEstimate | None = None
+        self.inputs = LoopInputs(world.area, self.link, log)
         self.ref: PathArcReference | None = None
         self.path_id = 0  # of the path followed (0: none yet)
         self.arrived = False
         self.stale_skips = 0
         self.last_cmd_t: float | None = None
-        self._judge = Plausibility.of_area(world.area)
-        self._rejects = RateLimitedLog(log)
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
         """Inputs rejected, by '<stream>.<reason>'."""
-        return dict(self._rejects.counts)
+        return self.inputs.rejected
 
     def deliver(self, d: Delivery) -> list[Emit]:
         """Keep the newest estimate (by stamp) and the newest path (by path_id); implausible
         inputs are rejected, counted and logged, as the planner does."""
         msg = d.msg
-        why: Reason | None
-        if isinstance(msg, StateEstimate):
-            stream, why = "state", judge_state(self._judge, msg, d.t)
-        elif isinstance(msg, VehicleStatus):
-            stream, why = "status", judge_status(self._judge, msg, d.t)
-        elif isinstance(msg, PathMsg):
-            stream, why = "path", first_reason(self._judge.stamp(msg.stamp, d.t))
+        if isinstance(msg, PathMsg):
+            why = first_reason(self.inputs.judge.stamp(msg.stamp, d.t))
+            if why is not None:
+                self.inputs.reject("path", why, d.t, msg)
+            elif msg.path_id > self.path_id:
+                self._take(msg)
         else:
-            return []
-        if why is not None:
-            self._rejects.warn(
-                f"{stream}.{why}",
-                d.t,
-                "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
-                d.t,
-                stream,
-                why,
-                msg.source,
-                msg.stamp,
-                msg.seq,
-            )
-        elif isinstance(msg, StateEstimate):
-            self.link.on_estimate(d.t, msg)
-            if self.state is None or msg.stamp >= self.state.stamp:
-                self.state = msg
-        elif isinstance(msg, VehicleStatus):
-            self.link.on_status(msg)
-        elif isinstance(msg, PathMsg) and msg.path_id > self.path_id:
-            self._take(msg)
+            self.inputs.offer(d.t, msg)
         return []
 
     def _take(self, p: PathMsg) -> None:
@@ -105,21 +82,23 @@ class TrackerCore:
         try:
             curve = curve_of(p)
         except ValueError as exc:  # well-formed on the wire, but no curve: keep stopping
-            self._rejects.warn("path.curve", p.stamp, "path %d has no curve: %s", p.path_id, exc)
+            self.inputs.rejects.warn(
+                "path.curve", p.stamp, "path %d has no curve: %s", p.path_id, exc
+            )
             self.ref = None
             return
         self.ref = PathArcReference(PlannedPath(curve), p.v_ref)
         self.link.restart(self.controller)
 
     def prepare(self, t_next: float) -> None:
-        """Once this step's command is out: the sequence for the step at t_next (command_link)."""
+        """Once this step's command is out: the sequence for the step at t_next (command/link)."""
         if self.ref is not None and not self.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 
     def step(self, t: float) -> list[Emit]:
-        if self.state is None:
+        if self.inputs.state is None:
             return []
-        s = self.state
+        s = self.inputs.state
         g = self.world.goal
         if math.hypot(s.x - g.x_m, s.y - g.y_m) <= self.world.goal_tolerance_m:
             self.arrived = True
@@ -132,7 +111,7 @@ class TrackerCore:
             # steps were skipped: restart from where the vehicle is
             self.link.restart(self.controller)
         ref = None if self.arrived else self.ref
-        vs, ws = follow(self.link, self.controller, ref, t, s, pred)
+        vs, ws = self.link.follow(t, self.controller, ref, s, pred)
         self.last_cmd_t = t
         msg = self.link.send(t, pred.effect_t, vs, ws, path_id=self.path_id, controller=self.kind)
         return [Emit(stream="cmd", msg=msg)]

@@ -1,6 +1,6 @@
 """The arc-length reference every tracking controller follows: a path whose methods take s.
 
-The planner's NURBS path implements it (services/planner/path_arc_reference.py), as do the
+The planner's NURBS path implements it (services/planner/shaping/path_arc_reference.py), as do the
 analytic shapes of controllers/shapes.py.
 """
 

@@ -40,52 +40,31 @@ from __future__ import annotations
 
 import math
 
-from common.config.controller import BacksteppingGains, SpeedConfig
+from common.config.controller import BacksteppingGains
 from common.scalar import clamp, wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Limits, Pose, predict_pose
-from services.planner.controllers.speed import SpeedProfile
+from services.planner.controllers.base import Pose
+from services.planner.controllers.follower import PathFollower
 
 
-class Backstepping:
+class Backstepping(PathFollower[BacksteppingGains]):
     """Kanayama tracking of a virtual point running along the path at the profile speed."""
 
     name = "backstepping"
 
-    def __init__(
-        self,
-        gains: BacksteppingGains,
-        limits: Limits,
-        *,
-        speed: SpeedConfig | None = None,
-        compensate_delay: bool = True,
-    ) -> None:
-        self.gains = gains
-        self.limits = limits
-        self.compensate_delay = compensate_delay
-        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
+    def reset(self) -> None:
+        super().reset()
         self._s_r: float | None = None
         self._t_prev: float | None = None
-        self._s_hint: float | None = None
         self.last_errors = (0.0, 0.0, 0.0)  # (e_x, e_y, e_theta) of the last call
-
-    def reset(self) -> None:
-        self._s_r = None
-        self._t_prev = None
-        self._s_hint = None
-        self.speed.reset()
-        self.last_errors = (0.0, 0.0, 0.0)
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) from the Kanayama law at the profile speed, saturated to eq. (11) and R_min."""
         g = self.gains
-        if self.compensate_delay and latency_s > 0.0:
-            pose = predict_pose(pose, latency_s)
+        pose, s_proj = self.project(pose, ref, latency_s)
         x, y, theta, v_meas, _ = pose
-        s_proj = ref.closest_s(x, y, self._s_hint)
-        self._s_hint = s_proj
         v_r = v_profile = self.speed.command(t, ref, s_proj, v_meas)
         # the virtual reference: advanced at v_r by the caller's clock, on a leash
         if self._s_r is None or self._t_prev is None:

@@ -28,8 +28,7 @@ error's direction). No curvature feed-forward (the integral carries the steady t
 curves): this is the published baseline.
 
 Speed: the shared profile (speed.py: cruise cap, ramp, curvature slow-down, stop at the end),
-as for the other two controllers, so that they differ in how they steer only (a former
-v_ref / (1 + |e|) slow-down was tidelink's, not the literature's, and is gone). Gains in
+as for the other two controllers, so that they differ in how they steer only. Gains in
 FuzzyPidGains; delay compensation as for every controller (ControllerConfig.
 delay_compensation).
 """
@@ -38,38 +37,23 @@ from __future__ import annotations
 
 import math
 
-from common.config.controller import FuzzyPidGains, SpeedConfig
+from common.config.controller import FuzzyPidGains
 from common.scalar import wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
+from services.planner.controllers.base import Pose, path_errors
+from services.planner.controllers.follower import PathFollower
 from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
-from services.planner.controllers.speed import SpeedProfile
 
 _TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
 
 
-class ImmuneFuzzyPid:
+class ImmuneFuzzyPid(PathFollower[FuzzyPidGains]):
     """Immune-regulated fuzzy self-tuning PID producing a yaw rate from the LOS error."""
 
     name = "fuzzy_pid"
 
-    def __init__(
-        self,
-        gains: FuzzyPidGains,
-        limits: Limits,
-        *,
-        speed: SpeedConfig | None = None,
-        compensate_delay: bool = True,
-    ) -> None:
-        self.gains = gains
-        self.limits = limits
-        self.compensate_delay = compensate_delay
-        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
-        self.reset()
-
     def reset(self) -> None:
-        self.speed.reset()
-        self._s_hint: float | None = None
+        super().reset()
         self._t_prev: float | None = None
         self._e_prev = 0.0
         self._de = 0.0  # filtered de/dt
@@ -84,11 +68,8 @@ class ImmuneFuzzyPid:
         """(v, w): the profile speed and the immune fuzzy PID's yaw rate, saturated to eq. (11)
         and R_min."""
         g = self.gains
-        if self.compensate_delay and latency_s > 0.0:
-            pose = predict_pose(pose, latency_s)
+        pose, s = self.project(pose, ref, latency_s)
         x, y, theta, v_meas, _ = pose
-        s = ref.closest_s(x, y, self._s_hint)
-        self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         e = wrap_angle(-math.atan(e_y / g.lookahead_m) - e_th)
         dt = 0.0 if self._t_prev is None else max(0.0, t - self._t_prev)

@@ -37,48 +37,29 @@ from __future__ import annotations
 
 import math
 
-from common.config.controller import NurbsGains, SpeedConfig
+from common.config.controller import NurbsGains
 from common.scalar import wrap_angle
 from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Limits, Pose, path_errors, predict_pose
-from services.planner.controllers.speed import SpeedProfile
+from services.planner.controllers.base import Pose, path_errors
+from services.planner.controllers.follower import PathFollower
 
 
-class NurbsTracker:
+class NurbsTracker(PathFollower[NurbsGains]):
     """Curvature feed-forward + look-ahead feedback path follower with delay compensation."""
 
     name = "nurbs"
 
-    def __init__(
-        self,
-        gains: NurbsGains,
-        limits: Limits,
-        *,
-        speed: SpeedConfig | None = None,
-        compensate_delay: bool = True,
-    ) -> None:
-        self.gains = gains
-        self.limits = limits
-        self.compensate_delay = compensate_delay
-        self.speed = SpeedProfile(speed or SpeedConfig(), limits)
-        self._s_hint: float | None = None
-        self.last_errors = (0.0, 0.0)  # (e_y, e_theta) of the last call, for logs and tests
-
     def reset(self) -> None:
-        self._s_hint = None
-        self.speed.reset()
-        self.last_errors = (0.0, 0.0)
+        super().reset()
+        self.last_errors = (0.0, 0.0)  # (e_y, e_theta) of the last call, for logs and tests
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
     ) -> tuple[float, float]:
         """(v, w) for the pose, saturated to eq. (11) and |w| <= v / R_min."""
-        if self.compensate_delay and latency_s > 0.0:
-            pose = predict_pose(pose, latency_s)
+        pose, s = self.project(pose, ref, latency_s)
         x, y, theta, v_meas, _ = pose
         g = self.gains
-        s = ref.closest_s(x, y, self._s_hint)
-        self._s_hint = s
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
         kappa = ref.curvature_at_s(self.limits.ahead(s, v_meas, ref.length))

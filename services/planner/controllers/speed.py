@@ -13,10 +13,9 @@ The target at arc length s (the vehicle's projection on the path, L the path's l
     v_stop(s)   = sqrt(2 decel (L - s))   (L: the path's end, or a stop short of it)
 
 v_curv keeps the curvature feed-forward v |kappa| within `budget` of eq. (11)'s yaw-rate
-bound over the preview window, leaving the rest to the feedback (it was the NURBS tracker's
-own rule); v_stop brakes to a stop at the end of the path at a constant deceleration, or
-sooner where the reference says so (`stop_s`: the planner's path found unsafe ahead while its
-replacement is being made).
+bound over the preview window, leaving the rest to the feedback; v_stop brakes to a stop at
+the end of the path at a constant deceleration, or sooner where the reference says so
+(`stop_s`: the planner's path found unsafe ahead while its replacement is being made).
 
 The command follows the target through one ramp: v_k = min(v_target, v_{k-1} + accel dt),
 starting from the vehicle's own speed when a path is taken (`reset`, then the first
@@ -56,7 +55,7 @@ def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Li
     # a reference that bounds its curvature over a stretch (the planner's path) lets the
     # samples be skipped where even the bound leaves v_curv above v: the same v, at a
     # fraction of the cost on straights and gentle curves (the rollout of a command sequence
-    # asks this ~100 times a control step)
+    # asks this at every entry)
     bound = getattr(ref, "curvature_bound", None)
     if bound is None or bound(s, horizon) * v > w_room:
         curvature_at_s, span = ref.curvature_at_s, horizon - s

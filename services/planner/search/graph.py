@@ -1,4 +1,4 @@
-"""Shortest path on the weighted directed grid graph of eq. (15)-(16), then any-angle pruning.
+"""Shortest path on the weighted directed grid graph of eq. (15)-(16) (Dijkstra, or A*).
 
 Nodes are grid cells; arcs join a cell to its 8 or 16 neighbours with weight
 d<v_i, v_j> = Euclidean length * (1 + mean repulsive cost of the cells the arc crosses), and
@@ -6,12 +6,6 @@ infinity when any crossed (or corner-cut) cell is occupied. The graph is a CSR m
 fixed K slots per node, so only the weights are recomputed per replan (vectorised slicing);
 Dijkstra then runs in C (scipy.sparse.csgraph). A pure-Python A* over the same arrays
 (heapq, flat integer indices) is kept as an alternative and cross-check.
-
-Any-angle paths come from pruning the optimal grid path with line-of-sight shortcuts that
-use Theta*'s parent test (a shortcut must be free and no dearer than the grid path it
-replaces). Theta* itself is not implemented: its per-expansion line-of-sight and
-cost-integral checks cost ~100 ms per replan in Python on this grid, against a few ms for
-Dijkstra in C plus pruning; the NURBS refinement straightens the path further anyway.
 """
 
 from __future__ import annotations
@@ -27,7 +21,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from common.world.geometry import FloatArray
-from services.planner.costmap import CostMap
+from services.planner.search.costmap import CostMap
 
 IntArray = NDArray[np.intp]
 
@@ -158,59 +152,3 @@ def _astar(cmap: CostMap, w: FloatArray, cols: IntArray, start: int, goal: int) 
         cells.append(parent[cells[-1]])
     path = np.array(cells[::-1], dtype=np.intp)
     return GridPath(cells=path, g=np.array([g[c] for c in path]))
-
-
-def segment_cost(cmap: CostMap, a: FloatArray, b: FloatArray) -> float:
-    """Cost-weighted length of the straight segment a->b (inf if it crosses an occupied cell).
-
-    Sampled every resolution/3, so a segment cannot skip a whole cell.
-    """
-    length = float(np.hypot(*(b - a)))
-    n = max(2, int(math.ceil(3.0 * length / cmap.resolution_m)) + 1)
-    t = np.linspace(0.0, 1.0, n)[:, None]
-    ix, iy = cmap.lookup(a[None, :] * (1.0 - t) + b[None, :] * t)
-    if cmap.blocked[iy, ix].any():
-        return math.inf
-    return length * (1.0 + float(cmap.cost[iy, ix].mean()))
-
-
-def prune_path(
-    cmap: CostMap, path: GridPath, start_xy: FloatArray, goal_xy: FloatArray
-) -> FloatArray:
-    """Any-angle waypoints (k, 2): greedy line-of-sight shortcuts over the grid path.
-
-    Like Theta*'s parent test, a shortcut from anchor i to node j is taken only if it is
-    free and no dearer than the grid path it replaces (g[j] - g[i], 1% slack for sampling);
-    so shortcuts never cut through the repulsive field to hug an obstacle.
-    Candidates are the nodes where the grid path turns (plus the goal).
-    """
-    cells = path.cells
-    pts = cmap.centre(cells % cmap.nx, cells // cmap.nx)
-    pts[0], pts[-1] = start_xy, goal_xy
-    if len(cells) <= 2:
-        return pts
-    steps = np.diff(np.stack([cells % cmap.nx, cells // cmap.nx], axis=1), axis=0)
-    turn = np.any(steps[1:] != steps[:-1], axis=1)
-    cand = np.concatenate([np.flatnonzero(turn) + 1, [len(cells) - 1]])
-    keep = [0]
-    anchor = last_ok = 0
-
-    def shortcut_ok(i: int, j: int) -> bool:
-        budget = (path.g[j] - path.g[i]) * 1.01 + 1e-9
-        return segment_cost(cmap, pts[i], pts[j]) <= budget
-
-    for j in cand.tolist():
-        if shortcut_ok(anchor, j):
-            last_ok = j
-            continue
-        if last_ok != anchor:
-            keep.append(last_ok)
-            anchor = last_ok
-        if not shortcut_ok(anchor, j):
-            # consecutive turning points are joined by one straight run of valid arcs
-            keep.append(j)
-            anchor = j
-        last_ok = j
-    if keep[-1] != len(cells) - 1:
-        keep.append(len(cells) - 1)
-    return pts[np.array(keep)]

@@ -1,13 +1,11 @@
-"""A planned path flown before it is adopted: the controller on the response model, rho0 in
-execution.
+"""A plan flown before it is adopted: the controller on the response model, rho0 in execution.
 
 The plan keeps the hull rho0 from every obstacle (eq. (12)-(13)) and its turns within R_min
 (eq. (20)), but the vehicle flies it with a lag: its yaw rate follows the command with a time
 constant and a rate bound, and |w| <= v / R_min leaves no room to catch up on a bend near
 R_min. A replan that starts with a turn one way while the vehicle is turning the other way
-(its curvature jumps at the start) is flown wide for the whole bend: measured on fleet4 seed
-22 (inproc), auv3 ran 0.88 m off a bend of radius 5.4 m (R_min 5 m) and came 0.03 m inside
-rho0 of a static obstacle the plan cleared by rho0 + 0.36 m.
+(its curvature jumps at the start) is flown wide for the whole bend, and can come inside rho0
+of an obstacle the plan cleared.
 
 So a plan is flown here first, as the planner's command sequences fly it (sequence.py): the
 controller (a copy, reset as on adoption) commands every control period, the response model
@@ -17,7 +15,7 @@ the plan itself may pass nearer: escape_m), the flight's distance off the path t
 tracking error, and the plan is made again with a clearance margin that wide plus
 FLIGHT_CUSHION_M, its curvature aimed FLIGHT_CURVATURE_FACTOR lower; if that flight does not
 keep rho0 + FLIGHT_CUSHION_M either (a squeeze at a bend can be too narrow for the wider
-margin: fleet4 seed 17, between polygon 2 and the area's north edge), once more around a disc
+margin), once more around a disc
 of FLIGHT_DETOUR_M where the first flight came nearest a static obstacle, so the search takes
 another way; and then (that, too, near a static obstacle only) for FLIGHT_SLOW_FACTOR of the
 speed, flown at it. The plan whose flight clears the most is adopted (the first when none
@@ -37,20 +35,19 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField, moving_distance
+from services.planner.command.response import Pose, ResponseModel
 from services.planner.controllers.base import Controller
-from services.planner.intent import IntentObstacle
-from services.planner.path_arc_reference import PathArcReference
-from services.planner.planned_path import PlannedPath
-from services.planner.response import Pose, ResponseModel
 from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.safety.intent import IntentObstacle
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
 
 FLIGHT_MAX_S = 90.0  # a flight ends at the path's end, or after this long (s)
 # a flight must keep rho0 + this (rho0 alone for a turning radius past an escape, which ends
-# at rho0 + 1 cm):
-# the model knows no current and no estimation error (on
-# fleet4 seed 22 the vehicle flew 0.07 m nearer than its flight); the same cushion is added
-# to the tracking error the flight showed, for the margin the plan is made again with
+# at rho0 + 1 cm): the model knows no current and no estimation error. The same cushion is
+# added to the tracking error the flight showed, for the margin the plan is made again with
+# (docs/notes/planner-flight-keeps-rho0-plus-cushion.md)
 FLIGHT_CUSHION_M = 0.1
 # moving obstacles count over the flight's first seconds only, as far ahead as a command
 # sequence looks (controller.sequence.horizon_s): their prediction a minute ahead is a guess
@@ -59,16 +56,12 @@ FLIGHT_CUSHION_M = 0.1
 FLIGHT_MOVING_S = 10.0
 FLIGHT_CURVATURE_FACTOR = 0.9  # the second plan aims its curvature this much lower
 # ... and failing that, a third avoids a disc this wide where the flight came nearest
+# (docs/notes/planner-flight-detour.md)
 FLIGHT_DETOUR_M = 0.5
-# ... and failing that, where it came nearest a static obstacle, a fourth is made (and flown)
-# for this fraction of the request's speed: the yaw response's lag costs a slower vehicle less
-# of the path, so it holds a bend it ran wide (fleet4 seed 75 inproc: a turn south of obstacle
-# 2 flown 0.31 m wide and 0.18 m inside rho0 at cruise speed, whatever the margin or detour;
-# for half of it the flight cleared rho0 + 0.21 m). Not near a moving obstacle: there slower
-# only meets it at another time, which is a choice of when to pass, not of how well the
-# path is held (tried: fleet4 inproc seed 24 then crawled into obstacle 11's weave). The
-# vehicle follows it at that speed until a turning radius past where its flight came nearest
-# (`PlanResult.slow_until_m`), where the replan policy asks for a plan at cruise speed again.
+# ... and failing that, near a static obstacle, a fourth is made and flown for this fraction
+# of the speed: the yaw lag costs a slower vehicle less of the path (near a moving obstacle
+# slower only meets it at another time). The vehicle keeps that speed up to a turning radius
+# past where its flight came nearest (`PlanResult.slow_until_m`), then replans at cruise.
 FLIGHT_SLOW_FACTOR = 0.5
 ARRIVED_M = 0.5  # a flight within this of the path's end, slower than ARRIVED_MPS, is over
 ARRIVED_MPS = 0.05
@@ -162,9 +155,8 @@ def fly(result: PlanResult, req: PlanRequest, fm: FlightModel, cfg: PlannerConfi
     d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
     d[gone < result.escape_m] = math.inf  # the plan itself may pass nearer there
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
-    # turning radius on, rho0 alone is kept; beyond, the cushion too (fleet4 seed 64, inproc:
-    # held to rho0 alone for the whole flight, a plan flown 0.16 m off its path past its
-    # escape cleared rho0 by 8 mm, was adopted as made, and auv3 passed 0.05 m inside rho0)
+    # turning radius on, rho0 alone is kept; beyond, the cushion too (held to rho0 alone for
+    # the whole flight, a plan flown off its path well past its escape was adopted as made)
     settling = (result.escape_m > 0.0) & (gone < result.escape_m + req.r_min_m)
     keep = cfg.rho0_m + np.where(settling, 0.0, FLIGHT_CUSHION_M)
     clearance = d - req.vehicle_radius_m

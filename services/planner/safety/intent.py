@@ -20,7 +20,7 @@ listed before it in [[vehicles]] and leaves those after it to plan around its ow
 their intents are fresh it ignores their tracks too, so two vehicles never both swerve the
 same way at once. A vehicle whose intent goes stale is an obstacle to everyone again, and so
 is one parked at the end of its route (its goal): it will not move again, so it can give way
-to no one (a vehicle ahead in priority that ignored one drove through it, seed 22 of fleet4).
+to no one (a vehicle ahead in priority that ignored it would drive through it).
 A parked vehicle is where its estimate puts it, at rest, not at its route's last point (a
 vehicle that overshot its goal is past it).
 """
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import overload
 
 import numpy as np
@@ -37,7 +37,7 @@ import numpy as np
 from common.messages import Message, PathMsg, StateEstimate
 from common.world import ObstacleState
 from common.world.geometry import Box, FloatArray
-from services.planner.planned_path import curve_of
+from services.planner.shaping.planned_path import curve_of
 
 # samples of a broadcast path: a route polyline fine enough for rho0 at the fleet's sizes
 ROUTE_SAMPLES = 400
@@ -85,7 +85,7 @@ class IntentObstacle(ObstacleState):
         if not self._rising():
             return self.speed * t_s
         t_up = (self.cruise - self.speed) / self.ramp
-        # a plain float for one time: numpy's scalar arithmetic costs microseconds a step
+        # a plain float for one time: numpy's scalar arithmetic is far slower on one value
         up = min(t_s, t_up) if isinstance(t_s, float) else np.minimum(t_s, t_up)
         return self.speed * up + 0.5 * self.ramp * up * up + self.cruise * (t_s - up)
 
@@ -104,25 +104,7 @@ def along(o: IntentObstacle, s0: float, speed: float | None = None) -> IntentObs
     dx, dy = x_ahead - x, y_ahead - y
     n = math.hypot(dx, dy)
     vx, vy = (v * dx / n, v * dy / n) if n > 1e-9 else (0.0, 0.0)
-    return IntentObstacle(  # not dataclasses.replace: it inspects the fields on every call
-        id=o.id,
-        x=x,
-        y=y,
-        vx=vx,
-        vy=vy,
-        ax=o.ax,
-        ay=o.ay,
-        radius=o.radius,
-        moving=o.moving,
-        route_x=o.route_x,
-        route_y=o.route_y,
-        s_route=o.s_route,
-        route_box=o.route_box,
-        s0=s0,
-        speed=v,
-        cruise=o.cruise,
-        ramp=o.ramp,
-    )
+    return replace(o, x=x, y=y, vx=vx, vy=vy, s0=s0, speed=v)
 
 
 # a broadcast path as a route: polyline x, y; arc length at each point; the points' box

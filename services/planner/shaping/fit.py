@@ -8,17 +8,10 @@ is put in front of the polyline (`turn_arc`), so the polygon does not fold back 
 `Layout` maps the free parameters x = (a, b, P2 .. P_{n-3}) to control points as an affine
 map P = p_fixed + M x, which the refinement (refine.py) differentiates through.
 
-The weights stay 1 (the NURBS is a B-spline), by measurement (scripts/bench_nurbs_weights.py,
-2026-11): each plan's final curve refined further with the same budget (200 iterations), on
-its control points alone and on points and weights jointly (w in [0.2, 5]; the curve is then
-nonlinear in them), over the default field (its start and 6 varied starts) and 12 random
-circle fields. The weights lowered eq. (9)'s F (~100) by a median 0.008 beyond the points
-alone (max 0.15), moved the length by 0.16 m at most and did not lower the max curvature;
-2 of the 19 joint curves failed the dense clearance check (the weights bend the curve
-between the refinement's samples). Their cost: every evaluation rebuilds the rational basis
-(0.19 ms, more than the objective's own 0.13 ms) and needs derivatives in w; the joint
-refinement took 1.3-3.1 s CPU against 16-110 ms for the points (weights' gradient by
-differences). The evaluation code handles any positive weights.
+The weights stay 1 (the NURBS is a B-spline): refining them too barely lowered eq. (9)'s F,
+cost far more (the curve is then nonlinear in them) and bent the curve between the
+refinement's samples (docs/notes/planner-nurbs-weights-stay-one.md). The evaluation code
+handles any positive weights.
 """
 
 from __future__ import annotations
@@ -31,10 +24,10 @@ import numpy as np
 from common.config.world import AreaConfig
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField
-from services.planner.costmap import CostMap
-from services.planner.nurbs_curve import NurbsCurve, averaged_knots
 from services.planner.result import Pose2D
+from services.planner.safety.clearance import StaticField
+from services.planner.search.costmap import CostMap
+from services.planner.shaping.nurbs_curve import NurbsCurve, averaged_knots
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,7 +1,7 @@
 """Recovering a plan near an obstacle, where no curve leaves the vehicle's pose as it is.
 
-Without this, the planner answered NO_PATH at every replan and the vehicle stopped for good
-(issue 14, defect 5: a silent deadlock). Two ways out, each driven forward on arcs no
+Without a way out the planner would answer NO_PATH at every replan and the vehicle would stop
+there for good, silently. Two ways out, each driven forward on arcs no
 tighter than R_min (the vehicle can neither turn on the spot nor reverse), each followed by
 an ordinary plan (`plan`, the pipeline of plan.py, handed in) joined to it:
 - turn_then_plan: the heading is what no curve can satisfy (eq. (10) with R_min, eqs.
@@ -25,8 +25,9 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.scalar import wrap_angle
-from services.planner.clearance import StaticField
-from services.planner.escape import (
+from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField
+from services.planner.safety.escape import (
     BEYOND_M,
     DEPTH_STEP_M,
     MAX_ESCAPES,
@@ -35,7 +36,6 @@ from services.planner.escape import (
     prepend_escape,
     sweep,
 )
-from services.planner.result import PlanRequest, PlanResult
 
 Plan = Callable[[PlanRequest], PlanResult]  # the pipeline, with no further recovery
 

@@ -1,10 +1,9 @@
 """Escape: a drivable way out (R_min arcs) for a start in contact, off the area or in the margin.
 
 A plan starts at the vehicle. When that pose already touches an obstacle (eq. (12): the
-centre-to-surface distance d is <= the hull radius r), the grid has no free start cell, and
-the pipeline answered NO_PATH at every replan while the vehicle sat in contact. So the
-planner first leaves contact, then plans the rest from the free pose it reaches (plan.py),
-and the path is the two joined.
+centre-to-surface distance d is <= the hull radius r), the grid has no free start cell, so no
+search can start there. So the planner first leaves contact, then plans the rest from the
+free pose it reaches (plan.py), and the path is the two joined.
 
 The vehicle cannot turn on the spot (the plant enforces |w| <= v / R_min, eqs. (19)-(20))
 and has no reverse (v_min >= 0), so a way out leaves along the vehicle's heading: an arc of
@@ -39,9 +38,9 @@ from common.config.world import AreaConfig
 from common.scalar import wrap_angle
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField, moving_distance
-from services.planner.nurbs_curve import NurbsCurve, join
 from services.planner.result import PlanResult, Pose2D
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.shaping.nurbs_curve import NurbsCurve, join
 
 N_TURNS = 73  # straight ahead and arcs every 5 degrees to either side, up to +-180 degrees
 STEP_M = 0.05  # sampling step along each candidate

@@ -1,10 +1,11 @@
 """The planned path as the arc-length reference a controller follows (methods take s).
 
 Controllers query the path several times per step (projection, point, heading, curvature over
-a preview window). Evaluating the NURBS each time cost about a millisecond per step, so the
-path is tabulated once, on its dense arc-length table (a few centimetres apart), and queries
-interpolate linearly (as np.interp, float for float, without its per-call overhead): the
-chord error is below 0.1 mm at the curvatures the planner allows.
+a preview window), and command sequences roll them out for every entry. So the path is
+tabulated once, on its dense arc-length table (a few centimetres apart), and queries
+interpolate linearly (as np.interp, float for float, without its per-call overhead) rather
+than evaluate the NURBS: the chord error is below 0.1 mm at the curvatures the planner allows
+(docs/notes/planner-arc-length-table.md).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from bisect import bisect_left, bisect_right
 
 import numpy as np
 
-from services.planner.planned_path import PlannedPath
+from services.planner.shaping.planned_path import PlannedPath
 
 
 class PathArcReference:
@@ -70,9 +71,8 @@ class PathArcReference:
             lo = bisect_left(sl, s_hint - self.BEHIND_M)
             hi = bisect_right(sl, s_hint + self.AHEAD_M)
             lo, hi = min(lo, len(sl) - 1), max(hi, lo + 1)
-        # (x_i - x)^2 + (y_i - y)^2 in place: the same floats as the plain expression, at
-        # less than half its time (no temporaries; the rollout of a command sequence asks
-        # ~100 projections a control step)
+        # (x_i - x)^2 + (y_i - y)^2 in place: the same floats as the plain expression, without
+        # its temporaries (the rollout of a command sequence projects at every entry)
         d2 = self._x[lo:hi] - x
         d2 *= d2
         dy = self._y[lo:hi] - y
@@ -98,7 +98,7 @@ class PathArcReference:
 
     # the segment j with s_j <= s < s_{j+1} is bisect_right(s) - 1: -1 before the table,
     # len - 1 at or beyond its end; written out in each query (a call less: these are asked
-    # ~15 times a command)
+    # several times for every command entry)
     def point_at_s(self, s: float) -> tuple[float, float]:
         sl = self._sl
         j = bisect_right(sl, s) - 1
@@ -140,8 +140,8 @@ def _range_max_table(values: np.ndarray) -> list[list[float]]:
 
 def _lerp(xs: list[float], ys: list[float], j: int, x: float) -> float:
     """np.interp(x, xs, ys) on segment j (bisect_right(xs, x) - 1), the same floats without its
-    per-call overhead (a controller calls it ~15 times a command, ~100 commands a step with
-    command sequences): slope (y1 - y0) / (x1 - x0) times (x - x0) plus y0, ends held."""
+    per-call overhead (a controller calls it several times for every command entry): slope
+    (y1 - y0) / (x1 - x0) times (x - x0) plus y0, ends held."""
     if j < 0:
         return ys[0]
     if j >= len(xs) - 1:

@@ -29,9 +29,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from common.world.geometry import FloatArray
-from services.planner.fit import FitProblem, Layout
-from services.planner.nurbs_curve import NurbsCurve, rational_basis
-from services.planner.turning import turn_cost
+from services.planner.shaping.fit import FitProblem, Layout
+from services.planner.shaping.nurbs_curve import NurbsCurve, rational_basis
+from services.planner.shaping.turning import turn_cost
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)
 _BAND_K = 0.1  # curvature hinges within this fraction of the target do too
@@ -259,8 +259,8 @@ def refine(
     lay = obj.lay
     # the area's edge gets the allowance obstacles get (the hull tracked off its path by the
     # margin stays in; eq. (10) itself asks only the hull inside, as the final check does):
-    # on a path grazing the edge, fleet4's auv1 replanned from a pose (its estimate predicted
-    # ahead) just outside it, from where no replan could start
+    # on a path grazing the edge, a pose predicted ahead can fall just outside the area,
+    # from where no replan can start
     a = prob.area
     room = 0.5 * min(a.x_max_m - a.x_min_m, a.y_max_m - a.y_min_m)
     edge_m = min(prob.vehicle_radius_m + wts.clear_margin_m, max(prob.vehicle_radius_m, room))

@@ -1,10 +1,10 @@
-"""Stepping aside and holding first: a vehicle keeps out of a moving obstacle's way and out
-of the safety margin while no plan, or only a recovery into the margin, is found.
+"""Stepping aside and holding first: out of a moving obstacle's way and of the safety margin.
 
-A plan that reaches no goal (NO_PATH) stops the vehicle where it is (core.py `follow`). That
-is safe among static obstacles, but a moving one's track may run through where it stops:
-fleet4 seed 57 (inproc), auv1 found no plan past obstacle 11's weave from t = 58.75 s,
-braked on its heading (the speed loop's lag: 4.6 m in 4.5 s), and the weave ran into it.
+While no plan, or only a recovery into the margin, is found, the vehicle keeps out of both.
+
+A plan that reaches no goal (NO_PATH) stops the vehicle where it is (CommandLink.follow). That
+is safe among static obstacles, but a moving one's track may run through where it stops: the
+vehicle brakes on its heading over metres (the speed loop's lag), and the obstacle runs into it.
 
 So when the vehicle, held (its stop flown on the response model: response.py), would come
 within rho0 of a moving obstacle (eq. (12)-(13), obstacles where they will be, tracked ones
@@ -25,17 +25,14 @@ until its end).
 It steps aside too when holding is clear of every obstacle but would stop the vehicle where
 no such circle keeps rho0 (a wall ahead), while where it is one does (`trapped`: from that
 stop only a recovery into the margin turns it about): then the ways that stop with that
-room come first, and one is taken if its flight keeps rho0. Fleet4 seed 82 (inproc): auv3,
-NO_PATH for 4 s heading at polygon 4, braked to 2 m off it and could then only turn along it
-0.48 m from it.
+room come first, and one is taken if its flight keeps rho0.
 
 And a plan whose recovery turns into the margin (recover.py, `margin_entered_m`) waits while
 the vehicle still moves at HOLD_FIRST_FACTOR of cruise speed or more and holding keeps rho0
 with that room: the planner answers NO_PATH ("holds first"), the vehicle brakes, and the
 next replans try again from nearer rest, where the moving obstacles that blocked a way
-keeping the margin may have passed (fleet4 seed 82: auv3 turned into the margin of obstacle
-3 at t = 24.35 s, 0.25 m deep, where 1.1 s later a recovery keeping it was found). Slower
-than that, holding no longer changes where the vehicle is, and the recovery is taken.
+keeping the margin may have passed. Slower than that, holding no longer changes where the
+vehicle is, and the recovery is taken.
 Pure: the same floats in every runtime.
 """
 
@@ -48,8 +45,11 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import FloatArray
-from services.planner.clearance import StaticField, moving_distance
-from services.planner.escape import (
+from services.planner.command.response import Pose
+from services.planner.plan import plan_path
+from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.clearance import StaticField, moving_distance
+from services.planner.safety.escape import (
     DEPTH_STEP_M,
     N_TURNS,
     Escape,
@@ -57,11 +57,8 @@ from services.planner.escape import (
     sweep,
     to_edge,
 )
-from services.planner.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
-from services.planner.plan import plan_path
-from services.planner.recover import ARC_RADIUS_FACTOR
-from services.planner.response import Pose
-from services.planner.result import PlanRequest, PlanResult
+from services.planner.safety.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
+from services.planner.safety.recover import ARC_RADIUS_FACTOR
 
 EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
 LENGTH_STEP_M = 1.0  # the ways aside end every this far along

@@ -6,7 +6,7 @@ time tau the vehicle applies, by its watchdog's rules, the newest command (by st
 received: the entry of that command's schedule for tau, HOLD after its last entry
 (common/control/schedule.py, the vehicle's own code for it), IDLE (0, 0) before any. So the
 state at the time a new command takes effect is predicted from the estimate with the commands
-still in flight, not with a constant twist (issue 16's forward prediction).
+still in flight, not with a constant twist.
 
 Pruning: once a command is expected to have arrived by the newest estimate's stamp, every
 older one is superseded for all later times, so it is dropped. What stays is the commands in
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from common.config.vehicle import WatchdogConfig
 from common.control import Schedule
-from services.planner.response import Pose, ResponseModel
+from services.planner.command.response import Pose, ResponseModel
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

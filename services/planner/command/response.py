@@ -12,12 +12,12 @@ service never imports another), and needs less: the state is the pose and twist
 with |w| <= v / R_min at every instant (the plant enforces it: eq. (11)'s yaw-rate bound with
 the R_min of eqs. (19)-(20)) and v within eq. (11). tau_v = m_eff / k_p is the speed loop's
 time constant before its limits (common/config/vehicle.py: ~1 s), tau_w the yaw loop's.
-Measured against the plant (scripts/bench_sequence.py --model): over the 1-2 s a command
-spends in flight at 1 s of delay the lags matter (a speed step takes ~2 s), so they are in.
+Over the seconds a command spends in flight the lags matter (a speed step takes seconds), so
+they are in (docs/notes/planner-response-model-lags.md).
 
 Each step of at most MAX_STEP_S moves the twist by one Euler step of its (clamped) rate (a
 lag shorter than the step reaches its goal within it) and the pose along the exact arc of
-the step's mean twist: a few microseconds a step, and the same floats in every runtime.
+the step's mean twist: cheap, and the same floats in every runtime.
 """
 
 from __future__ import annotations

@@ -9,11 +9,11 @@ from typing import Literal
 import numpy as np
 
 from common.world.geometry import FloatArray
-from services.planner.clearance import moving_distance
-from services.planner.fit import FitProblem
-from services.planner.nurbs_curve import NurbsCurve, curvature
-from services.planner.refine import gauss_legendre
-from services.planner.turning import turn_penalty
+from services.planner.safety.clearance import moving_distance
+from services.planner.shaping.fit import FitProblem
+from services.planner.shaping.nurbs_curve import NurbsCurve, curvature
+from services.planner.shaping.refine import gauss_legendre
+from services.planner.shaping.turning import turn_penalty
 
 FailKind = Literal["", "curvature", "static", "moving", "area"]
 
@@ -89,18 +89,11 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         )
         failed = "curvature"
     elif np.any(d_static < need):
-        j = int(np.argmin(d_static - need))
-        reason = (
-            f"static clearance {d_static[j] - r:.2f} m < required {need[j] - r:.2f} m "
-            f"at ({c[j, 0]:.1f}, {c[j, 1]:.1f})"
-        )
+        _, reason = _breach("static", d_static, need, c, r)
         failed = "static"
     elif np.any(d_moving < need):
-        j = int(np.argmin(d_moving - need))
-        reason = (
-            f"moving-obstacle clearance {d_moving[j] - r:.2f} m < required {need[j] - r:.2f} m "
-            f"at ({c[j, 0]:.1f}, {c[j, 1]:.1f}), t = {s[j] / prob.v_ref_mps:.1f} s"
-        )
+        j, reason = _breach("moving-obstacle", d_moving, need, c, r)
+        reason += f", t = {s[j] / prob.v_ref_mps:.1f} s"
         failed = "moving"
     elif not np.all(inside):
         reason = "curve leaves the area"
@@ -115,4 +108,14 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         min_static_clearance_m=min_static,
         min_moving_clearance_m=min_moving,
         turn_penalty=f_r,
+    )
+
+
+def _breach(what: str, d: FloatArray, need: FloatArray, c: FloatArray, r: float) -> tuple[int, str]:
+    """The sample of c (m, 2) that falls furthest short of its required centre-to-surface
+    clearance `need` (d: the distances there), and the reason, as hull clearances (r)."""
+    j = int(np.argmin(d - need))
+    return j, (
+        f"{what} clearance {d[j] - r:.2f} m < required {need[j] - r:.2f} m "
+        f"at ({c[j, 0]:.1f}, {c[j, 1]:.1f})"
     )

@@ -1,6 +1,5 @@
 """The planner's end of the networked loop: delays measured, the state predicted, commands sent.
 
-Issue 16, the planner side:
 - delays measured, not assumed: the uplink delay is the median age of the estimates as they
   arrive (common/control/delay.py); the downlink delay is the vehicle's own measurement on
   commands (VehicleStatus: median + jitter_margin_k x jitter), the network's configured delay
@@ -29,12 +28,12 @@ from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
+from services.planner.command.response import Pose, ResponseModel
+from services.planner.command.sequence import Prepared, command_sequence
+from services.planner.command.timeline import CommandTimeline
 from services.planner.controllers.arc_reference import ArcLengthReference
 from services.planner.controllers.base import Controller, predict_pose
 from services.planner.controllers.speed import stop_of
-from services.planner.response import Pose, ResponseModel
-from services.planner.sequence import Prepared, command_sequence
-from services.planner.timeline import CommandTimeline
 
 # the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
 YAW_SETTLE_TAUS = 3.0
@@ -127,9 +126,9 @@ class CommandLink:
         # the estimator carried its newest fused fix to the stamp at constant twist: back along
         # that arc to the fix, then forward with the commands the vehicle was applying since
         x, y, th, v, w = predict_pose(pose, -est.predicted_s)
-        # the yaw rate there: the filter's is noisy (~0.1 rad/s rms, a differenced compass),
-        # while the yaw loop follows the commands: run it over the commands of the last
-        # YAW_SETTLE_TAUS time constants, from the filter's rate (left with e^-3 of its error)
+        # the yaw rate there: the filter's is noisy (a differenced compass), so the yaw loop is
+        # run over the commands of the last YAW_SETTLE_TAUS time constants from it (left with
+        # e^-3 of its error; docs/notes/planner-yaw-rate-from-commands.md)
         w = self.timeline.predict(pose, t_b - settle, t_b, self.model)[4]
         now = self.timeline.predict((x, y, th, v, w), t_b, t, self.model)
         effect_t = t + self.downlink_s
@@ -216,6 +215,22 @@ class CommandLink:
             last=last,
             scratch=scratch,
         )
+
+    def follow(
+        self,
+        t: float,
+        controller: Controller,
+        ref: ArcLengthReference | None,
+        est: StateEstimate,
+        pred: Prediction,
+    ) -> tuple[list[float], list[float]]:
+        """The controller's commands (sequence) on `ref`, or a stop without a feasible path
+        (rather than drive into something). Every path leaves along the vehicle's heading, a
+        way out of contact included (safety/recover.py: arcs within R_min), so the controller
+        follows it from the start."""
+        if ref is None:
+            return self.stop()
+        return self.control(t, controller, ref, est, pred)
 
     def stop(self) -> tuple[list[float], list[float]]:
         """Commands that stop the vehicle (and keep it stopped over the horizon)."""

@@ -1,0 +1,1 @@
+"""The networked command side: response model, commands in flight, sequences, the link."""
