@@ -168,37 +168,44 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
 FLEET = ("auv1", "auv2")
 
 
-def test_a_fleet_launch_puts_each_vehicle_on_its_own_host(tmp_path: Path) -> None:
-    """The head-on pair (configs/fleet_headon.toml) across three namespaces: the router and the
-    clock on one, each vehicle's four services on its own, joined to the router's by a veth
-    pair. Every vehicle-to-vehicle message (sonar truth, intents) crosses two links; both
-    vehicles reach their goals, apart, and every service leaves by itself at the end."""
+def test_a_fleet_runs_one_router_per_vehicle_host(tmp_path: Path) -> None:
+    """The head-on pair (configs/fleet_headon.toml) across three namespaces, one router per
+    host (docs/deploy.md): the launch's router and the clock on one; on each vehicle's host a
+    `tidelink router` joined to the launch's, and the vehicle's four services on it. A
+    vehicle's own loop (nav, state, cmd, ...) stays on its host; what crosses its link is what
+    the others need: the clock's ticks, intents and hulls, and the run's record going up."""
     out = tmp_path / "run"
     scenario = str(REPO / "configs" / "fleet_headon.toml")
     with lab_or_skip() as lab:
-        router = lab.namespace("r")
+        top = lab.namespace("r")
         links = {
-            v: lab.veth(router, lab.namespace(v), f"10.202.{i}", f"f{i}")
+            v: lab.veth(top, lab.namespace(v), f"10.202.{i}", f"f{i}")
             for i, v in enumerate(FLEET, 1)
         }
         try:
             with ExitStack() as stack:
                 launcher = stack.enter_context(
-                    _clock_only(scenario, router, out, "4", "--no-plot", "--insecure")
+                    _clock_only(scenario, top, out, "4", "--no-plot", "--insecure")
                 )
                 launcher.wait_for(r"waiting for .* to join", WAIT_S)
+                local = f"tcp/127.0.0.1:{PORT}"  # each host's own router, on its loopback
+                routers = {
+                    v: stack.enter_context(
+                        Tidelink(
+                            *("router", "--listen", local),
+                            *("--connect", f"tcp/{links[v].ip_a}:{PORT}"),
+                            netns=links[v].ns_b,
+                        )
+                    )
+                    for v in FLEET
+                }
+                for r in routers.values():
+                    r.wait_for(r"zenoh router listening on .* joining", WAIT_S, stdout=True)
                 services = {
                     f"{v}.{s}": stack.enter_context(
                         Tidelink(
-                            "service",
-                            s,
-                            scenario,
-                            "--vehicle",
-                            v,
-                            "--connect",
-                            f"tcp/{links[v].ip_a}:{PORT}",
-                            "--time-scale",
-                            "4",
+                            *("service", s, scenario, "--vehicle", v, "--connect", local),
+                            *("--time-scale", "4"),
                             netns=links[v].ns_b,
                         )
                     )
@@ -211,11 +218,15 @@ def test_a_fleet_launch_puts_each_vehicle_on_its_own_host(tmp_path: Path) -> Non
                     assert proc.wait(WAIT_S) == 0, f"{name}:\n{proc.stderr}"
         finally:
             kill_recorded(out / "pids.json")
-        sent = {v: link_bytes(links[v].ns_b, links[v].dev_b)[0] for v in FLEET}
+        # (tx, rx) at each vehicle host's end of its link
+        used = {v: link_bytes(links[v].ns_b, links[v].dev_b) for v in FLEET}
     m = json.loads((out / "metrics.json").read_text())
     summary = {k: v for k, v in m.items() if k not in ("link_stats", "vehicles")}
     assert m["reached_goal"] is True and m["vehicles_reached"] == 2, summary
     assert m["vehicle_collisions"] == 0 and m["min_separation_m"] > 0.0, summary
     assert m["intent_fraction"] > 0.5, summary  # the intents crossed the hosts
-    for v in FLEET:  # each vehicle's traffic went over its own host's link
-        assert sent[v] > 10_000, (v, sent)
+    for v, (sent, got) in used.items():
+        # up: every message once, for the run's record; down: only the ticks and the other
+        # vehicle's intents and hulls (through one router for all, each of the vehicle's
+        # own messages would come back down too: as much down as up)
+        assert sent > 10_000 and got < 0.5 * sent, (v, used)

@@ -303,6 +303,7 @@ def cmd_router(a: argparse.Namespace) -> int:
     cfg = BusConfig(
         mode="router",
         listen=tuple(a.listen),
+        connect=tuple(a.connect),
         security="mtls" if a.certs else "none",
         certs=a.certs or "",
     )
@@ -311,7 +312,8 @@ def cmd_router(a: argparse.Namespace) -> int:
     with bus:
         try:
             where = ", ".join(cfg.endpoint(e) for e in a.listen)
-            print(f"zenoh router listening on {where}; Ctrl-C to stop", flush=True)
+            joined = "".join(f", joining {cfg.endpoint(e)}" for e in a.connect)
+            print(f"zenoh router listening on {where}{joined}; Ctrl-C to stop", flush=True)
             wait_for_stop()  # the router works on Zenoh's threads; we only wait for a signal
         except Shutdown:
             # closing a router while its clients drop away can take Zenoh long (seen: > 10 s
@@ -369,6 +371,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         required=True,
         metavar="ENDPOINT",
         help="e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
+    z.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="another router to join (repeatable; retried until it answers): one router per "
+        "host of a fleet, each joined to the launch's",
     )
     certs_args(z, identity="router")
     z.add_argument(
