@@ -3,9 +3,13 @@ hook that groups tests on pytest-xdist workers (exclusive ones; a module fixture
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
+from helpers.runs import CACHE_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -70,6 +74,14 @@ def other_certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     directory = tmp_path_factory.mktemp("other-certs")
     create_certs(directory, DEFAULT_IDENTITIES)
     return directory
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The session's cache of inproc reference runs (helpers/runs.py), made by the controlling
+    process before pytest-xdist starts its workers, which inherit the variable."""
+    if not hasattr(config, "workerinput") and CACHE_ENV not in os.environ:
+        os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="tidelink-test-runs-")
+        config.add_cleanup(lambda: shutil.rmtree(os.environ.pop(CACHE_ENV), ignore_errors=True))
 
 
 # first: pytest-xdist reads the groups in its own hook of the same name

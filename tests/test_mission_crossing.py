@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.runs import inproc
 
 from common.config.scenario import Scenario, load_scenario
 from common.messages import ObstacleTracks, PathMsg, TruthState
@@ -51,7 +52,7 @@ def test_each_obstacle_crosses_the_way_when_the_vehicle_gets_there() -> None:
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
     s, _ = load_scenario(CROSSING, ['controller.kind="nurbs"'], seed=seed)
-    r = run_inproc(s)
+    r = inproc(s)
     assert r.reason == "goal" and r.metrics["success"] is True
     # never closer than rho0, hull surface to obstacle surface, against the true obstacles
     assert _clearance(s, r.record).min() >= s.planner.rho0_m
@@ -72,7 +73,7 @@ def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
 @pytest.mark.slow
 def test_crossing_lockstep_equals_inproc(tmp_path: Path) -> None:
     s, raw = load_scenario(CROSSING)
-    ref = run_inproc(s)
+    ref = inproc(s)  # seed 1's run above
     got = run_lockstep(s, raw, tmp_path / "logs")
     assert got.metrics == ref.metrics
     assert got.reason == ref.reason == "goal"

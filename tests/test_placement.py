@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy
 from helpers.launch_proc import REPO, tidelink_check
+from helpers.runs import inproc
 
 from common.config.errors import ConfigError
 from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
@@ -59,6 +60,15 @@ TOPSIDE_1KM = (
 )
 
 
+# ... over a 1 kbit/s modem, static obstacles only, 100 s (the goal is ~75 s away)
+ONE_KBIT = (
+    *TOPSIDE_1KM,
+    "world.moving=[]",
+    "placement.acoustic.bit_rate_bps=1000.0",
+    "run.max_time_s=100",
+)
+
+
 def _load(*sets: str) -> Scenario:
     s, _ = load_scenario(DEFAULT, [*sets, 'runtime.kind="inproc"'], check=check_scenario)
     return s
@@ -67,7 +77,7 @@ def _load(*sets: str) -> Scenario:
 def test_the_default_mission_is_unchanged_without_a_placement() -> None:
     s, _ = load_scenario(DEFAULT, ['runtime.kind="inproc"'])
     assert not s.placement.declared and not s.vehicles
-    sha = run_inproc(s).metrics["trajectory_sha256"]
+    sha = inproc(s).metrics["trajectory_sha256"]
     pinned = DEFAULT_SHA256.get(_float_code())
     if pinned is not None:  # the floating-point code it was measured with: the very trajectory
         assert sha == pinned
@@ -139,8 +149,8 @@ def test_topside_commands_over_1_kbit_s_at_1_km_degrade_the_mission() -> None:
     # the planner (with the controller) on a ship 1 km away: its ~0.6 kB command sequences
     # take ~5 s each at 1 kbit/s, the modem queue overflows and the vehicle runs on stale
     # commands or holds: measurably worse than the same mission on a generic link
-    s = _load(*TOPSIDE_1KM, "placement.acoustic.bit_rate_bps=1000.0")
-    m = run_metrics(run_inproc(s), s, wall_s=None)
+    s = _load(*ONE_KBIT)
+    m = run_metrics(inproc(s), s, wall_s=None)
     cmd = m["link_stats"]["planner/cmd->vehicle"]
     assert cmd["dropped_queue"] > 0 and cmd["bytes_per_message"] > 100
     assert m["bytes_per_message"]["planner/cmd"] == cmd["bytes_per_message"]
@@ -224,11 +234,10 @@ def test_over_1_kbit_s_at_1_km_paths_get_through_where_commands_do_not() -> None
     # static obstacles only, the planner on a ship 1 km away: with the controller topside
     # its command sequences (~0.6 kB, ~5 s a frame) cannot keep the vehicle going; with the
     # tracker onboard one ~1.5 kB path (12 s) is all the vehicle needs to reach the goal
-    base = (*TOPSIDE_1KM, "world.moving=[]", "placement.acoustic.bit_rate_bps=1000.0")
-    topside = _load(*base)
-    onboard = _load(*base, 'controller.placement="onboard"')
-    mt = run_metrics(run_inproc(topside), topside, wall_s=None)
-    mo = run_metrics(run_inproc(onboard), onboard, wall_s=None)
+    topside = _load(*ONE_KBIT)
+    onboard = _load(*ONE_KBIT, 'controller.placement="onboard"')
+    mt = run_metrics(inproc(topside), topside, wall_s=None)
+    mo = run_metrics(inproc(onboard), onboard, wall_s=None)
     assert mt["reached_goal"] is False and mt["hold_time_s"] + mt["failsafe_time_s"] > 30.0
     assert mo["success"] is True and mo["hold_time_s"] == 0.0
     assert mo["link_stats"]["planner/path->tracker"]["delivered"] >= 1
