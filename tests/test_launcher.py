@@ -50,7 +50,7 @@ crash_at_s = 1.0
 
 
 def _scenario(
-    tmp_path: Path, *, max_time: float = 8.0, scale: float = 2.0, crash: str = ""
+    tmp_path: Path, *, max_time: float = 8.0, scale: float = 4.0, crash: str = ""
 ) -> Path:
     p = tmp_path / "scenario.toml"
     p.write_text(TESTLOOP.format(max_time=max_time, scale=scale, crash=crash))
@@ -261,7 +261,7 @@ def test_a_frozen_service_raises_an_alarm_and_counts_in_the_metrics(
     Frozen once it runs: a service frozen before its first Tick has no clock yet, and on
     waking joins from the Ticks queued meanwhile (its first stamps can trail the launcher's
     by the seconds it was frozen), which is a late start, not this case."""
-    scenario = _scenario(tmp_path, max_time=20.0, scale=2.0)
+    scenario = _scenario(tmp_path, max_time=20.0)
     with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
         t.wait_for(r"mission clock started", WAIT_S)
         mark = 0

@@ -192,6 +192,25 @@ class RealtimeDriver:
         self.clock = clock = MissionClock(pub, scale)
         clock.start()
         self.observer.event(f"mission clock started (time scale x{scale:g})")
+        try:
+            reason = self._run_clock(inbox, clock, max_us)
+        except ServiceFailed:
+            # the run is over: the others leave at once, not when the clock's token has gone
+            self.sup.stopping = True
+            clock.tell(stop=True)
+            raise
+        self.ending = True
+        self.sup.stopping = True  # exits are expected from now on
+        t_end_us = clock.tell(stop=True)
+        self.observer.progress(t_end_us / 1e6)
+        self.observer.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
+        self._collect_final(inbox)
+        lost = "; ".join(f"{n} lost: {why}" for n, why in self.lost.items())
+        metrics = self.mission.metrics(self.record)
+        return RunResult(reason, t_end_us / 1e6, 0, self.record, metrics, failure=lost)
+
+    def _run_clock(self, inbox: Inbox, clock: MissionClock, max_us: int) -> str:
+        """Take the run's messages until it ends; why it ended."""
         reason = "max_time"
         next_tell = time.monotonic() + RETELL_S
         next_check = 0.0
@@ -224,15 +243,7 @@ class RealtimeDriver:
             if time.monotonic() >= next_tell:
                 clock.tell()
                 next_tell = time.monotonic() + RETELL_S
-        self.ending = True
-        self.sup.stopping = True  # exits are expected from now on
-        t_end_us = clock.tell(stop=True)
-        self.observer.progress(t_end_us / 1e6)
-        self.observer.event(f"mission ended at t={t_end_us / 1e6:.2f} s: {reason}")
-        self._collect_final(inbox)
-        lost = "; ".join(f"{n} lost: {why}" for n, why in self.lost.items())
-        metrics = self.mission.metrics(self.record)
-        return RunResult(reason, t_end_us / 1e6, 0, self.record, metrics, failure=lost)
+        return reason
 
     def _collect_final(self, inbox: Inbox) -> None:
         """Take the final statistics each service sends as it stops: a service is done
