@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
 import logging
+import os
+import resource
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +24,8 @@ from common.runtime.model.mission import Mission, load_mission
 from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
 log = logging.getLogger("tidelink.service")
+# a directory: every service process writes its cProfile there as NAME.prof (developers)
+PROFILE_ENV = "TIDELINK_PROFILE"
 
 
 @dataclass(frozen=True)
@@ -136,7 +141,19 @@ def service_main(make: Callable[[ServiceSetup], Runnable], doc: str, argv: list[
     install_shutdown_handlers()
     raw = json.loads(a.scenario_json.read_text())
     try:
-        return make(ServiceSetup.of(a.name, raw, a.connect)).run()
+        service = make(ServiceSetup.of(a.name, raw, a.connect))
+        profile_dir = os.environ.get(PROFILE_ENV)
+        if not profile_dir:
+            return service.run()
+        with cProfile.Profile() as prof:  # a developer's view of where a service's time goes
+            try:
+                return service.run()
+            finally:
+                prof.dump_stats(Path(profile_dir) / f"{a.name}.prof")
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0
+    finally:
+        # what this process cost the machine: the measure of how many cores a run needs
+        use = resource.getrusage(resource.RUSAGE_SELF)
+        log.info("%s: used %.2f s of CPU", a.name, use.ru_utime + use.ru_stime)
