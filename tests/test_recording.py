@@ -229,7 +229,7 @@ TESTLOOP = """
 mission = "testloop"
 max_time_s = 16.0
 [runtime]
-time_scale = 2.0
+time_scale = 4.0
 """
 
 
