@@ -72,7 +72,7 @@ def test_a_newer_sequence_replaces_an_older_one_and_a_late_older_one_is_ignored(
     assert wd.offer(1.4, 1.0, 1.0, 0.0, step_s=0.5, v_next=(1.1, 1.2), w_next=(0.1, 0.2)) == (
         "out_of_order"
     )
-    assert wd.schedule is newer and wd.rejected_out_of_order == 1
+    assert wd.schedule is newer and wd.rejections["out_of_order"] == 1
     # a duplicate of the one in force is idempotent: the same schedule, value for value
     assert wd.offer(1.45, 1.25, 0.5, 0.0, step_s=0.5, v_next=(0.6,), w_next=(-0.1,)) == "applied"
     assert wd.schedule == newer

@@ -37,7 +37,8 @@ def test_rejects_stale_and_reordered_commands() -> None:
     assert wd.offer(2.0, 2.0, 1.2, 0.0) == "applied"
     # a duplicate (same stamp, arriving while still fresh) is idempotent
     assert wd.offer(2.5, 2.0, 1.2, 0.0) == "applied"
-    assert (wd.rejected_out_of_order, wd.rejected_stale, wd.rejected, wd.applied) == (1, 1, 2, 3)
+    r = wd.rejections
+    assert (r["out_of_order"], r["stale"], wd.rejected, wd.applied) == (1, 1, 2, 3)
     a = wd.command(3.1)
     assert (a.mode, a.v, a.w) == ("RUN", 1.2, 0.0)
     assert math.isclose(a.age_s, 1.1)
@@ -54,7 +55,7 @@ def test_clamps_out_of_range_and_rejects_non_finite() -> None:
     assert wd.clamped == 2  # in range: not counted
     assert wd.offer(0.5, 0.5, math.nan, 0.0) == "non_finite"
     assert wd.offer(0.5, 0.5, 1.0, math.inf) == "non_finite"
-    assert wd.rejected_non_finite == 2 and wd.command(0.6).v == 1.0
+    assert wd.rejections["non_finite"] == 2 and wd.command(0.6).v == 1.0
 
 
 def test_hold_ramp_failsafe_and_recovery_times() -> None:

@@ -77,23 +77,17 @@ class Watchdog:
         self.delay = DelayMeter(cfg.delay_window)
         self.applied = 0
         self.clamped = 0
-        self.rejected_stale = 0
-        self.rejected_out_of_order = 0
-        self.rejected_non_finite = 0
-        self.rejected_wrong_source = 0
-        self.rejected_future = 0
-        self.rejected_malformed = 0
-        self.rejected_too_long = 0
+        self._rejected: dict[str, int] = dict.fromkeys(REJECTIONS, 0)
 
     @property
     def rejected(self) -> int:
         """All rejected commands, whatever the reason."""
-        return sum(self.rejections.values())
+        return sum(self._rejected.values())
 
     @property
     def rejections(self) -> dict[str, int]:
-        """Rejected commands by reason (every reason, zeros included)."""
-        return {r: getattr(self, f"rejected_{r}") for r in REJECTIONS}
+        """Rejected commands by reason (every reason, zeros included; a copy)."""
+        return dict(self._rejected)
 
     def offer(
         self,
@@ -112,7 +106,7 @@ class Watchdog:
         rejected (the verdict says why)."""
         verdict = self._judge(t_now, stamp, v, w, source, step_s, v_next, w_next)
         if verdict != "applied":
-            setattr(self, f"rejected_{verdict}", getattr(self, f"rejected_{verdict}") + 1)
+            self._rejected[verdict] += 1
             return verdict
         # eq. (11): clamp every entry to the bounds, and count that we had to
         vs = tuple(min(max(x, self._v_bounds[0]), self._v_bounds[1]) for x in (v, *v_next))
