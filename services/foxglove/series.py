@@ -36,6 +36,17 @@ LINK_FIELDS: dict[str, dict[str, Any]] = {
 }
 
 
+# a vehicle state (truth or estimate) at its stamp t: pose and velocity
+MOTION: dict[str, Any] = {
+    "t": NUM,
+    "x_m": NUM,
+    "y_m": NUM,
+    "theta_rad": NUM,
+    "v_mps": NUM,
+    "w_radps": NUM,
+}
+
+
 @dataclass(frozen=True)
 class JsonSeries:
     """One JSON topic: its name, its schema's title and fields (optional ones may be absent)."""
@@ -97,12 +108,7 @@ TRUTH = _series(
     "/plot/truth",
     "tidelink.plot.Truth",
     ("clearance_m",),  # absent in a world without obstacles (+inf)
-    t=NUM,
-    x_m=NUM,
-    y_m=NUM,
-    theta_rad=NUM,
-    v_mps=NUM,
-    w_radps=NUM,
+    **MOTION,
     distance_to_goal_m=NUM,
     clearance_m=NUM,
     collided=BOOL,
@@ -110,12 +116,7 @@ TRUTH = _series(
 ESTIMATE = _series(
     "/plot/estimate",
     "tidelink.plot.Estimate",
-    t=NUM,
-    x_m=NUM,
-    y_m=NUM,
-    theta_rad=NUM,
-    v_mps=NUM,
-    w_radps=NUM,
+    **MOTION,
     std_x_m=NUM,
     std_y_m=NUM,
     std_theta_rad=NUM,

@@ -182,13 +182,8 @@ class FoxgloveView:
     # -- the vehicle -------------------------------------------------------------------------
     def _truth_state(self, service: str, m: TruthState) -> list[ViewMessage]:
         t, g = m.stamp, self.scenario.world.goal
-        values: dict[str, Any] = {
-            "t": t,
-            "x_m": m.x,
-            "y_m": m.y,
-            "theta_rad": m.theta,
-            "v_mps": m.v,
-            "w_radps": m.w,
+        values = {
+            **_motion(m),
             "distance_to_goal_m": math.hypot(m.x - g.x_m, m.y - g.y_m),
             "collided": m.collided,
         }
@@ -209,12 +204,7 @@ class FoxgloveView:
         t = m.stamp
         cov = m.covariance  # 5x5 row-major: x, y, theta, v, w
         values = {
-            "t": t,
-            "x_m": m.x,
-            "y_m": m.y,
-            "theta_rad": m.theta,
-            "v_mps": m.v,
-            "w_radps": m.w,
+            **_motion(m),
             "std_x_m": math.sqrt(max(0.0, cov[0])),
             "std_y_m": math.sqrt(max(0.0, cov[6])),
             "std_theta_rad": math.sqrt(max(0.0, cov[12])),
@@ -369,6 +359,18 @@ def _replace_all(topic: str, t: float, entities: list[SceneEntity]) -> ViewMessa
     """A SceneUpdate that clears its topic and draws `entities`: complete in itself."""
     clear = SceneEntityDeletion(timestamp=stamp(t), type=SceneEntityDeletionType.All)
     return _proto(topic, SceneUpdate(deletions=[clear], entities=entities))
+
+
+def _motion(m: TruthState | StateEstimate) -> dict[str, Any]:
+    """The series.MOTION fields of a truth or an estimate."""
+    return {
+        "t": m.stamp,
+        "x_m": m.x,
+        "y_m": m.y,
+        "theta_rad": m.theta,
+        "v_mps": m.v,
+        "w_radps": m.w,
+    }
 
 
 def _pose(t: float, x: float, y: float, theta: float) -> PoseInFrame:
