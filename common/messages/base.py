@@ -33,6 +33,13 @@ def check_range(name: str, value: float, lo: float | None = None, hi: float | No
         raise WireError(f"{name}: {value!r} is out of range (must be <= {hi})")
 
 
+def check_non_negative(rec: Any, prefix: str, *names: str) -> None:
+    """Reject any of the named fields of `rec` below 0 (named `prefix + name`)."""
+    for name in names:
+        value = getattr(rec, name)
+        check_range(prefix + name, value, 0.0 if isinstance(value, float) else 0)
+
+
 def _compile_common_test(cls: type) -> Callable[[Any], bool]:
     """A function telling whether a `cls` passes the checks every record shares: each float
     (and float-tuple) field finite, and a message's seq in [0, 2**63).

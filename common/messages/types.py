@@ -8,7 +8,13 @@ from typing import Annotated, Literal
 
 import msgspec
 
-from common.messages.base import Message, WireError, WireRecord, check_range
+from common.messages.base import (
+    Message,
+    WireError,
+    WireRecord,
+    check_non_negative,
+    check_range,
+)
 
 VehicleMode = Literal["IDLE", "RUN", "HOLD", "FAILSAFE", "DONE"]
 PathStatus = Literal["OK", "NO_PATH"]
@@ -36,8 +42,7 @@ class NavFix(Message, frozen=True, kw_only=True):
     def validate(self) -> None:
         if self.std_xy >= 0.0 and self.std_heading >= 0.0 and self.std_speed >= 0.0:
             return  # the common case, without a call per field
-        for name in ("std_xy", "std_heading", "std_speed"):
-            check_range(name, getattr(self, name), 0.0)
+        check_non_negative(self, "", "std_xy", "std_heading", "std_speed")
 
 
 class Detection(WireRecord, frozen=True, kw_only=True):
@@ -51,10 +56,7 @@ class Detection(WireRecord, frozen=True, kw_only=True):
     std_radius: float
 
     def validate(self) -> None:
-        check_range("detection.id", self.id, 0)
-        check_range("detection.radius", self.radius, 0.0)
-        check_range("detection.std_xy", self.std_xy, 0.0)
-        check_range("detection.std_radius", self.std_radius, 0.0)
+        check_non_negative(self, "detection.", "id", "radius", "std_xy", "std_radius")
 
 
 class ObstacleDetections(Message, frozen=True, kw_only=True):
@@ -100,8 +102,7 @@ class Track(WireRecord, frozen=True, kw_only=True):
     covariance: tuple[float, ...]
 
     def validate(self) -> None:
-        check_range("track.id", self.id, 0)
-        check_range("track.radius", self.radius, 0.0)
+        check_non_negative(self, "track.", "id", "radius")
         _check_cov("track.covariance", self.covariance, 6)
 
 
@@ -155,10 +156,7 @@ class PathMsg(Message, frozen=True, kw_only=True):
             raise WireError("weights: every weight must be > 0")
         if any(b < a for a, b in zip(self.knots, self.knots[1:], strict=False)):
             raise WireError("knots: must be non-decreasing")
-        check_range("length", self.length, 0.0)
-        check_range("f_l", self.f_l, 0.0)
-        check_range("max_curvature", self.max_curvature, 0.0)
-        check_range("v_ref", self.v_ref, 0.0)
+        check_non_negative(self, "", "length", "f_l", "max_curvature", "v_ref")
 
 
 # Bounds of a command's sequence of future entries (packet-based predictive control). The
@@ -313,10 +311,16 @@ class VehicleStatus(Message, frozen=True, kw_only=True):
     delay_samples: int = 0
 
     def validate(self) -> None:
-        check_range("command_age", self.command_age, 0.0)
-        check_range("delay_jitter_s", self.delay_jitter_s, 0.0)
-        for name in ("commands_applied", "commands_rejected", "commands_clamped", "delay_samples"):
-            check_range(name, getattr(self, name), 0)
+        check_non_negative(
+            self,
+            "",
+            "command_age",
+            "delay_jitter_s",
+            "commands_applied",
+            "commands_rejected",
+            "commands_clamped",
+            "delay_samples",
+        )
         for reason, n in self.rejected_by_reason.items():
             check_range(f"rejected_by_reason[{reason!r}]", n, 0)
 
@@ -363,18 +367,20 @@ class LinkCounters(WireRecord, frozen=True, kw_only=True):
         }
 
     def validate(self) -> None:
-        for name in (
+        check_non_negative(
+            self,
+            "link.",
             "sent",
             "delivered",
             "dropped_loss",
             "dropped_outage",
             "dropped_queue",
             "bytes_sent",
-        ):
-            check_range(f"link.{name}", getattr(self, name), 0)
-        check_range("link.duplicated", self.duplicated, 0)
-        for name in ("delay_p50", "delay_p95", "delay_p99"):
-            check_range(f"link.{name}", getattr(self, name), 0.0)
+            "duplicated",
+            "delay_p50",
+            "delay_p95",
+            "delay_p99",
+        )
 
 
 class MeasuredDelay(WireRecord, frozen=True, kw_only=True):
@@ -389,9 +395,7 @@ class MeasuredDelay(WireRecord, frozen=True, kw_only=True):
     delay_max: float
 
     def validate(self) -> None:
-        check_range("measured.delivered", self.delivered, 0)
-        for name in ("delay_p50", "delay_p95", "delay_max"):
-            check_range(f"measured.{name}", getattr(self, name), 0.0)
+        check_non_negative(self, "measured.", "delivered", "delay_p50", "delay_p95", "delay_max")
 
 
 class LinkStats(Message, frozen=True, kw_only=True):
