@@ -139,36 +139,26 @@ _TERM_NAMES = {
 }
 
 
+# the wall-time terms one key drives: that key, and the remedy an error gives
+_ONE_KEY_TERMS = {
+    "rk4": ("vehicle.dt_internal_s", "raise vehicle.dt_internal_s or shorten run.max_time_s"),
+    "predict": (
+        "estimator.max_predict_dt_s",
+        "raise estimator.max_predict_dt_s or shorten run.max_time_s",
+    ),
+    "realtime": ("runtime.time_scale", "shorten run.max_time_s or raise runtime.time_scale"),
+}
+
+
 def _wall_cause(s: Scenario, est: Estimate) -> tuple[str, str, str]:
-    """(key, what it makes, the remedy) of the largest part of the wall-time estimate."""
+    """(key, what it makes, the remedy) of the largest part of the wall-time estimate: its
+    one key, or run.max_time_s if the run is longer against its default than the key is
+    finer; for the service periods, the rate key that runs fastest against its default."""
     t = s.run.max_time_s
     term = max(est.wall_terms_s, key=lambda k: est.wall_terms_s[k])
-    if term == "rk4":
-        key = _blame(
-            _longer(s), ("vehicle.dt_internal_s", _ratio_below(s.vehicle, "dt_internal_s"))
-        )
-        per_period = s.vehicle.period_s / s.vehicle.dt_internal_s
-        what = (
-            f"vehicle.dt_internal_s={s.vehicle.dt_internal_s:g} over run.max_time_s={t:g} is "
-            f"{est.rk4_steps:.3g} RK4 steps ({per_period:.3g} a vehicle period, "
-            f"~{RK4_STEP_S * 1e6:g} µs each)"
-        )
-        return key, what, "raise vehicle.dt_internal_s or shorten run.max_time_s"
-    if term == "predict":
-        ratio = _ratio_below(s.estimator, "max_predict_dt_s")
-        key = _blame(_longer(s), ("estimator.max_predict_dt_s", ratio))
-        what = (
-            f"estimator.max_predict_dt_s={s.estimator.max_predict_dt_s:g} over "
-            f"run.max_time_s={t:g} is {est.predict_steps:.3g} prediction sub-steps"
-        )
-        return key, what, "raise estimator.max_predict_dt_s or shorten run.max_time_s"
-    if term == "realtime":
-        ratio = _ratio_below(s.runtime, "time_scale")
-        key = _blame(_longer(s), ("runtime.time_scale", ratio))
-        what = (
-            f"a realtime run of run.max_time_s={t:g} at runtime.time_scale={s.runtime.time_scale:g}"
-        )
-        return key, what, "shorten run.max_time_s or raise runtime.time_scale"
+    if term in _ONE_KEY_TERMS:
+        key, fix = _ONE_KEY_TERMS[term]
+        return _blame(_longer(s), _below(s, key)), _one_key_work(term, s, est), fix
     key = _blame(_longer(s), *_rates(s))
     rate = est.service_steps / t
     what = (
@@ -176,6 +166,24 @@ def _wall_cause(s: Scenario, est: Estimate) -> tuple[str, str, str]:
         f"(~{SERVICE_STEP_S[s.runtime.kind] * 1e3:g} ms each)"
     )
     return key, what, "shorten run.max_time_s or lengthen the services' periods"
+
+
+def _one_key_work(term: str, s: Scenario, est: Estimate) -> str:
+    """What the key of a one-key term makes over the run, in an error's words."""
+    t = s.run.max_time_s
+    if term == "rk4":
+        per_period = s.vehicle.period_s / s.vehicle.dt_internal_s
+        return (
+            f"vehicle.dt_internal_s={s.vehicle.dt_internal_s:g} over run.max_time_s={t:g} is "
+            f"{est.rk4_steps:.3g} RK4 steps ({per_period:.3g} a vehicle period, "
+            f"~{RK4_STEP_S * 1e6:g} µs each)"
+        )
+    if term == "predict":
+        return (
+            f"estimator.max_predict_dt_s={s.estimator.max_predict_dt_s:g} over "
+            f"run.max_time_s={t:g} is {est.predict_steps:.3g} prediction sub-steps"
+        )
+    return f"a realtime run of run.max_time_s={t:g} at runtime.time_scale={s.runtime.time_scale:g}"
 
 
 def _cause(s: Scenario, key: str, rate: float, unit: str, count: float) -> str:
@@ -198,13 +206,19 @@ def _rates(s: Scenario) -> list[tuple[str, float]]:
     """Each rate key with how many times its default rate it runs (a period: the inverse)."""
     sensor = SensorConfig()
     return [
-        ("vehicle.period_s", _ratio_below(s.vehicle, "period_s")),
+        _below(s, "vehicle.period_s"),
         ("sensor.nav_rate_hz", s.sensor.nav_rate_hz / sensor.nav_rate_hz),
         ("sensor.obstacle_rate_hz", s.sensor.obstacle_rate_hz / sensor.obstacle_rate_hz),
-        ("estimator.period_s", _ratio_below(s.estimator, "period_s")),
-        ("planner.period_s", _ratio_below(s.planner, "period_s")),
-        ("runtime.stats_period_s", _ratio_below(s.runtime, "stats_period_s")),
+        _below(s, "estimator.period_s"),
+        _below(s, "planner.period_s"),
+        _below(s, "runtime.stats_period_s"),
     ]
+
+
+def _below(s: Scenario, key: str) -> tuple[str, float]:
+    """(key, _ratio_below of its value) for a dotted scenario key."""
+    section, name = key.split(".")
+    return key, _ratio_below(getattr(s, section), name)
 
 
 def _ratio_below(cfg: object, name: str) -> float:
