@@ -184,17 +184,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add launch and service to the tidelink parser."""
     la = sub.add_parser("launch", help="start a router and every service as supervised processes")
     scenario_args(la)
-    la.add_argument(
-        "--runtime",
-        choices=("realtime", "lockstep"),
-        default="realtime",
-        help="realtime (default; wall clock, scaled) or lockstep (virtual time)",
-    )
-    la.add_argument(
-        "--time-scale",
-        type=float,
-        default=None,
-        help="realtime speed-up, e.g. 5 (default: the scenario's runtime.time_scale)",
+    _runtime_args(
+        la,
+        runtime_help="realtime (default; wall clock, scaled) or lockstep (virtual time)",
+        time_scale_help="realtime speed-up, e.g. 5 (default: the scenario's runtime.time_scale)",
     )
     la.add_argument(
         "--out", type=Path, default=None, help="run folder (default runs/<name>-launch-s<seed>)"
@@ -253,17 +246,19 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         metavar="ENDPOINT",
         help="the launch's router, e.g. tcp/10.0.0.1:7447",
     )
-    sv.add_argument(
-        "--runtime",
-        choices=("realtime", "lockstep"),
-        default="realtime",
-        help="as the launch was started (default realtime)",
-    )
-    sv.add_argument(
-        "--time-scale",
-        type=float,
-        default=None,
-        help="as the launch was started (default: the scenario's)",
+    _runtime_args(
+        sv,
+        runtime_help="as the launch was started (default realtime)",
+        time_scale_help="as the launch was started (default: the scenario's)",
     )
     certs_args(sv, identity=None)
     sv.set_defaults(func=cmd_service)
+
+
+def _runtime_args(p: argparse.ArgumentParser, *, runtime_help: str, time_scale_help: str) -> None:
+    """--runtime (realtime or lockstep: the distributed ones) and --time-scale, which a
+    launch and each of its services must be given alike."""
+    p.add_argument(
+        "--runtime", choices=("realtime", "lockstep"), default="realtime", help=runtime_help
+    )
+    p.add_argument("--time-scale", type=float, default=None, help=time_scale_help)
