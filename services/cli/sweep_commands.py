@@ -8,6 +8,7 @@ import os
 import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 from services.cli.core_commands import budget_arg
 
@@ -44,6 +45,22 @@ def _common(p: argparse.ArgumentParser, runtime: str = "lockstep") -> None:
     )
 
 
+def _run_options(a: argparse.Namespace) -> dict[str, Any]:
+    """What _common's arguments say, as the experiment options' fields."""
+    return {"runtime": a.runtime, "jobs": a.jobs, "scheduler": a.scheduler}
+
+
+def _report_options(a: argparse.Namespace) -> dict[str, Any]:
+    """The options every report command shares: _report_dirs' and _common's arguments, and
+    the command line that regenerates the report."""
+    return {
+        "out": a.out,
+        "report_dir": a.report_dir,
+        **_run_options(a),
+        "command": _regenerate_command(sys.argv[1:]),
+    }
+
+
 def _report_dirs(p: argparse.ArgumentParser, runs: str, docs: str) -> None:
     """--out (the runs, resumable) and --report-dir (REPORT.md and figures/)."""
     p.add_argument(
@@ -68,9 +85,7 @@ def cmd_sweep(a: argparse.Namespace) -> int:
     out = a.out or Path("runs") / f"sweep-{exp.name}"
     opts = SweepOptions(
         out=out,
-        runtime=a.runtime,
-        jobs=a.jobs,
-        scheduler=a.scheduler,
+        **_run_options(a),
         keep_trajectories=a.keep_trajectories,
         retry_errors=a.retry_errors,
         plots=not a.no_plots,
@@ -88,18 +103,13 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
     from services.experiments.reproduce import ReproduceOptions, reproduce
 
     opts = ReproduceOptions(
-        out=a.out,
-        report_dir=a.report_dir,
+        **_report_options(a),
         crossing=None if str(a.crossing) == "none" else a.crossing,
         scenario=a.scenario,
         seeds=a.seeds,
-        runtime=a.runtime,
-        jobs=a.jobs,
-        scheduler=a.scheduler,
         tune=a.tune,
         tune_seeds=a.tune_seeds,
         replan=a.replan,
-        command=_regenerate_command(sys.argv[1:]),
     )
     res = reproduce(opts)
     errors = res.sweep.errors + (res.crossing.errors if res.crossing else 0)
@@ -149,15 +159,7 @@ def cmd_network_report(a: argparse.Namespace) -> int:
 
     res = network_report(
         NetworkOptions(
-            out=a.out,
-            report_dir=a.report_dir,
-            sweeps=a.sweeps,
-            seeds=a.seeds,
-            runtime=a.runtime,
-            jobs=a.jobs,
-            scheduler=a.scheduler,
-            cost_steps=a.cost_steps,
-            command=_regenerate_command(sys.argv[1:]),
+            **_report_options(a), sweeps=a.sweeps, seeds=a.seeds, cost_steps=a.cost_steps
         )
     )
     print(f"network-report: {res.runs} runs ({res.errors} failed); report {res.report}")
