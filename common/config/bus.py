@@ -10,6 +10,7 @@ from typing import Literal
 from common.config.errors import ConfigValueError
 
 PROTOCOLS = ("tcp", "udp", "ws", "unixsock-stream", "tls", "quic")
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,3 +101,15 @@ def client_config(connect: str, certs: str | None) -> BusConfig:
         security="mtls" if certs else "none",
         certs=certs or "",
     )
+
+
+@dataclass(frozen=True, kw_only=True)
+class WatchTarget:
+    """What a watching tool (monitor, Foxglove bridge) joins: the run's router, as a client
+    under mTLS when `certs` is given, and which run and vehicle to watch (None: any)."""
+
+    connect: str = DEFAULT_CONNECT
+    certs: str | None = None  # mTLS with these certificates (docs/security.md)
+    identity: str = "monitor"  # whose certificate to present
+    run: str | None = None
+    vehicle: str | None = None

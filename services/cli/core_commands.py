@@ -14,13 +14,14 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from common.config.bus import DEFAULT_CONNECT
+
 if TYPE_CHECKING:
     from common.config.scenario import ScenarioCheck
 
 log = logging.getLogger("tidelink")
 
 
-DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # Zenoh's own default port, on this machine
 ROUTER_CLOSE_S = 3.0  # how long `tidelink router` gives its session to close on a signal
 # `run` and `launch`: the mission ran to its end (metrics written) without success: contact
 # with an obstacle, the goal not reached, or the goal reached inside the safety distance rho0
@@ -40,6 +41,17 @@ def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str
     p.add_argument("--run", default=None, help=run_help)
     p.add_argument("--vehicle", default=None, help=vehicle_help)
     certs_args(p, identity="monitor")
+
+
+def watch_fields(a: argparse.Namespace) -> dict[str, Any]:
+    """What watcher_args read, as the fields of a WatchTarget (common/config/bus.py)."""
+    return {
+        "connect": a.connect,
+        "certs": a.certs,
+        "identity": a.identity,
+        "run": a.run,
+        "vehicle": a.vehicle,
+    }
 
 
 def certs_args(p: argparse.ArgumentParser, *, identity: str | None) -> None:

@@ -8,7 +8,7 @@ import logging
 import sys
 from pathlib import Path
 
-from services.cli.core_commands import watcher_args
+from services.cli.core_commands import watch_fields, watcher_args
 
 
 def cmd_foxglove(a: argparse.Namespace) -> int:
@@ -21,15 +21,7 @@ def cmd_foxglove(a: argparse.Namespace) -> int:
         # what the bridge is doing (serving, waiting, which run) is this command's output
         logging.getLogger("tidelink.foxglove").setLevel(logging.INFO)
     install_shutdown_handlers()
-    opts = BridgeOptions(
-        connect=a.connect,
-        run=a.run,
-        vehicle=a.vehicle,
-        host=a.host,
-        port=a.port,
-        certs=a.certs,
-        identity=a.identity,
-    )
+    opts = BridgeOptions(**watch_fields(a), host=a.host, port=a.port)
     try:
         serve(opts)
     except Shutdown as exc:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from services.cli.core_commands import watcher_args
+from services.cli.core_commands import watch_fields, watcher_args
 
 
 def cmd_monitor(a: argparse.Namespace) -> int:
@@ -14,11 +14,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
     from services.monitor.views import DashboardView, JsonLinesView
 
     opts = MonitorOptions(
-        connect=a.connect,
-        certs=a.certs,
-        identity=a.identity,
-        run=a.run,
-        vehicle=a.vehicle,
+        **watch_fields(a),
         follow=a.follow,
         rate_hz=a.rate,
         every_frame=a.all,

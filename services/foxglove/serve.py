@@ -12,7 +12,7 @@ from foxglove.websocket import WebSocketServer
 
 from common.bus import Bus, Keys
 from common.bus.watcher import Watcher
-from common.config.bus import client_config
+from common.config.bus import WatchTarget, client_config
 from services.foxglove.bridge import FoxgloveBridge
 from services.foxglove.channels import ViewChannels
 from services.launcher.router import wait_for_endpoint
@@ -22,15 +22,11 @@ log = logging.getLogger("tidelink.foxglove")
 ROUTER_PROBE_S = 0.5  # between attempts to reach a router that is not there
 
 
-@dataclass(frozen=True)
-class BridgeOptions:
-    """Where the runs are (a router's endpoint), which to show, where to serve the app."""
+@dataclass(frozen=True, kw_only=True)
+class BridgeOptions(WatchTarget):
+    """Where the runs are and which to show (with run None: the first run that is on, then
+    the next, and so on), and where to serve the app."""
 
-    connect: str = "tcp/127.0.0.1:7447"
-    certs: str | None = None  # mTLS with these certificates (docs/security.md)
-    identity: str = "monitor"  # whose certificate to present
-    run: str | None = None  # None: the first run that is on (then the next, and so on)
-    vehicle: str | None = None
     host: str = "127.0.0.1"
     port: int = 8765
 

@@ -12,7 +12,7 @@ from typing import Any, Protocol
 from common.bus import Bus, Keys, Liveliness
 from common.bus.keys import CLOCK, END
 from common.bus.watcher import WatchedFrame, Watcher
-from common.config.bus import client_config
+from common.config.bus import WatchTarget, client_config
 from common.config.scenario import scenario_from_raw
 from common.messages import (
     Message,
@@ -49,18 +49,13 @@ EVENT_TYPES = (VehicleStatus, PathMsg, RunEnd)
 
 
 @dataclass(frozen=True, kw_only=True)
-class MonitorOptions:
+class MonitorOptions(WatchTarget):
     """What to watch and how. By default the monitor polls each run's latest state once per
     update (decimated at the run: the vehicle's state streams each time, every stream every
     FULL_POLL_S) and hears every frame of the streams that carry events (EVENT_TYPES);
     `rate_hz` sets the poll rate and drops those subscriptions too (thin links: nothing but
     the polls crosses the link); `every_frame` receives every tapped frame instead."""
 
-    connect: str
-    certs: str | None = None  # mTLS with these certificates (docs/security.md)
-    identity: str = "monitor"  # whose certificate to present
-    run: str | None = None
-    vehicle: str | None = None
     follow: bool = False
     rate_hz: float | None = None
     every_frame: bool = False
