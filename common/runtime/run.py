@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from common.config.scenario import Scenario
+from common.jsonsafe import json_safe
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
@@ -35,17 +35,6 @@ def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunR
     from common.runtime.distributed.realtime_driver import run_realtime
 
     return run_realtime(scenario, raw, log_dir)
-
-
-def _clean(v: Any) -> Any:
-    """JSON-safe: non-finite floats become None (JSON has no NaN)."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: _clean(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_clean(x) for x in v]
-    return v
 
 
 def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) -> dict[str, Any]:
@@ -75,7 +64,7 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
     metrics.update(input_health(result.record))
     if wall_s is not None:
         metrics["wall_s"] = round(wall_s, 3)
-    cleaned: dict[str, Any] = _clean(metrics)
+    cleaned: dict[str, Any] = json_safe(metrics)
     return cleaned
 
 

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from common.config.budget import DEFAULT_BUDGET
+from common.jsonsafe import json_safe
 from services.experiments.execute import run_all
 from services.experiments.grid import Plan, RunSpec, expand
 from services.experiments.plots import plot_sweep
@@ -122,16 +121,6 @@ def finish(plan: Plan, rows: list[dict[str, str]], out: Path, *, plots: bool = T
         plot_sweep(out, cells, axis, grid, exp.name)
 
 
-def _json_safe(v: Any) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: _json_safe(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_json_safe(x) for x in v]
-    return v
-
-
 def _write_plan(plan: Plan, path: Path) -> None:
     """The resolved experiment and its run ids, for the record."""
     doc = {
@@ -140,7 +129,7 @@ def _write_plan(plan: Plan, path: Path) -> None:
         "runtime": plan.runtime,
         "runs": [{"run_id": s.run_id, "labels": s.labels, "seed": s.seed} for s in plan.runs],
     }
-    _atomic_write(path, json.dumps(_json_safe(doc), indent=1))
+    _atomic_write(path, json.dumps(json_safe(doc), indent=1))
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -159,7 +148,7 @@ def _save_run(folder: Path, outcome: RunOutcome) -> None:
     if outcome.status == "ok":
         _atomic_write(
             folder / "metrics.json",
-            json.dumps(_json_safe(outcome.metrics), indent=2, sort_keys=True),
+            json.dumps(json_safe(outcome.metrics), indent=2, sort_keys=True),
         )
     else:
         _atomic_write(folder / "error.txt", outcome.error)

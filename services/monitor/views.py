@@ -9,6 +9,7 @@ import sys
 import time
 from typing import IO, Any
 
+from common.jsonsafe import json_safe
 from services.monitor.state import Event, RunState
 
 
@@ -20,7 +21,7 @@ class JsonLinesView:
 
     def _write(self, obj: dict[str, Any]) -> None:
         # NaN/inf are not JSON: a value a script cannot parse is worse than null
-        self.out.write(json.dumps(_finite(obj), allow_nan=False) + "\n")
+        self.out.write(json.dumps(json_safe(obj), allow_nan=False) + "\n")
         self.out.flush()
 
     def notice(self, text: str) -> None:
@@ -45,16 +46,6 @@ class JsonLinesView:
 
     def close(self) -> None:
         self.out.flush()
-
-
-def _finite(v: Any) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_finite(x) for x in v]
-    return v
 
 
 class DashboardView:
