@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from common.config.checks import nonneg, positive
 from common.config.errors import ConfigValueError
 
 PrefilterKind = Literal["none", "mean", "lag", "mean+lag"]
@@ -64,18 +65,14 @@ class EstimatorConfig:
             "track_ca_sojourn_s",
             "history_s",
         ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ConfigValueError(name, f"{value!r} must be a finite number > 0")
+            positive(name, getattr(self, name))
         for name in (
             "accel_psd_m2_s3",
             "yaw_accel_psd_rad2_s3",
             "track_cv_accel_psd_m2_s3",
             "track_jerk_psd_m2_s5",
         ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ConfigValueError(name, f"{value!r} must be a finite number >= 0")
+            nonneg(name, getattr(self, name))
         if self.prefilter not in ("none", "mean", "lag", "mean+lag"):
             raise ConfigValueError(
                 "prefilter", f"{self.prefilter!r}, expected 'none', 'mean', 'lag' or 'mean+lag'"

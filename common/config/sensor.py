@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from common.config.checks import nonneg, positive
 from common.config.errors import ConfigValueError
 
 
@@ -28,9 +29,7 @@ class SensorConfig:
 
     def __post_init__(self) -> None:
         for name in ("nav_rate_hz", "obstacle_rate_hz", "det_range_m"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ConfigValueError(name, f"{value!r} must be a finite number > 0")
+            positive(name, getattr(self, name))
         for name in (
             "nav_std_xy_m",
             "nav_std_heading_rad",
@@ -38,9 +37,7 @@ class SensorConfig:
             "det_std_xy_m",
             "det_std_radius_m",
         ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ConfigValueError(name, f"{value!r} must be a finite number >= 0")
+            nonneg(name, getattr(self, name))
         if not 0.0 < self.det_fov_half_angle_rad <= math.pi:
             raise ConfigValueError(
                 "det_fov_half_angle_rad", f"{self.det_fov_half_angle_rad!r}, expected (0, pi]"
