@@ -27,29 +27,18 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import zenoh
 
 from common.bus.bus import Bus, Publisher, RawFrame
 from common.bus.keys import CLOCK, END, Keys
+from common.bus.watcher import WatchedFrame
 from common.messages import RunEnd, encode, encode_watch
 
 log = logging.getLogger("tidelink.tap")
 
 SCENARIO_ENCODING = "application/json"
-
-
-class TappedFrame(NamedTuple):
-    """A frame of the run as the tap got it: the stream, the bytes that crossed the wire,
-    the tap's wall time (Unix seconds) and its running count."""
-
-    service: str
-    stream: str
-    payload: bytes
-    attachment: bytes | None
-    wall: float
-    n: int
 
 
 class WatchTap:
@@ -65,14 +54,14 @@ class WatchTap:
         self._latest_n: dict[str, int] = {}
         self._latest_name: dict[str, str] = {}  # latest key -> "<service>/<stream>"
         self._pubs: dict[tuple[str, str], Publisher] = {}
-        self._sinks: list[Callable[[TappedFrame], None]] = []
+        self._sinks: list[Callable[[WatchedFrame], None]] = []
         self._closed = False
         scenario = json.dumps(scenario_raw, sort_keys=True).encode()
         bus.serve(keys.scenario, lambda: scenario, encoding=SCENARIO_ENCODING)
         bus.serve_frames(keys.all_latest, self._answer)
         bus.subscribe_raw(keys.all_streams, self._take)
 
-    def add_sink(self, sink: Callable[[TappedFrame], None]) -> None:
+    def add_sink(self, sink: Callable[[WatchedFrame], None]) -> None:
         """Also hand every tapped frame to `sink`, on Zenoh's thread (an in-process recorder:
         it must only enqueue)."""
         with self._lock:
@@ -115,7 +104,9 @@ class WatchTap:
                 )
             sinks = list(self._sinks)
         pub.put_bytes(f.payload, att)
-        tapped = TappedFrame(service, stream, f.payload, f.attachment, wall, n)
+        tapped = WatchedFrame(
+            self.keys.run, self.keys.vehicle, service, stream, f.payload, f.attachment, wall, n
+        )
         for sink in sinks:
             sink(tapped)
 
@@ -153,7 +144,7 @@ class WatchTap:
             self._latest_n[latest] = n
             self._latest_name[latest] = f"{CLOCK}/{END}"
         for sink in sinks:
-            sink(TappedFrame(CLOCK, END, data, None, wall, n))
+            sink(WatchedFrame(self.keys.run, self.keys.vehicle, CLOCK, END, data, None, wall, n))
         try:
             self.bus.monitoring_publisher(self.keys.end, last=True).put_bytes(data, att)
         except Exception as exc:  # noqa: BLE001 - a closing bus must not hide the run's result

@@ -18,7 +18,7 @@ from typing import Any
 
 from common.bus import Liveliness
 from common.bus.keys import Keys
-from common.bus.tap import TappedFrame
+from common.bus.watcher import WatchedFrame
 from common.config.scenario import scenario_from_raw
 from common.runtime.distributed.bringup import ClockSide
 from services.recording.layout import stream_types
@@ -66,7 +66,7 @@ class TapRecorder:
             try:
                 if item is _STOP:
                     return
-                if isinstance(item, TappedFrame):
+                if isinstance(item, WatchedFrame):
                     w.frame(item.service, item.stream, item.payload, item.attachment, item.wall)
                 elif item is not None:
                     wall, ev = item
