@@ -10,6 +10,7 @@ overhead (the estimator predicts every track to every publish time: the hot path
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
@@ -19,6 +20,22 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection sees x, y
+
+
+class Modes(NamedTuple):
+    """An IMM belief: each mode's mean xs[j] (6,) and covariance Ps[j] (6, 6), modes (CV, CA),
+    and the mode probabilities mu (2,)."""
+
+    xs: tuple[FloatArray, ...]
+    Ps: tuple[FloatArray, ...]
+    mu: FloatArray
+
+
+def innovation(
+    x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """A detection z (2,) against the Gaussian (x, P): y = z - H x (2,), S = H P H' + R (2, 2)."""
+    return z - H_POS @ x, H_POS @ P @ H_POS.T + R
 
 
 def transition(dt: float, constant_acceleration: bool) -> FloatArray:
@@ -116,35 +133,26 @@ class ImmFilter:
             self._models[dt] = model
         return model
 
-    def predict(
-        self, xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, dt: float
-    ) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
-        """Mix, then predict each mode dt ahead; returns the modes and their probabilities."""
+    def predict(self, m: Modes, dt: float) -> Modes:
+        """Mix, then predict each mode dt ahead (mu: the predicted mode probabilities)."""
         if dt <= 0.0:
-            return xs, Ps, mu
+            return m
         M, models = self._model(dt)
-        x0s, P0s, cbar = mix(xs, Ps, mu, M)
+        x0s, P0s, cbar = mix(*m, M)
         out_x, out_P = [], []
         for j, (F, Q) in enumerate(models):
             x, P = kf_predict(x0s[j], P0s[j], F, Q)
             out_x.append(x)
             out_P.append(0.5 * (P + P.T))
-        return tuple(out_x), tuple(out_P), cbar
+        return Modes(tuple(out_x), tuple(out_P), cbar)
 
-    def update(
-        self,
-        xs: tuple[FloatArray, ...],
-        Ps: tuple[FloatArray, ...],
-        mu: FloatArray,
-        z: FloatArray,
-        R: FloatArray,
-    ) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
-        """Update every mode with z; mode probabilities follow their likelihoods."""
+    def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
+        """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities
+        follow their likelihoods."""
         kf = self._kf
         out_x, out_P, loglik = [], [], []
-        for xj, Pj in zip(xs, Ps, strict=True):
-            y = z - H_POS @ xj
-            S = H_POS @ Pj @ H_POS.T + R
+        for xj, Pj in zip(m.xs, m.Ps, strict=True):
+            y, S = innovation(xj, Pj, z, R)
             _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
             loglik.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
             kf.x, kf.P = xj.copy(), Pj.copy()
@@ -152,9 +160,9 @@ class ImmFilter:
             out_x.append(kf.x.copy())
             out_P.append(0.5 * (kf.P + kf.P.T))
         ll = np.array(loglik)
-        post = mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
+        post = m.mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
         total = float(post.sum())
         if not (total > 0.0 and np.isfinite(total)):
             # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
-            return tuple(out_x), tuple(out_P), mu
-        return tuple(out_x), tuple(out_P), post / total
+            return Modes(tuple(out_x), tuple(out_P), m.mu)
+        return Modes(tuple(out_x), tuple(out_P), post / total)

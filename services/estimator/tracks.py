@@ -13,7 +13,7 @@ from common.guard import MAX_ITEMS
 from common.messages import ObstacleDetections, Track
 from services.estimator.gate import ChiSquareGate
 from services.estimator.health import healthy
-from services.estimator.imm import H_POS, ImmFilter, combine
+from services.estimator.imm import ImmFilter, Modes, combine, innovation
 
 FloatArray = NDArray[np.float64]
 
@@ -25,14 +25,12 @@ _TO_MSG_2D = np.ix_(_TO_MSG, _TO_MSG)
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class TrackBelief:
-    """One track at `stamp` (its last accepted detection): per-mode Gaussians (CV, CA), mode
-    probabilities and the radius estimate. Arrays are never modified once stored.
+    """One track at `stamp` (its last accepted detection): its IMM belief and the radius
+    estimate. Arrays are never modified once stored.
     """
 
     id: int
-    xs: tuple[FloatArray, ...]
-    Ps: tuple[FloatArray, ...]
-    mu: FloatArray
+    modes: Modes
     stamp: float
     radius: float
     radius_var: float
@@ -75,32 +73,20 @@ class ObstacleTracker:
         P = np.diag(axis * 2)
         return TrackBelief(
             id=oid,
-            xs=(x, x.copy()),
-            Ps=(P, P.copy()),
-            mu=np.array([0.5, 0.5]),
+            modes=Modes((x, x.copy()), (P, P.copy()), np.array([0.5, 0.5])),
             stamp=stamp,
             radius=r,
             radius_var=r_var,
         )
 
-    def _gates(
-        self,
-        xs: tuple[FloatArray, ...],
-        Ps: tuple[FloatArray, ...],
-        cbar: FloatArray,
-        z: FloatArray,
-        R: FloatArray,
-    ) -> bool:
+    def _gates(self, m: Modes, z: FloatArray, R: FloatArray) -> bool:
         """Whether detection z falls in the track's gate: the combined belief's, or any one
         mode's. A manoeuvre starts where the steady mode, which dominates the mixture, is
         surest: a gate on the mixture alone would refuse the very detections that tell the
         manoeuvring mode it is right, and the track would coast on its old velocity.
         """
-        x, P = combine(xs, Ps, cbar)
-        beliefs = ((x, P), *zip(xs, Ps, strict=True))
-        return any(
-            self.gate.accepts(z - H_POS @ xj, H_POS @ Pj @ H_POS.T + R) for xj, Pj in beliefs
-        )
+        beliefs = (combine(*m), *zip(m.xs, m.Ps, strict=True))
+        return any(self.gate.accepts(*innovation(xj, Pj, z, R)) for xj, Pj in beliefs)
 
     def fuse(self, state: TrackerState, msg: ObstacleDetections) -> TrackerState:
         """The tracks after one scan (stamped msg.stamp, fused in id order)."""
@@ -120,13 +106,13 @@ class ObstacleTracker:
                     continue
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
                 continue
-            xs, Ps, cbar = self._imm.predict(b.xs, b.Ps, b.mu, msg.stamp - b.stamp)
+            prior = self._imm.predict(b.modes, msg.stamp - b.stamp)
             R = np.eye(2) * var
-            if not self._gates(xs, Ps, cbar, z, R):
+            if not self._gates(prior, z, R):
                 gated_out += 1
                 continue
-            xs, Ps, mu = self._imm.update(xs, Ps, cbar, z, R)
-            if not all(healthy(x, P) for x, P in zip(xs, Ps, strict=True)):
+            post = self._imm.update(prior, z, R)
+            if not all(healthy(x, P) for x, P in zip(post.xs, post.Ps, strict=True)):
                 resets += 1
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
                 continue
@@ -134,9 +120,7 @@ class ObstacleTracker:
             w = b.radius_var / (b.radius_var + r_var)
             out[det.id] = TrackBelief(
                 id=det.id,
-                xs=xs,
-                Ps=Ps,
-                mu=mu,
+                modes=post,
                 stamp=msg.stamp,
                 radius=b.radius + w * (det.radius - b.radius),
                 radius_var=b.radius_var * r_var / (b.radius_var + r_var),
@@ -150,8 +134,7 @@ class ObstacleTracker:
 
     def predict(self, b: TrackBelief, t: float) -> tuple[FloatArray, FloatArray]:
         """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
-        xs, Ps, mu = self._imm.predict(b.xs, b.Ps, b.mu, t - b.stamp)
-        return combine(xs, Ps, mu)
+        return combine(*self._imm.predict(b.modes, t - b.stamp))
 
     def tracks_at(self, state: TrackerState, t: float) -> tuple[Track, ...]:
         """Live tracks predicted to t, as wire tracks ([x, y, vx, vy, ax, ay] covariance)."""

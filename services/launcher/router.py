@@ -7,9 +7,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from common.runtime.processes.children import connectable, free_port
+from common.runtime.processes.children import connectable, free_port, how_it_ended
 from common.runtime.processes.signals import Interrupted
-from common.runtime.processes.supervisor import Supervisor, how_it_ended
+from common.runtime.processes.supervisor import Supervisor
 
 ROUTER = "router"
 READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens

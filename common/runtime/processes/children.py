@@ -31,6 +31,13 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def how_it_ended(code: int | None) -> str:
+    """'exited with code 3', 'was killed by signal 9' or 'is still running'."""
+    if code is None:
+        return "is still running"
+    return f"was killed by signal {-code}" if code < 0 else f"exited with code {code}"
+
+
 class ProcessHandle(Protocol):
     """What we use of a child process: subprocess.Popen, or a forked one (ForkedProcess)."""
 
@@ -80,12 +87,7 @@ class Child:
             return ""
 
     def describe_exit(self) -> str:
-        code = self.proc.poll()
-        how = (
-            "is still running"
-            if code is None
-            else (f"was killed by signal {-code}" if code < 0 else f"exited with code {code}")
-        )
+        how = how_it_ended(self.proc.poll())
         tail = self.tail()
         return f"service {self.name!r} {how}" + (f"; last log lines:\n{tail}" if tail else "")
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from common.runtime.processes.children import Child, fork, spawn, stop_all
+from common.runtime.processes.children import Child, fork, how_it_ended, spawn, stop_all
 from common.runtime.processes.policy import RestartPolicy
 
 
@@ -25,20 +25,23 @@ class ServiceFailed(RuntimeError):
     """A service process of the run died or stopped answering; the message names it."""
 
 
-def how_it_ended(code: int | None) -> str:
-    """'exited with code 3', 'was killed by signal 9' or 'is still running'."""
-    if code is None:
-        return "is still running"
-    return f"was killed by signal {-code}" if code < 0 else f"exited with code {code}"
-
-
 @dataclass(frozen=True, kw_only=True)
-class Exited:
+class _Ended:
     """A supervised process ended; `text` names it, says how, and quotes its last log lines."""
 
     name: str
     code: int
     text: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class Exited(_Ended):
+    """A supervised process ended (what follows says whether it restarts)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class GaveUp(_Ended):
+    """A process ended and its policy does not restart it: the run cannot go on without it."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -58,15 +61,6 @@ class Restarted:
     name: str
     attempt: int
     pid: int
-
-
-@dataclass(frozen=True, kw_only=True)
-class GaveUp:
-    """A process ended and its policy does not restart it: the run cannot go on without it."""
-
-    name: str
-    code: int
-    text: str
 
 
 Event = Exited | Restarting | Restarted | GaveUp
