@@ -69,20 +69,39 @@ class _UnicycleEKF(ExtendedKalmanFilter):
         self.x = fx(self.x, self.step_dt)
 
 
-class EkfVehicleFilter:
-    """Extended Kalman filter (filterpy.kalman.ExtendedKalmanFilter)."""
+class _SubstepPredict:
+    """The predict both filters share: the belief unchanged (a copy) for dt <= 0, else what
+    the filter's `advance` makes of a copy in n equal sub-steps of h (_substeps)."""
 
     def __init__(self, cfg: EstimatorConfig) -> None:
         self._q = (cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
         self._max_dt = cfg.max_predict_dt_s
-        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=DIM_Z)
 
     def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
         if dt <= 0.0:
             return x.copy(), P.copy()
         n, h = _substeps(dt, self._max_dt)
+        return self.advance(x.copy(), P.copy(), n, h)
+
+    def advance(
+        self, x: FloatArray, P: FloatArray, n: int, h: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """The belief (x, P), the callee's to modify, n sub-steps of h seconds later."""
+        raise NotImplementedError
+
+
+class EkfVehicleFilter(_SubstepPredict):
+    """Extended Kalman filter (filterpy.kalman.ExtendedKalmanFilter)."""
+
+    def __init__(self, cfg: EstimatorConfig) -> None:
+        super().__init__(cfg)
+        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=DIM_Z)
+
+    def advance(
+        self, x: FloatArray, P: FloatArray, n: int, h: float
+    ) -> tuple[FloatArray, FloatArray]:
         ekf = self._ekf
-        ekf.x, ekf.P = x.copy(), P.copy()
+        ekf.x, ekf.P = x, P
         ekf.step_dt = h
         for _ in range(n):
             ekf.F = jacobian_f(ekf.x, h)  # P = F P F' + Q, linearised at the prior
@@ -99,12 +118,11 @@ class EkfVehicleFilter:
         return _tidy(ekf.x, ekf.P)
 
 
-class UkfVehicleFilter:
+class UkfVehicleFilter(_SubstepPredict):
     """Unscented Kalman filter (filterpy UnscentedKalmanFilter, Merwe scaled sigma points)."""
 
     def __init__(self, cfg: EstimatorConfig) -> None:
-        self._q = (cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
-        self._max_dt = cfg.max_predict_dt_s
+        super().__init__(cfg)
         points = MerweScaledSigmaPoints(
             DIM_X, alpha=cfg.ukf_alpha, beta=cfg.ukf_beta, kappa=cfg.ukf_kappa, subtract=residual_x
         )
@@ -121,12 +139,11 @@ class UkfVehicleFilter:
             residual_z=residual_z,
         )
 
-    def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
-        if dt <= 0.0:
-            return x.copy(), P.copy()
-        n, h = _substeps(dt, self._max_dt)
+    def advance(
+        self, x: FloatArray, P: FloatArray, n: int, h: float
+    ) -> tuple[FloatArray, FloatArray]:
         ukf = self._ukf
-        ukf.x, ukf.P = x.copy(), P.copy()
+        ukf.x, ukf.P = x, P
         for _ in range(n):
             ukf.Q = process_noise(ukf.x, h, *self._q)
             ukf.predict(dt=h)
