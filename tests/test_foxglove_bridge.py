@@ -26,10 +26,10 @@ from common.bus.watcher import WatchedFrame
 from common.config.scenario import load_scenario
 from common.messages import Message, TruthState, encode
 from common.runtime.processes.children import free_port
+from common.view import ViewMessage
 from services.foxglove.bridge import FoxgloveBridge
 from services.foxglove.channels import SDK_CLIENT_LOGGER, ViewChannels
 from services.foxglove.serve import BridgeOptions, start_server
-from services.foxglove.view import ViewMessage
 
 WAIT_S = 60.0  # upper bound on any one wait; the happy paths take seconds
 DEFAULT = REPO / "configs" / "default.toml"

@@ -10,9 +10,9 @@ from typing import Any
 import pytest
 from helpers.foxglove_view import REPO, short_run, view_all
 
+from common.view import ViewMessage
 from services.cli import main
 from services.foxglove.dashboard import fleet_layout
-from services.foxglove.view import ViewMessage
 
 LAYOUT = REPO / "docs" / "foxglove" / "tidelink-layout.json"
 SCENE_SCHEMAS = {"foxglove.SceneUpdate", "foxglove.PoseInFrame", "foxglove.PosesInFrame"}

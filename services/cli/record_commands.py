@@ -19,9 +19,9 @@ from services.cli.core_commands import (
 
 if TYPE_CHECKING:
     from common.config.scenario import Scenario
+    from common.view import View
     from services.recording.reader import Recording
     from services.recording.remote import RecordOutcome
-    from services.recording.writer import View
 
 ROUTER_WAIT_S = 10.0  # replay --connect: how long to wait for the router to accept
 

@@ -25,7 +25,7 @@ import re
 import foxglove
 from foxglove.websocket import ChannelView, Client, ServerListener
 
-from services.foxglove.view import ViewMessage
+from common.view import ViewMessage
 
 log = logging.getLogger("tidelink.foxglove")
 

@@ -14,7 +14,6 @@ import dataclasses
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -46,6 +45,7 @@ from common.messages import (
     VelocityCommand,
 )
 from common.runtime.model.dataflow import vehicle_of
+from common.view import ViewMessage
 from common.world import World
 from services.foxglove import entities as draw
 from services.foxglove import series
@@ -81,18 +81,6 @@ PATH_SAMPLES = 300  # points of the path in force: smooth at chart scale
 REPLAN_SAMPLES = 100  # points of each earlier replan, drawn faint
 MAX_REPLANS = 30  # earlier replans kept on the chart
 MODE_CODES = {"IDLE": 0, "RUN": 1, "HOLD": 2, "FAILSAFE": 3, "DONE": 4}
-
-
-@dataclass(frozen=True)
-class ViewMessage:
-    """One message of the view: its topic, schema and encoded bytes, ready for any sink."""
-
-    topic: str
-    schema_name: str
-    schema_encoding: str  # "protobuf" or "jsonschema"
-    schema: bytes
-    message_encoding: str  # "protobuf" or "json"
-    data: bytes
 
 
 # what a fleet vehicle's own view shows (under /<vehicle id>/...); the rest is the run's

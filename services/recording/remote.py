@@ -21,9 +21,10 @@ from common.bus.watcher import END_GRACE_S, WatchedFrame, Watcher
 from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import RunEnd, WireError, decode
 from common.runtime.processes.signals import StopRequest
+from common.view import View
 from services.recording.gaps import SeqGaps
 from services.recording.layout import stream_name, stream_types
-from services.recording.writer import RunInfo, RunWriter, View
+from services.recording.writer import RunInfo, RunWriter
 
 POLL_S = 0.2  # how often the loop looks at the stop request when nothing arrives
 SAY_WAITING_AFTER_S = 1.0  # say "no run yet" once nothing was heard for this long

@@ -21,8 +21,9 @@ from common.bus.keys import Keys
 from common.bus.watcher import WatchedFrame
 from common.config.scenario import scenario_from_raw
 from common.runtime.distributed.bringup import ClockSide
+from common.view import View
 from services.recording.layout import stream_types
-from services.recording.writer import FLUSH_EVERY_S, RunInfo, RunWriter, View
+from services.recording.writer import FLUSH_EVERY_S, RunInfo, RunWriter
 
 log = logging.getLogger("tidelink.recording")
 

@@ -13,14 +13,15 @@ import json
 import logging
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Protocol
+from typing import IO, Any
 
 from mcap.writer import CompressionType, Writer
 
 from common.messages import WIRE_VERSION, Message, WireError, decode
+from common.view import View, ViewMessage
 from services.recording import layout
 
 log = logging.getLogger("tidelink.recording")
@@ -44,32 +45,6 @@ def _compression() -> CompressionType:
         return CompressionType.LZ4
     except ImportError:
         return CompressionType.NONE
-
-
-class ViewMessage(Protocol):
-    """One message of the Foxglove view (services/foxglove/view.py's ViewMessage)."""
-
-    @property
-    def topic(self) -> str: ...
-    @property
-    def schema_name(self) -> str: ...
-    @property
-    def schema_encoding(self) -> str: ...
-    @property
-    def schema(self) -> bytes: ...
-    @property
-    def message_encoding(self) -> str: ...
-    @property
-    def data(self) -> bytes: ...
-
-
-class View(Protocol):
-    """Turns a run's messages into Foxglove's (services/foxglove/view.py's FoxgloveView; the
-    CLI passes one in: the recorder does not depend on the Foxglove package)."""
-
-    def static(self) -> Sequence[ViewMessage]: ...
-
-    def translate(self, service: str, stream: str, msg: Message) -> Sequence[ViewMessage]: ...
 
 
 @dataclass(frozen=True, kw_only=True)
