@@ -145,7 +145,9 @@ def test_a_monitor_certificate_cannot_command_or_tick_but_the_planner_commands(
 def test_a_monitor_sees_the_watch_copies_but_not_the_control_streams(probe: Probe) -> None:
     keys = probe.keys
     with probe.client(LAUNCHER) as launcher, probe.client(MONITOR) as monitor:
-        assert delivered(launcher, monitor, keys.watch("vehicle", "status"), Keys.any_watch())
+        assert delivered(
+            launcher, monitor, keys.watch("vehicle", "status"), Keys.matching().all_watch
+        )
         with probe.client("vehicle") as vehicle:  # a BLOCK stream a monitor could stall
             assert not delivered(vehicle, monitor, keys.stream("vehicle", "truth"))
 

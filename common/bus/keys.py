@@ -13,27 +13,29 @@ CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., ...
 WATCH = "watch"  # .../watch/<service>/<stream>: the monitoring copy of every stream
 END = "end"  # .../watch/runtime/end: the clock's RunEnd
 LATEST = "latest"  # .../latest/<service>/<stream>: queryable newest frame of every stream
-
-
-def _prefix(run: str | None, vehicle: str | None) -> str:
-    """tidelink/<run>/<vehicle>, either left a wildcard when None."""
-    for what, v in (("run", run), ("vehicle", vehicle)):
-        if v is not None and not _ID.match(v):
-            raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
-    return f"tidelink/{run or '*'}/{vehicle or '*'}"
+ANY = "*"  # a run or vehicle of Keys.matching left open
 
 
 @dataclass(frozen=True)
 class Keys:
-    """Builds the key expressions of one run and vehicle, so no code formats keys by hand."""
+    """Builds the key expressions of one run and vehicle, so no code formats keys by hand.
+
+    Keys.matching(run, vehicle) stands for any run or vehicle left None ("*"): its all_alive,
+    all_watch, all_latest, scenario and dataflow are selectors over every run that is on.
+    """
 
     run: str
     vehicle: str
 
     def __post_init__(self) -> None:
         for what, v in (("run", self.run), ("vehicle", self.vehicle)):
-            if not _ID.match(v):
+            if not (_ID.match(v) or v == ANY):
                 raise ValueError(f"{what}: {v!r} must be letters, digits, '_' or '-'")
+
+    @classmethod
+    def matching(cls, run: str | None = None, vehicle: str | None = None) -> Keys:
+        """The keys of one run and vehicle, or of any (None: a wildcard), for selectors."""
+        return cls(run or ANY, vehicle or ANY)
 
     @property
     def root(self) -> str:
@@ -99,11 +101,6 @@ class Keys:
         """The key a running mission answers queries on with its declared dataflow."""
         return f"{self.root}/dataflow"
 
-    @staticmethod
-    def dataflow_selector(run: str | None = None, vehicle: str | None = None) -> str:
-        """The dataflow queryables of one run and vehicle, or of any (None: a wildcard)."""
-        return f"{_prefix(run, vehicle)}/dataflow"
-
     # -- what tools outside the run see (common/bus/tap.py, docs/monitoring.md) -------------
     def watch(self, service: str, stream: str) -> str:
         """The monitoring copy of a stream, republished by the run's watch tap (DROP)."""
@@ -130,26 +127,6 @@ class Keys:
     def end(self) -> str:
         """Where the clock announces the run's end (JSON: reason, t_end_s, ticks)."""
         return self.watch(CLOCK, END)
-
-    @staticmethod
-    def any_alive(run: str | None = None, vehicle: str | None = None) -> str:
-        """The liveliness tokens of one run and vehicle, or of any (None: a wildcard)."""
-        return f"{_prefix(run, vehicle)}/alive/*"
-
-    @staticmethod
-    def any_watch(run: str | None = None, vehicle: str | None = None) -> str:
-        """The watch copies of one run and vehicle, or of any (None: a wildcard)."""
-        return f"{_prefix(run, vehicle)}/{WATCH}/**"
-
-    @staticmethod
-    def any_latest(run: str | None = None, vehicle: str | None = None) -> str:
-        """The latest-frame queryables of one run and vehicle, or of any (None: a wildcard)."""
-        return f"{_prefix(run, vehicle)}/{LATEST}/**"
-
-    @staticmethod
-    def any_scenario(run: str | None = None, vehicle: str | None = None) -> str:
-        """The scenario queryables of one run and vehicle, or of any (None: a wildcard)."""
-        return f"{_prefix(run, vehicle)}/scenario"
 
     @staticmethod
     def parse_watch(key: str) -> tuple[str, str, str, str]:

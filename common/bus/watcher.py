@@ -70,9 +70,9 @@ class Watcher:
     def start(self, *, frames: bool = True) -> None:
         """Hear liveliness (tokens already there included) and, if `frames`, every tapped
         frame (a thin-linked watcher polls `latest` instead)."""
-        self.bus.on_alive(Keys.any_alive(self.run, self.vehicle), self._q.put)
+        self.bus.on_alive(Keys.matching(self.run, self.vehicle).all_alive, self._q.put)
         if frames:
-            self.bus.subscribe_raw(Keys.any_watch(self.run, self.vehicle), self._on_frame)
+            self.bus.subscribe_raw(Keys.matching(self.run, self.vehicle).all_watch, self._on_frame)
 
     def follow(self, key_expr: str) -> None:
         """Also hear every tapped frame on `key_expr` (some streams of a run, e.g. the ones

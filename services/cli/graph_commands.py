@@ -25,7 +25,7 @@ def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
     from common.bus import Bus, Keys
     from common.config.bus import client_config
 
-    selector = Keys.dataflow_selector(a.run, a.vehicle)
+    selector = Keys.matching(a.run, a.vehicle).dataflow
     cfg = client_config(a.connect, a.certs)
     with Bus(cfg, Keys(a.run or "any", a.vehicle or "any"), identity=a.identity) as bus:
         replies = bus.query(selector, timeout_s=a.timeout)

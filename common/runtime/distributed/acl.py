@@ -108,10 +108,11 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
     # any run on this router (a watcher need not name the run), but through the watch tap
     # only: a monitor that subscribed to the BLOCK control streams and stopped reading could
     # stall the run (docs/monitoring.md); the tap carries every stream anyway
+    anywhere = Keys.matching()
     out[MONITOR] = Grants(
-        subscribe=(Keys.any_watch(),),
-        query=(Keys.any_latest(), Keys.any_scenario(), Keys.dataflow_selector()),
-        watch=(Keys.any_alive(),),
+        subscribe=(anywhere.all_watch,),
+        query=(anywhere.all_latest, anywhere.scenario, anywhere.dataflow),
+        watch=(anywhere.all_alive,),
     )
     out[ROUTER] = Grants()
     return out
