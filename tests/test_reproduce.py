@@ -7,7 +7,8 @@ import re
 from pathlib import Path
 
 from common.config.scenario import load_scenario
-from services.experiments.reproduce import CASES, ReproduceOptions, reproduce
+from services.experiments.cases import CASES
+from services.experiments.reproduce import ReproduceOptions, reproduce
 from services.experiments.tuning import (
     TUNED_GAINS,
     Box,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from services.experiments.cases import Case
 from services.experiments.claims import (
     NAMES,
     Cells,
@@ -18,11 +18,8 @@ from services.experiments.claims import (
     verdict_table,
 )
 from services.experiments.summary import CellStats, success_text
-from services.experiments.tuning import TUNED_GAINS, Box
+from services.experiments.tuning import TUNED_GAINS, Box, Tuning
 from services.mission.outcome import OUTCOMES
-
-if TYPE_CHECKING:
-    from services.experiments.reproduce import Case, Tuning
 
 # the columns of a results table, after controller, success and outcomes
 TABLE = (

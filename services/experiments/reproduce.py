@@ -9,6 +9,7 @@ from common.config.network import NetworkConfig
 from common.config.scenario import load_scenario
 from common.config.world import WorldConfig
 from services.experiments import figures
+from services.experiments.cases import CASES
 from services.experiments.report import ReportInputs, write_report
 from services.experiments.results import as_number
 from services.experiments.schema import Axis, AxisValue, Experiment, SetValue
@@ -16,9 +17,9 @@ from services.experiments.summary import aggregate
 from services.experiments.sweep import SweepOptions, SweepReport, run_sweep
 from services.experiments.tuning import (
     CONTROLLERS,
-    PERFECT_NETWORK,
     Box,
     Candidate,
+    Tuning,
     choose,
     chosen_set,
     save_choice,
@@ -34,34 +35,6 @@ PAPER_PIPELINE: dict[str, SetValue] = {"estimator.prefilter": "mean+lag"}
 # The moving obstacles of the default field pass the planned path by chance; this scenario
 # sends them across it (eqs. (12)-(13) and replanning are what carry the vehicle through).
 CROSSING = Path("configs/experiments/scenarios/crossing.toml")
-
-
-@dataclass(frozen=True, kw_only=True)
-class Case:
-    """One column of the comparison: a network, and delay compensation for all or for none."""
-
-    label: str
-    network: str  # "perfect" | "lossy"
-    compensation: bool
-    prefilter: bool = True  # eq. (2)-(3) on (the ablation switches them off)
-
-    def overrides(self) -> dict[str, SetValue]:
-        out: dict[str, SetValue] = {"controller.delay_compensation": self.compensation}
-        if self.network == "perfect":
-            out.update(PERFECT_NETWORK)
-        if not self.prefilter:
-            out["estimator.prefilter"] = "none"
-        return out
-
-
-CASES = (
-    Case(label="perfect", network="perfect", compensation=True),
-    Case(label="perfect-uncompensated", network="perfect", compensation=False),
-    Case(label="lossy", network="lossy", compensation=True),
-    Case(label="lossy-uncompensated", network="lossy", compensation=False),
-    # the ablation of eqs. (2)-(3): where they matter, with a noisy, lossy network
-    Case(label="lossy-no-prefilter", network="lossy", compensation=True, prefilter=False),
-)
 
 
 def planning_overrides(replan: bool) -> dict[str, SetValue]:
@@ -117,16 +90,6 @@ class ReproduceResult:
     sweep: SweepReport
     crossing: SweepReport | None
     tuning: Tuning | None
-
-
-@dataclass(frozen=True, kw_only=True)
-class Tuning:
-    """The outcome of the gain search: every candidate, the choices, each final box."""
-
-    best: dict[str, Candidate]
-    candidates: list[Candidate]
-    boxes: dict[str, Box]
-    rounds: dict[str, int]
 
 
 def _sweep(opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = False) -> SweepReport:

@@ -253,3 +253,13 @@ def save_choice(
         },
     }
     path.write_text(json.dumps(doc, indent=2, allow_nan=True))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tuning:
+    """The outcome of the gain search: every candidate, the choices, each final box."""
+
+    best: dict[str, Candidate]
+    candidates: list[Candidate]
+    boxes: dict[str, Box]
+    rounds: dict[str, int]
