@@ -23,7 +23,7 @@ log = logging.getLogger("tidelink.bus")
 
 
 # Events are frozen msgspec structs rather than frozen dataclasses: one is built per message
-# received, and a struct builds in 0.04 us where a frozen dataclass takes 0.5 us.
+# received, and a struct builds an order of magnitude faster.
 
 
 class Received(msgspec.Struct, frozen=True, gc=False):
@@ -279,7 +279,7 @@ class Publisher:
     def put_bytes(self, data: bytes, attachment: bytes | None = None) -> None:
         """Send an already encoded payload (used by runtimes that needed the size first)."""
         if attachment is None:
-            self._pub.put(data)  # zenoh-python takes ~0.3 us to handle an explicit None
+            self._pub.put(data)  # an explicit attachment=None costs zenoh-python a conversion
         else:
             self._pub.put(data, attachment=attachment)
 
@@ -303,8 +303,8 @@ class Bus:
         self.identity = identity
         self.access_control = access_control
         # low_latency: subscription callbacks run on Zenoh's network thread instead of being
-        # handed to a Python thread first; one thread switch less per message (lockstep
-        # ticks ~25 % faster) but throughput suffers when messages come back to back
+        # handed to a Python thread first: one thread switch less per message, but throughput
+        # suffers when messages come back to back
         self.low_latency = low_latency
         self._session: zenoh.Session | None = None
         self._declared: list[Any] = []
@@ -369,14 +369,13 @@ class Bus:
     def monitoring_publisher(self, key: str, *, last: bool = False) -> Publisher:
         """A publisher for watchers outside the control loop (Keys.watch): congestion DROP
         and priority DATA_LOW. A router forwards a BLOCK sample to a subscriber that stopped
-        reading by waiting (measured here: the publisher and every other subscriber stalled
-        ~5 s until the router closed the stalled session); a DROP sample is dropped for
-        that subscriber alone, so no watcher can slow the run (docs/monitoring.md).
+        reading by waiting, stalling the publisher and every other subscriber; a DROP sample
+        is dropped for that subscriber alone, so no watcher can slow the run
+        (docs/monitoring.md, docs/notes/0002-watch-tap-drop-copies.md).
 
         `last`: BLOCK instead, for the one message a run sends after its loop is over (the
-        RunEnd), which a slow watcher must not lose: behind a subscriber that had stopped
-        reading, a DROP one reached no subscriber at all here, a BLOCK one reached the others
-        and its publisher closed its session at once (within 0.1 s), as with DROP. Same
+        RunEnd), which a slow watcher must not lose: behind a stopped subscriber a DROP one
+        can reach no subscriber at all (docs/notes/code-run-end-published-block.md). Same
         priority: it still comes after the copies sent before it."""
         congestion = zenoh.CongestionControl.BLOCK if last else zenoh.CongestionControl.DROP
         pub = self.session.declare_publisher(

@@ -35,8 +35,8 @@ def zenoh_config(
     conf.insert_json5("connect/endpoints", json.dumps([cfg.endpoint(e) for e in cfg.connect]))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(cfg.multicast_scouting))
     if not cfg.multicast_scouting:
-        # nothing to scout for: without this, opening a router session waits out the default
-        # 500 ms scouting delay (measured: 0.50 s against 0.002 s)
+        # nothing to scout for: without this, opening a router session waits out Zenoh's
+        # default 500 ms scouting delay
         conf.insert_json5("scouting/delay", json.dumps(0))
     if cfg.mode != "client":
         # peers/routers: retry connecting so start order between processes does not matter
@@ -46,18 +46,16 @@ def zenoh_config(
     if cfg.mode == "client":
         # a client cut off from its router retries every second, not after a backoff that
         # doubles up to 4 s (Zenoh's default): once a host's link is back its services
-        # rejoin within a second (measured across namespaces: 2.3 s after the link returned)
+        # rejoin within a second (docs/notes/0029-a-host-cut-off-from-the-router.md)
         retry = {"period_init_ms": 1000, "period_max_ms": 1000, "period_increase_factor": 1}
         conf.insert_json5("connect/retry", json.dumps(retry))
     if cfg.mode == "router":
         # a router forwards the control streams with congestion BLOCK: a client whose host
         # is cut off fills its queue and would hold every other client's samples up to the
-        # default 5 s; close that session after 3 s instead (the client reconnects). Not 1 s,
-        # as it was: a watcher reading a burst slowly but steadily then lost its session, and
-        # the run's end queued for it, on 4 of 7 tries on the machine of 2026-11-29 (a
+        # default 5 s; close that session after 3 s instead (the client reconnects). Not
+        # shorter: a watcher reading a burst slowly but steadily must keep its session (a
         # blocked TCP sender may wake only once a third of its send buffer has drained,
-        # megabytes at a slow reader's pace); with 3 s, 4 in 4 and the netns partition and
-        # outage tests pass as before
+        # megabytes at a slow reader's pace) (docs/notes/0029-a-host-cut-off-from-the-router.md)
         conf.insert_json5(
             "transport/link/tx/queue/congestion_control/block/wait_before_close",
             json.dumps(ROUTER_BLOCK_CLOSE_US),

@@ -5,10 +5,10 @@ The tap lives in the clock's process, which subscribes to every stream of the ru
 keeps the run's record). Watchers (monitors, Foxglove bridges, remote recorders) never
 subscribe to the control streams themselves: those are published BLOCK, and a router waits
 for a subscriber that stopped reading before it forwards the next BLOCK sample to anyone
-(measured here: ~5 s stalls). The tap's copies are published DROP at priority DATA_LOW, so a
-stalled or thin-linked watcher loses copies of its own and nothing else. The RunEnd alone is
-published BLOCK: the run is over by then, and a watcher slow at the end still learns how it
-ended.
+(docs/notes/0002-watch-tap-drop-copies.md). The tap's copies are published DROP at priority
+DATA_LOW, so a stalled or thin-linked watcher loses copies of its own and nothing else. The
+RunEnd alone is published BLOCK: the run is over by then, and a watcher slow at the end still
+learns how it ended.
 
 Late join: state that is not re-sent often (the path in force, the obstacle tracks, the
 vehicle's mode, the scenario's static world) is answered by queryables, Zenoh's own way of

@@ -38,12 +38,12 @@ HOUR_S = 3600.0
 # about six users, i.e. a few GiB each; a sweep runs one run per core at once)
 # One replan's peak: 1 GiB keeps the planner process within a user's share with room for
 # the rest of the run; it is 4e6 cells with the default search (e.g. 1 km x 1 km at 0.5 m),
-# whose Dijkstra takes ~5 s a replan here, already far beyond a replan of the paper's field.
+# whose Dijkstra takes seconds a replan, already far beyond a replan of the paper's field.
 PLANNER_BYTES_BUDGET = 1 * GIB
 # The record of a run: 1 GiB is ~1e6 messages, over 3 hours of mission at the default rates.
 RECORD_BYTES_BUDGET = 1 * GIB
 # A run stays under an hour: a sweep runs dozens of them and a typo must not hold the
-# machine for days (the default mission takes ~7 s in lockstep).
+# machine for days (the default mission takes seconds in lockstep).
 WALL_BUDGET_S = 1 * HOUR_S
 
 

@@ -165,18 +165,16 @@ class ControllerConfig:
     delay_compensation: bool = True
     # the downlink delay compensated: the vehicle's measured median one-way command delay
     # plus this many of its measured jitters (1.4826 MAD, VehicleStatus); the network's
-    # configured delay of planner/cmd until the vehicle has measured one. 0 by measurement:
-    # a sequence's entries are time-stamped, so the planner should expect it to take over
-    # at the median delay, not later (1.0 s +- 0.2 s, NURBS, 12 seeds: rho0 kept in 9 with
-    # k = 0, in 5 with k = 1; backstepping's least clearance 0.15 m larger on 6 seeds)
+    # configured delay of planner/cmd until the vehicle has measured one. 0: a sequence's
+    # entries are time-stamped, so the planner should expect it to take over at the median
+    # delay, not later (docs/notes/code-jitter-margin-zero.md)
     jitter_margin_k: float = 0.0
     # a controller's yaw-rate feed-forward (the NURBS tracker's curvature term, the reference
     # yaw rate of backstepping) read vehicle.yaw_tau_s ahead at the vehicle's speed: the
     # plant's yaw rate lags its command by that time constant, so a feed-forward read where
     # the vehicle is asks for each turn late and the vehicle swings wide of it. On in
-    # configs/fleet4.toml (inproc, NURBS, seeds 1-12: rho0 kept in 10 -> 12, worst cross-track
-    # error 1.35 -> 0.57 m). Off by default: with single commands (sequence.horizon_s = 0)
-    # after an 8 s planner outage it ended 3 of 8 seeds in contact against 0 (docs/notes/0020).
+    # configs/fleet4.toml; off by default, where with single commands a planner outage ended
+    # in contact more often with it (docs/notes/0020-parked-vehicles-and-yaw-lag-lead.md).
     # The immune fuzzy PID has no feed-forward to lead.
     yaw_lag_lead: bool = False
     sequence: SequenceConfig = field(default_factory=SequenceConfig)  # shared by every controller

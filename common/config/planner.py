@@ -80,9 +80,8 @@ class PlannerConfig:
     # while that estimate is at most this old; then its sonar track takes over
     intent_max_age_s: float = 2.0
     # ... and its hull planned around this much wider: it flies its route only as closely as
-    # it tracks it, and is placed on it by its estimate. Off by default: 0.15 m widened the
-    # head-on pair's closest passes inproc, but fleet4 seed 22 at 1x in realtime then touched
-    # an obstacle in 4 launches of 6, none of 4 without (docs/notes/0023)
+    # it tracks it, and is placed on it by its estimate. Off by default: a wider intent
+    # made fleet4 touch an obstacle in realtime (docs/notes/0023-intent-margin-off.md)
     intent_margin_m: float = 0.0
     # who plans around whose intent (services/planner/safety/intent.py): "priority", a vehicle gives
     # way to those listed before it in [[vehicles]]; "mutual", to every other vehicle

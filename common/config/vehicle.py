@@ -63,9 +63,8 @@ class WatchdogConfig:
     # at once, so the speed loop brakes at the hull's limit (full reverse thrust plus drag,
     # at most accel_max_mps2); > 0: it falls at this rate (m/s^2), a gentler, longer stop.
     # The vehicle is blind from its last command: it runs hold_after_s on that command, then
-    # brakes with the heading held. With the defaults, from 1.5 m/s: 3.0 m + 5.4 m (stopped
-    # 10.5 s into HOLD); from 2.0 m/s: 4.0 m + 8.4 m. The former ramp, 0.2 m/s^2, braked
-    # over 7.3 m from 1.5 m/s and 12.1 m from 2.0 m/s.
+    # brakes with the heading held; with the defaults, from 1.5 m/s: 3.0 m, then 5.4 m
+    # (docs/notes/code-hold-brakes-at-hull-limit.md).
     hold_decel_mps2: float = 0.0
     # a command may carry at most this many future entries (the wire refuses more than
     # common.messages.MAX_SEQUENCE_LEN) spanning at most max_horizon_s past its stamp: at a

@@ -29,7 +29,7 @@ from common.config.planner import grid_shape
 if TYPE_CHECKING:
     from common.config.scenario import Scenario
 
-# --- unit costs, measured by scripts/bench_budget.py on this machine (2 cores, 2026-11)
+# --- unit costs, from scripts/bench_budget.py on the project's 2-core machine
 # Bytes a grid cell costs at a replan's peak: a fixed part and a part per arc (per
 # neighbour: connectivity 8 or 16). Dijkstra: per arc the CSR column index (intp, kept
 # between replans), its weight (float64) and the contiguous copy edge_weights returns, 24 B;
@@ -41,8 +41,7 @@ GRID_BYTES_FIXED = {"dijkstra": 72, "astar": 260}
 GRID_BYTES_PER_ARC = {"dijkstra": 24, "astar": 99}
 # A message kept in the record (its decoded struct, arrays and the record's dict slot).
 RECORD_BYTES_PER_MESSAGE = 1040
-# Each future entry of a command's sequence kept in the record (two ints and their slots):
-# a 100-entry command keeps 6.1-6.9 kB against 0.23 kB for a single command.
+# Each future entry of a command's sequence kept in the record (two ints and their slots).
 RECORD_BYTES_PER_SEQUENCE_ENTRY = 60
 # Wall seconds of one service period (its core's step, encoding, routing, recording),
 # averaged over the AUV mission's services: one process (inproc), or one process per
@@ -53,7 +52,7 @@ RK4_STEP_S = 13e-6
 # One prediction sub-step of the estimator's vehicle filter.
 PREDICT_STEP_S = {"ekf": 18e-6, "ukf": 210e-6}
 # Mission seconds the estimator predicts over per mission second: each fix, each
-# publication and the re-fusion of out-of-sequence fixes predict again (measured 2.5).
+# publication and the re-fusion of out-of-sequence fixes predict again.
 PREDICT_PASSES = 2.5
 # The AUV mission's services (sensor, estimator, planner, vehicle) each publish stats.
 N_SERVICES = 4

@@ -12,9 +12,8 @@ that delay and zero jitter from the first sample on. Before any sample both are 
 
 One sample per message: a copy (the stamp of one of the last `window` samples again: a network
 duplicate, or a flood of forged copies of one frame) says nothing new about the link, and a
-flood of copies of an old frame would otherwise fill the window with its age (measured: the
-chaos flood made the vehicle's command delay read seconds, and the planner predicted that far
-ahead).
+flood of copies of an old frame would otherwise fill the window with its age, and the planner
+would predict that far ahead (docs/notes/0013-delay-meter-counts-copies-once.md).
 """
 
 from __future__ import annotations

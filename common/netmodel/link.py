@@ -140,7 +140,7 @@ class LinkModel:
             return Decision(seq=seq, delivered_at=(a,))
         if self._has_outages and self._outages.down_at(t):
             return Decision(seq=seq, delivered_at=(), drop_cause="outage")
-        # raw words; only the uniforms this profile uses are converted (it saves ~1 us)
+        # raw words; only the uniforms this profile uses are converted (the costly part)
         w = self._rng.words(seq) if self._random else _NO_WORDS
         lost = self._loss.lost(unit(w[U_GE_STATE]), unit(w[U_LOSS]))
         t_tx = self._queue.offer(t, size_bytes)

@@ -328,8 +328,8 @@ def cmd_router(a: argparse.Namespace) -> int:
             print(f"zenoh router listening on {where}{joined}; Ctrl-C to stop", flush=True)
             wait_for_stop()  # the router works on Zenoh's threads; we only wait for a signal
         except Shutdown:
-            # closing a router while its clients drop away can take Zenoh long (seen: > 10 s
-            # after a SIGKILLed launcher); a router keeps nothing worth waiting for
+            # closing a router while its clients drop away (after a SIGKILLed launcher, say)
+            # can take Zenoh many seconds; a router keeps nothing worth waiting for
             closing = threading.Thread(target=bus.close, daemon=True)
             closing.start()
             closing.join(ROUTER_CLOSE_S)

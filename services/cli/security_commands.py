@@ -15,7 +15,7 @@ def _csv(text: str) -> list[str]:
 
 
 def cmd_certs(a: argparse.Namespace) -> int:
-    # imported here: cryptography costs ~50 ms, which the other commands need not pay
+    # imported here: cryptography is slow to import, which the other commands need not pay
     from common.bus.certs import DEFAULT_IDENTITIES, create_certs
 
     names = DEFAULT_IDENTITIES if a.names is None else _csv(a.names)

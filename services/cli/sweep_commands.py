@@ -1,5 +1,5 @@
 """The experiment sub-commands: sweep (a grid of runs), reproduce (the paper's section 4) and
-network-report (the networked-control sweeps of issue 16)."""
+network-report (the networked-control sweeps, docs/networked-control)."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ M = TypeVar("M", NavFix, ObstacleDetections)
 # fix publishes the belief predicted this far (its covariance already says "lost").
 MAX_PREDICT_S = 60.0
 # Work per step, however many measurements arrive between two steps (a flood, a replay
-# storm): fixes fused (a fix costs ~60 us) and detections fused (~500 us each), replays
+# storm): fixes fused and detections fused (tens and hundreds of microseconds each), replays
 # included. A normal run fuses one fix and a few detections per step; a measurement beyond
 # the budget is rejected (counted as over_budget) instead of stalling the publish loop.
 FIX_BUDGET = 256

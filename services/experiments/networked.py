@@ -1,4 +1,4 @@
-"""`tidelink network-report`: the networked-control sweeps of issue 16 and their REPORT.md.
+"""`tidelink network-report`: the networked-control sweeps and their REPORT.md.
 
 Four experiment files (configs/experiments/networked/{delay,loss,burst,outage}.toml), each a
 fault axis x command sequences on / off x the three controllers x seeds, run by the one sweep

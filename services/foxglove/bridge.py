@@ -71,7 +71,7 @@ class FoxgloveBridge:
         """Serve until interrupted (Shutdown, KeyboardInterrupt), or until `router_up` says
         the router is gone while no run is on: each `tidelink launch` brings its own router,
         and the caller opens a new session as soon as the next one listens (Zenoh's client
-        reconnects by itself too, after a back-off that took up to ~6 s here)."""
+        reconnects by itself too, but after a back-off of seconds)."""
         next_check = time.monotonic() + ROUTER_CHECK_S
         while True:
             self.step(POLL_S)

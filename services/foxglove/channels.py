@@ -9,11 +9,11 @@ advertised, and logging it at once as well reached a client twice when its subsc
 overtook the log.
 
 A subscription the server refused as to an "unknown channel" is mended by advertising that
-channel again (`LostSubscriptions`): the SDK's server (foxglove-sdk 0.30, and its main branch
-of 2026-11) sends a channel's advertisement to a connected client before it records the
-channel as advertised to it, so a client that answers at once, on the same machine, may
-subscribe in between and be refused; it is not told again, and the topic stays dark for it
-(seen once in ~80 suite runs: a run's true pose never reached a test client).
+channel again (`LostSubscriptions`): the SDK's server (foxglove-sdk 0.30) sends a channel's
+advertisement to a connected client before it records the channel as advertised to it, so a
+client that answers at once, on the same machine, may subscribe in between and be refused;
+it is not told again, and the topic stays dark for it
+(docs/notes/0030-foxglove-re-advertises-a-refused-channel.md).
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ class ViewChannels:
     def log(self, vm: ViewMessage, log_time_ns: int) -> None:
         """Log one view message at log_time_ns (Unix ns) on its topic's channel; a topic's
         first message only advertises the channel, and reaches each client that subscribes
-        through `replay`: logged as well, it reached twice a client whose subscription came
-        between the advertisement and the log (a run's /run/info shown twice, seen once)."""
+        through `replay`: logged as well, it would reach twice a client whose subscription came
+        between the advertisement and the log."""
         self._newest[vm.topic] = (vm, log_time_ns)
         self.logged += 1
         channel = self._known(vm)

@@ -42,11 +42,12 @@ if TYPE_CHECKING:
 
 # Each factory imports its own core: a service process then loads only its own service's
 # libraries (filterpy and scipy.stats for the estimator alone, scipy's graph and optimizer
-# for the planner), ~1 s of CPU less per process at every launch.
+# for the planner), which saves CPU in every process at every launch.
 
 NEWEST = QueuePolicy.NEWEST
-# the delay the vehicle measures on commands, for whoever commands (issue 16). 20 Hz: room
-# for 12 s of them in flight (the commander keeps only the newest)
+# the delay the vehicle measures on commands, for whoever commands (delay compensation,
+# docs/notes/0007-command-sequences.md). 20 Hz: room for 12 s of them in flight (the
+# commander keeps only the newest)
 STATUS = Input(
     source="vehicle", stream="status", msg_type=VehicleStatus, policy=NEWEST, max_queued=256
 )

@@ -35,12 +35,10 @@ ROUTER_CHECK_S = 1.0  # while no run is on, whether the router is still there
 DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
 EXIT_NO_RUN = 2
 # --rate: the streams of these types (the vehicle's state) at the rate, every other stream
-# every FULL_POLL_S, in a poll of its own once the state was shown (its reply, ~4 kB, must not
-# hold up the state's on a thin link). On the default mission a reply with every stream is
-# ~5 kB on the wire, so polling them all at 2 Hz wanted ~80 kbit/s: more than a 64 kbit/s link
-# carries. The planner's command is not state here: with its future entries it is ~0.6 kB,
-# more than the rest of the state together, and the command the vehicle applies is in its
-# status
+# every FULL_POLL_S, in a poll of its own once the state was shown (its larger reply must not
+# hold up the state's on a thin link; docs/notes/0003-monitor-polls-by-default.md). The
+# planner's command is not state here: with its future entries it outweighs the rest of the
+# state together, and the command the vehicle applies is in its status
 STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, PathMsg, RunEnd)
 FULL_POLL_S = 2.0
 # Polling by default, the monitor still hears every frame of these: a mode change, a replan

@@ -41,8 +41,8 @@ log = logging.getLogger("tidelink.run")
 DATAFLOW_ENCODING = "application/json"
 RELEASE_S = 10.0  # for services to leave by themselves at the end, before any signal
 # at most, for realtime services to leave on the stop Tick while the clock's session is still
-# open: closed at once, it could drop the RunEnd it had just queued for watchers (a Foxglove
-# client never saw a launched run's end, 1 launch in 3 beside two busy processes; 0 in 6 so)
+# open: closed at once, it could drop the RunEnd it had just queued for watchers
+# (docs/notes/code-clock-session-lingers-for-run-end.md)
 END_LINGER_S = 2.0
 CATCH_UP_S = 2.0  # at most, for the watch tap to see the last frames the driver recorded
 

@@ -35,8 +35,8 @@ MAX_DELIVERY_AHEAD_S = 60.0
 # How long (wall seconds) a service waits for the mission clock's liveliness token to come
 # back before it stops. The token also vanishes when this service's own session is cut: a
 # router closes a client it could not reach (a host cut off for over a second, see
-# common/bus/session.py), the client reconnects and sees the token again within ~0.1 s
-# (measured in tests/test_netns_launch.py); a launcher that is really gone never returns.
+# common/bus/session.py), the client reconnects and sees the token again within a fraction
+# of a second (tests/test_netns_launch.py); a launcher that is really gone never returns.
 # The grace counts only while this session is connected: cut off itself (its host's link
 # down past its Zenoh lease), a service saw every token vanish, the clock's with them, and
 # says nothing of the launcher until it is back; it waits to rejoin for as long as the
@@ -134,10 +134,8 @@ class RealtimeService:
 
         `now` is read once. A step that takes longer than a period must not chain straight
         into the next one: the loop would never take what waits in its inbox again, neither
-        the stop Tick nor the inputs that would make its steps short again (measured: an
-        estimator whose step once outlasted its period, 6 ms at x8 on two busy cores, fused
-        no fix after it, so each prediction grew longer, up to 600 sub-steps; it stepped on
-        for good after its run had ended)."""
+        the stop Tick nor the inputs that would make its steps short again
+        (docs/notes/code-realtime-step-returns-to-inbox.md)."""
         if self.t0 is None:
             return
         now = self.now_us()

@@ -17,10 +17,8 @@ class TickSender:
     `express`: sent at once from the caller's thread, for the realtime clock, whose ticks
     set every service's time. Lockstep ticks go batched (express False): Zenoh sends a batch
     as soon as its link is free, so a tick waits for nothing, and the send leaves the
-    coordinator's thread (an express put cost it 0.36-0.46 ms a tick while the services
-    stepped). The default mission in lockstep, interleaved pairs on 2 cores, median wall:
-    seed 1 13.2 -> 12.7 s, seed 2 13.4 -> 12.2 s, seed 3 11.7 -> 10.0 s; the toy loop's
-    floor (trivial cores, nothing else busy) is the same either way (1.60 / 1.66 ms).
+    coordinator's thread, which an express put held while the services stepped
+    (docs/notes/0017-lockstep-ticks-batched.md).
     """
 
     def __init__(self, bus: Bus, services: Iterable[str], *, express: bool) -> None:

@@ -1,7 +1,8 @@
 """Service processes forked from a pre-imported server, instead of a fresh interpreter each.
 
-A service process spends ~1.2 s of CPU importing numpy, scipy and filterpy before it does
-anything; with four services on two cores that was most of a lockstep run's start-up. Here a
+A service process spends over a second of CPU importing numpy, scipy and filterpy before it
+does anything; with four services on two cores that was most of a lockstep run's start-up
+(docs/notes/0001-fork-server-for-services.md). Here a
 multiprocessing fork server imports the service modules once, and every service process is
 forked from it: a copy of that memory, ready in milliseconds. The server is a fresh Python
 that never opens a Zenoh session, so no Zenoh thread or runtime is ever forked (forking a

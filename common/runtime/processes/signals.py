@@ -31,8 +31,8 @@ class Shutdown(BaseException):
 # How long an orderly stop may take before the kernel ends the process (SIGALRM's default
 # action): a stop that hangs (a Zenoh close with its router gone, a callback thread never
 # undeclared) must not leave the process behind when nobody will send a second signal, as
-# when the kernel's parent-death signal is the only one it gets. Seen once in CI: a service
-# outlived a SIGKILLed launcher by more than 45 s.
+# when the kernel's parent-death signal is the only one it gets (seen in CI: a service that
+# outlived its SIGKILLed launcher).
 STOP_DEADLINE_S = 5.0
 
 
@@ -58,8 +58,8 @@ def wait_for_stop() -> None:
     included) to any thread that does not block it, often one of Zenoh's, and pause() in the
     main thread then never returns; Python only runs the handler when the main thread runs.
     CPython's C-level handler writes to the wakeup fd in whichever thread it runs, so a
-    select on it wakes the main thread, which then runs the handler. Seen in CI: a router
-    that outlived its SIGKILLed launcher by more than 10 s.
+    select on it wakes the main thread, which then runs the handler (seen in CI: a router
+    that outlived its SIGKILLed launcher).
     """
     r, w = os.pipe()
     os.set_blocking(w, False)

@@ -2,9 +2,7 @@
 
 Linux lets a sleeping thread's timer fire up to its timer slack late (50 us by default), to
 batch wake-ups. A realtime service sleeps until its next step in a timed wait, so every
-periodic step started that much later than due. Measured on the test loop (`scripts/bench
-runtime`, 2026-11-29, three runs each): the sensor's step woke p50 151-183 us after its
-timer, 106-133 us with 1 us of slack; the plant's 134-164 -> 83-95 us.
+periodic step started that much later than due (docs/notes/0032-realtime-timer-slack.md).
 """
 
 from __future__ import annotations
