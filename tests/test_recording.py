@@ -30,9 +30,8 @@ from common.config.bus import BusConfig
 from common.config.scenario import load_scenario
 from common.messages import RunEnd, decode
 from common.runtime.model.inproc import run_inproc
-from common.runtime.processes.children import free_port
+from common.runtime.processes.children import free_port, wait_for_endpoint
 from services.foxglove.view import PLANNER_PATH, POSE_TRUE, SCENE_STATIC
-from services.launcher.router import wait_for_endpoint
 from services.recording.metrics import rebuild_record
 from services.recording.reader import AliveEvent, read_recording
 

@@ -13,21 +13,14 @@ import socket
 import ssl
 
 from common.bus.certs import Credentials
+from common.config.bus import tcp_address
 
 PROBE_S = 2.0  # the handshake and the router's verdict on our certificate take milliseconds
 
 
-def _address(endpoint: str) -> tuple[str, int] | None:
-    proto, _, addr = endpoint.partition("/")
-    host, _, port = addr.split("#", 1)[0].rpartition(":")
-    if proto not in ("tcp", "tls") or not port.isdigit():
-        return None
-    return host.strip("[]"), int(port)
-
-
 def why_unreachable(endpoint: str, creds: Credentials | None) -> str:
     """One sentence on why `endpoint` refused us (empty when the probe cannot tell)."""
-    address = _address(endpoint)
+    address = tcp_address(endpoint)
     if address is None:
         return ""
     host, port = address

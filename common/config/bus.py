@@ -93,6 +93,15 @@ def is_loopback(endpoint: str) -> bool:
         return False  # a host name: it may resolve to anything
 
 
+def tcp_address(endpoint: str) -> tuple[str, int] | None:
+    """(host, port) of a tcp/ or tls/ endpoint, its #options left out; None for any other."""
+    proto, _, addr = endpoint.partition("/")
+    host, _, port = addr.split("#", 1)[0].rpartition(":")
+    if proto not in ("tcp", "tls") or not port.isdigit():
+        return None
+    return host.strip("[]"), int(port)
+
+
 def client_config(connect: str, certs: str | None) -> BusConfig:
     """A client of the router at `connect`: under mTLS when a certs directory is given."""
     return BusConfig(

@@ -123,8 +123,8 @@ def cmd_service(a: argparse.Namespace) -> int:
     from common.runtime.distributed.lockstep_service import LockstepService
     from common.runtime.distributed.realtime_service import RealtimeService
     from common.runtime.distributed.service_process import ServiceSetup
+    from common.runtime.processes.children import wait_for_endpoint
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
-    from services.launcher.router import wait_for_endpoint
 
     scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
     name = service_name(a.name, a.vehicle, scenario)

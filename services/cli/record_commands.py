@@ -49,8 +49,8 @@ def _read(path: Path) -> Recording:
 def cmd_record(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import client_config
+    from common.runtime.processes.children import wait_for_endpoint
     from common.runtime.processes.signals import stop_on_signals
-    from services.launcher.router import wait_for_endpoint
     from services.recording.remote import RemoteRecorder
 
     say = _say("record")
@@ -101,9 +101,8 @@ def _report(o: RecordOutcome) -> None:
 def cmd_replay(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import client_config
-    from common.runtime.processes.children import connectable, free_port
+    from common.runtime.processes.children import connectable, free_port, wait_for_endpoint
     from common.runtime.processes.signals import stop_on_signals
-    from services.launcher.router import wait_for_endpoint
     from services.recording.replay import replay
 
     say = _say("replay")

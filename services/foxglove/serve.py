@@ -13,9 +13,9 @@ from foxglove.websocket import WebSocketServer
 from common.bus import Bus, Keys
 from common.bus.watcher import Watcher
 from common.config.bus import WatchTarget, client_config
+from common.runtime.processes.children import wait_for_endpoint
 from services.foxglove.bridge import FoxgloveBridge
 from services.foxglove.channels import ViewChannels
-from services.launcher.router import wait_for_endpoint
 
 log = logging.getLogger("tidelink.foxglove")
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -62,23 +61,3 @@ def start_router(
             )
         time.sleep(0.02)  # polling a file; the router is a separate process
     return connectable(listen[0])
-
-
-def wait_for_endpoint(endpoint: str, timeout_s: float) -> bool:
-    """Wait until a tcp/ or tls/HOST:PORT endpoint accepts TCP connections (a service started
-    before its router); True when it does, False on timeout. Other protocols are not probed:
-    True."""
-    proto, _, addr = endpoint.partition("/")
-    host, _, port = addr.rpartition(":")
-    if proto not in ("tcp", "tls") or not port.isdigit():
-        return True
-    host = host.strip("[]")
-    deadline = time.monotonic() + timeout_s
-    while True:
-        try:
-            with socket.create_connection((host, int(port)), timeout=1.0):
-                return True
-        except OSError:
-            if time.monotonic() > deadline:
-                return False
-            time.sleep(0.2)

@@ -24,8 +24,8 @@ from common.messages import (
     WireError,
     decode,
 )
+from common.runtime.processes.children import wait_for_endpoint
 from common.runtime.processes.signals import StopRequest
-from services.launcher.router import wait_for_endpoint
 from services.monitor.state import Event, RunState
 
 log = logging.getLogger("tidelink.monitor")

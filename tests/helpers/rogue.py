@@ -25,8 +25,8 @@ from common.bus import Bus, Keys
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.bus import client_config
 from common.messages import Tick, VehicleStatus, VelocityCommand, decode, encode, encode_routing
+from common.runtime.processes.children import wait_for_endpoint
 from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
-from services.launcher.router import wait_for_endpoint
 
 SERVICES = ("estimator", "planner", "sensor", "vehicle")
 

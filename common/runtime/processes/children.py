@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
+from common.config.bus import tcp_address
 from common.runtime.processes.forkserver import fork_module
 from common.runtime.processes.parent_death import die_with
 
@@ -36,6 +37,24 @@ def how_it_ended(code: int | None) -> str:
     if code is None:
         return "is still running"
     return f"was killed by signal {-code}" if code < 0 else f"exited with code {code}"
+
+
+def wait_for_endpoint(endpoint: str, timeout_s: float) -> bool:
+    """Wait until a tcp/ or tls/HOST:PORT endpoint accepts TCP connections (a service started
+    before its router); True when it does, False on timeout. Other protocols are not probed:
+    True."""
+    address = tcp_address(endpoint)
+    if address is None:
+        return True
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with socket.create_connection(address, timeout=1.0):
+                return True
+        except OSError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.2)
 
 
 class ProcessHandle(Protocol):
