@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from common.config.estimator import EstimatorConfig
 from common.config.world import AreaConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
+from common.guard.rejects import warn_rejected
 from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
@@ -175,17 +176,7 @@ class EstimatorCore:
                 self._spent[stream] += cost
                 buffer.add(msg, msg.stamp, msg.seq)
                 return
-        self._rejects.warn(
-            f"{stream}.{why}",
-            t,
-            "t=%.2f s: rejected a %s message (%s): from %r, stamp %.6g s, seq %d",
-            t,
-            stream,
-            why,
-            msg.source,
-            msg.stamp,
-            msg.seq,
-        )
+        warn_rejected(self._rejects, stream, why, t, msg)
 
     def _judge_fix(self, fix: NavFix, now: float) -> Reason | None:
         j = self._judge

@@ -10,6 +10,7 @@ import numpy as np
 
 from common.config.sensor import SensorConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
+from common.guard.rejects import warn_rejected
 from common.messages import TruthState
 from common.runtime.model.core import Delivery, Emit
 from common.world import World
@@ -65,16 +66,7 @@ class SensorCore:
             return []
         why = self._judge_truth(msg, d.t)
         if why is not None:
-            self._rejects.warn(
-                f"truth.{why}",
-                d.t,
-                "t=%.2f s: rejected a truth message (%s): from %r, stamp %.6g s, seq %d",
-                d.t,
-                why,
-                msg.source,
-                msg.stamp,
-                msg.seq,
-            )
+            warn_rejected(self._rejects, "truth", why, d.t, msg)
         elif d.source in self._others:
             seen = self._other_truth.get(d.source)
             if seen is None or msg.stamp > seen.stamp:
