@@ -52,6 +52,16 @@ class _Outcome(Generic[T]):
             done = (None, exc)
         self._done = done
 
+    @property
+    def running(self) -> bool:
+        """Whether work was started and its result not yet taken."""
+        raise NotImplementedError
+
+    def _refuse_if_running(self) -> None:
+        """Deferred.start's rule: one piece of work at a time."""
+        if self.running:
+            raise RuntimeError("work is already running")
+
     def _take(self) -> T | None:
         done, self._done = self._done, None
         if done is None:
@@ -70,8 +80,7 @@ class AtOnce(_Outcome[T]):
         return self._done is not None
 
     def start(self, work: Callable[[], T]) -> None:
-        if self._done is not None:
-            raise RuntimeError("work is already running")
+        self._refuse_if_running()
         self._do(work)
 
     def result(self) -> T | None:
@@ -91,8 +100,7 @@ class InThread(_Outcome[T]):
         return self._thread is not None
 
     def start(self, work: Callable[[], T]) -> None:
-        if self._thread is not None:
-            raise RuntimeError("work is already running")
+        self._refuse_if_running()
         self._done = None
         self._thread = threading.Thread(target=self._do, args=(work,), name=self._name, daemon=True)
         self._thread.start()
