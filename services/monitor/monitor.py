@@ -14,19 +14,10 @@ from common.bus.keys import CLOCK, END
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.bus import WatchTarget, client_config
 from common.config.scenario import scenario_from_raw
-from common.messages import (
-    Message,
-    PathMsg,
-    RunEnd,
-    StateEstimate,
-    TruthState,
-    VehicleStatus,
-    WireError,
-    decode,
-)
+from common.messages import Message, WireError, decode
 from common.runtime.processes.children import wait_for_endpoint
 from common.runtime.processes.signals import StopRequest
-from services.monitor.state import Event, RunState
+from services.monitor.state import EVENT_TYPES, STATE_TYPES, Event, RunState
 
 log = logging.getLogger("tidelink.monitor")
 
@@ -34,16 +25,11 @@ ROUTER_PROBE_S = 0.5  # a router that is not there is probed this often
 ROUTER_CHECK_S = 1.0  # while no run is on, whether the router is still there
 DISCOVERY_S = 1.0  # liveliness history answers in ms; past this, there is no run to watch
 EXIT_NO_RUN = 2
-# --rate: the streams of these types (the vehicle's state) at the rate, every other stream
-# every FULL_POLL_S, in a poll of its own once the state was shown (its larger reply must not
-# hold up the state's on a thin link; docs/notes/0003-monitor-polls-by-default.md). The
-# planner's command is not state here: with its future entries it outweighs the rest of the
-# state together, and the command the vehicle applies is in its status
-STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, PathMsg, RunEnd)
+# --rate: the streams of STATE_TYPES at the rate, every other stream every FULL_POLL_S, in a
+# poll of its own once the state was shown (its larger reply must not hold up the state's on
+# a thin link; docs/notes/0003-monitor-polls-by-default.md). Polling by default, the monitor
+# still hears every frame of EVENT_TYPES (a few messages a second).
 FULL_POLL_S = 2.0
-# Polling by default, the monitor still hears every frame of these: a mode change, a replan
-# or the run's end between two polls must not be missed (a few messages a second)
-EVENT_TYPES = (VehicleStatus, PathMsg, RunEnd)
 
 
 @dataclass(frozen=True, kw_only=True)

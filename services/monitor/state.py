@@ -72,6 +72,13 @@ class Event:
 
 
 VEHICLE_TYPES = (TruthState, StateEstimate, VehicleStatus, PathMsg, VelocityCommand)
+# the run's state: the newest of each is what a dashboard shows. The planner's command is not
+# state here: with its future entries it outweighs the rest of the state together, and the
+# command the vehicle applies is in its status
+STATE_TYPES = (TruthState, VehicleStatus, StateEstimate, PathMsg, RunEnd)
+# the frames events are made of (a mode change, a replan, the run's end): a watcher must not
+# miss one between two looks at the state
+EVENT_TYPES = (VehicleStatus, PathMsg, RunEnd)
 
 # (kind, text, data) of something worth a line, before the run says when and whose
 Happening = tuple[str, str, dict[str, Any]]
