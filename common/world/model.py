@@ -15,6 +15,7 @@ from common.world.geometry import polygon_centroid, polygon_signed_distance, ver
 from common.world.trajectory import Trajectory, make_trajectory
 
 FloatArray = NDArray[np.float64]
+Vec2 = FloatArray | tuple[float, float]  # (2,): x and y components
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -48,6 +49,12 @@ class ObstacleState:
         x = self.x + self.vx * t + self.ax * quad
         y = self.y + self.vy * t + self.ay * quad
         return np.stack([x, y], axis=-1)
+
+    @classmethod
+    def of_motion(cls, oid: int, radius: float, pos: Vec2, vel: Vec2, acc: Vec2) -> ObstacleState:
+        """The moving obstacle at position `pos` with velocity `vel` and acceleration `acc`."""
+        (x, y), (vx, vy), (ax, ay) = (map(float, v) for v in (pos, vel, acc))
+        return cls(id=oid, x=x, y=y, vx=vx, vy=vy, ax=ax, ay=ay, radius=radius, moving=True)
 
     @classmethod
     def of_track(cls, k: Track) -> ObstacleState:
@@ -107,20 +114,7 @@ class World:
         for p in self._polygons:
             out.append(_static(p.id, p.cx, p.cy, p.circumradius))
         for mid, r, traj in self._moving:
-            pos, vel, acc = traj.state(t)
-            out.append(
-                ObstacleState(
-                    id=mid,
-                    x=float(pos[0]),
-                    y=float(pos[1]),
-                    vx=float(vel[0]),
-                    vy=float(vel[1]),
-                    ax=float(acc[0]),
-                    ay=float(acc[1]),
-                    radius=r,
-                    moving=True,
-                )
-            )
+            out.append(ObstacleState.of_motion(mid, r, *traj.state(t)))
         return tuple(sorted(out, key=lambda o: o.id))
 
     def clearance(self, x: float, y: float, r_vehicle: float, t: float) -> float:

@@ -86,19 +86,8 @@ class SensorCore:
                 continue
             vx, vy = q.v * math.cos(q.theta), q.v * math.sin(q.theta)
             dt = t - q.stamp
-            out.append(
-                ObstacleState(
-                    id=oid,
-                    x=q.x + vx * dt,
-                    y=q.y + vy * dt,
-                    vx=vx,
-                    vy=vy,
-                    ax=0.0,
-                    ay=0.0,
-                    radius=radius,
-                    moving=True,
-                )
-            )
+            at = (q.x + vx * dt, q.y + vy * dt)
+            out.append(ObstacleState.of_motion(oid, radius, at, (vx, vy), (0.0, 0.0)))
         return tuple(out)
 
     def _judge_truth(self, m: TruthState, now: float) -> Reason | None:
