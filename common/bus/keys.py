@@ -75,7 +75,7 @@ class Keys:
 
     @property
     def all_acks(self) -> str:
-        return f"{self.root}/{CLOCK}/ack/*"
+        return self.ack("*")
 
     def acked_by(self, key: str) -> str | None:
         """The service whose acknowledgement key `key` is, or None for any other key."""
@@ -88,7 +88,7 @@ class Keys:
 
     @property
     def all_alive(self) -> str:
-        return f"{self.root}/alive/*"
+        return self.alive("*")
 
     @property
     def all_streams(self) -> str:
