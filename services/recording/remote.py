@@ -57,7 +57,6 @@ class RemoteRecorder:
         say: Callable[[str], None],
         view_for: Callable[[Scenario], View | None] = lambda s: None,
     ) -> None:
-        self.bus = bus
         self.path = path
         self.stop = stop
         self.say = say

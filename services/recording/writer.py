@@ -84,8 +84,6 @@ class RunWriter:
         flush_every_s: float = FLUSH_EVERY_S,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.path = path
-        self.info = info
         self._types = types
         self._view = view
         self._flush_every_s = flush_every_s
