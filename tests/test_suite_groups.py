@@ -3,6 +3,7 @@ so do the tests marked exclusive, one after another."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -36,13 +37,14 @@ def test_a_module_fixture_is_computed_once_on_two_workers(tmp_path: Path) -> Non
     # scripts/test's phases run `-n 2 --dist loadgroup`: were the fixture's tests spread over
     # both workers, a fixture that is a whole launch would run twice (pytest 9.2 broke this
     # silently: pytest-xdist#1386, hence the pin in pyproject.toml)
-    shutil.copy(TESTS / "conftest.py", tmp_path / "conftest.py")
+    shutil.copy(TESTS / "conftest.py", tmp_path / "conftest.py")  # it imports tests/helpers
     (tmp_path / "test_shared.py").write_text(MODULE)
     r = subprocess.run(
         [sys.executable, "-m", "pytest", "-n", "2", "--dist", "loadgroup", "-p",
          "no:cacheprovider", "-q", "-o", "addopts=", "-o", "markers=exclusive",
          "test_shared.py"],
         cwd=tmp_path, capture_output=True, text=True, timeout=120,
+        env=dict(os.environ, PYTHONPATH=f"{TESTS}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"),
     )  # fmt: skip
     assert r.returncode == 0, r.stdout + r.stderr
     assert "8 passed" in r.stdout, r.stdout
