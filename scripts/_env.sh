@@ -16,8 +16,13 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
   echo "== installing tidelink and its dependencies into .venv"
-  "$VENV/bin/python" -m pip install --quiet --upgrade pip
-  "$VENV/bin/python" -m pip install --quiet -e "$ROOT[dev]"
+  # uv (from PyPI) fetches and installs the wheels in parallel, in seconds where pip takes
+  # half a minute; pip does it if uv cannot
+  if ! { "$VENV/bin/python" -m pip install --quiet uv &&
+         "$VENV/bin/python" -m uv pip install --quiet --python "$VENV/bin/python" -e "$ROOT[dev]"; }; then
+    echo "== uv could not install; installing with pip"
+    "$VENV/bin/python" -m pip install --quiet -e "$ROOT[dev]"
+  fi
   touch "$STAMP"
 fi
 export PATH="$VENV/bin:$PATH"

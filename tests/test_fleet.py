@@ -492,7 +492,8 @@ goal = {{ x_m = 50.0, y_m = 20.0 }}
 @pytest.mark.slow
 def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     # 16 service processes and the clock over one Zenoh session each, over the first 30 s:
-    # the four vehicles' first encounters (from ~15 s on); the whole mission is the test below
+    # the four vehicles' first encounters (from ~15 s on); whole fleet4 missions, every goal
+    # reached without contact, are `scripts/bench fleet_launches` (realtime, one per seed)
     s, raw = load_scenario(FLEET4, ["run.seed=3", "run.max_time_s=30.0"], check=check_scenario)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
@@ -502,19 +503,6 @@ def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
         for stream in ("path", "intent", "stats"):
             key = (f"{vid}.planner", stream)
             assert got.record.stream(*key) == ref.record.stream(*key), key
-
-
-@pytest.mark.deterministic
-@pytest.mark.slow
-def test_fleet4_reaches_every_goal_without_contact_or_rho0_breach() -> None:
-    # not every seed succeeds (seed 1's auv4 ends 0.22 m inside rho0 of obstacle 4 after a
-    # turn away from auv2's path); seed 2 does, in every runtime
-    s, _ = load_scenario(FLEET4, ["run.seed=2"], check=check_scenario)
-    m = run_inproc(s).metrics
-    assert m["outcome"] == "success" and m["vehicles_reached"] == 4, m["outcome"]
-    assert m["vehicle_collisions"] == 0 and m["collisions"] == 0
-    assert m["min_separation_m"] >= s.planner.rho0_m and m["rho0_breach_m"] == 0.0
-    assert m["makespan_s"] is not None and m["makespan_s"] < s.run.max_time_s
 
 
 # -- launching -------------------------------------------------------------------------------

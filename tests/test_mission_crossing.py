@@ -49,7 +49,7 @@ def test_each_obstacle_crosses_the_way_when_the_vehicle_gets_there() -> None:
         assert _clearance(s, run.record, alone).min() < 0.0, f"obstacle {o.id} misses"
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("seed", [1, 2])
 def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
     s, _ = load_scenario(CROSSING, ['controller.kind="nurbs"'], seed=seed)
     r = inproc(s)

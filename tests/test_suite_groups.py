@@ -52,3 +52,13 @@ def test_a_module_fixture_is_computed_once_on_two_workers(tmp_path: Path) -> Non
     assert len(computed) == 1 and computed[0].startswith("gw"), computed
     alone = (tmp_path / "alone.txt").read_text().split()
     assert len(alone) == 4 and len(set(alone)) == 1 and alone[0].startswith("gw"), alone
+
+
+def test_every_slow_mark_is_spelled_as_scripts_test_looks_for_it() -> None:
+    # scripts/test gives its wall-clock phase only the modules that say `pytest.mark.slow`:
+    # a slow test marked any other way (an alias, a bare `mark.slow`) would never run
+    for path in sorted(TESTS.glob("test_*.py")):
+        if path.name == Path(__file__).name:
+            continue  # this check names the marks in strings
+        text = path.read_text()
+        assert text.count("mark.slow") == text.count("pytest.mark.slow"), path.name
