@@ -19,11 +19,15 @@ if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
   # uv (from PyPI) fetches and installs the wheels in parallel, in seconds where pip takes
   # half a minute; pip does it if uv cannot
   if ! { "$VENV/bin/python" -m pip install --quiet uv &&
-         "$VENV/bin/python" -m uv pip install --quiet --python "$VENV/bin/python" -e "$ROOT[dev]"; }; then
+         "$VENV/bin/python" -m uv pip install --quiet --compile-bytecode --python "$VENV/bin/python" \
+           -e "$ROOT[dev]"; }; then
     echo "== uv could not install; installing with pip"
     "$VENV/bin/python" -m pip install --quiet -e "$ROOT[dev]"
   fi
   touch "$STAMP"
 fi
 export PATH="$VENV/bin:$PATH"
+# a run starts dozens of Python processes (services, routers, tools, test workers): each one
+# compiled every module from source again where the environment forbids bytecode caches
+unset PYTHONDONTWRITEBYTECODE
 cd "$ROOT"
