@@ -40,6 +40,7 @@ from services.vehicle.core import VehicleCore
 CONFIGS = REPO / "configs"
 FLEET4 = CONFIGS / "fleet4.toml"
 HEADON = CONFIGS / "fleet_headon.toml"
+HEADON_SHORT = CONFIGS / "experiments" / "scenarios" / "headon_short.toml"
 
 
 def _raw(path: Path = FLEET4) -> dict[str, Any]:
@@ -562,18 +563,19 @@ def test_launch_progress_shows_every_vehicle() -> None:
 def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     tmp_path: Path,
 ) -> None:
-    # a real launch of the head-on pair (8 service processes); auv1's planner is SIGKILLed at
-    # t = 20 s and not restarted: auv1's vehicle holds, then fails safe, on its own watchdog;
-    # auv2 passes it (its last intent, then its sonar track) and reaches its goal; the run
-    # goes on to max_time, says what was lost, writes its metrics and is no success (exit 3)
+    # a real launch of the head-on pair 50 m apart (8 service processes); auv1's planner is
+    # SIGKILLed at t = 10 s, before they meet, and not restarted: auv1's vehicle holds, then
+    # fails safe, on its own watchdog; auv2 passes it (its last intent, then its sonar track)
+    # and reaches its goal; the run goes on to max_time, says what was lost, writes its
+    # metrics and is no success (exit 3)
     from common.runtime.distributed.bringup import run_keys
     from services.chaos.case import CaseSetup, run_case
     from services.chaos.faults import Fault
 
     setup = CaseSetup(
-        scenario=HEADON, sets=("run.max_time_s=75.0",), time_scale=5.0, fault_at_s=20.0
+        scenario=HEADON_SHORT, sets=("run.max_time_s=60.0",), time_scale=5.0, fault_at_s=10.0
     )
-    s, _ = load_scenario(HEADON, list(setup.sets))
+    s, _ = load_scenario(HEADON_SHORT, list(setup.sets))
     got = run_case(
         setup,
         Fault("kill", "auv1.planner"),

@@ -149,31 +149,32 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveRun]:
             cwd=REPO, capture_output=True, text=True, timeout=WAIT_S, check=False,
         )  # fmt: skip
         bridge.wait_for(f"serving Foxglove on ws://127.0.0.1:{ws_port}", WAIT_S)
-        client = stack.enter_context(FoxgloveClient(f"ws://127.0.0.1:{ws_port}"))
-        streams = bridge.wait_for(
-            r"watching run short/auv1 \(joined with the newest frame of (\d+) streams\)", WAIT_S
-        )
-        client.wait_until(
-            lambda: all(client.on(t) for t in PROTOBUF_TOPICS), WAIT_S, "scene messages"
-        )
-        joined = json.loads(late.wait_for(r'"event": "joined"', WAIT_S, stdout=True).string)
-        fox: dict[str, Any] = {
-            "subprotocol": client.subprotocol,
-            "server": client.server_infos[0]["name"],
-            "channels": {t: client.channel(t) for t in PROTOBUF_TOPICS},
-            "pose": _decode(client, "/vehicle/pose_true"),
-            "path": _decode(client, "/planner/path"),
-            "static": _decode(client, "/scene/static"),
-            "tracks": _decode(client, "/scene/tracks"),
-        }
-        while launch.proc.poll() is None:
-            client.pump(0.2)  # reading the socket as the app does
-        launch.wait(WAIT_S)
-        bridge.wait_for("run short/auv1 is over", WAIT_S)
-        client.wait_until(lambda: bool(client.on("/run/end")), WAIT_S, "/run/end")
-        fox["end"] = json.loads(client.on("/run/end")[-1].data)
-        client.pump(0.5)
-        fox["connected_after_the_run"] = not client.closed and bridge.proc.poll() is None
+        # the app leaves before the bridge is stopped (closing on a stopped server waits)
+        with FoxgloveClient(f"ws://127.0.0.1:{ws_port}") as client:
+            streams = bridge.wait_for(
+                r"watching run short/auv1 \(joined with the newest frame of (\d+) streams\)", WAIT_S
+            )
+            client.wait_until(
+                lambda: all(client.on(t) for t in PROTOBUF_TOPICS), WAIT_S, "scene messages"
+            )
+            joined = json.loads(late.wait_for(r'"event": "joined"', WAIT_S, stdout=True).string)
+            fox: dict[str, Any] = {
+                "subprotocol": client.subprotocol,
+                "server": client.server_infos[0]["name"],
+                "channels": {t: client.channel(t) for t in PROTOBUF_TOPICS},
+                "pose": _decode(client, "/vehicle/pose_true"),
+                "path": _decode(client, "/planner/path"),
+                "static": _decode(client, "/scene/static"),
+                "tracks": _decode(client, "/scene/tracks"),
+            }
+            while launch.proc.poll() is None:
+                client.pump(0.2)  # reading the socket as the app does
+            launch.wait(WAIT_S)
+            bridge.wait_for("run short/auv1 is over", WAIT_S)
+            client.wait_until(lambda: bool(client.on("/run/end")), WAIT_S, "/run/end")
+            fox["end"] = json.loads(client.on("/run/end")[-1].data)
+            client.pump(0.5)
+            fox["connected_after_the_run"] = not client.closed and bridge.proc.poll() is None
         bridge.signal(signal.SIGTERM)
         late.wait(WAIT_S)
         for r in rec.values():
