@@ -30,7 +30,7 @@ def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
         crossing=None,
         seeds=1,
         runtime="inproc",
-        jobs=2,
+        jobs=1,  # in this process: the pool is test_sweep_resume's and test_sweep_lockstep's
         tune_seeds=1,
         tune_box=Box(a_lo=0, a_hi=0, b_lo=0, b_hi=0),
         tune_limit=0,  # one candidate, never widened: the search itself is tested below

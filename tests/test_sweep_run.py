@@ -34,7 +34,8 @@ def smoke(tmp_path_factory: pytest.TempPathFactory) -> tuple[Experiment, SweepRe
     # 2 seeds, not the file's 3: the same grid, rows and intervals (n = 2) at 2/3 of the CPU
     exp = dataclasses.replace(load_experiment(SMOKE), seeds=2)
     out = tmp_path_factory.mktemp("smoke")
-    rep = run_sweep(exp, str(SMOKE), SweepOptions(out=out, runtime="inproc", jobs=2, rich=False))
+    # one run after another in this process (a pool of workers is test_sweep_lockstep's)
+    rep = run_sweep(exp, str(SMOKE), SweepOptions(out=out, runtime="inproc", jobs=1, rich=False))
     return exp, rep
 
 
@@ -123,7 +124,7 @@ def test_rerunning_a_finished_sweep_runs_nothing(smoke: tuple[Experiment, SweepR
     again = run_sweep(
         exp,
         str(SMOKE),
-        SweepOptions(out=rep.out, runtime="inproc", jobs=2, rich=False, plots=False),
+        SweepOptions(out=rep.out, runtime="inproc", jobs=1, rich=False, plots=False),
     )
     assert (again.ran, again.skipped) == (0, 18)
     assert (rep.out / "results.csv").read_bytes() == before
