@@ -33,6 +33,7 @@ from services.foxglove.serve import BridgeOptions, start_server
 
 WAIT_S = 60.0  # upper bound on any one wait; the happy paths take seconds
 DEFAULT = REPO / "configs" / "default.toml"
+SHORT = REPO / "configs" / "experiments" / "scenarios" / "short.toml"
 PROTOBUF_TOPICS = {
     "/vehicle/pose_true": "foxglove.PoseInFrame",
     "/vehicle/pose_est": "foxglove.PoseInFrame",
@@ -282,9 +283,9 @@ def out(tmp_path: Path) -> Any:
 
 
 def _run(name: str, router: str, out: Path, max_time_s: float) -> Tidelink:
-    """A realtime run at 8x whose own process is the router on `router`."""
+    """A realtime run of the short mission at 8x whose own process is the router on `router`."""
     return Tidelink(
-        "run", str(DEFAULT), "--runtime", "realtime", "--time-scale", "8",
+        "run", str(SHORT), "--runtime", "realtime", "--time-scale", "8",
         "--out", str(out / name), "--set", f"run.name={name}",
         "--set", f"run.max_time_s={max_time_s}", "--set", f'bus.listen=["{router}"]',
     )  # fmt: skip

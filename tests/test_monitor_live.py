@@ -95,6 +95,7 @@ def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_anothe
         for seed in ("1", "2"):  # each launch brings its own router on the same endpoint
             out = tmp_path / f"run{seed}"
             launch = ["launch", SMALL, "--runtime", "lockstep", "--listen", endpoint]
+            launch += ["--set", "run.max_time_s=6"]  # a run's start and its end are what count
             with Tidelink(*launch, "--seed", seed, "--out", str(out), "--no-plot") as run:
                 assert run.wait(WAIT_S) == judged_exit(out), run.stderr
         first = mon.wait_for(r'"event": "end"', WAIT_S, stdout=True).string
@@ -102,7 +103,7 @@ def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_anothe
             r'"event": "end"', WAIT_S, start=mon.out.index(first) + 1, stdout=True
         )
         ends = [json.loads(first), json.loads(second.string)]
-        assert [e["text"].endswith("goal") for e in ends] == [True, True]
+        assert [e["text"].endswith("max_time") for e in ends] == [True, True]
         assert mon.proc.poll() is None  # --follow: still watching
         mon.signal(signal.SIGINT)
         assert mon.wait(15.0) == 0
