@@ -90,7 +90,10 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """xdist groups (`--dist loadgroup`, as scripts/test runs them): the tests marked
     exclusive form one group, so they run one after another on one worker while the others
     take the lighter wall-clock tests; the tests sharing a module-scoped fixture form one, so
-    the fixture (a whole launch, a sweep) runs once, not once per worker that runs one."""
+    the fixture (a whole launch, a sweep) runs once, not once per worker that runs one.
+
+    The longest work goes first (the exclusive group, then the multi-process and heavy
+    tests), so that no worker is left with a long test while the others have finished."""
     for item in items:
         if item.get_closest_marker("exclusive") is not None:
             item.add_marker(pytest.mark.xdist_group("exclusive"))
@@ -103,3 +106,11 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             if defs and defs[-1].scope == "module":
                 item.add_marker(pytest.mark.xdist_group(f"{item.path.stem}.{name}"))
                 break
+    items.sort(key=_order)
+
+
+def _order(item: pytest.Item) -> int:
+    for rank, mark in enumerate(("exclusive", "heavy", "slow")):
+        if item.get_closest_marker(mark) is not None:
+            return rank
+    return 3

@@ -252,6 +252,7 @@ def test_a_sweep_checks_every_cell_against_the_budget_before_it_starts(tmp_path:
     assert [r.labels["size"] for r in big.runs] == ["small"] * exp.seeds + ["huge"] * exp.seeds
 
 
+@pytest.mark.heavy
 def test_the_budget_benchmark_measures_replans_near_the_estimate(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

@@ -461,6 +461,7 @@ def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     }
 
 
+@pytest.mark.heavy
 @pytest.mark.deterministic
 def test_a_vehicle_first_in_priority_goes_around_one_parked_at_its_goal(tmp_path: Path) -> None:
     # auv2 arrives first and parks on auv1's straight line; auv1, ahead in priority, plans

@@ -18,6 +18,7 @@ from common.runtime.model.inproc import run_inproc
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 
 
+@pytest.mark.heavy
 def test_a_start_in_contact_escapes_instead_of_deadlocking() -> None:
     # x = 15.5 puts the 0.8 m hull 0.3 m into circle 1 (20, 20, r 4), heading north along its
     # surface: the planner answered NO_PATH every second and the vehicle sat in contact until

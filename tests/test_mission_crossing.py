@@ -36,6 +36,7 @@ def _clearance(s: Scenario, record: Record, world: World | None = None) -> np.nd
     return (world or World(s.world)).clearance_many(x, y, s.vehicle.radius_m, t)
 
 
+@pytest.mark.heavy
 def test_each_obstacle_crosses_the_way_when_the_vehicle_gets_there() -> None:
     # a vehicle that never sees the moving obstacles (the world without them) drives the
     # straight way; judged against each obstacle alone, every one of them would hit it
@@ -49,6 +50,7 @@ def test_each_obstacle_crosses_the_way_when_the_vehicle_gets_there() -> None:
         assert _clearance(s, run.record, alone).min() < 0.0, f"obstacle {o.id} misses"
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("seed", [1, 2])
 def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
     s, _ = load_scenario(CROSSING, ['controller.kind="nurbs"'], seed=seed)

@@ -28,6 +28,7 @@ SEQUENCES_OFF = "controller.sequence.horizon_s=0"
 RAMMED = 'world.moving=[{id=20, kind="line", radius_m=1.0, x0_m=0.0, y0_m=20.0, vx_mps=3.0}]'
 
 
+@pytest.mark.heavy
 def test_a_run_that_touched_an_obstacle_is_no_success_even_at_the_goal() -> None:
     s, _ = load_scenario(DEFAULT, [RAMMED, 'runtime.kind="inproc"'])
     r = run_inproc(s)
@@ -100,6 +101,7 @@ NEW_KEYS = {
 }
 
 
+@pytest.mark.heavy
 def test_a_default_run_has_every_metric_and_its_summary_says_the_outcome(tmp_path: Path) -> None:
     out = tmp_path / "default"
     r = _cli("run", str(DEFAULT), "--runtime", "inproc", "--out", str(out), "--no-plot")
@@ -170,6 +172,7 @@ def test_losing_the_planner_for_8_s_without_sequences_is_a_short_reported_blind_
     assert m["success"] is (not inside) and (m["time_below_rho0_s"] > 0.0) is inside
 
 
+@pytest.mark.heavy
 def test_an_8_s_planner_outage_is_bridged_by_the_command_sequence() -> None:
     # with the default 10 s sequence the vehicle keeps applying the last sequence it holds
     # through the whole outage: never in HOLD, and the mission ends as it would have

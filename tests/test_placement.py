@@ -145,6 +145,7 @@ def test_a_sender_over_an_acoustic_link_gets_a_range_tap_its_core_never_sees() -
     }
 
 
+@pytest.mark.heavy
 def test_topside_commands_over_1_kbit_s_at_1_km_degrade_the_mission() -> None:
     # the planner (with the controller) on a ship 1 km away: its ~0.6 kB command sequences
     # take ~5 s each at 1 kbit/s, the modem queue overflows and the vehicle runs on stale
@@ -217,6 +218,7 @@ def test_tidelink_check_exits_2_on_a_bad_placement(tmp_path: Path) -> None:
     assert "placement.services.planner: 'moon' is an unknown node" in res.stderr
 
 
+@pytest.mark.heavy
 def test_the_onboard_tracker_follows_the_planners_path_to_the_goal() -> None:
     # controller.placement = "onboard": the planner sends paths only, a fifth service on the
     # vehicle's node commands from the onboard estimate with the same controller
@@ -230,6 +232,7 @@ def test_the_onboard_tracker_follows_the_planners_path_to_the_goal() -> None:
     assert m["control_actions"] > 500  # counted on tracker/cmd
 
 
+@pytest.mark.heavy
 def test_over_1_kbit_s_at_1_km_paths_get_through_where_commands_do_not() -> None:
     # static obstacles only, the planner on a ship 1 km away: with the controller topside
     # its command sequences (~0.6 kB, ~5 s a frame) cannot keep the vehicle going; with the

@@ -30,6 +30,7 @@ def test_ruff_is_clean() -> None:
     assert res.returncode == 0, f"ruff check . failed:\n{res.stdout}\n{res.stderr}"
 
 
+@pytest.mark.heavy  # ~15 s of a cold cache
 def test_mypy_is_clean() -> None:
     res = _run("mypy")  # packages and options from [tool.mypy]
     print(res.stdout, res.stderr)

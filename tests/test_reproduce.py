@@ -6,6 +6,8 @@ import json
 import re
 from pathlib import Path
 
+import pytest
+
 from common.config.scenario import load_scenario
 from services.experiments.cases import CASES
 from services.experiments.reproduce import ReproduceOptions, reproduce
@@ -22,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
 
+@pytest.mark.heavy
 def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
     opts = ReproduceOptions(
         out=tmp_path / "runs",

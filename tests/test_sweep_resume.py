@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
@@ -60,6 +62,7 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.heavy
 def test_a_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path: Path) -> None:
     exp = tmp_path / "resume.toml"
     exp.write_text(EXPERIMENT)
