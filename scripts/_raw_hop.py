@@ -6,8 +6,9 @@
                          the same, one sample every MS milliseconds (a loop's pace: between
                          samples each process sleeps, and pays its wake-up on the next);
                          with `router`, from a client through a router to a client, as a
-                         service's message goes (this process the router, its subscriber a
-                         second session of it); with `fast`, over the quickest transport
+                         service's message goes: three processes, the router one of its own
+                         (as `tidelink router`), this one the subscriber; with `fast`, over
+                         the quickest transport
                          Zenoh has here, not the one tidelink uses: a Unix socket instead
                          of TCP on loopback, and Zenoh's lowlatency transport (no transmit
                          queue or task: the putting thread writes the socket; no QoS)
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
 import struct
 import subprocess
@@ -81,7 +83,15 @@ def parent(n: int, interval_s: float = 0.001, via_router: bool = False, fast: bo
             return
         lat.append(now - struct.unpack("<q", b)[0])
 
-    router = zenoh.open(_conf(endpoint, None, "router", fast)) if via_router else None
+    router = None
+    if via_router:
+        router = subprocess.Popen(
+            [sys.executable, __file__, "router", endpoint, "fast" if fast else "tcp"],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert router.stdout is not None
+        router.stdout.readline()  # "listening"
     with zenoh.open(
         _conf(None, endpoint, mode, fast) if via_router else _conf(endpoint, None, fast=fast)
     ) as s:
@@ -92,7 +102,8 @@ def parent(n: int, interval_s: float = 0.001, via_router: bool = False, fast: bo
         proc.wait(timeout=10)
         sub.undeclare()
     if router is not None:
-        router.close()
+        router.terminate()
+        router.wait(timeout=10)
     a = np.array(lat[n // 20 :]) / 1e3  # the first samples warm up
     print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
 
@@ -138,8 +149,21 @@ def rtt_parent(n: int) -> None:
     print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
 
 
+def router_process(endpoint: str, fast: bool) -> None:
+    """A router and nothing else, until terminated."""
+    with zenoh.open(_conf(endpoint, None, "router", fast)):
+        print("listening", flush=True)
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            pass
+
+
 if __name__ == "__main__":
-    if sys.argv[1] == "child":
+    if sys.argv[1] == "router":
+        signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+        router_process(sys.argv[2], sys.argv[3] == "fast")
+    elif sys.argv[1] == "child":
         child(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), sys.argv[5], sys.argv[6] == "fast")
     elif sys.argv[1] == "rtt-child":
         rtt_child(sys.argv[2])

@@ -110,7 +110,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 
 def _order(item: pytest.Item) -> int:
-    for rank, mark in enumerate(("exclusive", "heavy", "slow")):
+    for rank, mark in enumerate(("exclusive", "background", "heavy", "slow")):
         if item.get_closest_marker(mark) is not None:
             return rank
-    return 3
+    return 4

@@ -20,10 +20,12 @@ from services.chaos.forge import payloads
 from services.chaos.verdict import problems, table
 
 REPO = Path(__file__).resolve().parents[1]
-# The short mission (~27 s) at the CLI's 4x; the faults strike at t = 14 s, past circle 1, so
-# an 8 s stop of the planner falls in open water (the vehicle runs on its command sequence)
+# The short mission (~27 s) at 6x; the faults strike at t = 14 s, past circle 1, so an 8 s stop
+# of the planner falls in open water (the vehicle runs on its command sequence)
 SETUP = CaseSetup(
-    scenario=REPO / "configs" / "experiments" / "scenarios" / "short.toml", fault_at_s=14.0
+    scenario=REPO / "configs" / "experiments" / "scenarios" / "short.toml",
+    fault_at_s=14.0,
+    time_scale=6.0,
 )
 CASES = [
     Fault("kill", "planner", restart=True),

@@ -574,7 +574,7 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     from services.chaos.faults import Fault
 
     setup = CaseSetup(
-        scenario=HEADON_SHORT, sets=("run.max_time_s=60.0",), time_scale=5.0, fault_at_s=10.0
+        scenario=HEADON_SHORT, sets=("run.max_time_s=60.0",), time_scale=6.0, fault_at_s=10.0
     )
     s, _ = load_scenario(HEADON_SHORT, list(setup.sets))
     got = run_case(

@@ -29,7 +29,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.netns, pytest.mark.exclusive]
 
 PORT = 7447
 WAIT_S = 60.0
-RUN_S = 8.0  # mission seconds at time scale 1: ~16 monitor updates
+RUN_S = 6.0  # mission seconds at time scale 1: ~12 monitor updates
 SHAPER = ("64kbit", "4kb", "400ms")  # rate, burst, latency
 RATE_KBIT = 64.0
 TRUTH = "vehicle/truth"

@@ -49,7 +49,7 @@ set = {{ "controller.sequence.horizon_s" = 0.0 }}
 """
 
 
-@pytest.mark.heavy
+@pytest.mark.background
 def test_the_report_runs_the_sweeps_and_writes_goals_cliffs_figures_and_cost(
     tmp_path: Path,
 ) -> None:

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
 
-@pytest.mark.heavy
+@pytest.mark.background
 def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
     opts = ReproduceOptions(
         out=tmp_path / "runs",

@@ -55,10 +55,12 @@ def test_a_module_fixture_is_computed_once_on_two_workers(tmp_path: Path) -> Non
 
 
 def test_every_slow_mark_is_spelled_as_scripts_test_looks_for_it() -> None:
-    # scripts/test gives its wall-clock phase only the modules that say `pytest.mark.slow`:
-    # a slow test marked any other way (an alias, a bare `mark.slow`) would never run
+    # scripts/test gives its wall-clock phase only the modules that say `pytest.mark.slow`,
+    # its background run those that say `pytest.mark.background`: a test marked any other
+    # way (an alias, a bare `mark.slow`) would never run
     for path in sorted(TESTS.glob("test_*.py")):
         if path.name == Path(__file__).name:
             continue  # this check names the marks in strings
         text = path.read_text()
-        assert text.count("mark.slow") == text.count("pytest.mark.slow"), path.name
+        for mark in ("slow", "background"):
+            assert text.count(f"mark.{mark}") == text.count(f"pytest.mark.{mark}"), path.name

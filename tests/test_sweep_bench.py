@@ -11,7 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.heavy
+@pytest.mark.background
 def test_bench_sweep_reports_runs_per_minute(capsys: pytest.CaptureFixture[str]) -> None:
     spec = importlib.util.spec_from_file_location(
         "bench_sweep", ROOT / "scripts" / "bench_sweep.py"

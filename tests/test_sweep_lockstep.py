@@ -11,7 +11,7 @@ import pytest
 from services.experiments.schema import load_experiment
 from services.experiments.sweep import SweepOptions, run_sweep
 
-pytestmark = [pytest.mark.slow, pytest.mark.deterministic]
+pytestmark = [pytest.mark.slow, pytest.mark.deterministic, pytest.mark.background]
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "configs" / "experiments" / "smoke.toml"

@@ -18,8 +18,8 @@ from services.experiments.stats import mean_ci
 from services.experiments.sweep import SweepOptions, SweepReport, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
-# the smoke sweep (a module fixture) and the cluster: whole sweeps in this process
-pytestmark = pytest.mark.heavy
+# the smoke sweep (a module fixture) and the cluster: whole sweeps, CPU-bound
+pytestmark = pytest.mark.background
 
 SMOKE = ROOT / "configs" / "experiments" / "smoke.toml"
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
