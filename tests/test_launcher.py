@@ -168,7 +168,7 @@ def test_a_crash_under_policy_never_fails_the_run_naming_the_service(
 ) -> None:
     # 300 s of wall clock to max_time: ending within WAIT_S proves the run failed fast
     scenario = _scenario(tmp_path, max_time=600.0, crash="filter")
-    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+    with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
         assert t.wait(WAIT_S) == 1
     assert "service 'filter' exited with code 3 (restart policy 'never')" in t.stderr
     # what the run measured until the crash is written, the failure named
@@ -191,6 +191,7 @@ def test_on_failure_backs_off_doubling_then_gives_up(tmp_path: Path, out: Path) 
         str(scenario),
         "--out",
         str(out),
+        "--no-plot",
         "--restart",
         "filter=on-failure:2",
         "--backoff",
@@ -209,7 +210,7 @@ def test_on_failure_backs_off_doubling_then_gives_up(tmp_path: Path, out: Path) 
 @pytest.mark.parametrize("when", ["starting", "running"])
 def test_no_process_outlives_an_interrupted_launch(tmp_path: Path, out: Path, when: str) -> None:
     scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
-    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+    with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
         t.wait_for(r"router listening" if when == "starting" else r"mission clock started", WAIT_S)
         t.signal(signal.SIGINT)
         assert t.wait(WAIT_S) == 130, t.stderr
@@ -226,7 +227,7 @@ def test_no_process_outlives_a_sigkilled_launcher(tmp_path: Path, out: Path) -> 
     """SIGKILL gives the launcher no chance to stop anything: its children go by themselves
     (the kernel's parent-death signal; the router used to listen on for good)."""
     scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
-    with Tidelink("launch", str(scenario), "--out", str(out)) as t:
+    with Tidelink("launch", str(scenario), "--out", str(out), "--no-plot") as t:
         t.wait_for(r"mission clock started", WAIT_S)
         t.signal(signal.SIGKILL)
         assert t.wait(WAIT_S) == -signal.SIGKILL
@@ -242,7 +243,9 @@ def test_a_killed_router_fails_the_run_saying_it_is_never_restarted(
     tmp_path: Path, out: Path
 ) -> None:
     scenario = _scenario(tmp_path, max_time=100.0, scale=1.0)
-    with Tidelink("launch", str(scenario), "--out", str(out), "--restart", "on-failure") as t:
+    with Tidelink(
+        "launch", str(scenario), "--out", str(out), "--no-plot", "--restart", "on-failure"
+    ) as t:
         t.wait_for(r"mission clock started", WAIT_S)
         os.kill(_pids(out)["router"][0], signal.SIGKILL)
         assert t.wait(WAIT_S) == 1, t.stderr
@@ -306,7 +309,8 @@ def test_services_started_elsewhere_join_before_the_clock_starts(tmp_path: Path,
     scenario = _scenario(tmp_path, max_time=8.0)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with Tidelink(
-        "launch", str(scenario), "--out", str(out), "--only", "ctrl,filter", "--listen", endpoint
+        *("launch", str(scenario), "--out", str(out), "--no-plot", "--only", "ctrl,filter"),
+        *("--listen", endpoint),
     ) as t:
         t.wait_for(r"waiting for plant, sensor to join", WAIT_S)
         assert "mission clock started" not in t.stderr

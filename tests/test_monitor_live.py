@@ -1,6 +1,6 @@
-"""`tidelink monitor` against real launches: no run, a monitor that stops reading (SIGSTOP)
-leaving a lockstep trajectory bit-identical, and one following run after run. A monitor
-joining a realtime run late is tests/test_live_run.py's.
+"""`tidelink monitor` against real launches: no run, and one following run after run. A
+monitor joining a realtime run late, and one frozen beside it, are tests/test_live_run.py's;
+one frozen beside a lockstep run is tests/test_lockstep_adversaries.py's.
 
 Everything is real: the launcher, its router and four service processes over Zenoh, and the
 monitor as its own process. Waits are on lines the processes print, with timeouts.
@@ -15,9 +15,7 @@ from typing import Any
 
 import pytest
 from helpers.launch_proc import Tidelink, judged_exit, kill_recorded
-from helpers.runs import inproc
 
-from common.config.scenario import load_scenario
 from common.runtime.processes.children import free_port
 
 pytestmark = pytest.mark.slow
@@ -56,34 +54,6 @@ def test_a_monitor_without_a_run_says_so_and_waits_or_exits_2(tmp_path: Path) ->
             assert mon.wait(15.0) == 0  # a clean stop on SIGTERM
         router.signal(signal.SIGINT)
         router.wait(15.0)
-
-
-def _with_a_stopped_monitor(launch: list[str], endpoint: str) -> tuple[int, str]:
-    """Run a launch while a monitor that joined is SIGSTOPped; (launch exit code, stderr)."""
-    with Tidelink(*launch) as run:
-        run.wait_for(r"router listening", WAIT_S)
-        with Tidelink("monitor", "--connect", endpoint, "--json", "--every", "0.1") as mon:
-            mon.wait_for(r'"event": "joined"', WAIT_S, stdout=True)
-            mon.signal(signal.SIGSTOP)  # it stops reading: its socket fills, the tap drops
-            try:
-                code = run.wait(WAIT_S * 2)
-            finally:
-                mon.signal(signal.SIGCONT)
-        return code, run.stderr
-
-
-@pytest.mark.deterministic
-def test_a_sigstopped_monitor_leaves_a_lockstep_trajectory_bit_identical(
-    tmp_path: Path, out: Path
-) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    # a slower lockstep run (the coordinator waits for a monitor-free wall pace anyway)
-    launch = ["launch", SHORT, "--runtime", "lockstep", "--listen", endpoint, "--out", str(out)]
-    code, err = _with_a_stopped_monitor(launch, endpoint)
-    assert code == 0, err
-    s, _ = load_scenario(SHORT)
-    expected = inproc(s).metrics["trajectory_sha256"]
-    assert _metrics(out)["trajectory_sha256"] == expected
 
 
 def test_a_following_monitor_waits_for_a_router_and_watches_one_run_after_another(

@@ -273,11 +273,11 @@ def test_a_launch_that_fails_or_is_stopped_still_closes_its_recording(tmp_path: 
     (tmp_path / "loop.toml").write_text(TESTLOOP)
     try:
         with Tidelink(
-            "launch", str(tmp_path / "crash.toml"), "--out", str(failing), "--record"
+            "launch", str(tmp_path / "crash.toml"), "--out", str(failing), "--record", "--no-plot"
         ) as t:
             assert t.wait(WAIT_S) == 1  # the filter crashed: the run failed
         with Tidelink(
-            "launch", str(tmp_path / "loop.toml"), "--out", str(stopped), "--record"
+            "launch", str(tmp_path / "loop.toml"), "--out", str(stopped), "--record", "--no-plot"
         ) as t:
             t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)
             t.signal(signal.SIGINT)

@@ -15,20 +15,21 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
 # 2 profiles x 2 controllers x 1 seed = 4 runs of the fast baselines, one after another:
-# killed after 2, the third running (a killed pool of workers: test_sweep_orphans)
-EXPERIMENT = f"""
+# killed after 2, the third running (a killed pool of workers: test_sweep_orphans); the runs
+# are the small scenario's first 8 s (small8.toml, written beside the experiment)
+EXPERIMENT = """
 name = "resume"
-scenario = "{SMALL}"
+scenario = "small8.toml"
 seeds = 1
 controllers = ["backstepping", "fuzzy_pid"]
 [[axes]]
 name = "network"
 [[axes.values]]
 label = "ideal"
-set = {{ "network.default" = {{}} }}
+set = { "network.default" = {} }
 [[axes.values]]
 label = "lossy"
-set = {{ "network.default" = {{ delay_s = 0.1, loss = "bernoulli", loss_p = 0.1 }} }}
+set = { "network.default" = { delay_s = 0.1, loss = "bernoulli", loss_p = 0.1 } }
 """
 TOTAL = 4
 KILL_AFTER = 2
@@ -66,6 +67,7 @@ def _rows(out: Path) -> list[dict[str, str]]:
 def test_a_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path: Path) -> None:
     exp = tmp_path / "resume.toml"
     exp.write_text(EXPERIMENT)
+    (tmp_path / "small8.toml").write_text(f'extends = "{SMALL}"\n[run]\nmax_time_s = 8.0\n')
     out = tmp_path / "out"
     first = _sweep(exp, out)
     assert first.stderr is not None
