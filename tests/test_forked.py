@@ -9,8 +9,11 @@ import sys
 import time
 from pathlib import Path
 
+from common.config.scenario import load_scenario
 from common.runtime.processes.children import fork, stop_all
 from common.runtime.processes.forkserver import fork_module
+
+REPO = Path(__file__).resolve().parents[1]
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -101,3 +104,13 @@ def _daemon_body(log_dir: str, result: object) -> None:
     os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(TESTS)])
 
     result.put(fork_from_a_daemon(log_dir))  # type: ignore[attr-defined]
+
+
+def test_a_launch_preloads_only_what_its_missions_services_import() -> None:
+    from common.runtime.model.mission import load_mission, preload
+    from common.runtime.processes.forkserver import PRELOAD, RUNTIMES
+
+    auv, _ = load_scenario(REPO / "configs" / "default.toml")
+    assert preload(load_mission(auv)) == PRELOAD
+    toy, _ = load_scenario(REPO / "configs" / "default.toml", ['run.mission="testloop"'])
+    assert preload(load_mission(toy)) == (*RUNTIMES, "tests.helpers.testloop")

@@ -33,7 +33,7 @@ from common.runtime.distributed.lockstep import Coordinator
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
 from common.runtime.model.dataflow import FLEET_SEP
-from common.runtime.model.mission import Mission, load_mission
+from common.runtime.model.mission import Mission, load_mission, preload
 from common.runtime.model.result import RunResult
 from common.runtime.model.silence import thresholds
 from common.runtime.processes.forkserver import warm_up
@@ -41,7 +41,6 @@ from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
 from common.runtime.run import write_outputs
-from services.launcher.plot import plot_result
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
 from services.launcher.router import ROUTER, start_router
 
@@ -114,7 +113,7 @@ def launch(
     # the services are forked from a fork server that has imported them once (started now,
     # beside the router): a launch's services, and a restarted one, start in milliseconds
     if local:
-        warm_up()
+        warm_up(preload(mission))
     sup = Supervisor(out / "logs", pid_file=out / "pids.json", forked=True)
     bus = scenario.bus
     acl_file = None
@@ -166,6 +165,8 @@ def launch(
     metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
     plot = None
     if opts.plot:
+        from services.launcher.plot import plot_result  # matplotlib: only when drawing
+
         plot = plot_result(result, scenario, out / "run.png")
     return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot)
 

@@ -279,6 +279,7 @@ class TestLoop:
     """The toy mission: runs to max_time_s; metrics are the final error and the hash."""
 
     __test__ = False  # not a pytest class
+    preload = ()  # its cores are in its own module (the fork server imports it)
 
     def __init__(self, scenario: Scenario) -> None:
         self.max_time_s: float = scenario.run.max_time_s

@@ -30,6 +30,15 @@ class Mission(Protocol):
     def metrics(self, record: Record) -> dict[str, Any]: ...
 
 
+def preload(mission: Mission) -> tuple[str, ...]:
+    """The modules a service process of `mission` imports (the fork server's preload): the
+    mission's own `preload` when it declares one, else the AUV services'."""
+    from common.runtime.processes.forkserver import PRELOAD, RUNTIMES
+
+    declared = getattr(mission, "preload", None)
+    return PRELOAD if declared is None else (*RUNTIMES, type(mission).__module__, *declared)
+
+
 def ends_on(mission: Mission, service: str, stream: str) -> bool:
     """mission.ends_on; True for a registered mission that does not say (no look-ahead)."""
     judge = getattr(mission, "ends_on", None)

@@ -29,9 +29,12 @@ from common.runtime.processes.parent_death import die_with
 
 # What the fork server imports once (its children find them already loaded). A mission
 # module not listed here is imported by each child, which is slower but just as correct.
-PRELOAD = (
+RUNTIMES = (
     "common.runtime.distributed.lockstep_service",
     "common.runtime.distributed.realtime_service",
+)
+PRELOAD = (
+    *RUNTIMES,
     "services.mission.auv",
     # each service's core (the mission's factories import them lazily, see its dataflow)
     "services.estimator.core",
@@ -42,15 +45,17 @@ PRELOAD = (
 )
 
 
-def _context() -> multiprocessing.context.ForkServerContext:
+def _context(preload: tuple[str, ...] = PRELOAD) -> multiprocessing.context.ForkServerContext:
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(list(PRELOAD))  # no effect once the server runs: fine
+    ctx.set_forkserver_preload(list(preload))  # no effect once the server runs: fine
     return ctx
 
 
-def warm_up() -> None:
-    """Start the fork server now (it imports PRELOAD), so the first service starts at once."""
-    _context()
+def warm_up(preload: tuple[str, ...] = PRELOAD) -> None:
+    """Start the fork server now (it imports `preload`), so the first service starts at once.
+    A process that runs one mission (a launch) may name only what that mission's services
+    import; one that runs many keeps the default, the AUV mission's services."""
+    _context(preload)
     from multiprocessing import forkserver
 
     forkserver.ensure_running()
