@@ -28,15 +28,13 @@ def _bench() -> ModuleType:
     return bench
 
 
-@pytest.mark.parametrize("stopped", [False, True])
-def test_bench_monitor_measures_the_loop_with_a_monitor(tmp_path: Path, stopped: bool) -> None:
+def test_bench_monitor_measures_the_loop_with_a_monitor(tmp_path: Path) -> None:
+    # its case with a SIGSTOPped monitor (monitors that leave by themselves at the end are
+    # the live run's, tests/test_live_run.py)
     bench = _bench()
-    case = bench.Case("one", 1, stopped=stopped)
+    case = bench.Case("one", 1, stopped=True)
     run = bench.run_case(bench.loop_scenario(4.0, tmp_path), [], case, "plant/status")
     # a smoke test of the script: it measures; how fast is for the benchmark to say
     assert len(run.ages_s) >= 20 and all(a >= 0.0 for a in run.ages_s)
     assert run.metrics["end_reason"] == "max_time"
-    assert run.joined == 1
-    # a monitor that was not stopped saw the run to its end and left by itself
-    assert run.codes == ([None] if stopped else [0])
-    assert stopped or run.updates[0] >= 4
+    assert run.joined == 1 and run.codes == [None]  # it joined, and was still stopped
