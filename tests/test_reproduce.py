@@ -26,9 +26,9 @@ SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
 
 @pytest.mark.background
 def test_reproduce_writes_the_report_tables_and_figures(tmp_path: Path) -> None:
-    # the report's every part, from runs of the small scenario's first 15 s
-    scenario = tmp_path / "small15.toml"
-    scenario.write_text(f'extends = "{SMALL}"\n[run]\nmax_time_s = 15.0\n')
+    # the report's every part, from runs of the small scenario's first 10 s
+    scenario = tmp_path / "small10.toml"
+    scenario.write_text(f'extends = "{SMALL}"\n[run]\nmax_time_s = 10.0\n')
     opts = ReproduceOptions(
         out=tmp_path / "runs",
         report_dir=tmp_path / "report",

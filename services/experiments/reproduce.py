@@ -92,7 +92,9 @@ class ReproduceResult:
     tuning: Tuning | None
 
 
-def _sweep(opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = False) -> SweepReport:
+def _sweep(
+    opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = False, plots: bool = True
+) -> SweepReport:
     return run_sweep(
         exp,
         f"tidelink reproduce ({exp.name})",
@@ -103,6 +105,7 @@ def _sweep(opts: ReproduceOptions, exp: Experiment, out: Path, keep: bool = Fals
             scheduler=opts.scheduler,
             keep_trajectories=keep,
             rich=opts.rich,
+            plots=plots,
         ),
     )
 
@@ -135,7 +138,8 @@ def tune(opts: ReproduceOptions) -> Tuning:
                 first_seed=opts.tune_first_seed,
                 extra=_base_overrides(opts),
             )
-            rep = _sweep(opts, exp, opts.out / "tuning" / ctrl)
+            # the gain tables are the tuning's product (chosen.json, the report): no plots
+            rep = _sweep(opts, exp, opts.out / "tuning" / ctrl, plots=False)
             scored = score(rep.rows, exp, ctrl, box, opts.tune_step)
             choice = choose(scored)
             wider = box.widened(choice, opts.tune_limit)
