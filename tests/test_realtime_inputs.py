@@ -133,6 +133,7 @@ def test_a_step_longer_than_its_period_goes_back_to_the_inbox(
     pubs: dict[str, Any] = {s: _Sent() for s in svc.host.streams}
     svc._run_due(pubs)
     assert len(steps) == 1 and svc.skipped > 0  # the missed periods skipped, one step run
+    assert svc.times.counters()["loop.skipped_periods"] == svc.skipped  # and in its statistics
     assert pubs["state"].frames  # and what it emitted published
     svc._run_due(pubs)
     assert len(steps) == 2  # the next call: the next step, late by a period

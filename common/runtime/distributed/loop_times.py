@@ -12,6 +12,7 @@ from common.netmodel.stats import DurationHistogram
 #   publish  the Zenoh puts of what the tick emitted
 # and, after them, off the path from the tick's inputs to its outputs:
 #   prepare  Host.prepare: the core's work for its next step (core.Prepares), per step
+# and how many periods the loop skipped because it fell behind ("loop.skipped_periods")
 PHASES = ("wake", "step", "publish")
 PREPARE = "prepare"
 QUANTILES = {"p50": 0.5, "p95": 0.95}
@@ -24,6 +25,7 @@ class LoopTimes:
 
     def __init__(self) -> None:
         self._phases = {p: DurationHistogram() for p in (*PHASES, PREPARE)}
+        self.skipped = 0  # periods skipped because the loop fell behind
 
     def record(self, wake_s: float, step_s: float, publish_s: float) -> None:
         """One tick's phases (s)."""
@@ -36,7 +38,7 @@ class LoopTimes:
 
     def counters(self) -> dict[str, int]:
         """p50, p95 and max of each phase in microseconds; a phase never timed (before the first
-        tick; prepare for a core that does not) has none."""
+        tick; prepare for a core that does not) has none; the periods skipped, if any."""
         out: dict[str, int] = {}
         for phase, h in self._phases.items():
             if h.count == 0:
@@ -44,4 +46,6 @@ class LoopTimes:
             for name, q in zip(QUANTILES, h.quantiles(*QUANTILES.values()), strict=True):
                 out[f"loop.{phase}_{name}_us"] = round(q * 1e6)
             out[f"loop.{phase}_max_us"] = round(h.max * 1e6)
+        if self.skipped:
+            out["loop.skipped_periods"] = self.skipped
         return out

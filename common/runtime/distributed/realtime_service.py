@@ -80,7 +80,6 @@ class RealtimeService:
         self.scale = setup.scenario.runtime.time_scale
         self.t0: float | None = None
         self.ticks = 0
-        self.skipped = 0  # periods skipped because the loop fell behind
         self.clock_lost_at: float | None = None  # wall time the clock's token vanished
         self.cut_off_at: float | None = None  # wall time this session was seen cut off
         self.rejoin_timeout_s = setup.scenario.runtime.start_timeout_s
@@ -91,6 +90,11 @@ class RealtimeService:
         # when (mission us) the core prepares its next step (core.Prepares), while one waits
         self.prepare_delay_us = to_us(setup.scenario.runtime.prepare_delay_s)
         self._prepare_at_us: int | None = None
+
+    @property
+    def skipped(self) -> int:
+        """Periods skipped because the loop fell behind."""
+        return self.times.skipped
 
     def now_us(self) -> int:
         assert self.t0 is not None
@@ -143,7 +147,7 @@ class RealtimeService:
         if self._prepare_at_us is not None and self._prepare_at_us <= now:
             self._prepare()  # its time has come
         # a step that fell behind by whole periods skips them (see the class docstring)
-        self.skipped += self.host.skip_missed(now)
+        self.times.skipped += self.host.skip_missed(now)
         while (t_us := self.host.next_event_us()) <= now:
             if self._prepare_at_us is not None:
                 self._prepare()  # before the core sees anything more
