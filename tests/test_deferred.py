@@ -135,6 +135,37 @@ def test_the_planner_commands_on_its_path_while_a_replan_is_made() -> None:
     assert isinstance(new, PathMsg) and new.path_id == path.path_id + 1
 
 
+def test_a_plan_the_vehicle_has_left_behind_while_it_was_made_is_declined_and_asked_again() -> None:
+    # a loaded machine: the plan for where the vehicle was is done when it is 6 m on
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    held = HeldPlans()
+    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core.deliver(_estimate(0.0, 5.0))
+    core.step(0.05)
+    held.finish()
+    (path,) = [e.msg for e in core.step(0.15) if e.stream == "path"]
+    t = 0.15 + s.planner.min_replan_interval_s
+    core.deliver(_estimate(t - 0.05, 5.0, y=26.0))  # 6 m off its path: a replan is asked
+    asked = held.started
+    core.step(t)
+    assert held.started == asked + 1
+    held.finish()
+    core.deliver(_estimate(t + 0.95, 5.0, y=32.0))  # a second later, 6 m on, off the plan
+    out = core.step(t + 1.0)
+    assert not [e for e in out if e.stream == "path"], "a plan from where it was is adopted"
+    assert core.path_id == path.path_id and core.declined == 1
+    cmds = [e.msg for e in out if e.stream == "cmd"]
+    assert len(cmds) == 1 and isinstance(cmds[0], VelocityCommand)
+    assert cmds[0].path_id == path.path_id  # still commanding on the path in force
+    core.deliver(_estimate(t + 1.05, 5.0, y=32.0))
+    core.step(t + 1.1)
+    assert held.started == asked + 2  # and the next step asks afresh, from where it is now
+    held.finish()
+    core.deliver(_estimate(t + 1.15, 5.0, y=32.0))
+    (new,) = [e.msg for e in core.step(t + 1.2) if e.stream == "path"]
+    assert isinstance(new, PathMsg) and new.path_id == path.path_id + 1
+
+
 def _on(core: PlannerCore, t: float, s: float, v: float = 1.0) -> Delivery:
     """An estimate stamped t of a vehicle at arc length s on the path in force, moving at v."""
     assert core.ref is not None

@@ -33,7 +33,7 @@ from services.planner.command.link import CommandLink, Prediction
 from services.planner.controllers.base import Limits
 from services.planner.controllers.factory import make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.replan import ReplanDecision, ReplanPolicy
+from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
 from services.planner.safety.evade import plan_or_step_aside
 from services.planner.safety.flight import ARRIVED_M, FlightModel
@@ -54,6 +54,9 @@ SLOW_PLAN_S = 2.0
 PLAN_LAGS_KEPT = 3
 # a plan made for where the vehicle will be is made for at most this far ahead (s)
 PLAN_AHEAD_MAX_S = 10.0
+# a plan made too late (realtime) that would turn the vehicle by more than this where it
+# would have it by now is declined (`_overtaken`): with R_min it cannot join it there
+STALE_HEADING_RAD = math.radians(45.0)
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
 _ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed")
 # replans asked while the path in force is still feasible (replan.py): their result replaces
@@ -285,7 +288,9 @@ class PlannerCore:
         made, adopted = self.plans.result(), False
         if made is not None:
             asked = self._plan_done(t)
-            if not self._keeps_path_in_force(t, asked, made):
+            if not self._overtaken(t, pred, asked, made) and not self._keeps_path_in_force(
+                t, asked, made
+            ):
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
         if (
@@ -430,6 +435,45 @@ class PlannerCore:
                 asked.t_plan,
             )
         return asked
+
+    def _overtaken(self, t: float, pred: Prediction, asked: _Asked, result: PlanResult) -> bool:
+        """Decline a plan made later than the time it starts (realtime only: a plan of seconds
+        on a loaded machine) that the vehicle, going on meanwhile, has left: where the plan
+        would have it by now, farther from where it is than the replan policy's deviation
+        threshold, or heading more than STALE_HEADING_RAD apart. Adopted, the controller would
+        steer onto a path checked (and flown) from a place the vehicle is no longer at, through
+        water no check covered. The path in force is kept (it still stops short of its
+        conflict) and the next step decides afresh. Returns whether it was declined."""
+        if not result.ok or t <= asked.t_plan:
+            return False
+        x, y, theta, v = pred.at_effect[:4]
+        ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
+        s_then = min(max(v, 0.0) * (pred.effect_t - asked.t_plan), ref.length)
+        s_near = ref.closest_s(x, y, s_then)
+        px, py = ref.point_at_s(s_near)
+        off = math.hypot(x - px, y - py)
+        turn = abs(math.remainder(theta - ref.heading_at_s(s_near), 2.0 * math.pi))
+        if s_near <= 0.0:  # short of its start, in line: on its way to it
+            start = (math.cos(ref.heading_at_s(0.0)), math.sin(ref.heading_at_s(0.0)))
+            off = deviation_near_start(Pose2D(x=x, y=y, theta=theta), (px, py), start, off)
+            turn = 0.0
+        limit = self.policy.cfg.deviation_threshold_m
+        if off <= limit and turn <= STALE_HEADING_RAD:
+            return False
+        self.declined += 1
+        log.info(
+            "t=%.2f s: declined the %s plan made for t=%.2f s: the vehicle is %.2f m from where "
+            "it would have it now, heading %.0f deg apart (> %.2f m or %.0f deg); the path in "
+            "force is kept",
+            t,
+            asked.why,
+            asked.t_plan,
+            off,
+            math.degrees(turn),
+            limit,
+            math.degrees(STALE_HEADING_RAD),
+        )
+        return True
 
     def _keeps_path_in_force(self, t: float, asked: _Asked, result: PlanResult) -> bool:
         """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still

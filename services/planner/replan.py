@@ -230,14 +230,8 @@ class ReplanPolicy:
         self.s_now = max(self.s_now, float(self.s[k]))
         dev = float(d.min())
         if k == 0:
-            # short of the path's start (a plan made for where the vehicle would be once it
-            # was made, done sooner than expected: core.py `_plan_start`), the vehicle is on
-            # its way to it: only how far it is to the side of the start's tangent deviates
             tx, ty = self.pts[1] - self.pts[0]
-            ex, ey = pose.x - self.pts[0, 0], pose.y - self.pts[0, 1]
-            norm = math.hypot(tx, ty)
-            if norm > 0.0 and ex * tx + ey * ty < 0.0:
-                dev = abs(ex * ty - ey * tx) / norm
+            dev = deviation_near_start(pose, (self.pts[0, 0], self.pts[0, 1]), (tx, ty), dev)
         return k, dev
 
     def _sample_gaps(self, obstacles: Obstacles, i_now: int, s_now: float) -> list[FloatArray]:
@@ -275,3 +269,18 @@ def _least_gaps(
 
 def _moved(a: Pose2D, b: Pose2D) -> bool:
     return math.hypot(a.x - b.x, a.y - b.y) > 1e-6 or abs(a.theta - b.theta) > 1e-9
+
+
+def deviation_near_start(
+    pose: Pose2D, start: tuple[float, float], tangent: tuple[float, float], dev: float
+) -> float:
+    """A vehicle's deviation from a path whose nearest point to it is the start (`dev`, the
+    distance to it). Short of the start (a plan made for where the vehicle would be once it
+    was made, done sooner than expected: core.py `_plan_start`) the vehicle is on its way to
+    it: only how far it is to the side of the start's tangent deviates."""
+    tx, ty = tangent
+    ex, ey = pose.x - start[0], pose.y - start[1]
+    norm = math.hypot(tx, ty)
+    if norm > 0.0 and ex * tx + ey * ty < 0.0:
+        return abs(ex * ty - ey * tx) / norm
+    return dev
