@@ -170,9 +170,11 @@ def test_a_realtime_hosts_statistics_carry_its_loop_times(svc: RealtimeService) 
     svc._run_due(pubs)
     stats = svc.host.link_stats(1.0)
     assert stats.counters["loop.step_p50_us"] > 0
+    # a second behind its schedule, it skipped the periods it missed, and says how many
     assert set(stats.counters) == {
         f"loop.{phase}_{q}_us" for phase in PHASES for q in ("p50", "p95", "max")
-    }
+    } | {"loop.skipped_periods"}
+    assert stats.counters["loop.skipped_periods"] == svc.skipped > 0
 
 
 class _Logged(_Sent):
