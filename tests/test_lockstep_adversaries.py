@@ -20,10 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from helpers.forged_truth import FORGED_SEQ, real_truth_due
 from helpers.launch_proc import REPO, Tidelink, kill_recorded
 from helpers.runs import inproc
 
-from common.bus import Bus, Inbox, Keys, Received
+from common.bus import Bus, Inbox, Keys
 from common.config.bus import BusConfig
 from common.config.scenario import load_scenario
 from common.messages import TickAck, TruthState
@@ -64,15 +65,14 @@ def _forge(endpoint: str, run: Tidelink) -> Forged:
                 )
             )
             done.acks += 1
-            ev = inbox.get(timeout=0.005)
-            if not isinstance(ev, Received) or not isinstance(ev.msg, TruthState):
-                continue
-            real = ev.msg
-            if real.source != "vehicle" or real.seq >= 2**62 or real.seq % EVERY:
+            real = real_truth_due(inbox.get(timeout=0.005), EVERY)
+            if real is None:
                 continue
             if done.truth_rounds < LAST // EVERY:
                 for source in SOURCES:
-                    truth.put(TruthState(stamp=real.stamp, source=source, seq=2**62, **AT_GOAL))
+                    truth.put(
+                        TruthState(stamp=real.stamp, source=source, seq=FORGED_SEQ, **AT_GOAL)
+                    )
                 done.truth_rounds += 1
     return done
 

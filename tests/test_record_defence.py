@@ -10,9 +10,10 @@ import json
 from pathlib import Path
 
 import pytest
+from helpers.forged_truth import FORGED_SEQ, real_truth_due
 from helpers.launch_proc import Tidelink, kill_recorded
 
-from common.bus import Bus, Inbox, Keys, Received
+from common.bus import Bus, Inbox, Keys
 from common.config.bus import BusConfig
 from common.messages import TruthState
 from common.runtime.processes.children import free_port
@@ -36,15 +37,12 @@ def _inject(endpoint: str, run: Tidelink) -> int:
         inbox = Inbox()
         bus.subscribe_stream("vehicle", "truth", inbox)
         while run.proc.poll() is None and rounds < LAST // EVERY:
-            ev = inbox.get(timeout=1.0)
-            if not isinstance(ev, Received) or not isinstance(ev.msg, TruthState):
-                continue
-            real = ev.msg
-            if real.source != "vehicle" or real.seq >= 2**62 or real.seq % EVERY:
+            real = real_truth_due(inbox.get(timeout=1.0), EVERY)
+            if real is None:
                 continue
             for source in SOURCES:  # at the short scenario's goal, (36, 20)
                 at_goal = dict(x=36.0, y=20.0, theta=0.0, v=0.0, w=0.0)
-                pub.put(TruthState(stamp=real.stamp, source=source, seq=2**62, **at_goal))
+                pub.put(TruthState(stamp=real.stamp, source=source, seq=FORGED_SEQ, **at_goal))
             rounds += 1
     return rounds
 
