@@ -42,7 +42,7 @@ def closed_loop(
     if compensate is not None:  # one switch for every controller
         cfg = ControllerConfig(kind=kind, delay_compensation=compensate)
     ctrl = make_controller(cfg, limits)
-    core = VehicleCore(VCFG, start, np.random.default_rng(0))
+    core = VehicleCore(VCFG, start)
     lag = round(pose_delay_s / VCFG.period_s)
     poses: list[tuple[float, float, float, float, float]] = []
     rows = []

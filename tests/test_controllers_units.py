@@ -17,7 +17,7 @@ from common.config.controller import (
     NurbsGains,
     SpeedConfig,
 )
-from common.config.vehicle import CurrentConfig, VehicleConfig
+from common.config.vehicle import VehicleConfig
 from services.planner.controllers import (
     Backstepping,
     Circle,
@@ -349,5 +349,3 @@ def test_config_validation_names_the_field() -> None:
         VehicleConfig(v_min_mps=2.5)
     with pytest.raises(ValueError, match="^turn_radius_min_m:"):
         VehicleConfig(turn_radius_min_m=1.0)  # 1.5 m/s on 1 m needs 1.5 rad/s > 0.5
-    with pytest.raises(ValueError, match="^current:"):
-        VehicleConfig(current=CurrentConfig(update_s=0.015))  # not a multiple of 10 ms

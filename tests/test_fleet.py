@@ -178,7 +178,6 @@ def test_a_vehicle_sends_its_hull_only_at_the_last_step_before_each_scan() -> No
     core = VehicleCore(
         VehicleConfig(period_s=0.05),
         (0.0, 0.0, 0.0),
-        np.random.default_rng(0),
         hull_scans_s=((0.5, 0.0), (0.3, 0.0), (0.5, 0.12)),
     )
     sent = [k for k in range(41) if any(e.stream == "hull" for e in core.step(k * 0.05))]
@@ -187,7 +186,7 @@ def test_a_vehicle_sends_its_hull_only_at_the_last_step_before_each_scan() -> No
     # is sent)
     scans = [m * p for p in (0.5, 0.3) for m in range(1, 8)] + [0.12 + 0.5 * m for m in range(4)]
     assert sent == sorted({math.ceil(round(sc / 0.05, 6)) - 1 for sc in scans if sc <= 2.05})
-    single = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    single = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0))
     assert [e.stream for e in single.step(0.05)] == ["truth", "status"]  # no fleet: no hull
 
 

@@ -25,7 +25,6 @@ DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
 SCENARIO = load_scenario(DEFAULT)[0]
 MODEL = ResponseModel.from_vehicle(SCENARIO.vehicle)
-NO_CURRENT = (0.0, 0.0, 0.0, 0.0)
 
 
 def _core(overrides: list[str] | None = None, *, downlink_s: float = 0.0) -> PlannerCore:
@@ -71,7 +70,7 @@ def _plant(pose: tuple[float, ...], cmds: list[tuple[float, float]], step_s: flo
     s = (*pose, 0.0)
     for v, w in cmds:
         for _ in range(round(step_s / 0.01)):
-            s = rk4_step(s, 0.01, v, w, NO_CURRENT, p)
+            s = rk4_step(s, 0.01, v, w, p)
     return s[:5]
 
 

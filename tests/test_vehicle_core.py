@@ -6,9 +6,12 @@ import math
 
 import numpy as np
 
-from common.config.vehicle import CurrentConfig, VehicleConfig
+from common.config.current import CurrentConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import AreaConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, ServiceCore
+from common.world.current import CurrentField
 from services.vehicle.core import VehicleCore
 
 
@@ -19,8 +22,9 @@ def _send(core: VehicleCore, t: float, v: float, w: float) -> None:
 
 def _run(seed: int) -> list[tuple[float, ...]]:
     """60 s with a Gauss-Markov current, commands at irregular off-grid times, all floats."""
-    cfg = VehicleConfig(current=CurrentConfig(x_mps=0.05, sigma_mps=0.1, tau_s=20.0))
-    core = VehicleCore(cfg, (2.0, 3.0, 0.5), np.random.default_rng(seed))
+    cfg = VehicleConfig()
+    water = CurrentConfig(speed_mps=0.05, sigma_mps=0.1, tau_s=20.0)
+    core = VehicleCore(cfg, (2.0, 3.0, 0.5), current=CurrentField(water, AreaConfig(), seed))
     rng = np.random.default_rng(99)  # the command timetable, same for every run
     t_cmd = 0.013
     rows: list[tuple[float, ...]] = []
@@ -36,7 +40,7 @@ def _run(seed: int) -> list[tuple[float, ...]]:
 
 
 def test_core_keeps_the_contract() -> None:
-    core = VehicleCore(VehicleConfig(period_s=0.1), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(VehicleConfig(period_s=0.1), (0.0, 0.0, 0.0))
     assert isinstance(core, ServiceCore)
     # deliver never publishes; step publishes truth and status stamped at t
     assert (
@@ -66,7 +70,7 @@ def test_off_grid_output_times_do_not_disturb_the_trajectory() -> None:
     # extra step() calls at off-grid times (a wake-up runtime) only read the state: the
     # on-grid samples stay bit-identical to a run without them
     cfg = VehicleConfig()
-    cores = [VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0)) for _ in range(2)]
+    cores = [VehicleCore(cfg, (0.0, 0.0, 0.0)) for _ in range(2)]
     grid: list[list[tuple[float, float]]] = [[], []]
     for k in range(401):
         t = k * 0.05
@@ -90,7 +94,7 @@ def test_collision_flag_from_the_clearance_function() -> None:
     def clearance(x: float, y: float, t: float) -> float:
         return math.hypot(x - 10.0, y) - (cfg.radius_m + 1.0)
 
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0), clearance)
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0), clearance)
     flags = []
     for k in range(301):
         t = k * 0.05
@@ -105,7 +109,7 @@ def test_collision_flag_from_the_clearance_function() -> None:
 
 
 def test_other_messages_are_ignored() -> None:
-    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0))
     other = TruthState(stamp=0.0, x=0.0, y=0.0, theta=0.0, v=0.0, w=0.0)
     assert core.deliver(Delivery(source="x", stream="y", msg=other, t=0.0)) == []
     assert core.watchdog.applied == 0 and core.watchdog.rejected == 0
@@ -113,13 +117,13 @@ def test_other_messages_are_ignored() -> None:
 
 def test_a_restarted_core_resumes_the_hull_where_its_last_truth_was() -> None:
     cfg = VehicleConfig()
-    before = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(1))
+    before = VehicleCore(cfg, (0.0, 0.0, 0.0))
     for k in range(1, 201):  # 10 s at 1.5 m/s, turning gently
         t = k * cfg.period_s
         _send(before, t, 1.5, 0.05)
         last = before.step(t)[0].msg
     assert isinstance(last, TruthState) and math.hypot(last.x, last.y) > 8.0
-    after = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(2))  # the new process
+    after = VehicleCore(cfg, (0.0, 0.0, 0.0))  # the new process
     gap = 2.3  # the restart took this long; no command was in force meanwhile
     what = after.resume({"truth": last}, last.stamp + gap)
     assert what is not None and f"t={last.stamp:.2f} s" in what
@@ -136,7 +140,7 @@ def test_a_restarted_core_resumes_the_hull_where_its_last_truth_was() -> None:
 
 def test_a_core_without_a_usable_truth_starts_over() -> None:
     cfg = VehicleConfig()
-    core = VehicleCore(cfg, (5.0, 6.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(cfg, (5.0, 6.0, 0.0))
     future = TruthState(stamp=20.0, x=50.0, y=50.0, theta=0.0, v=1.0, w=0.0)
     assert core.resume({}, 10.0) is None
     assert core.resume({"truth": future}, 10.0) is None  # from after the restart: not its own

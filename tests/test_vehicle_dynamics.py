@@ -9,12 +9,24 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from common.config.vehicle import CurrentConfig, VehicleConfig
+from common.config.current import CurrentConfig
+from common.config.vehicle import VehicleConfig
+from common.config.world import AreaConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery
+from common.world.current import CurrentField
 from services.vehicle.core import VehicleCore
-from services.vehicle.current import OceanCurrent
 from services.vehicle.dynamics import PlantParams, drag_n, friction_coefficient, rk4_step
+
+
+def _water(x_mps: float, y_mps: float, seed: int = 1, **gusts: float) -> CurrentField:
+    """A world current flowing at (x_mps, y_mps), with Gauss-Markov gusts if given."""
+    cfg = CurrentConfig(
+        speed_mps=math.hypot(x_mps, y_mps),
+        direction_deg=math.degrees(math.atan2(y_mps, x_mps)),
+        **gusts,
+    )
+    return CurrentField(cfg, AreaConfig(), seed)
 
 
 def _cmd(core: VehicleCore, t: float, v: float, w: float, stamp: float | None = None) -> None:
@@ -24,7 +36,7 @@ def _cmd(core: VehicleCore, t: float, v: float, w: float, stamp: float | None = 
 
 def _drive(cfg: VehicleConfig, v: float, w: float, until: float, every: float = 0.1) -> VehicleCore:
     """Command (v, w) every `every` seconds up to `until`, stepping at period_s."""
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0))
     n = round(until / cfg.period_s)
     k_cmd = round(every / cfg.period_s)
     for k in range(n + 1):
@@ -92,7 +104,7 @@ def test_plant_stays_inside_eq11_and_acceleration_bounds(
     # |dv| <= a_max dt and |dw| <= yaw_accel_max dt (+1e-9), status v/w within eq. (11),
     # and every out-of-range command counted as clamped.
     cfg = VehicleConfig()
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(1))
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0))
     deliveries = []
     t = 0.0
     for gap, v, w in cmds:
@@ -137,7 +149,7 @@ def test_plant_stays_inside_eq11_and_acceleration_bounds(
     z=st.floats(-1.0, 1.0),
     v_cmd=st.floats(-1e6, 1e6, allow_nan=False),
     w_cmd=st.floats(-1e6, 1e6, allow_nan=False),
-    current=st.tuples(*(st.floats(-1.0, 1.0) for _ in range(4))),
+    current=st.tuples(*(st.floats(-1.0, 1.0) for _ in range(4))),  # c0 and dc/dt
     r_min=st.floats(3.0, 20.0),  # below 3 m, 1.5 m/s cruise needs more than eq. (11) allows
     steps=st.integers(1, 40),
     h=st.floats(1e-6, 0.05),
@@ -162,8 +174,15 @@ def test_the_plant_never_turns_tighter_than_r_min(
     # already brings it within the bound, and a vehicle at rest cannot turn
     p = PlantParams.from_config(VehicleConfig(turn_radius_min_m=r_min))
     s = (x, y, theta, v, w, z)
+    cx, cy, dcx, dcy = current
+
+    def water(x: float, y: float, t: float) -> tuple[float, float]:
+        return cx + dcx * t, cy + dcy * t
+
+    t = 0.0
     for _ in range(steps):
-        s = rk4_step(s, h, v_cmd, w_cmd, current, p)
+        s = rk4_step(s, h, v_cmd, w_cmd, p, t=t, current=water)
+        t += h
         _, _, _, v_now, w_now, _ = s
         assert all(math.isfinite(c) for c in s)
         assert 0.0 <= v_now <= p.v_max
@@ -178,8 +197,8 @@ def test_the_vehicle_truth_never_turns_tighter_than_r_min(
 ) -> None:
     # the same through the vehicle core (command schedules, sub-stepped cells, off-grid
     # output times), with a current: the published truth keeps |w| <= v / R_min throughout
-    cfg = VehicleConfig(current=CurrentConfig(x_mps=cx, y_mps=cy))
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(2))
+    cfg = VehicleConfig()
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0), current=_water(cx, cy))
     t = 0.0
     for gap, v, w in cmds:
         for k in range(4):
@@ -195,9 +214,10 @@ def _trajectory(
     cfg: VehicleConfig,
     t_end: float = 20.0,
     vw: tuple[float, float] | None = None,
+    current: CurrentField | None = None,
 ) -> np.ndarray:
     """Truth (x, y, theta, v, w) every 0.05 s; command (1.2, 0.15), or vw(t), at `arrivals`."""
-    core = VehicleCore(cfg, (1.0, -2.0, 0.3), np.random.default_rng(7))
+    core = VehicleCore(cfg, (1.0, -2.0, 0.3), current=current)
     out = []
     i = 0
     for k in range(round(t_end / cfg.period_s) + 1):
@@ -221,14 +241,15 @@ def test_rk4_independent_of_command_arrival_pattern() -> None:
     # the same (v, w) delivered on three different timetables (regular 0.1 s, irregular
     # off-grid times, every 3 ms), all from t = 0.5 s: trajectories agree within 1e-6
     # (by construction they are bit-identical: cells are split only where (v, w) changes)
-    cfg = VehicleConfig(current=CurrentConfig(x_mps=0.1, sigma_mps=0.05, tau_s=10.0))
+    cfg = VehicleConfig()
+    water = _water(0.1, 0.0, seed=7, sigma_mps=0.05, tau_s=10.0)
     regular = [0.5 + 0.1 * k for k in range(196)]
     rng = np.random.default_rng(3)
     irregular = list(0.5 + np.cumsum(np.r_[0.0, rng.uniform(0.013, 0.77, 60)]))
     dense = [0.5 + 0.003 * k for k in range(6500)]
-    a = _trajectory(regular, cfg)
+    a = _trajectory(regular, cfg, current=water)
     for other in (irregular, dense):
-        b = _trajectory([t for t in other if t < 20.0], cfg)
+        b = _trajectory([t for t in other if t < 20.0], cfg, current=water)
         assert np.max(np.abs(a - b)) < 1e-6
 
 
@@ -246,20 +267,8 @@ def test_rk4_converges_with_the_internal_step() -> None:
 
 def test_constant_current_advects_a_stopped_vehicle() -> None:
     # no command (IDLE, v = 0): the position drifts at exactly the current, 0.2 and -0.1 m/s
-    cfg = VehicleConfig(current=CurrentConfig(x_mps=0.2, y_mps=-0.1))
-    core = VehicleCore(cfg, (5.0, 5.0, 1.0), np.random.default_rng(0))
+    core = VehicleCore(VehicleConfig(), (5.0, 5.0, 1.0), current=_water(0.2, -0.1))
     core.step(10.0)
     x, y, theta, v, w = core.pose
     assert math.isclose(x, 7.0, abs_tol=1e-9) and math.isclose(y, 4.0, abs_tol=1e-9)
     assert (theta, v, w) == (1.0, 0.0, 0.0)
-
-
-def test_gauss_markov_current_statistics() -> None:
-    # stationary std sigma = 0.05 m/s and lag-1 correlation exp(-1/5) over 20000 knots:
-    # std within 5 %, correlation within 0.03 (sampling error ~0.01 at this length)
-    cfg = CurrentConfig(sigma_mps=0.05, tau_s=5.0, update_s=1.0)
-    cur = OceanCurrent(cfg, 0.01, np.random.default_rng(11))
-    xs = np.array([cur.segment(100 * j, j * 1.0)[0] for j in range(20000)])
-    assert abs(xs.std() - 0.05) < 0.05 * 0.05
-    r1 = np.corrcoef(xs[:-1], xs[1:])[0, 1]
-    assert abs(r1 - math.exp(-0.2)) < 0.03

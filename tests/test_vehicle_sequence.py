@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from common.config.errors import ConfigValueError
@@ -194,7 +193,7 @@ def test_a_sequence_drives_the_plant_exactly_as_its_entries_sent_one_by_one(step
     )
     vs, ws = (seq.v, *seq.v_next), (seq.w, *seq.w_next)  # as quantised for the wire
     cfg = VehicleConfig()
-    a, b = (VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0)) for _ in range(2))
+    a, b = (VehicleCore(cfg, (0.0, 0.0, 0.0)) for _ in range(2))
     starts = [1.0 + k * step_s for k in range(n + 1)]
     rows_a, rows_b = [], []
     for i in range(400):
@@ -215,7 +214,7 @@ def _run(
     deliveries: list[tuple[float, VelocityCommand]], t_end: float
 ) -> tuple[VehicleCore, list[VehicleStatus]]:
     """Deliver each (t, command) in time order; a status every 0.05 s up to t_end."""
-    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0))
     todo = sorted(deliveries, key=lambda d: d[0])
     statuses = []
     for i in range(round(t_end / 0.05) + 1):
@@ -273,7 +272,7 @@ def test_the_buffer_is_consumed_through_silence_and_hold_comes_from_its_end() ->
     seq = VelocityCommand.predictive(
         stamp=0.0, v=1.5, w=0.0, path_id=1, step_s=0.1, v_next=v_next, w_next=w_next
     )
-    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0))
     _deliver(core, 0.2, seq)
     s = _status(core, 1.95)
     assert (s.mode, s.w_applied) == ("RUN", 0.0)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 from scipy.integrate import quad
 
@@ -96,7 +95,7 @@ def test_core_hold_and_failsafe_at_the_configured_times() -> None:
     # by 19.9 s with its heading held (drift < 1e-3 rad); a
     # fresh command at 20 s brings RUN back and the vehicle moves again (> 0.5 m/s at 25 s).
     cfg = VehicleConfig(watchdog=CFG)
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0))
     for k in range(101):
         t = 0.1 * k
         _send(core, t, t, 1.0, 0.1)
@@ -122,7 +121,7 @@ def test_core_hold_and_failsafe_at_the_configured_times() -> None:
 
 def test_core_counts_rejections_and_clamps_in_status() -> None:
     cfg = VehicleConfig(watchdog=CFG)
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0))
     _send(core, 1.0, 0.95, 9.0, 0.0)  # applied, clamped to v_max
     _send(core, 1.2, 0.90, 1.0, 0.0)  # older than the last applied: rejected
     # 1.3 s old, beyond max_command_age_s + the delay measured so far (the median of 0.05 s
@@ -159,7 +158,7 @@ def test_hold_drops_the_speed_command_at_once_by_default() -> None:
 def _blind_run(cfg: VehicleConfig, v0: float) -> tuple[float, float]:
     """Cruise at v0 with commands every 0.1 s up to t = 40 s, then silence: the distance run
     on the last command before HOLD, and the distance from HOLD to standstill."""
-    core = VehicleCore(cfg, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    core = VehicleCore(cfg, (0.0, 0.0, 0.0))
     for k in range(401):
         _send(core, 0.1 * k, 0.1 * k, v0, 0.0)
         core.step(0.1 * k)
@@ -234,9 +233,7 @@ def test_only_the_commanders_commands_count_and_every_rejection_is_counted_by_re
 def test_the_vehicle_reports_rejections_by_reason_and_logs_each_reason_once_a_second(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
-    core = VehicleCore(
-        VehicleConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0), commander="planner"
-    )
+    core = VehicleCore(VehicleConfig(), (0.0, 0.0, 0.0), commander="planner")
     rogue = VelocityCommand(stamp=0.0, v=2.0, w=0.5, path_id=1, source="monitor")
     with caplog.at_level("WARNING", logger="tidelink.vehicle"):
         for t in [0.01 * k for k in range(50)] + [1.1]:  # 100 Hz for 0.5 s, then once more

@@ -1,4 +1,4 @@
-"""Vehicle configuration: REMUS-100-like hull, eq. (11) bounds, actuators, current, watchdog.
+"""Vehicle configuration: REMUS-100-like hull, eq. (11) bounds, actuators, watchdog.
 
 Sources for the defaults (REMUS-100, Hydroid/Kongsberg):
 - T. Prestero, "Verification of a six-degree of freedom simulation model for the REMUS
@@ -13,35 +13,13 @@ Sources for the defaults (REMUS-100, Hydroid/Kongsberg):
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from common.config.checks import int_range, nonneg, positive
 from common.config.errors import ConfigValueError
 from common.messages import MAX_SEQUENCE_LEN
-
-
-@dataclass(frozen=True, kw_only=True)
-class CurrentConfig:
-    """Ocean current: constant part plus a first-order Gauss-Markov part per axis.
-
-    The Gauss-Markov part b obeys db = -b/tau dt + sigma sqrt(2/tau) dW (stationary std sigma),
-    sampled exactly every `update_s` and linearly interpolated in between, so the current is
-    a function of time and seed only (not of how often commands arrive).
-    """
-
-    x_mps: float = 0.0  # constant current, east (world x) component
-    y_mps: float = 0.0  # constant current, north (world y) component
-    sigma_mps: float = 0.0  # stationary std of the Gauss-Markov part (0 = off)
-    tau_s: float = 120.0  # correlation time of the Gauss-Markov part
-    update_s: float = 1.0  # knot spacing; must be a multiple of dt_internal_s
-
-    def __post_init__(self) -> None:
-        for name in ("x_mps", "y_mps"):
-            if not math.isfinite(getattr(self, name)):
-                raise ConfigValueError(name, f"{getattr(self, name)!r} is not a finite number")
-        nonneg("sigma_mps", self.sigma_mps)
-        positive("tau_s", self.tau_s)
-        positive("update_s", self.update_s)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,7 +76,7 @@ class WatchdogConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class VehicleConfig:
-    """The simulated vehicle: plant, eq. (11) bounds, actuator loops, current and watchdog."""
+    """The simulated vehicle: plant, eq. (11) bounds, actuator loops and watchdog."""
 
     period_s: float = 0.05  # publishing period of truth and status
     dt_internal_s: float = 0.01  # fixed RK4 step (sub-stepped to exact delivery times)
@@ -144,8 +122,13 @@ class VehicleConfig:
     speed_int_band_mps: float = 0.05
     # yaw: first-order response of w towards the command, time constant yaw_tau_s
     yaw_tau_s: float = 0.5
-    current: CurrentConfig = field(default_factory=CurrentConfig)
     watchdog: WatchdogConfig = field(default_factory=WatchdogConfig)
+
+    REMOVED_KEYS: ClassVar[Mapping[str, str]] = {
+        "current": "the current moved to world.current, the same water for every vehicle "
+        "(speed_mps, direction_deg, shear_mps, eddies, tidal_period_s, sigma_mps, tau_s, "
+        "update_s; x_mps and y_mps become speed_mps and direction_deg)",
+    }
 
     def __post_init__(self) -> None:
         for name in (
@@ -189,13 +172,6 @@ class VehicleConfig:
         if self.dt_internal_s > self.period_s:
             raise ConfigValueError(
                 "dt_internal_s", f"{self.dt_internal_s!r} exceeds period_s ({self.period_s!r})"
-            )
-        ratio = self.current.update_s / self.dt_internal_s
-        if abs(ratio - round(ratio)) > 1e-9 * ratio:
-            raise ConfigValueError(
-                "current",
-                f"update_s {self.current.update_s!r} is not a multiple of "
-                f"dt_internal_s ({self.dt_internal_s!r})",
             )
 
     @property

@@ -1,4 +1,5 @@
-"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4).
+"""World configuration: area, start/goal, static and moving obstacles (paper §2, §3.1, §4),
+and the ocean current (common/config/current.py).
 
 Checks that need the geometry model (simple polygons, start and goal outside every obstacle)
 run after loading, in common.world.check; this package does not import common.world.
@@ -10,6 +11,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from common.config.current import CurrentConfig
 from common.config.errors import ConfigValueError
 
 MovingKind = Literal["line", "waypoints", "sinusoid"]
@@ -178,7 +180,9 @@ class GoalConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class WorldConfig:
-    """The scenario's world: area, start and goal poses, obstacles (ids unique over all)."""
+    """The scenario's world: area, start/goal poses, obstacles (ids unique over all), current.
+
+    The current (`[world.current]`) is the water every vehicle of the run moves in."""
 
     area: AreaConfig = field(default_factory=AreaConfig)
     start: PoseConfig = field(default_factory=lambda: PoseConfig(x_m=5.0, y_m=20.0))
@@ -187,6 +191,7 @@ class WorldConfig:
     circles: tuple[CircleObstacleConfig, ...] = ()
     polygons: tuple[PolygonObstacleConfig, ...] = ()
     moving: tuple[MovingObstacleConfig, ...] = ()
+    current: CurrentConfig = field(default_factory=CurrentConfig)  # [world.current]
 
     def __post_init__(self) -> None:
         if not self.goal_tolerance_m > 0.0:

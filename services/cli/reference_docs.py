@@ -44,6 +44,29 @@ as an entry point in group `tidelink.missions`. Their registered targets (the ol
 `"services.mission:AuvMission"`) are accepted too; any other value is a config error listing
 the registered missions, and nothing is imported.
 
+## Ocean current
+
+`[world.current]` is the water every vehicle of a run moves in (the same for every vehicle of
+a fleet; `common/world/current.py`), a pure function of position, time and `run.seed`:
+
+    c(x, y, t) = f(t) (U + S s / (2 W)) d  +  sum of Gaussian eddies  +  b(t)
+
+- `speed_mps` U flowing towards `direction_deg` (d = (cos, sin) of it: counter-clockwise from
+  east, 90 flows north); `direction = "seeded"` draws the direction uniformly in [0, 360) from
+  `run.seed` instead;
+- `shear_mps` S: the along-flow speed is U + S/2 on the area's left edge (looking downstream)
+  and U - S/2 on its right edge, varying linearly across the flow (s the distance from the
+  area's centre line, W the area's half-width across the flow);
+- `tidal_period_s` P, `tidal_amplitude` A, `tidal_phase_rad`: f(t) = 1 + A sin(2 pi t / P +
+  phase) scales the uniform and shear part (P = 0: no tide);
+- `[[world.current.eddies]]`: Gaussian vortices, tangential speed V (r/R) exp((1 - r^2/R^2)/2)
+  with `speed_mps` V (> 0 counter-clockwise) peaking at `radius_m` R from (`x_m`, `y_m`);
+- `sigma_mps`, `tau_s`, `update_s`: gusts, a Gauss-Markov process per axis, uniform in space
+  (stationary std sigma, correlation time tau, exact samples every update_s, linear between).
+
+Every part is off by default (still water). `vehicle.current` of older scenarios is an error
+that says so.
+
 ## Work budget
 
 Every command that runs a scenario (`check`, `run`, `launch`, and `sweep` for each cell)

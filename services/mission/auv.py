@@ -63,4 +63,4 @@ def _at_goal(record: Record, vehicle: str, s: Scenario) -> bool:
     g = s.world.goal
     if math.hypot(last.x - g.x_m, last.y - g.y_m) > s.world.goal_tolerance_m:
         return False
-    return follows(record.message(vehicle, "truth", last.seq - 1), last, reach_mps(s.vehicle))
+    return follows(record.message(vehicle, "truth", last.seq - 1), last, reach_mps(s))

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import math
 
-from common.config.vehicle import VehicleConfig
+from common.config.scenario import Scenario
 from common.messages import Message, TruthState
+from common.world.current import CurrentField
 
 # Consecutive truth states are one vehicle period apart; a realtime vehicle that fell behind
 # skips whole periods. More than this between two of them is no continuous motion.
@@ -23,11 +24,12 @@ REACH_FACTOR = 2.0
 REACH_TOL_M = 0.01
 
 
-def reach_mps(cfg: VehicleConfig) -> float:
-    """The fastest the vehicle moves over ground: v_max plus the current (its constant part
-    and six standard deviations of the Gauss-Markov part on each axis)."""
-    c = cfg.current
-    return cfg.v_max_mps + math.hypot(c.x_mps, c.y_mps) + 6.0 * math.sqrt(2.0) * c.sigma_mps
+def reach_mps(s: Scenario) -> float:
+    """The fastest the vehicle moves over ground: v_max plus the world's current at its
+    fastest (CurrentField.speed_bound_mps: flow, shear, tide, eddies, six standard
+    deviations of the gusts on each axis)."""
+    water = CurrentField(s.world.current, s.world.area, s.run.seed)
+    return s.vehicle.v_max_mps + water.speed_bound_mps()
 
 
 def follows(prev: Message | None, cur: TruthState, speed_mps: float) -> bool:

@@ -32,6 +32,7 @@ from common.messages import (
 from common.runtime.model.core import QueuePolicy
 from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, Service
 from common.world import World
+from common.world.current import CurrentField
 
 if TYPE_CHECKING:
     from services.estimator.core import EstimatorCore
@@ -216,6 +217,12 @@ def make_tracker(ctx: CoreContext) -> TrackerCore:
     return TrackerCore(s.planner, s.controller, s.vehicle, s.world)
 
 
+def current_field(s: Scenario) -> CurrentField:
+    """The run's ocean current: built from the world and the run's seed alone, so every vehicle
+    of a fleet (each with its member scenario) moves in the same water."""
+    return CurrentField(s.world.current, s.world.area, s.run.seed)
+
+
 def make_vehicle(
     ctx: CoreContext, hull_scans_s: tuple[tuple[float, float], ...] = ()
 ) -> VehicleCore:
@@ -228,8 +235,8 @@ def make_vehicle(
     return VehicleCore(
         s.vehicle,
         _start(s),
-        ctx.rng,
         clearance=lambda x, y, t: world.clearance(x, y, r, t),
+        current=current_field(s),
         commander=ctx.sibling(commander(s)),  # defence in depth: whatever the bus lets through
         hull_scans_s=hull_scans_s,
     )

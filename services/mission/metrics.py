@@ -83,7 +83,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
     g, st = s.world.goal, s.world.start
     dist_goal = np.hypot(x - g.x_m, y - g.y_m)
-    arrival = _arrival(truth, dist_goal <= s.world.goal_tolerance_m, reach_mps(s.vehicle))
+    arrival = _arrival(truth, dist_goal <= s.world.goal_tolerance_m, reach_mps(s))
     end = len(t) - 1 if arrival is None else arrival
     seg = np.hypot(np.diff(x[: end + 1]), np.diff(y[: end + 1]))
     length = float(seg.sum())

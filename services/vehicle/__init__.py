@@ -1,4 +1,4 @@
-"""The vehicle service: simulated AUV plant (eqs. 7, 11, 14), ocean current and watchdog."""
+"""The vehicle service: simulated AUV plant (eqs. 7, 11, 14) in the world's current; watchdog."""
 
 from services.vehicle.core import VehicleCore
 

@@ -1,4 +1,5 @@
-"""The vehicle service core: plant + current + watchdog behind the ServiceCore contract.
+"""The vehicle service core: plant + watchdog behind the ServiceCore contract, in the world's
+current (common/world/current.py: the water's velocity at each RK4 stage's position and time).
 
 The plant (dynamics.py) turns no tighter than the minimum turning radius, |w| <= v / R_min
 at every instant, whatever it is commanded: eq. (11)'s yaw-rate bound made physical with the
@@ -20,14 +21,12 @@ import logging
 import math
 from collections.abc import Callable, Mapping
 
-import numpy as np
-
 from common.config.vehicle import VehicleConfig
 from common.control import Applied, Schedule
 from common.messages import Message, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
-from services.vehicle.current import OceanCurrent
+from common.world.current import CurrentField
 from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
 from services.vehicle.watchdog import Verdict, Watchdog
 
@@ -56,9 +55,9 @@ class VehicleCore:
         self,
         cfg: VehicleConfig,
         start: tuple[float, float, float],
-        rng: np.random.Generator,
         clearance: Clearance | None = None,
         *,
+        current: CurrentField | None = None,
         t0: float = 0.0,
         commander: str | None = None,
         hull_scans_s: tuple[tuple[float, float], ...] = (),
@@ -73,7 +72,8 @@ class VehicleCore:
         self._state: State = (float(start[0]), float(start[1]), float(start[2]), 0.0, 0.0, 0.0)
         self._t = float(t0)  # committed time: the plant state is known up to here
         self._pieces: list[tuple[float, Schedule]] = [(self._t, Schedule())]
-        self._current = OceanCurrent(cfg.current, cfg.dt_internal_s, rng)
+        # the water's velocity at (x, y, t); None in still water (the plant skips it)
+        self._current = None if current is None or current.is_calm else current.velocity
         self._watchdog = Watchdog(
             cfg.watchdog,
             v_min=cfg.v_min_mps,
@@ -209,8 +209,7 @@ class VehicleCore:
         self._commit(t)
         if t - self._t <= _GRID_TOL_S:
             return self._state
-        k = self._cell(self._t)
-        return self._integrate(self._state, k, self._t, t)  # scratch: not committed
+        return self._integrate(self._state, self._t, t)  # scratch: not committed
 
     def _cell(self, t: float) -> int:
         """Index k of the grid cell [k dt, (k+1) dt) that starts at or contains t."""
@@ -226,7 +225,7 @@ class VehicleCore:
             end = (k + 1) * self._dt
             if end > t + _GRID_TOL_S:
                 return
-            self._state = self._integrate(self._state, k, self._t, end)
+            self._state = self._integrate(self._state, self._t, end)
             self._t = end
             # keep only the schedule in force from the new committed time on
             self._pieces = [(end, self._in_force(end))]
@@ -242,8 +241,8 @@ class VehicleCore:
         a = self._in_force(t).at(t)
         return a.v, a.w
 
-    def _integrate(self, state: State, k: int, t_a: float, t_b: float) -> State:
-        """RK4 over [t_a, t_b] inside cell k, split where the applied (v, w) changes."""
+    def _integrate(self, state: State, t_a: float, t_b: float) -> State:
+        """RK4 over [t_a, t_b] inside one grid cell, split where the applied (v, w) changes."""
         cands = {start for start, _ in self._pieces}
         for _, sc in self._pieces:
             cands.update(sc.transitions_between(t_a, t_b))
@@ -254,15 +253,15 @@ class VehicleCore:
         for c in sorted(x for x in cands if t_a < x < t_b - _GRID_TOL_S):
             val = self._applied_vw(c)
             if val != cur:
-                state = self._rk4(state, k, seg_a, c, cur)
+                state = self._rk4(state, seg_a, c, cur)
                 seg_a, cur = c, val
-        return self._rk4(state, k, seg_a, t_b, cur)
+        return self._rk4(state, seg_a, t_b, cur)
 
-    def _rk4(self, state: State, k: int, t_a: float, t_b: float, vw: tuple[float, float]) -> State:
+    def _rk4(self, state: State, t_a: float, t_b: float, vw: tuple[float, float]) -> State:
         h = t_b - t_a
         if h < _MIN_STEP_S:
             return state
-        return rk4_step(state, h, vw[0], vw[1], self._current.segment(k, t_a), self._p)
+        return rk4_step(state, h, vw[0], vw[1], self._p, t=t_a, current=self._current)
 
     def applied(self, t: float) -> Applied:
         """Mode and command the watchdog applies at time t."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from common.config.vehicle import VehicleConfig
 from common.scalar import clamp
+from common.world.current import CurrentFn
 
 # ITTC-1957 is fitted for Re >= ~1e5; below that (V -> 0) we hold Cf at its Re = 1e5 value.
 # The drag still vanishes as V^2, so the guard only avoids log10(Re) <= 2 (a pole).
@@ -127,25 +128,35 @@ def rk4_step(
     h: float,
     v_cmd: float,
     w_cmd: float,
-    current: tuple[float, float, float, float],
     p: PlantParams,
+    *,
+    t: float = 0.0,
+    current: CurrentFn | None = None,
 ) -> State:
-    """One classical RK4 step of length h with a command held over the step.
+    """One classical RK4 step of length h from time t, with a command held over the step.
 
-    `current` = (cx0, cy0, dcx/dt, dcy/dt): the current is linear in time over the step.
-    After the step, v and w are projected onto their eq. (11) bounds (v never reverses), and
-    w onto the turning-radius bound |w| <= v / R_min at the new speed (the yaw loop follows a
-    command already limited to it, so the projection only trims what a stage overshot or what
-    a falling speed took away).
+    `current(x, y, t)` is the water's velocity (world frame, m/s), evaluated at each stage's
+    position and time; None is still water (no call at all). After the step, v and w are
+    projected onto their eq. (11) bounds (v never reverses), and w onto the turning-radius
+    bound |w| <= v / R_min at the new speed (the yaw loop follows a command already limited
+    to it, so the projection only trims what a stage overshot or what a falling speed took
+    away).
     """
-    cx0, cy0, dcx, dcy = current
     ff = drag_n(v_cmd, p)
     hh = 0.5 * h
-    cxm, cym = cx0 + hh * dcx, cy0 + hh * dcy
-    k1 = derivatives(s, v_cmd, w_cmd, ff, cx0, cy0, p)
-    k2 = derivatives(_axpy(s, hh, k1), v_cmd, w_cmd, ff, cxm, cym, p)
-    k3 = derivatives(_axpy(s, hh, k2), v_cmd, w_cmd, ff, cxm, cym, p)
-    k4 = derivatives(_axpy(s, h, k3), v_cmd, w_cmd, ff, cx0 + h * dcx, cy0 + h * dcy, p)
+    if current is None:
+        k1 = derivatives(s, v_cmd, w_cmd, ff, 0.0, 0.0, p)
+        k2 = derivatives(_axpy(s, hh, k1), v_cmd, w_cmd, ff, 0.0, 0.0, p)
+        k3 = derivatives(_axpy(s, hh, k2), v_cmd, w_cmd, ff, 0.0, 0.0, p)
+        k4 = derivatives(_axpy(s, h, k3), v_cmd, w_cmd, ff, 0.0, 0.0, p)
+    else:
+        k1 = derivatives(s, v_cmd, w_cmd, ff, *current(s[0], s[1], t), p)
+        s2 = _axpy(s, hh, k1)
+        k2 = derivatives(s2, v_cmd, w_cmd, ff, *current(s2[0], s2[1], t + hh), p)
+        s3 = _axpy(s, hh, k2)
+        k3 = derivatives(s3, v_cmd, w_cmd, ff, *current(s3[0], s3[1], t + hh), p)
+        s4 = _axpy(s, h, k3)
+        k4 = derivatives(s4, v_cmd, w_cmd, ff, *current(s4[0], s4[1], t + h), p)
     h6 = h / 6.0
     x, y, theta, v, w, z = (
         a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
