@@ -244,3 +244,27 @@ def test_a_stopped_vehicle_drifts_with_a_uniform_current() -> None:
     assert (theta, v, w) == (2.0, 0.0, 0.0)
     assert math.hypot(x - 10.0, y - 10.0) == pytest.approx(0.25 * 10.0, abs=1e-9)
     assert math.degrees(math.atan2(y - 10.0, x - 10.0)) == pytest.approx(30.0, abs=1e-9)
+
+
+def test_the_run_plot_draws_the_current_only_when_there_is_one() -> None:
+    from matplotlib.quiver import Quiver
+
+    from common.runtime.model.record import Record
+    from services.launcher.plot import run_figure
+
+    calm, _ = load_scenario(CONFIGS / "default.toml")
+    ax = run_figure(Record(), calm).axes[0]
+    assert not [c for c in ax.collections if isinstance(c, Quiver)]
+    assert not [t for t in _legend(ax) if t.startswith("current")]
+    flowing, _ = load_scenario(
+        CONFIGS / "default.toml",
+        ["world.current.speed_mps=0.3", "world.current.direction_deg=90", "run.max_time_s=60"],
+    )
+    ax = run_figure(Record(), flowing).axes[0]
+    (arrows,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    assert np.allclose(arrows.U, 0.0) and np.allclose(arrows.V, 0.3)
+    assert [t for t in _legend(ax) if t.startswith("current")] == ["current (max 0.30 m/s)"]
+
+
+def _legend(ax: Any) -> list[str]:
+    return [t.get_text() for t in ax.get_legend().get_texts()]

@@ -1,6 +1,7 @@
 """A PNG plot of a run: true trajectory, estimate, planned NURBS paths, obstacles and their
-tracks, start and goal; a fleet's tracks dotted in time, with its closest approach marked
-(matplotlib, Agg canvas: no display needed)."""
+tracks, start and goal; a fleet's tracks dotted in time, with its closest approach marked;
+the ocean current, if any, as light arrows at mid-run (matplotlib, Agg canvas: no display
+needed)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from common.runtime.model.dataflow import vehicle_of
 from common.runtime.model.record import Record
 from common.runtime.model.result import RunResult
 from common.world import World
+from common.world.current import CurrentField
 from services.mission.fleet_metrics import closest_approach, fleet_truths
 from services.mission.metrics import path_points
 
@@ -23,6 +25,7 @@ if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not with thi
 
 PATH_SAMPLES = 400  # points per planned path: smooth at this figure size
 TIME_MARK_S = 10.0  # a fleet's tracks are dotted this often (mission s)
+CURRENT_COLUMNS = 20  # the current's arrows: this many across the area, rows to keep them square
 
 
 # one colour per vehicle of a fleet (matplotlib's qualitative palette)
@@ -94,6 +97,7 @@ def run_figure(record: Record, scenario: Scenario, *, title: str = "") -> Figure
         )
     truth: list[TruthState] = _of_type(record, TruthState)
     t_end = max((q.stamp for q in truth), default=scenario.run.max_time_s)
+    _draw_current(ax, scenario, 0.5 * t_end)
     world = World(w)
     times = np.linspace(0.0, t_end, 200)
     moving: dict[int, list[tuple[float, float]]] = {}
@@ -137,6 +141,32 @@ def run_figure(record: Record, scenario: Scenario, *, title: str = "") -> Figure
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=8, frameon=False)
     fig.tight_layout()
     return fig
+
+
+def _draw_current(ax: Any, scenario: Scenario, t: float) -> None:
+    """The ocean current at time t as light arrows on a coarse grid over the area, the longest
+    as long as the grid's spacing; nothing in still water."""
+    w = scenario.world
+    water = CurrentField(w.current, w.area, scenario.run.seed)
+    if water.is_calm:
+        return
+    a = w.area
+    width, height = a.x_max_m - a.x_min_m, a.y_max_m - a.y_min_m
+    step = width / CURRENT_COLUMNS
+    rows = max(2, round(height / step))
+    xs, ys = np.meshgrid(
+        a.x_min_m + step * (np.arange(CURRENT_COLUMNS) + 0.5),
+        a.y_min_m + height / rows * (np.arange(rows) + 0.5),
+    )
+    u, v = water.sample(t, xs, ys)
+    fastest = float(np.max(np.hypot(u, v)))
+    if fastest == 0.0:
+        return
+    ax.quiver(
+        xs, ys, u, v, angles="xy", scale_units="xy", scale=fastest / (0.9 * step),
+        color="tab:cyan", alpha=0.45, width=0.0022, zorder=0,
+        label=f"current (max {fastest:.2f} m/s)",
+    )  # fmt: skip
 
 
 def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour: str) -> None:
