@@ -70,6 +70,18 @@ def test_outage_sweep_takes_the_planner_down_for_growing_windows() -> None:
     assert lengths == {0.0, 1.0, 2.0, 5.0, 10.0}
 
 
+def test_the_current_sweep_turns_the_water_round_the_compass_at_two_speeds() -> None:
+    runs = _plan("current.toml")
+    assert len(runs) == 16 and len({r.run_id for r in runs}) == 16
+    cells = set()
+    for r in runs:
+        c = scenario_from_raw(r.raw).world.current
+        assert c.direction == "fixed" and (c.shear_mps, c.sigma_mps, c.eddies) == (0.0, 0.0, ())
+        cells.add((c.speed_mps, c.direction_deg))
+    assert cells == {(v, d) for v in (0.1, 0.3) for d in (0.0, 90.0, 180.0, 270.0)}
+    assert {r.seed for r in runs} == {1, 2} and {r.labels["controller"] for r in runs} == {"nurbs"}
+
+
 def test_run_ids_are_stable_and_depend_on_cell_and_seed() -> None:
     a, b = _plan("smoke.toml"), _plan("smoke.toml", runtime="lockstep")
     assert [r.run_id for r in a] == [r.run_id for r in b]  # the runtime is not part of a run
