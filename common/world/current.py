@@ -96,7 +96,7 @@ class CurrentField:
         only_uniform = cfg.shear_mps == 0.0 and not self._tide
         only_uniform = only_uniform and not self._eddies and not self._gusts
         self.velocity: CurrentFn = (
-            self._calm if self.is_calm else self._flat if only_uniform else self._general
+            self._calm if self.is_calm else self._flat if only_uniform else self._general()
         )
 
     # -- evaluation ----------------------------------------------------------------------------
@@ -107,25 +107,46 @@ class CurrentField:
     def _flat(self, x: float, y: float, t: float) -> tuple[float, float]:
         return self._uniform
 
-    def _general(self, x: float, y: float, t: float) -> tuple[float, float]:
-        # uniform flow with a linear shear across it (held beyond the area's edges)
-        s = (y - self._yc) * self._dx - (x - self._xc) * self._dy
-        s = min(max(s, -self._half_w), self._half_w)
-        along = self._speed + self._shear_k * s
-        if self._tide:  # f(t) = 1 + A sin(2 pi t / P + phase)
-            c = self.config
-            along *= 1.0 + c.tidal_amplitude * math.sin(self._tide_w * t + c.tidal_phase_rad)
-        cx, cy = along * self._dx, along * self._dy
-        for ex, ey, a, k in self._eddies:  # u = -g (y - ey), v = g (x - ex): counter-clockwise
-            rx, ry = x - ex, y - ey
-            g = a * math.exp(-(rx * rx + ry * ry) * k)
-            cx -= g * ry
-            cy += g * rx
-        if self._gusts:
-            bx, by = self.gust(t)
-            cx += bx
-            cy += by
-        return cx, cy
+    def _general(self) -> CurrentFn:
+        """velocity() of a field with shear, tide, eddies or gusts: a closure over the field's
+        constants (a closure's variables are read faster than attributes: ~0.2 us a call)."""
+        c = self.config
+        dx, dy, xc, yc, half_w = self._dx, self._dy, self._xc, self._yc, self._half_w
+        speed, shear_k, shear = self._speed, self._shear_k, c.shear_mps != 0.0
+        tide, amp, omega, phase = self._tide, c.tidal_amplitude, self._tide_w, c.tidal_phase_rad
+        eddies, gusts, update_s = self._eddies, self._gusts, self._update_s
+        bx, by, knots_to = self._bx, self._by, self._knots_to  # the knot cache, grown in place
+        exp, sin = math.exp, math.sin
+
+        def velocity(x: float, y: float, t: float) -> tuple[float, float]:
+            along = speed
+            if shear:  # linear across the flow, held beyond the area's edges
+                s = (y - yc) * dx - (x - xc) * dy
+                along += shear_k * (half_w if s > half_w else -half_w if s < -half_w else s)
+            if tide:  # f(t) = 1 + A sin(2 pi t / P + phase)
+                along *= 1.0 + amp * sin(omega * t + phase)
+            cx, cy = along * dx, along * dy
+            for ex, ey, a, k in eddies:  # u = -g (y - ey), v = g (x - ex): counter-clockwise
+                rx, ry = x - ex, y - ey
+                g = a * exp(-(rx * rx + ry * ry) * k)
+                cx -= g * ry
+                cy += g * rx
+            if gusts:  # as gust(t), inlined
+                q = t / update_s
+                if q > 0.0:
+                    j = int(q)
+                    f = q - j
+                    if j + 1 >= len(bx):
+                        knots_to(j + 1)
+                    cx += bx[j] + (bx[j + 1] - bx[j]) * f
+                    cy += by[j] + (by[j + 1] - by[j]) * f
+                else:
+                    knots_to(0)
+                    cx += bx[0]
+                    cy += by[0]
+            return cx, cy
+
+        return velocity
 
     def gust(self, t: float) -> tuple[float, float]:
         """The Gauss-Markov part b(t): linear between the knots b_j at t = j update_s (b_0
