@@ -30,7 +30,9 @@ from common.messages import (
     MeasuredDelay,
     Message,
     NavFix,
+    Odometry,
     PathMsg,
+    PositionFix,
     RunEnd,
     StateEstimate,
     Tick,
@@ -67,8 +69,10 @@ def _cov(draw: st.DrawFn, n: int) -> tuple[float, ...]:
 OVERRIDES: dict[type, dict[str, S[Any]]] = {
     Message: {"stamp": FINITE, "sent": FINITE, "seq": COUNT, "source": TEXT},
     NavFix: {"std_xy": NONNEG, "std_heading": NONNEG, "std_speed": NONNEG},
+    Odometry: {"std_heading": NONNEG, "std_yaw_rate": NONNEG, "std_velocity": NONNEG},
+    PositionFix: {"std_xy": NONNEG},
     Detection: {"id": COUNT, "radius": NONNEG, "std_xy": NONNEG, "std_radius": NONNEG},
-    StateEstimate: {"covariance": _cov(5), "predicted_s": NONNEG},
+    StateEstimate: {"covariance": _cov(5), "predicted_s": NONNEG, "current_std": NONNEG},
     Track: {"id": COUNT, "radius": NONNEG, "covariance": _cov(6)},
     VelocityCommand: {"path_id": COUNT},
     VehicleStatus: {

@@ -45,6 +45,36 @@ class NavFix(Message, frozen=True, kw_only=True):
         check_non_negative(self, "", "std_xy", "std_heading", "std_speed")
 
 
+class Odometry(Message, frozen=True, kw_only=True):
+    """Dead-reckoning sensors of an AUV, sampled together: the AHRS heading and yaw rate, and
+    the DVL's velocity over ground in the body frame (bottom track; `bottom_lock` False when
+    the DVL has lost the seabed, and then u_ground and v_ground mean nothing)."""
+
+    heading: float  # rad, AHRS (noise and a bias)
+    yaw_rate: float  # rad/s, AHRS gyro
+    bottom_lock: bool
+    u_ground: float  # m/s, forward over ground (body frame)
+    v_ground: float  # m/s, to port over ground (body frame)
+    std_heading: float
+    std_yaw_rate: float
+    std_velocity: float
+
+    def validate(self) -> None:
+        check_non_negative(self, "", "std_heading", "std_yaw_rate", "std_velocity")
+
+
+class PositionFix(Message, frozen=True, kw_only=True):
+    """An absolute position fix (USBL or LBL), stamped when the vehicle was ranged: it reaches
+    the estimator over the acoustic link, seconds late, and may be an outlier."""
+
+    x: float
+    y: float
+    std_xy: float
+
+    def validate(self) -> None:
+        check_non_negative(self, "", "std_xy")
+
+
 class Detection(WireRecord, frozen=True, kw_only=True):
     """One detected obstacle: its id, noisy position and radius, and their noise."""
 
@@ -82,10 +112,16 @@ class StateEstimate(Message, frozen=True, kw_only=True):
     w: float
     covariance: tuple[float, ...]
     predicted_s: float = 0.0  # s, >= 0
+    # the ocean current the estimator believes carries the vehicle (world frame, m/s):
+    # ground velocity = v (cos theta, sin theta) + current
+    current_x: float = 0.0
+    current_y: float = 0.0
+    current_std: float = 0.0  # m/s: the root mean of the current's two variances
 
     def validate(self) -> None:
         _check_cov("covariance", self.covariance, 5)
         check_range("predicted_s", self.predicted_s, 0.0)
+        check_range("current_std", self.current_std, 0.0)
 
 
 class Track(WireRecord, frozen=True, kw_only=True):
@@ -326,7 +362,12 @@ class VehicleStatus(Message, frozen=True, kw_only=True):
 
 
 class TruthState(Message, frozen=True, kw_only=True):
-    """The vehicle's true state (simulation only): pose, speeds and any collision."""
+    """The vehicle's true state (simulation only): pose, speeds and any collision.
+
+    v and sway are the hull's surge and sway speed through the water (body frame), w its yaw
+    rate; current_x, current_y the current at the hull (world frame): the velocity over
+    ground is v (cos theta, sin theta) + sway (-sin theta, cos theta) + current.
+    """
 
     x: float
     y: float
@@ -334,6 +375,18 @@ class TruthState(Message, frozen=True, kw_only=True):
     v: float
     w: float
     collided: bool = False
+    sway: float = 0.0
+    current_x: float = 0.0
+    current_y: float = 0.0
+
+    @property
+    def ground_velocity(self) -> tuple[float, float]:
+        """Velocity over ground (world frame, m/s)."""
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return (
+            self.v * c - self.sway * s + self.current_x,
+            self.v * s + self.sway * c + self.current_y,
+        )
 
 
 class LinkCounters(WireRecord, frozen=True, kw_only=True):
@@ -479,4 +532,6 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     RunEnd,
     Tick,
     TickAck,
+    Odometry,
+    PositionFix,
 )

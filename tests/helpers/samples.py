@@ -11,7 +11,9 @@ from common.messages import (
     NavFix,
     ObstacleDetections,
     ObstacleTracks,
+    Odometry,
     PathMsg,
+    PositionFix,
     RunEnd,
     StateEstimate,
     Tick,
@@ -214,6 +216,21 @@ def one_of_each() -> list[Message]:
             wakes={"planner": 12_550_000},
             done=False,
         ),
+        Odometry(
+            stamp=12.5,
+            seq=13,
+            source=SOURCE,
+            sent=SENT,
+            heading=0.75,
+            yaw_rate=-0.0625,
+            bottom_lock=True,
+            u_ground=1.5,
+            v_ground=-0.125,
+            std_heading=0.0078125,
+            std_yaw_rate=0.00390625,
+            std_velocity=0.015625,
+        ),
+        PositionFix(stamp=12.5, seq=14, source=SOURCE, sent=SENT, x=10.5, y=-3.0, std_xy=0.75),
     ]
 
 
