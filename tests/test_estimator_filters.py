@@ -47,20 +47,26 @@ def scripted_turn(T: float = 30.0, v: float = 1.5) -> np.ndarray:
     return s
 
 
-def random_walk(rng: np.random.Generator, q_a: float, q_w: float, T: float = 30.0) -> np.ndarray:
-    """Truth from the filter's own process model: v and w driven by white noise q_a, q_w."""
+def random_walk(rng: np.random.Generator, cfg: EstimatorConfig, T: float = 30.0) -> np.ndarray:
+    """Truth from the filter's own process model: v and w driven by white noise, carried by
+    a random-walk current (drawn from its initial belief) plus white velocity over ground."""
     n = round(T / SIM_DT)
     s = np.zeros((n + 1, 5))
     s[0] = (5.0, 20.0, 0.0, 1.5, 0.05)
+    cx, cy = cfg.init_std_current_mps * rng.standard_normal(2)
+    step_c = math.sqrt(cfg.current_psd_m2_s3 * SIM_DT)
+    step_p = math.sqrt(cfg.position_psd_m2_s * SIM_DT)
     for k in range(n):
         x, y, th, v, w = s[k]
         s[k + 1] = (
-            x + v * SIM_DT * math.cos(th),
-            y + v * SIM_DT * math.sin(th),
+            x + (v * math.cos(th) + cx) * SIM_DT + step_p * rng.standard_normal(),
+            y + (v * math.sin(th) + cy) * SIM_DT + step_p * rng.standard_normal(),
             th + w * SIM_DT,
-            v + math.sqrt(q_a * SIM_DT) * rng.standard_normal(),
-            w + math.sqrt(q_w * SIM_DT) * rng.standard_normal(),
+            v + math.sqrt(cfg.accel_psd_m2_s3 * SIM_DT) * rng.standard_normal(),
+            w + math.sqrt(cfg.yaw_accel_psd_rad2_s3 * SIM_DT) * rng.standard_normal(),
         )
+        cx += step_c * rng.standard_normal()
+        cy += step_c * rng.standard_normal()
     return s
 
 
@@ -180,7 +186,7 @@ def test_nees_consistent_with_30_percent_loss(kind: str, runs: int) -> None:
     checkpoints, per_run = [], []
     for seed in range(runs):
         rng = np.random.default_rng(100 + seed)
-        truth = random_walk(rng, cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
+        truth = random_walk(rng, cfg)
         _, nees, _ = run(truth, cfg, rng, loss=0.3, delay_s=0.15)
         checkpoints += list(nees[50::50])
         per_run.append(float(nees[20:].mean()))

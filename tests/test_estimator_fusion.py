@@ -212,6 +212,7 @@ def test_an_estimate_says_how_far_it_was_carried_past_its_newest_fix() -> None:
     assert isinstance(state, StateEstimate)
     assert (state.stamp, state.predicted_s) == (4.0, pytest.approx(1.0))
     # going back by predicted_s at its constant twist lands on the fused state at the fix
-    x, y, *_ = predict_pose((state.x, state.y, state.theta, state.v, state.w), -state.predicted_s)
+    pose = (state.x, state.y, state.theta, state.v, state.w)
+    x, y, *_ = predict_pose(pose, -state.predicted_s, (state.current_x, state.current_y))
     fused = core.nav.state.x
     assert (x, y) == pytest.approx((fused[0], fused[1]), abs=1e-3)

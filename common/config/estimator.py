@@ -1,4 +1,5 @@
-"""Estimator configuration: pre-filters (eqs. 2, 3), vehicle EKF/UKF, obstacle tracks, buffer."""
+"""Estimator configuration: pre-filters (eqs. 2, 3), vehicle EKF/UKF with the current, position
+fix gating, obstacle tracks, buffer."""
 
 from __future__ import annotations
 
@@ -26,11 +27,25 @@ class EstimatorConfig:
     # continuous white-noise intensities driving the unicycle's v and w (random walks)
     accel_psd_m2_s3: float = 0.05  # of the surge acceleration
     yaw_accel_psd_rad2_s3: float = 0.01  # of the yaw acceleration
+    # the current (world frame) that carries the vehicle is estimated too, as a random walk of
+    # this intensity (m^2/s^3: its std grows by sqrt(psd t), 4.5 cm/s in 10 s); more follows
+    # an eddy's change faster, and lets the estimate wander more in still water
+    current_psd_m2_s3: float = 2e-4
+    # white velocity over ground in any direction (m^2/s): what the unicycle model leaves out,
+    # e.g. a hull's sideslip in a turn (vehicle.model = "fossen3dof")
+    position_psd_m2_s: float = 1e-3
     max_predict_dt_s: float = 0.1  # longer predictions are split into equal sub-steps
     init_std_xy_m: float = 0.5  # initial belief around the configured start pose
     init_std_theta_rad: float = 0.1
     init_std_v_mps: float = 0.5
     init_std_w_rps: float = 0.1
+    init_std_current_mps: float = 0.3  # per axis: the current is unknown at the start
+    # absolute position fixes (USBL/LBL, sensor.navigation = "dvl_usbl") are gated on their
+    # innovation: one outside this chi-square (2 dof) probability is taken as an outlier and
+    # not fused; after fix_gate_reset_after of them in a row the fixes are believed instead
+    # of the filter (it is the filter that is lost), which restarts its position from the fix
+    fix_gate_probability: float = 0.999
+    fix_gate_reset_after: int = 3
     ukf_alpha: float = 0.3  # Merwe scaled sigma points
     ukf_beta: float = 2.0
     ukf_kappa: float = 0.0
@@ -57,6 +72,7 @@ class EstimatorConfig:
             "init_std_theta_rad",
             "init_std_v_mps",
             "init_std_w_rps",
+            "init_std_current_mps",
             "ukf_alpha",
             "track_init_std_v_mps",
             "track_init_std_a_mps2",
@@ -69,6 +85,8 @@ class EstimatorConfig:
         for name in (
             "accel_psd_m2_s3",
             "yaw_accel_psd_rad2_s3",
+            "current_psd_m2_s3",
+            "position_psd_m2_s",
             "track_cv_accel_psd_m2_s3",
             "track_jerk_psd_m2_s5",
         ):
@@ -83,6 +101,14 @@ class EstimatorConfig:
             )
         if not (isinstance(self.mean_window, int) and self.mean_window >= 1):
             raise ConfigValueError("mean_window", f"{self.mean_window!r} must be an integer >= 1")
+        if not 0.0 < self.fix_gate_probability < 1.0:
+            raise ConfigValueError(
+                "fix_gate_probability", f"{self.fix_gate_probability!r}, expected (0, 1)"
+            )
+        if not (isinstance(self.fix_gate_reset_after, int) and self.fix_gate_reset_after >= 1):
+            raise ConfigValueError(
+                "fix_gate_reset_after", f"{self.fix_gate_reset_after!r} must be an integer >= 1"
+            )
         if not 0.0 < self.track_gate_probability < 1.0:
             raise ConfigValueError(
                 "track_gate_probability", f"{self.track_gate_probability!r}, expected (0, 1)"
@@ -90,5 +116,7 @@ class EstimatorConfig:
         for name in ("ukf_beta", "ukf_kappa"):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigValueError(name, f"{getattr(self, name)!r} must be finite")
-        if self.ukf_kappa + 5 <= 0:
-            raise ConfigValueError("ukf_kappa", f"{self.ukf_kappa!r} must be > -5 (n + kappa > 0)")
+        if self.ukf_kappa + 7 <= 0:
+            raise ConfigValueError(
+                "ukf_kappa", f"{self.ukf_kappa!r} must be > -7 (n + kappa > 0, n = 7 states)"
+            )

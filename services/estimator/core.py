@@ -1,9 +1,11 @@
-"""The estimator core: fuses delayed nav fixes and obstacle scans; publishes state and tracks."""
+"""The estimator core: fuses delayed navigation (fixes, or odometry and USBL/LBL fixes) and
+obstacle scans; publishes the state, the current and the tracks."""
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
 import numpy as np
@@ -13,21 +15,38 @@ from common.config.estimator import EstimatorConfig
 from common.config.world import AreaConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.guard.rejects import warn_rejected
-from common.messages import NavFix, ObstacleDetections, ObstacleTracks, StateEstimate
+from common.messages import (
+    NavFix,
+    ObstacleDetections,
+    ObstacleTracks,
+    Odometry,
+    PositionFix,
+    StateEstimate,
+)
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
 from services.estimator.gate import ChiSquareGate
 from services.estimator.health import healthy
+from services.estimator.measurements import (
+    KINDS,
+    NavMeasurement,
+    Observation,
+    fix_noise,
+    of_fix,
+    of_odometry,
+    of_position,
+)
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
 from services.estimator.tracks import ObstacleTracker, TrackerState
+from services.estimator.unicycle import CURRENT, DIM_X, POSE
 from services.estimator.vehicle_filter import make_vehicle_filter
 
 FloatArray = NDArray[np.float64]
 
 log = logging.getLogger("tidelink.estimator")
 
-M = TypeVar("M", NavFix, ObstacleDetections)
+M = TypeVar("M", NavMeasurement, ObstacleDetections)
 
 # No prediction spans more than this: a fix after a longer silence restarts the filter from
 # itself (the old belief says nothing after so long), and a step this long after the last
@@ -54,14 +73,18 @@ NUMERIC_ERRORS = (ArithmeticError, ValueError)
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class VehicleBelief:
-    """The vehicle Gaussian (x, P) at `stamp` (None before the first fix) + pre-filter memory,
-    and how many times the filter was restarted from a fix on the way here."""
+    """The vehicle Gaussian (x, P) at `stamp` (None before the first measurement) + pre-filter
+    memory, how many times the filter was restarted on the way here, and the position fixes
+    gated out (in all, and in a row since the last one fused)."""
 
-    x: FloatArray  # (5,): [x, y, theta, v, w]
-    P: FloatArray  # (5, 5)
+    x: FloatArray  # (7,): [x, y, theta, v, w, cx, cy]
+    P: FloatArray  # (7, 7)
     stamp: float | None
     prefilter: NavPrefilter  # never mutated once stored: fusing works on a copy
     resets: int = 0
+    fixes_gated: int = 0
+    gated_in_row: int = 0
+    located: bool = False  # a position measurement has been fused (or the start explained)
 
 
 class EstimatorCore:
@@ -89,13 +112,15 @@ class EstimatorCore:
         self._tracker = ObstacleTracker(cfg)
         self._judge = Plausibility.of_area(area if area is not None else AreaConfig())
         self._rejects = RateLimitedLog(log)
-        x0 = np.array([start[0], start[1], wrap_angle(start[2]), 0.0, 0.0])
-        std0 = (cfg.init_std_xy_m, cfg.init_std_xy_m, cfg.init_std_theta_rad)
-        P0 = np.diag(np.square(std0 + (cfg.init_std_v_mps, cfg.init_std_w_rps)))
+        x0 = np.zeros(DIM_X)
+        x0[:3] = start[0], start[1], wrap_angle(start[2])
+        c0 = cfg.init_std_current_mps
+        std0 = [cfg.init_std_xy_m, cfg.init_std_xy_m, cfg.init_std_theta_rad, cfg.init_std_v_mps]
+        P0 = np.diag(np.square(std0 + [cfg.init_std_w_rps, c0, c0]))
         prefilter = NavPrefilter(cfg.prefilter, cfg.mean_window, cfg.lag_time_constant_s)
         belief = VehicleBelief(x=x0, P=P0, stamp=None, prefilter=prefilter)
-        self.nav: ReplayBuffer[NavFix, VehicleBelief] = ReplayBuffer(
-            belief, self._fuse_fix, cfg.history_s, max_entries=MAX_BUFFERED
+        self.nav: ReplayBuffer[NavMeasurement, VehicleBelief] = ReplayBuffer(
+            belief, self._fuse, cfg.history_s, max_entries=MAX_BUFFERED
         )
         self.scans: ReplayBuffer[ObstacleDetections, TrackerState] = ReplayBuffer(
             TrackerState(tracks={}),
@@ -104,79 +129,181 @@ class EstimatorCore:
             max_entries=MAX_BUFFERED,
             weight=lambda m: max(1, len(m.detections)),
         )
+        self._fix_gate = ChiSquareGate(cfg.fix_gate_probability)
         self._spent = {"nav": 0, "obstacles": 0}  # work since the last step, per budget
 
     # -- fusion (pure functions of the belief and the measurement: replays repeat them) --------
+    def _fuse(self, b: VehicleBelief, m: NavMeasurement) -> VehicleBelief:
+        """The belief after one navigation measurement of any kind, at its stamp."""
+        if isinstance(m, NavFix):
+            return self._fuse_fix(b, m)
+        if b.stamp is not None and m.stamp - b.stamp > MAX_PREDICT_S:
+            b = self._lost(b)
+        if isinstance(m, PositionFix):
+            return self._fuse_position(b, m)
+        fused = self._update(b, m.stamp, of_odometry(m), b.prefilter, locates=False)
+        return fused if fused is not None else self._lost(b)
+
+    def _update(
+        self,
+        b: VehicleBelief,
+        stamp: float,
+        obs: Observation,
+        prefilter: NavPrefilter,
+        *,
+        locates: bool = True,
+    ) -> VehicleBelief | None:
+        """b predicted to `stamp` and updated with obs (`locates`: it measures the position);
+        None if the filter failed."""
+        dt = 0.0 if b.stamp is None else stamp - b.stamp
+        try:
+            x, P = self._filter.predict(b.x, b.P, dt)
+            x, P = self._filter.update(x, P, obs)
+        except NUMERIC_ERRORS:  # e.g. a UKF covariance no longer positive definite
+            return None
+        if not healthy(x, P):
+            return None
+        return VehicleBelief(
+            x=x,
+            P=P,
+            stamp=stamp,
+            prefilter=prefilter,
+            resets=b.resets,
+            fixes_gated=b.fixes_gated,
+            located=b.located or locates,
+        )
+
     def _fuse_fix(self, b: VehicleBelief, fix: NavFix) -> VehicleBelief:
         if b.stamp is not None and fix.stamp - b.stamp > MAX_PREDICT_S:
             return self._restart(b, fix)
-        if b.stamp is None and not self._start_explains(b, fix):
+        if not b.located and not self._start_explains(b, fix.x, fix.y, fix.std_xy):
             return self._restart(b, fix)
         prefilter = b.prefilter.copy()
         z = prefilter.apply(fix.stamp, np.array([fix.x, fix.y, fix.heading, fix.speed]))
-        dt = 0.0 if b.stamp is None else fix.stamp - b.stamp
-        try:
-            x, P = self._filter.predict(b.x, b.P, dt)
-            x, P = self._filter.update(x, P, z, self._noise(fix))
-        except NUMERIC_ERRORS:  # e.g. a UKF covariance no longer positive definite
-            return self._restart(b, fix)
-        if not healthy(x, P):  # diverged: the fix (plausible, judged) is the better belief
-            return self._restart(b, fix)
-        return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets)
+        fused = self._update(b, fix.stamp, of_fix(fix, z), prefilter)
+        # diverged: the fix (plausible, judged) is the better belief
+        return fused if fused is not None else self._restart(b, fix)
 
-    def _start_explains(self, b: VehicleBelief, fix: NavFix) -> bool:
-        """Whether the start belief and the first fix agree (START_GATE on the position)."""
-        y = np.array([fix.x - b.x[0], fix.y - b.x[1]])
-        return START_GATE.accepts(y, b.P[:2, :2] + self._noise(fix)[:2, :2])
+    def _fuse_position(self, b: VehicleBelief, fix: PositionFix) -> VehicleBelief:
+        """A USBL/LBL fix, gated on its innovation: an outlier is not fused, but after
+        fix_gate_reset_after of them in a row the filter is the one that is lost."""
+        obs = of_position(fix)
+        if not b.located and not self._start_explains(b, fix.x, fix.y, fix.std_xy):
+            return self._relocate(b, fix, obs)
+        if b.stamp is not None:
+            try:
+                x, P = self._filter.predict(b.x, b.P, fix.stamp - b.stamp)
+            except NUMERIC_ERRORS:
+                return self._relocate(b, fix, obs)
+            y, S = obs.innovation(x, P)
+            if not self._fix_gate.accepts(y, S):
+                gated = replace(b, fixes_gated=b.fixes_gated + 1, gated_in_row=b.gated_in_row + 1)
+                if gated.gated_in_row >= self.cfg.fix_gate_reset_after:
+                    return self._relocate(gated, fix, obs)
+                return gated
+        fused = self._update(b, fix.stamp, obs, b.prefilter)
+        return fused if fused is not None else self._relocate(b, fix, obs)
 
-    @staticmethod
-    def _noise(fix: NavFix) -> FloatArray:
-        # R from the fix's own noise figures; a pre-filtered fix keeps the raw R (its errors
-        # are correlated over the window, so a reduced R would be over-confident)
-        stds = np.array([fix.std_xy, fix.std_xy, fix.std_heading, fix.std_speed])
-        return np.diag(np.maximum(stds * stds, 1e-12))
+    def _relocate(self, b: VehicleBelief, fix: PositionFix, obs: Observation) -> VehicleBelief:
+        """The belief moved to a position fix (its noise as the position's covariance, the
+        rest predicted to its stamp): the start could not explain it, or the filter lost it."""
+        x, P = self._filter.predict(b.x, b.P, 0.0 if b.stamp is None else fix.stamp - b.stamp)
+        if not healthy(x, P):
+            x, P = b.x.copy(), b.P.copy()
+        x[:2] = obs.z
+        P[:2, :] = 0.0
+        P[:, :2] = 0.0
+        P[:2, :2] = obs.R
+        return replace(
+            b,
+            x=x,
+            P=P,
+            stamp=fix.stamp if b.stamp is None else max(b.stamp, fix.stamp),
+            resets=b.resets + 1,
+            gated_in_row=0,
+            located=True,
+        )
+
+    def _lost(self, b: VehicleBelief) -> VehicleBelief:
+        """The belief after a long silence or a failed update with no position to restart
+        from: kept, with the initial uncertainty added (the next fix locates it again)."""
+        cfg = self.cfg
+        stds = [cfg.init_std_xy_m * 10.0] * 2 + [cfg.init_std_theta_rad, cfg.init_std_v_mps]
+        stds += [cfg.init_std_w_rps] + [cfg.init_std_current_mps] * 2
+        P = np.diag(np.square(stds))
+        return replace(b, P=P, resets=b.resets + 1, located=False)
+
+    def _start_explains(self, b: VehicleBelief, x: float, y: float, std_xy: float) -> bool:
+        """Whether the start belief and the first position measured agree (START_GATE)."""
+        d = np.array([x - b.x[0], y - b.x[1]])
+        return START_GATE.accepts(d, b.P[:2, :2] + np.eye(2) * max(std_xy * std_xy, 1e-12))
 
     def _restart(self, b: VehicleBelief, fix: NavFix) -> VehicleBelief:
-        """The belief of this fix alone (yaw rate unknown): after a long silence or when the
-        filter diverged. Fresh pre-filter memory: the old window is from before the gap."""
+        """The belief of this fix alone (yaw rate and current unknown): after a long silence
+        or when the filter diverged. Fresh pre-filter memory: the old window is from before
+        the gap."""
         cfg = self.cfg
         prefilter = NavPrefilter(cfg.prefilter, cfg.mean_window, cfg.lag_time_constant_s)
         z = prefilter.apply(fix.stamp, np.array([fix.x, fix.y, fix.heading, fix.speed]))
-        x = np.array([z[0], z[1], wrap_angle(float(z[2])), z[3], 0.0])
-        P = np.zeros((5, 5))
-        P[:4, :4] = self._noise(fix)
+        x = np.zeros(DIM_X)
+        x[:4] = z[0], z[1], wrap_angle(float(z[2])), z[3]
+        P = np.zeros((DIM_X, DIM_X))
+        P[:4, :4] = fix_noise(fix)
         P[4, 4] = cfg.init_std_w_rps**2
-        return VehicleBelief(x=x, P=P, stamp=fix.stamp, prefilter=prefilter, resets=b.resets + 1)
+        P[CURRENT, CURRENT] = np.eye(2) * cfg.init_std_current_mps**2
+        return VehicleBelief(
+            x=x,
+            P=P,
+            stamp=fix.stamp,
+            prefilter=prefilter,
+            resets=b.resets + 1,
+            fixes_gated=b.fixes_gated,
+            located=True,
+        )
 
     # -- ServiceCore ---------------------------------------------------------------------------
     def deliver(self, d: Delivery) -> list[Emit]:
         msg = d.msg
         if isinstance(msg, NavFix):
-            self._offer("nav", self.nav, msg, d.t, self._judge_fix(msg, d.t), FIX_BUDGET)
+            self._offer_nav("nav", msg, d.t, self._judge_fix(msg, d.t))
+        elif isinstance(msg, Odometry):
+            self._offer_nav("odometry", msg, d.t, self._judge_odometry(msg, d.t))
+        elif isinstance(msg, PositionFix):
+            self._offer_nav("fix", msg, d.t, self._judge_position(msg, d.t))
         elif isinstance(msg, ObstacleDetections):
             why = self._judge_scan(msg, d.t)
             self._offer("obstacles", self.scans, msg, d.t, why, DETECTION_BUDGET)
         return []
 
+    def _offer_nav(self, stream: str, msg: NavMeasurement, t: float, why: Reason | None) -> None:
+        # one buffer for every kind: they update the same belief, in stamp order; the key's
+        # seq tells kinds apart (each stream numbers its own messages)
+        key = msg.seq * len(KINDS) + KINDS[type(msg)]
+        self._offer("nav", self.nav, msg, t, why, FIX_BUDGET, key=key, stream=stream)
+
     def _offer(
         self,
-        stream: str,
+        budget_key: str,
         buffer: ReplayBuffer[M, Any],
         msg: M,
         t: float,
         why: Reason | str | None,
         budget: int,
+        *,
+        key: int | None = None,
+        stream: str | None = None,
     ) -> None:
         """Fuse a judged measurement within the step's budget, or count and log why not."""
+        seq = msg.seq if key is None else key
         if why is None:
-            cost = buffer.cost(msg, msg.stamp, msg.seq)
-            if self._spent[stream] + cost > budget:
+            cost = buffer.cost(msg, msg.stamp, seq)
+            if self._spent[budget_key] + cost > budget:
                 why = "over_budget"
             else:
-                self._spent[stream] += cost
-                buffer.add(msg, msg.stamp, msg.seq)
+                self._spent[budget_key] += cost
+                buffer.add(msg, msg.stamp, seq)
                 return
-        warn_rejected(self._rejects, stream, why, t, msg)
+        warn_rejected(self._rejects, stream or budget_key, why, t, msg)
 
     def _judge_fix(self, fix: NavFix, now: float) -> Reason | None:
         j = self._judge
@@ -188,6 +315,20 @@ class EstimatorCore:
             j.length(fix.std_xy),
             j.angle_std(fix.std_heading),
         )
+
+    def _judge_odometry(self, m: Odometry, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(
+            j.stamp(m.stamp, now),
+            j.angle(m.heading),
+            j.rate(m.yaw_rate, m.std_yaw_rate),
+            j.speed(m.u_ground, m.v_ground, m.std_velocity),
+            j.angle_std(m.std_heading),
+        )
+
+    def _judge_position(self, m: PositionFix, now: float) -> Reason | None:
+        j = self._judge
+        return first_reason(j.stamp(m.stamp, now), j.position(m.x, m.y), j.length(m.std_xy))
 
     def _judge_scan(self, scan: ObstacleDetections, now: float) -> Reason | None:
         j = self._judge
@@ -227,7 +368,10 @@ class EstimatorCore:
             theta=float(x[2]),
             v=float(x[3]),
             w=float(x[4]),
-            covariance=tuple(P.ravel().tolist()),  # Python floats, row-major
+            covariance=tuple(P[POSE, POSE].ravel().tolist()),  # Python floats, row-major
+            current_x=float(x[5]),
+            current_y=float(x[6]),
+            current_std=math.sqrt(max(0.0, 0.5 * (P[5, 5] + P[6, 6]))),
         )
         tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]
@@ -266,4 +410,5 @@ class EstimatorCore:
             "scans_duplicates": self.scans.duplicates,
             "scans_replays": self.scans.replays,
             "detections_gated_out": self.scans.state.gated_out,
+            "fixes_gated_out": self.nav.state.fixes_gated,
         }

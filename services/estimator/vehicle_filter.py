@@ -1,4 +1,5 @@
-"""Vehicle-state filters (filterpy EKF or UKF) over the unicycle model, as pure x, P maps."""
+"""Vehicle-state filters (filterpy EKF or UKF) over the current-carried unicycle, as pure x, P
+maps."""
 
 from __future__ import annotations
 
@@ -11,17 +12,14 @@ from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
 from common.scalar import wrap_angle
+from services.estimator.measurements import Observation
 from services.estimator.unicycle import (
     DIM_X,
-    DIM_Z,
     circular_mean,
     fx,
-    hx,
     jacobian_f,
-    jacobian_h,
     process_noise,
     residual_x,
-    residual_z,
 )
 
 FloatArray = NDArray[np.float64]
@@ -40,9 +38,9 @@ class VehicleFilter(Protocol):
         ...
 
     def update(
-        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+        self, x: FloatArray, P: FloatArray, obs: Observation
     ) -> tuple[FloatArray, FloatArray]:
-        """The belief after fusing the fix z = [x, y, heading, speed] with noise R."""
+        """The belief after fusing one observation (services/estimator/measurements.py)."""
         ...
 
 
@@ -74,7 +72,12 @@ class _SubstepPredict:
     the filter's `advance` makes of a copy in n equal sub-steps of h (_substeps)."""
 
     def __init__(self, cfg: EstimatorConfig) -> None:
-        self._q = (cfg.accel_psd_m2_s3, cfg.yaw_accel_psd_rad2_s3)
+        self._q = (
+            cfg.accel_psd_m2_s3,
+            cfg.yaw_accel_psd_rad2_s3,
+            cfg.current_psd_m2_s3,
+            cfg.position_psd_m2_s,
+        )
         self._max_dt = cfg.max_predict_dt_s
 
     def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -95,7 +98,7 @@ class EkfVehicleFilter(_SubstepPredict):
 
     def __init__(self, cfg: EstimatorConfig) -> None:
         super().__init__(cfg)
-        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=DIM_Z)
+        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=4)
 
     def advance(
         self, x: FloatArray, P: FloatArray, n: int, h: float
@@ -110,11 +113,11 @@ class EkfVehicleFilter(_SubstepPredict):
         return _tidy(ekf.x, ekf.P)
 
     def update(
-        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+        self, x: FloatArray, P: FloatArray, obs: Observation
     ) -> tuple[FloatArray, FloatArray]:
         ekf = self._ekf
         ekf.x, ekf.P = x.copy(), P.copy()
-        ekf.update(z, jacobian_h, hx, R=R, residual=residual_z)
+        ekf.update(obs.z, obs.H, obs.hx, R=obs.R, residual=obs.residual)
         return _tidy(ekf.x, ekf.P)
 
 
@@ -128,15 +131,13 @@ class UkfVehicleFilter(_SubstepPredict):
         )
         self._ukf = UnscentedKalmanFilter(
             dim_x=DIM_X,
-            dim_z=DIM_Z,
+            dim_z=4,
             dt=cfg.max_predict_dt_s,
-            hx=hx,
+            hx=lambda s: s[:4],  # each update passes its observation's own model
             fx=fx,
             points=points,
             x_mean_fn=circular_mean,
-            z_mean_fn=circular_mean,
             residual_x=residual_x,
-            residual_z=residual_z,
         )
 
     def advance(
@@ -151,14 +152,17 @@ class UkfVehicleFilter(_SubstepPredict):
         return ukf.x.copy(), ukf.P.copy()
 
     def update(
-        self, x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
+        self, x: FloatArray, P: FloatArray, obs: Observation
     ) -> tuple[FloatArray, FloatArray]:
         ukf = self._ukf
         ukf.x, ukf.P = x.copy(), P.copy()
         # sigma points of this belief (dt = 0), so the update never depends on an earlier
         # predict call: a rolled-back belief can be updated directly
         ukf.compute_process_sigmas(0.0)
-        ukf.update(z, R=R)
+        ukf.residual_z = obs.residual
+        angle = obs.angle
+        ukf.z_mean = lambda sigmas, weights: circular_mean(sigmas, weights, angle)
+        ukf.update(obs.z, R=obs.R, hx=obs.hx)
         return _tidy(ukf.x, ukf.P)
 
 
