@@ -107,11 +107,16 @@ class SpeedConfig:
     # the tightest curvature ahead; the rest is left to the feedback
     curvature_budget: float = 0.7
     preview_s: float = 3.0  # the curvature slow-down looks this far ahead (at cruise speed)
+    # in a current the stop at the end of the path keeps this many times the current's speed
+    # (at most cruise): a vehicle slower than the current it crabs in drifts off its path
+    # instead of arriving (the mission ends on arrival, within the goal tolerance)
+    steerage_per_current: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("accel_mps2", "decel_mps2"):
             positive(name, getattr(self, name))
         nonneg("preview_s", self.preview_s)
+        nonneg("steerage_per_current", self.steerage_per_current)
         fraction("curvature_budget", self.curvature_budget)
 
 

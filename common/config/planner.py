@@ -59,12 +59,19 @@ class PlannerConfig:
     # the path on a state predicted that far ahead, and the prediction's error grows with it
     # (at 1 s one-way on every link the loop is ~3.4 s: 0.15 + 0.34 m); 0: a fixed margin
     clearance_margin_per_delay_s: float = 0.1
+    # ... and this much further per m/s of the estimated current (s): a current pushes the
+    # vehicle off its path in every bend and while it gathers speed, more the stronger it is
+    # (0.3 m/s: 0.3 m more); 0: no widening
+    clearance_margin_per_current_s: float = 1.0
     curvature_margin: float = 0.85  # refinement aims at k <= curvature_margin / R_min
     n_samples_check: int = 2000  # dense samples of the final checks, eq. (12)-(13), (20)
     # --- replan events
     corridor_halfwidth_m: float = 3.0  # new track predicted this close (hull gap) to the path
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
+    # the estimated current changed by more than this (m/s) since the path in force was
+    # flown (flight.py) before it was adopted: replan, flown in the current as it is now
+    current_change_mps: float = 0.1
     # the first plan waits (holding the vehicle still) until the estimator's tracks hold a
     # track, i.e. reflect at least one sonar scan, so eq. (12)-(13) see the moving obstacles
     # in view; from this mission time on it plans with what it has
@@ -98,6 +105,7 @@ class PlannerConfig:
             "penalty_turn",
             "clearance_margin_m",
             "clearance_margin_per_delay_s",
+            "clearance_margin_per_current_s",
         ):
             nonneg(name, getattr(self, name))
         for name in (
@@ -109,6 +117,7 @@ class PlannerConfig:
         ):
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)
+        positive("current_change_mps", self.current_change_mps)
         positive("max_estimate_age_s", self.max_estimate_age_s)
         positive("intent_max_age_s", self.intent_max_age_s)
         if not (math.isfinite(self.rho_m) and self.rho_m > self.rho0_m):

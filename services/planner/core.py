@@ -58,7 +58,7 @@ PLAN_AHEAD_MAX_S = 10.0
 # would have it by now is declined (`_overtaken`): with R_min it cannot join it there
 STALE_HEADING_RAD = math.radians(45.0)
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
-_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed")
+_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed", "current")
 # replans asked while the path in force is still feasible (replan.py): their result replaces
 # it only if it is an ordinary plan (`_keeps_path_in_force`)
 PRECAUTIONS = ("corridor", "cruise")
@@ -74,6 +74,7 @@ class _Asked:
     obstacles: Obstacles
     why: str
     asked_t: float
+    current: tuple[float, float] = (0.0, 0.0)  # the current it is flown in
 
 
 def _flat(a: np.ndarray) -> tuple[float, ...]:
@@ -275,7 +276,8 @@ class PlannerCore:
                 replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
             )
         else:
-            decision = self.policy.check(t_plan, here, self.goal, obstacles)
+            current = self.link.model.current_mps
+            decision = self.policy.check(t_plan, here, self.goal, obstacles, current)
         if decision.replan:
             if self.ref is not None and math.isfinite(decision.conflict_s):
                 # the path in force is unsafe ahead: until its replacement is in force (seconds,
@@ -348,8 +350,9 @@ class PlannerCore:
     def clearance_margin_m(self) -> float:
         """The margin a plan made now aims beyond the required clearance (m): the configured
         one widened by the loop's measured delay (a tube as wide as the prediction's drift
-        grows), to the centimetre."""
+        grows) and by the estimated current, to the centimetre."""
         extra = self.cfg.clearance_margin_per_delay_s * self.link.loop_delay_s
+        extra += self.cfg.clearance_margin_per_current_s * math.hypot(*self.link.model.current_mps)
         return round(self.cfg.clearance_margin_m + extra, 2)
 
     def _plan_config(self) -> PlannerConfig:
@@ -405,7 +408,13 @@ class PlannerCore:
             fix_goal_heading=self.fix_goal_heading,
         )
         cfg = self._plan_config()
-        self._asked = _Asked(t_plan=t_plan, obstacles=obstacles, why=why, asked_t=t)
+        self._asked = _Asked(
+            t_plan=t_plan,
+            obstacles=obstacles,
+            why=why,
+            asked_t=t,
+            current=self.link.model.current_mps,
+        )
         flight = FlightModel(
             # a copy now: the plan may be made beside the steps, which go on using it
             controller=copy.deepcopy(self.controller),
@@ -515,7 +524,7 @@ class PlannerCore:
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
-        self.policy.on_planned(t_plan, result, self.goal, obstacles)
+        self.policy.on_planned(t_plan, result, self.goal, obstacles, asked.current)
         self.last_result = result
         self.path_id += 1
         if result.status != self.path_status:

@@ -14,7 +14,9 @@ last replan, so noisy tracks cannot make the planner chatter):
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes;
   cruise        the path in force was made for less than cruise speed (flight.py: a bend no
-                faster flight held clear of rho0) and the vehicle is past its slow_until_m.
+                faster flight held clear of rho0) and the vehicle is past its slow_until_m;
+  current       the estimated current differs by more than current_change_mps from the one
+                the path in force was flown in (flight.py) before it was adopted.
 The core adds one event of its own, ahead of these and of the interval:
   resumed       it sent no command for longer than the vehicle's hold_after_s (and
                 max_estimate_age_s): it was stopped, or its uplink was out, while the vehicle
@@ -48,6 +50,7 @@ ReplanReason = Literal[
     "cruise",
     "aside",
     "resumed",
+    "current",
 ]
 
 
@@ -94,6 +97,7 @@ class ReplanPolicy:
         self.escape_m = 0.0  # the current plan's first escape_m may pass static obstacles closer
         self.slow_until_m = math.inf  # a slower plan's arc length past which cruise resumes
         self.short_of_goal = False  # the path in force steps aside, short of the goal
+        self.current: tuple[float, float] = (0.0, 0.0)  # the path in force was flown in it
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
         # per (path, static obstacle set) and sliced at every check, not recomputed at every
@@ -102,9 +106,17 @@ class ReplanPolicy:
         self._static_d: FloatArray = np.zeros(0)
 
     # --- state updates -------------------------------------------------------------------
-    def on_planned(self, t: float, result: PlanResult, goal: Pose2D, obstacles: Obstacles) -> None:
-        """Record a replan attempt at time t (its result may be NO_PATH)."""
+    def on_planned(
+        self,
+        t: float,
+        result: PlanResult,
+        goal: Pose2D,
+        obstacles: Obstacles,
+        current: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Record a replan attempt at time t (its result may be NO_PATH), flown in `current`."""
         self.last_replan_t = t
+        self.current = current
         self.goal = goal
         self.s_now = 0.0
         self.last_check_t = t
@@ -135,8 +147,16 @@ class ReplanPolicy:
         return float(self.s[-1]) - self.s_now if self.pts is not None else 0.0
 
     # --- the decision --------------------------------------------------------------------
-    def check(self, t: float, pose: Pose2D, goal: Pose2D, obstacles: Obstacles) -> ReplanDecision:
-        """Decide at time t; obstacles are given by their state at time t."""
+    def check(
+        self,
+        t: float,
+        pose: Pose2D,
+        goal: Pose2D,
+        obstacles: Obstacles,
+        current: tuple[float, float] = (0.0, 0.0),
+    ) -> ReplanDecision:
+        """Decide at time t; obstacles are given by their state at time t, `current` is the
+        estimated current (m/s)."""
         if (
             self.last_replan_t is not None
             and t - self.last_replan_t < self.cfg.min_replan_interval_s
@@ -196,6 +216,13 @@ class ReplanPolicy:
                     reason="corridor",
                     detail=f"moving obstacle {ids[k]} predicted {gap[k]:.2f} m from the path",
                 )
+        change = math.hypot(current[0] - self.current[0], current[1] - self.current[1])
+        if change > self.cfg.current_change_mps:
+            return ReplanDecision(
+                replan=True,
+                reason="current",
+                detail=f"the current changed by {change:.2f} m/s since the path was flown",
+            )
         if self.v_ref < self.cruise and self.s_now >= self.slow_until_m:
             return ReplanDecision(
                 replan=True,

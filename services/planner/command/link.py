@@ -69,7 +69,7 @@ class CommandLink:
         self._prepared: Prepared | None = None  # the sequence the last step made for the next
         self._last_basis: tuple[float, Pose] | None = None  # (t, state predicted) of a sequence
         self._restarts = 0  # controller restarts: a sequence prepared before one is void
-        self.model = ResponseModel.from_vehicle(vehicle)
+        self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps)
@@ -118,6 +118,7 @@ class CommandLink:
         compensated: carried forward from the estimate with the commands sent; otherwise the
         estimate as it is (without sequences the controller compensates on its own)."""
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
+        self.model = self.model.with_current(*believed_current(est))
         t_b = basis_time(est)
         settle = YAW_SETTLE_TAUS * self.model.tau_w_s
         self.timeline.forget_before(t_b - settle)
@@ -125,7 +126,7 @@ class CommandLink:
             return Prediction(now=pose, effect_t=t, at_effect=pose)
         # the estimator carried its newest fused fix to the stamp at constant twist: back along
         # that arc to the fix, then forward with the commands the vehicle was applying since
-        x, y, th, v, w = predict_pose(pose, -est.predicted_s)
+        x, y, th, v, w = predict_pose(pose, -est.predicted_s, self.model.current_mps)
         # the yaw rate there: the filter's is noisy (a differenced compass), so the yaw loop is
         # run over the commands of the last YAW_SETTLE_TAUS time constants from it (left with
         # e^-3 of its error; docs/notes/planner-yaw-rate-from-commands.md)
@@ -158,6 +159,7 @@ class CommandLink:
         """The commands (vs, ws), each (n + 1,), for t, t + step_s, ..., t + n step_s: the
         first ones computed now, the rest from the sequence prepared for this step if it holds
         (sequence.py)."""
+        controller.current = self.model.current_mps
         if not self.entries:  # as before sequences: the controller compensates the latency
             latency = max(0.0, t - est.stamp) + self.downlink_s
             v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
@@ -266,6 +268,19 @@ class CommandLink:
         # as the vehicle will read them: the future entries quantised on the wire
         self.timeline.add(t, effect_t, self.step_s, (msg.v, *msg.v_next), (msg.w, *msg.w_next))
         return msg
+
+
+def believed_current(est: StateEstimate) -> tuple[float, float]:
+    """The current the loop acts on (m/s): the estimate shrunk by its uncertainty, by
+    |c|^2 / (|c|^2 + std^2). A current the estimator has barely seen (its first seconds: fix
+    noise it cannot yet tell from drift, or still water's wander) is not steered against,
+    nor predicted over a whole plan's flight; one it knows well is taken as it is."""
+    cx, cy, std = est.current_x, est.current_y, est.current_std
+    c2 = cx * cx + cy * cy
+    if c2 == 0.0 or std == 0.0:
+        return cx, cy
+    k = c2 / (c2 + std * std)
+    return k * cx, k * cy
 
 
 def basis_time(est: StateEstimate) -> float:

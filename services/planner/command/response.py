@@ -7,13 +7,15 @@ service never imports another), and needs less: the state is the pose and twist
 
     speed  dv/dt = clamp((v_c - v) / tau_v, -a_max, a_max)            the speed loop
     yaw    dw/dt = clamp((w_c' - w) / tau_w, -alpha_max, alpha_max),  w_c' = clamp(w_c, +-v/R_min)
-    pose   x' = v cos(theta), y' = v sin(theta), theta' = w           eq. (7)
+    pose   x' = v cos(theta) + cx, y' = v sin(theta) + cy, theta' = w  eq. (7), carried by
+                                                                  the current (cx, cy)
 
 with |w| <= v / R_min at every instant (the plant enforces it: eq. (11)'s yaw-rate bound with
 the R_min of eqs. (19)-(20)) and v within eq. (11). tau_v = m_eff / k_p is the speed loop's
 time constant before its limits (common/config/vehicle.py: ~1 s), tau_w the yaw loop's.
 Over the seconds a command spends in flight the lags matter (a speed step takes seconds), so
-they are in (docs/notes/planner-response-model-lags.md).
+they are in (docs/notes/planner-response-model-lags.md). The current is the estimator's
+(StateEstimate.current_x, current_y), held over the prediction (`with_current`).
 
 Each step of at most MAX_STEP_S moves the twist by one Euler step of its (clamped) rate (a
 lag shorter than the step reaches its goal within it) and the pose along the exact arc of
@@ -23,7 +25,7 @@ the step's mean twist: cheap, and the same floats in every runtime.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from common.config.vehicle import VehicleConfig
 from common.scalar import clamp
@@ -45,6 +47,7 @@ class ResponseModel:
     v_max_mps: float
     w_min_rps: float
     w_max_rps: float
+    current_mps: tuple[float, float] = (0.0, 0.0)  # (cx, cy), world frame
 
     @staticmethod
     def from_vehicle(cfg: VehicleConfig) -> ResponseModel:
@@ -59,6 +62,12 @@ class ResponseModel:
             w_max_rps=cfg.w_max_rps,
         )
 
+    def with_current(self, cx: float, cy: float) -> ResponseModel:
+        """This model in a current (cx, cy) (m/s, world frame)."""
+        if (cx, cy) == self.current_mps:
+            return self
+        return replace(self, current_mps=(cx, cy))
+
     def advance(self, pose: Pose, v_c: float, w_c: float, dt: float) -> Pose:
         """The state dt seconds on under the command (v_c, w_c) held throughout."""
         n = math.ceil(dt / MAX_STEP_S - 1e-9)
@@ -69,6 +78,7 @@ class ResponseModel:
         gain_v, gain_w = 1.0 / max(self.tau_v_s, h), 1.0 / max(self.tau_w_s, h)
         a_max, alpha_max = self.accel_max_mps2, self.yaw_accel_max_rps2
         x, y, th, v, w = pose
+        dx, dy = self.current_mps[0] * h, self.current_mps[1] * h  # drift over one step
         for _ in range(n):
             v1 = clamp(v + h * clamp((v_c - v) * gain_v, -a_max, a_max), 0.0, self.v_max_mps)
             room = v1 / self.r_min_m  # the turn the fins allow at this speed
@@ -85,5 +95,7 @@ class ResponseModel:
                 x += r * (math.sin(th + dth) - math.sin(th))
                 y -= r * (math.cos(th + dth) - math.cos(th))
             th += dth
+            x += dx
+            y += dy
             v, w = v1, w1
         return x, y, th, v, w

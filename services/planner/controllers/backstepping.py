@@ -65,7 +65,10 @@ class Backstepping(PathFollower[BacksteppingGains]):
         g = self.gains
         pose, s_proj = self.project(pose, ref, latency_s)
         x, y, theta, v_meas, _ = pose
-        v_r = v_profile = self.speed.command(t, ref, s_proj, v_meas)
+        v_profile = self.speed.command(t, ref, s_proj, self.water_speed, self.current_speed)
+        # the reference speed over ground: the profile's through the water, crabbing along the
+        # path (= v_profile in calm water)
+        v_r = u_r = self.ground_speed(v_profile, ref.heading_at_s(s_proj))
         # the virtual reference: advanced at v_r by the caller's clock, on a leash
         if self._s_r is None or self._t_prev is None:
             s_r = s_proj
@@ -85,7 +88,8 @@ class Backstepping(PathFollower[BacksteppingGains]):
         e_y = -sn * (xr - x) + c * (yr - y)
         e_th = wrap_angle(th_r - theta)
         self.last_errors = (e_x, e_y, e_th)
-        # Kanayama eq. 6; the speed may fall below the profile, never rise above it
-        v = min(v_r * math.cos(e_th) + g.k_x_ps * e_x, v_profile)
+        # Kanayama eq. 6 over ground; the speed may fall below the profile, never rise above
+        # it (the law's change of speed over ground is the change through the water)
+        v = min(v_r * math.cos(e_th) + g.k_x_ps * e_x + (v_profile - u_r), v_profile)
         w = w_r + v_r * (g.k_y_pm2 * e_y + g.k_theta_pm * math.sin(e_th))
-        return self.limits.saturate(v, w, v_meas)
+        return self.finish(v, w)

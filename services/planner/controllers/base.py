@@ -12,6 +12,10 @@ from services.planner.controllers.arc_reference import ArcLengthReference
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate or truth)
 
+# crab_angle: the largest heading offset into a current, and the least speed it assumes
+MAX_CRAB_RAD = math.radians(45.0)
+CRAB_MIN_SPEED_MPS = 0.5
+
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class Limits:
@@ -72,6 +76,7 @@ class Controller(Protocol):
     """
 
     name: str
+    current: tuple[float, float]  # the estimated current (m/s, world frame) it compensates
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0
@@ -80,9 +85,9 @@ class Controller(Protocol):
     def reset(self) -> None: ...
 
 
-def predict_pose(pose: Pose, horizon_s: float) -> Pose:
+def predict_pose(pose: Pose, horizon_s: float, current: tuple[float, float] = (0.0, 0.0)) -> Pose:
     """eq. (7) integrated exactly for a constant twist (v, w) over horizon_s (an arc; back
-    along it for horizon_s < 0).
+    along it for horizon_s < 0), carried by a constant current (cx, cy) (m/s, world frame).
 
     This is the delay compensation: the pose the vehicle will have when the command computed
     from this (horizon_s old) estimate takes effect.
@@ -90,6 +95,8 @@ def predict_pose(pose: Pose, horizon_s: float) -> Pose:
     x, y, th, v, w = pose
     if horizon_s == 0.0:
         return pose
+    x += current[0] * horizon_s
+    y += current[1] * horizon_s
     dth = w * horizon_s
     if abs(dth) < 1e-9:  # straight: avoid v/w with w -> 0
         return x + v * horizon_s * math.cos(th), y + v * horizon_s * math.sin(th), th, v, w
@@ -101,6 +108,21 @@ def predict_pose(pose: Pose, horizon_s: float) -> Pose:
         v,
         w,
     )
+
+
+def crab_angle(current: tuple[float, float], path_heading: float, v: float) -> float:
+    """The heading offset beta (rad) that keeps a vehicle's velocity over ground along
+    `path_heading` in a current (cx, cy): heading path_heading + beta at speed v through the
+    water, v sin(beta) cancels the current's component across the path, c_n (> 0 to the
+    left), so beta = -asin(c_n / v). The speed is taken as at least CRAB_MIN_SPEED_MPS and
+    |beta| is at most MAX_CRAB_RAD: into a current that strong the vehicle can slow its drift,
+    not stop it."""
+    cx, cy = current
+    if cx == 0.0 and cy == 0.0:
+        return 0.0
+    c_n = -math.sin(path_heading) * cx + math.cos(path_heading) * cy
+    bound = math.sin(MAX_CRAB_RAD)
+    return -math.asin(clamp(c_n / max(v, CRAB_MIN_SPEED_MPS), -bound, bound))
 
 
 def path_errors(

@@ -69,7 +69,7 @@ class ImmuneFuzzyPid(PathFollower[FuzzyPidGains]):
         and R_min."""
         g = self.gains
         pose, s = self.project(pose, ref, latency_s)
-        x, y, theta, v_meas, _ = pose
+        x, y, theta, _, _ = pose
         e_y, e_th = path_errors(x, y, theta, ref, s)
         e = wrap_angle(-math.atan(e_y / g.lookahead_m) - e_th)
         dt = 0.0 if self._t_prev is None else max(0.0, t - self._t_prev)
@@ -87,7 +87,10 @@ class ImmuneFuzzyPid(PathFollower[FuzzyPidGains]):
         k_imm = g.immune_k1 * (1.0 - g.immune_eta * f)
         integral = self._integral + e * dt
         u = k_imm * (kp * e + ki * integral + kd * self._de)
-        v, w = self.limits.saturate(self.speed.command(t, ref, s, v_meas), u, v_meas)
+        v, w_cmd = self.finish(
+            self.speed.command(t, ref, s, self.water_speed, self.current_speed), u
+        )
+        w = self.course_rate(w_cmd)  # the saturated u, in the law's units
         if w == u or (u > w) != (e > 0.0):  # conditional integration (anti-windup)
             self._integral = integral
         self._du_prev = w - self._u_prev
@@ -95,4 +98,4 @@ class ImmuneFuzzyPid(PathFollower[FuzzyPidGains]):
         self._e_prev = e
         self._t_prev = t
         self.last_gains = (kp, ki, kd, k_imm)
-        return v, w
+        return v, w_cmd

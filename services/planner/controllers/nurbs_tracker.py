@@ -63,8 +63,8 @@ class NurbsTracker(PathFollower[NurbsGains]):
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
         kappa = ref.curvature_at_s(self.limits.ahead(s, v_meas, ref.length))
-        v_cmd = self.speed.command(t, ref, s, v_meas)
-        # kinematic terms use the measured speed: the vehicle turns at w / v_actual
+        v_cmd = self.speed.command(t, ref, s, self.water_speed, self.current_speed)
+        # kinematic terms use the measured speed (over ground): the vehicle turns at w / v
         v_k = max(v_meas, 0.0)
         delta = max(g.lookahead_m, g.lookahead_time_s * v_cmd)
         chi = -math.atan(e_y / delta)
@@ -72,5 +72,5 @@ class NurbsTracker(PathFollower[NurbsGains]):
         w_ff = kappa * v_k * math.cos(e_th) / denom  # curvature feed-forward
         dchi = -delta / (delta * delta + e_y * e_y) * v_k * math.sin(e_th)
         w = w_ff + dchi - g.k_heading_ps * wrap_angle(e_th - chi)
-        # eq. (11), and the turning radius >= R_min (eqs. 19-20) at the pose's speed
-        return self.limits.saturate(v_cmd, w, v_meas)
+        # eq. (11), and the turning radius >= R_min (eqs. 19-20) at the speed through the water
+        return self.finish(v_cmd, w)

@@ -47,8 +47,11 @@ def stop_of(ref: ArcLengthReference) -> float:
     return float(getattr(ref, "stop_s", ref.length))
 
 
-def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Limits) -> float:
-    """v_target(s) of the module docstring (m/s), before the ramp."""
+def target_speed(
+    ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Limits, current_mps: float = 0.0
+) -> float:
+    """v_target(s) of the module docstring (m/s), before the ramp; in a current of
+    `current_mps` the stop at the path's end keeps steerage_per_current times it."""
     v = cruise_speed(ref, limits)
     horizon = min(ref.length, s + v * cfg.preview_s)
     w_room = cfg.curvature_budget * min(limits.w_max, -limits.w_min)
@@ -66,8 +69,11 @@ def target_speed(ref: ArcLengthReference, s: float, cfg: SpeedConfig, limits: Li
                 k_max = k
         if k_max * v > w_room:
             v = w_room / k_max
-    v = min(v, math.sqrt(2.0 * cfg.decel_mps2 * max(stop_of(ref) - s, 0.0)))
-    return clamp(v, limits.v_min, limits.v_max)
+    stop = stop_of(ref)
+    v_stop = math.sqrt(2.0 * cfg.decel_mps2 * max(stop - s, 0.0))
+    if current_mps > 0.0 and stop >= ref.length:  # not a stop short of a conflict
+        v_stop = max(v_stop, cfg.steerage_per_current * current_mps)
+    return clamp(min(v, v_stop), limits.v_min, limits.v_max)
 
 
 class SpeedProfile:
@@ -82,9 +88,12 @@ class SpeedProfile:
         self._v: float | None = None  # the last command; None: ramp from the vehicle's speed
         self._t = 0.0
 
-    def command(self, t: float, ref: ArcLengthReference, s: float, v_now: float) -> float:
-        """The speed to command at time t (s) for a vehicle at arc length s moving at v_now."""
-        target = target_speed(ref, s, self.cfg, self.limits)
+    def command(
+        self, t: float, ref: ArcLengthReference, s: float, v_now: float, current_mps: float = 0.0
+    ) -> float:
+        """The speed to command at time t (s) for a vehicle at arc length s moving at v_now,
+        in a current of current_mps."""
+        target = target_speed(ref, s, self.cfg, self.limits, current_mps)
         if self._v is None:
             base = max(v_now, 0.0)  # a path taken under way does not restart from rest
         else:
