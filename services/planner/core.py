@@ -28,6 +28,7 @@ from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
+from services.planner.command.arrival import Arrival
 from services.planner.command.inputs import LoopInputs, judge_state
 from services.planner.command.link import CommandLink, Prediction
 from services.planner.controllers.base import Limits
@@ -146,7 +147,7 @@ class PlannerCore:
         # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
         self.path_status: PlanStatus | None = None
         self.status_since = 0.0
-        self.arrived = False
+        self.arrival = Arrival((g.x_m, g.y_m), world.goal_tolerance_m)
         self.stale_skips = 0  # steps without a command because the estimate was too old
         self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
         self.last_cmd_t: float | None = None  # when the last command was sent
@@ -237,7 +238,7 @@ class PlannerCore:
 
     def prepare(self, t_next: float) -> None:
         """Once this step's command is out: the sequence for the step at t_next (command/link)."""
-        if self.commands and self.ref is not None and not self.arrived:
+        if self.commands and self.ref is not None and not self.arrival.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 
     def _step(self, t: float) -> list[Emit]:
@@ -245,8 +246,7 @@ class PlannerCore:
             return []
         s = self.inputs.state
         out: list[Emit] = []
-        if math.hypot(s.x - self.goal.x, s.y - self.goal.y) <= self.world.goal_tolerance_m:
-            self.arrived = True
+        arrived = self.arrival.update(s.x, s.y)
         if self.link.stale(t, s):
             # the uplink is out (the estimate is older than its measured delay explains):
             # commanding from a pose extrapolated this far would steer blind, so send nothing;
@@ -255,7 +255,7 @@ class PlannerCore:
             return []
         # where the vehicle is now and will be when this step's command takes effect
         pred = self.link.predict(t, s)
-        if self.arrived:
+        if arrived:
             return [self._command(t, pred.effect_t, self.link.stop())] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the

@@ -31,7 +31,11 @@ from services.planner.result import (
     Pose2D,
 )
 from services.planner.safety.clearance import StaticField, moving_distance
-from services.planner.safety.recover import leave_then_plan, turn_then_plan
+from services.planner.safety.recover import (
+    come_about_then_plan,
+    leave_then_plan,
+    turn_then_plan,
+)
 from services.planner.search.costmap import CostMap, build_costmap
 from services.planner.search.graph import shortest_path
 from services.planner.search.prediction import passing_discs, predicted_discs
@@ -177,6 +181,8 @@ def _plan(
     outside = not _inside(area, req.start, r)
     if outside or d_start <= r:
         escaped = leave_then_plan(req, cfg, static, d_start, rest) if may_escape else None
+        if outside and may_escape and (escaped is None or not escaped.ok):
+            escaped = come_about_then_plan(req, rest) or escaped
         if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
             where = (
                 "outside the area"
@@ -253,10 +259,15 @@ def _plan(
     # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
     # turn away on an arc within R_min first; inside the margin, failing that, drive out first
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
-    if turned.ok or d_start >= d_req:
+    if turned.ok:
         return turned
-    escaped = leave_then_plan(req, cfg, static, d_start, rest)
-    return escaped if escaped is not None and escaped.ok else failed
+    if d_start < d_req:
+        escaped = leave_then_plan(req, cfg, static, d_start, rest)
+        if escaped is not None and escaped.ok:
+            return escaped
+    # the area's edge may be what is in the way: come about across it
+    about = come_about_then_plan(req, rest)
+    return about if about is not None and about.ok else (turned if d_start >= d_req else failed)
 
 
 def _fit_and_check(

@@ -20,6 +20,7 @@ from common.config.world import WorldConfig
 from common.guard import first_reason
 from common.messages import PathMsg
 from common.runtime.model.core import Delivery, Emit
+from services.planner.command.arrival import Arrival
 from services.planner.command.inputs import LoopInputs
 from services.planner.command.link import CommandLink
 from services.planner.controllers.base import Limits
@@ -50,7 +51,8 @@ class TrackerCore:
         self.inputs = LoopInputs(world.area, self.link, log)
         self.ref: PathArcReference | None = None
         self.path_id = 0  # of the path followed (0: none yet)
-        self.arrived = False
+        g = world.goal
+        self.arrival = Arrival((g.x_m, g.y_m), world.goal_tolerance_m)
         self.stale_skips = 0
         self.last_cmd_t: float | None = None
 
@@ -92,16 +94,14 @@ class TrackerCore:
 
     def prepare(self, t_next: float) -> None:
         """Once this step's command is out: the sequence for the step at t_next (command/link)."""
-        if self.ref is not None and not self.arrived:
+        if self.ref is not None and not self.arrival.arrived:
             self.link.prepare(t_next, self.controller, self.ref)
 
     def step(self, t: float) -> list[Emit]:
         if self.inputs.state is None:
             return []
         s = self.inputs.state
-        g = self.world.goal
-        if math.hypot(s.x - g.x_m, s.y - g.y_m) <= self.world.goal_tolerance_m:
-            self.arrived = True
+        arrived = self.arrival.update(s.x, s.y)
         if self.link.stale(t, s):
             self.stale_skips += 1
             return []
@@ -110,7 +110,7 @@ class TrackerCore:
         if math.isfinite(gap) and gap > 1.5 * self.period_s:
             # steps were skipped: restart from where the vehicle is
             self.link.restart(self.controller)
-        ref = None if self.arrived else self.ref
+        ref = None if arrived else self.ref
         vs, ws = self.link.follow(t, self.controller, ref, s, pred)
         self.last_cmd_t = t
         msg = self.link.send(t, pred.effect_t, vs, ws, path_id=self.path_id, controller=self.kind)

@@ -167,7 +167,18 @@ class VehicleCore:
         wd = self._watchdog
         if now.mode != self._mode:
             self._mode, self._mode_since = now.mode, t
-        truth = TruthState(stamp=t, x=x, y=y, theta=wrap_angle(theta), v=v, w=w, collided=collided)
+        cx, cy = (0.0, 0.0) if self._current is None else self._current(x, y, t)
+        truth = TruthState(
+            stamp=t,
+            x=x,
+            y=y,
+            theta=wrap_angle(theta),
+            v=v,
+            w=w,
+            collided=collided,
+            current_x=cx,
+            current_y=cy,
+        )
         hull = [Emit(stream="hull", msg=truth)] if self._scanned_before_next_step(t) else []
         return [
             Emit(stream="truth", msg=truth),

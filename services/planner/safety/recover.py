@@ -11,6 +11,11 @@ an ordinary plan (`plan`, the pipeline of plan.py, handed in) joined to it:
 - leave_then_plan: the start is in contact, outside the area (a vehicle that coasted out
   of it) or deep in the margin: the way out escape.py finds, then the rest planned from
   where it ends.
+- come_about_then_plan: nothing else works because the area's edge is in the way (a vehicle
+  heading out of the area near its edge, or already outside and heading away, cannot turn
+  back within R_min inside it): turn on an arc that may leave the area (the area is where
+  the plans keep to, not a wall; the obstacles still count), run straight back into it,
+  then plan from there. The shortest such way first.
 The arcs have the radius ARC_RADIUS_FACTOR R_min: a controller that follows one keeps a
 sixth of the plant's yaw-rate bound v / R_min for its feedback.
 """
@@ -24,8 +29,9 @@ from collections.abc import Callable
 import numpy as np
 
 from common.config.planner import PlannerConfig
+from common.config.world import AreaConfig
 from common.scalar import wrap_angle
-from services.planner.result import PlanRequest, PlanResult
+from services.planner.result import PlanRequest, PlanResult, Pose2D
 from services.planner.safety.clearance import StaticField
 from services.planner.safety.escape import (
     BEYOND_M,
@@ -33,6 +39,7 @@ from services.planner.safety.escape import (
     MAX_ESCAPES,
     Escape,
     find_escapes,
+    points_along,
     prepend_escape,
     sweep,
 )
@@ -42,6 +49,7 @@ Plan = Callable[[PlanRequest], PlanResult]  # the pipeline, with no further reco
 MIN_TURN_RAD = 0.1  # ~6 degrees: a smaller turn cannot help the plan
 TURN_STEP_RAD = math.radians(15.0)  # the turns a recovery tries, either way
 ARC_RADIUS_FACTOR = 1.2  # a recovery's arcs are this much wider than R_min
+COME_ABOUT_INSIDE_M = 1.0  # coming about ends with the hull this far inside the area (m)
 
 
 def turn_then_plan(
@@ -149,6 +157,81 @@ def leave_then_plan(
             return res
         first = first or res
     return first
+
+
+def come_about_then_plan(req: PlanRequest, plan: Plan) -> PlanResult | None:
+    """Come about (module docstring): turns by multiples of TURN_STEP_RAD either way up to a
+    whole half turn, on arcs of ARC_RADIUS_FACTOR R_min, each then straight until the hull is
+    COME_ABOUT_INSIDE_M inside the area; the hull must stay free of every obstacle (moving
+    ones where they will be) all the way. Tried shortest first, at most MAX_ESCAPES; None if
+    none is clear, else the first that a plan continues (or the first's NO_PATH)."""
+    radius, r, area = ARC_RADIUS_FACTOR * req.r_min_m, req.vehicle_radius_m, req.area
+    turns = np.arange(TURN_STEP_RAD, math.pi + 1e-9, TURN_STEP_RAD)
+    turns = np.concatenate([turns, -turns])
+    inside = r + COME_ABOUT_INSIDE_M
+    runs = np.array([_run_inside(req.start, float(t), radius, area, inside) for t in turns])
+    lengths = radius * np.abs(turns) + runs
+    feasible = np.isfinite(lengths)
+    if not feasible.any():
+        return None
+    turns, lengths = turns[feasible], lengths[feasible]
+    sw = sweep(
+        req.start,
+        turns,
+        radius,
+        float(lengths.max()),
+        StaticField.build(req.obstacles.circles, req.obstacles.polygons),
+        req.obstacles.moving,
+        area,
+        v_ref=req.v_ref_mps,
+        accel_horizon_s=math.inf,
+    )
+    end = np.minimum(np.searchsorted(sw.s, lengths), len(sw.s) - 1)
+    rows = np.arange(len(turns))
+    clear = sw.deeper(r + BEYOND_M, -math.inf)[rows, end] <= 0.0  # obstacles only
+    first: PlanResult | None = None
+    for j in sorted(np.flatnonzero(clear), key=lambda j: (lengths[j], abs(turns[j])))[:MAX_ESCAPES]:
+        esc = Escape(
+            start=req.start,
+            radius_m=radius,
+            turn_rad=float(turns[j]),
+            length_m=float(lengths[j]),
+            start_clearance_m=sw.d0 - r,
+            end_clearance_m=float(sw.d[j, end[j]]) - r,
+            start_outside_m=max(0.0, r - sw.a0),
+        )
+        again = _plan_after(req, esc, plan)
+        if again.ok:
+            out = float(-np.min(sw.a[j, : end[j] + 1]) + r)
+            why = (
+                f"no curve within the area: come about, turning "
+                f"{math.degrees(esc.turn_rad):+.0f} deg on a {radius:.1f} m arc"
+                + (f" (the hull up to {out:.1f} m beyond the area's edge)" if out > 0 else "")
+                + " first"
+            )
+            return dataclasses.replace(again, reason=why)
+        first = first or again
+    return first
+
+
+def _run_inside(start: Pose2D, turn: float, radius: float, area: AreaConfig, m: float) -> float:
+    """How far to run straight after an arc turning `turn` from `start` until the point is m
+    inside the area (0: already there; inf: its heading never gets it there)."""
+    end = points_along(start, np.array([turn]), radius, np.array([radius * abs(turn)]))[0, 0]
+    th = start.theta + turn
+    c, sn = math.cos(th), math.sin(th)
+    lo, hi = 0.0, math.inf
+    for p, d, a, b in ((end[0], c, area.x_min_m + m, area.x_max_m - m),
+                       (end[1], sn, area.y_min_m + m, area.y_max_m - m)):  # fmt: skip
+        if a > b:
+            return math.inf
+        if abs(d) < 1e-12:
+            if not a <= p <= b:
+                return math.inf
+            continue
+        t1, t2 = (a - p) / d, (b - p) / d
+        lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+    return lo if lo <= hi else math.inf
 
 
 def _plan_after(req: PlanRequest, esc: Escape, plan: Plan) -> PlanResult:
