@@ -215,4 +215,5 @@ def test_an_estimate_says_how_far_it_was_carried_past_its_newest_fix() -> None:
     pose = (state.x, state.y, state.theta, state.v, state.w)
     x, y, *_ = predict_pose(pose, -state.predicted_s, (state.current_x, state.current_y))
     fused = core.nav.state.x
-    assert (x, y) == pytest.approx((fused[0], fused[1]), abs=1e-3)
+    # (to the hull's sway, which the estimate does not carry and which decays meanwhile)
+    assert (x, y) == pytest.approx((fused[0], fused[1]), abs=5e-3)

@@ -69,7 +69,12 @@ def _cov(draw: st.DrawFn, n: int) -> tuple[float, ...]:
 OVERRIDES: dict[type, dict[str, S[Any]]] = {
     Message: {"stamp": FINITE, "sent": FINITE, "seq": COUNT, "source": TEXT},
     NavFix: {"std_xy": NONNEG, "std_heading": NONNEG, "std_speed": NONNEG},
-    Odometry: {"std_heading": NONNEG, "std_yaw_rate": NONNEG, "std_velocity": NONNEG},
+    Odometry: {
+        "std_heading": NONNEG,
+        "std_yaw_rate": NONNEG,
+        "std_water_speed": NONNEG,
+        "std_velocity": NONNEG,
+    },
     PositionFix: {"std_xy": NONNEG},
     Detection: {"id": COUNT, "radius": NONNEG, "std_xy": NONNEG, "std_radius": NONNEG},
     StateEstimate: {"covariance": _cov(5), "predicted_s": NONNEG, "current_std": NONNEG},

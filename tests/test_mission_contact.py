@@ -33,9 +33,12 @@ def test_a_start_in_contact_escapes_instead_of_deadlocking() -> None:
     assert m["no_path_events"] == 0
     paths = r.record.stream("planner", "path")
     # the first plan waits for the first obstacle tracks: it plans from an estimate that has
-    # fused noisy fixes by then (and cannot yet tell their noise from a current's drift), so
-    # the hull clearance it finds is near, not at, -0.30
-    assert re.search(r"start in contact \(hull clearance -0\.[0-4]\d m\)", paths[0].reason)  # type: ignore[attr-defined]
+    # fused noisy fixes by then (and cannot yet tell their noise from a current's or a sway's
+    # drift), so the hull clearance it finds is near, not at, -0.30: a way out either way
+    why = paths[0].reason  # type: ignore[attr-defined]
+    assert re.search(
+        r"start (in contact|inside the safety margin) \(hull clearance -?0\.[0-4]\d m\)", why
+    ), why
     truth = r.record.stream("vehicle", "truth")
     in_contact = [x.stamp for x in truth if x.collided]  # type: ignore[attr-defined]
     assert in_contact and in_contact[0] == 0.0

@@ -28,16 +28,18 @@ DEFAULT = REPO / "configs" / "default.toml"
 # round differently: 7b6639b5... on the machine of 2026-11-26, then 42edd711... on an AVX-512
 # one). Re-pinned when the planner's clearance margin came to grow with the measured loop delay
 # (issue 16): 5431be1d... before; and when planned curves came to keep that margin from the
-# area's edge too: 42edd711... before. With other floating-point code the test compares it with
-# a placement whose every link is generic (the default placement written out is no such
-# oracle: services on one node talk over ideal local links).
+# area's edge too: 42edd711... before; and when the estimator came to carry the ocean current
+# and the controllers to follow the path over ground in it (issue 60): bc28f603... before.
+# With other floating-point code the test compares it with a placement whose every link is
+# generic (the default placement written out is no such oracle: services on one node talk
+# over ideal local links).
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
-        "bc28f603ab0008407a26d32bc438212cd24f9f982dca333cde913b24a32d531c"
+        "c58a4097b507d6252502f5d15a2a2151fcd5855224156327a3266a7f584696f3"
     ),
     # the machine of 2026-12-01 (AVX512_SPR dispatched too): the same floats
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR")): (
-        "bc28f603ab0008407a26d32bc438212cd24f9f982dca333cde913b24a32d531c"
+        "c58a4097b507d6252502f5d15a2a2151fcd5855224156327a3266a7f584696f3"
     ),
 }
 

@@ -269,9 +269,15 @@ def test_join_is_the_two_curves_one_after_the_other() -> None:
 
 def test_a_vehicle_that_coasted_out_of_the_area_is_led_back_in() -> None:
     # hull 1.5 m beyond the southern edge, heading east (a hold that kept its heading): an
-    # arc to the left brings it back in; heading south-east, farther out, there is no way back
-    # that does not first go farther out, and the plan says so
-    assert not plan_path(_request(64.8, -0.7, -0.9), CFG).ok
+    # arc to the left brings it back in; heading south-east, every way back first goes
+    # farther out: it comes about, beyond the edge, and is back in the area (issue 60: no
+    # dead ends), clear of every obstacle
+    about = plan_path(_request(64.8, -0.7, -0.9), CFG)
+    assert about.ok and "come about" in about.reason, about.reason
+    pts, s, _ = _dense(about)
+    assert _hull_clearance(pts).min() >= CFG.rho0_m - 1e-6
+    inside = (pts[:, 1] >= WORLD_CFG.area.y_min_m + R) & (pts[:, 1] <= WORLD_CFG.area.y_max_m - R)
+    assert inside[s >= s[np.argmax(inside)] + 1.0].all()  # once back in, it stays in
     req = _request(64.8, -0.7, 0.0)
     res = plan_path(req, CFG)
     assert res.ok, res.reason

@@ -31,15 +31,22 @@ class EstimatorConfig:
     # this intensity (m^2/s^3: its std grows by sqrt(psd t), 4.5 cm/s in 10 s); more follows
     # an eddy's change faster, and lets the estimate wander more in still water
     current_psd_m2_s3: float = 2e-4
-    # white velocity over ground in any direction (m^2/s): what the unicycle model leaves out,
-    # e.g. a hull's sideslip in a turn (vehicle.model = "fossen3dof")
-    position_psd_m2_s: float = 1e-3
+    # white velocity over ground in any direction (m^2/s): what the model still leaves out
+    position_psd_m2_s: float = 1e-4
+    # the hull's sway through the water, a Gauss-Markov process: a hull slips sideways in a
+    # turn (the REMUS 100's drift angle at full rudder is ~3.4 deg: ~0.09 m/s at 1.5 m/s) for
+    # about as long as the turn's transient; a DVL sees it
+    sway_std_mps: float = 0.1
+    sway_tau_s: float = 2.0
     max_predict_dt_s: float = 0.1  # longer predictions are split into equal sub-steps
     init_std_xy_m: float = 0.5  # initial belief around the configured start pose
     init_std_theta_rad: float = 0.1
     init_std_v_mps: float = 0.5
     init_std_w_rps: float = 0.1
     init_std_current_mps: float = 0.3  # per axis: the current is unknown at the start
+    # the AHRS's heading bias (sensor.navigation = "dvl_usbl"), estimated from this prior:
+    # a compass good to ~0.5 deg after calibration (common/config/sensor.py)
+    init_std_heading_bias_rad: float = 0.0087
     # absolute position fixes (USBL/LBL, sensor.navigation = "dvl_usbl") are gated on their
     # innovation: one outside this chi-square (2 dof) probability is taken as an outlier and
     # not fused; after fix_gate_reset_after of them in a row the fixes are believed instead
@@ -73,6 +80,8 @@ class EstimatorConfig:
             "init_std_v_mps",
             "init_std_w_rps",
             "init_std_current_mps",
+            "init_std_heading_bias_rad",
+            "sway_tau_s",
             "ukf_alpha",
             "track_init_std_v_mps",
             "track_init_std_a_mps2",
@@ -87,6 +96,7 @@ class EstimatorConfig:
             "yaw_accel_psd_rad2_s3",
             "current_psd_m2_s3",
             "position_psd_m2_s",
+            "sway_std_mps",
             "track_cv_accel_psd_m2_s3",
             "track_jerk_psd_m2_s5",
         ):
@@ -116,7 +126,7 @@ class EstimatorConfig:
         for name in ("ukf_beta", "ukf_kappa"):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigValueError(name, f"{getattr(self, name)!r} must be finite")
-        if self.ukf_kappa + 7 <= 0:
+        if self.ukf_kappa + 9 <= 0:
             raise ConfigValueError(
-                "ukf_kappa", f"{self.ukf_kappa!r} must be > -7 (n + kappa > 0, n = 7 states)"
+                "ukf_kappa", f"{self.ukf_kappa!r} must be > -9 (n + kappa > 0, n = 9 states)"
             )

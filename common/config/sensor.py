@@ -1,9 +1,18 @@
-"""Sensor configuration: navigation fix (USBL/compass/DVL) and obstacle sonar noise and rates."""
+"""Sensor configuration: navigation (a fix, or an AUV's DVL + AHRS + USBL) and the obstacle sonar.
+
+Sources of the "dvl_usbl" defaults: a REMUS 100 carries a 1.2 MHz RDI/Teledyne DVL (bottom
+track, single-ping noise of ~1 cm/s at survey speed; long-term accuracy +-0.2 % +-1 mm/s, the
+datasheet's) and an AHRS/compass good to ~0.5 deg in heading (a fluxgate's deviation after
+calibration is of that order: the bias); a ship's USBL fixes it to ~0.2-1 % of slant range
+(Kongsberg HiPAP/Sonardyne Ranger datasheets), here 0.5 m at the area's ranges, every few
+seconds, and a few per cent of USBL fixes are multipath outliers metres off.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 from common.config.checks import nonneg, positive
 from common.config.errors import ConfigValueError
@@ -16,6 +25,11 @@ class SensorConfig:
     The core steps at the faster rate; the slower rate must divide it (integer tick counts).
     """
 
+    # "fix": a navigation fix (position, heading, speed through the water) at nav_rate_hz,
+    # Gaussian; "dvl_usbl": an AUV's navigation: AHRS heading and yaw rate and the DVL's
+    # velocity over ground at nav_rate_hz (dead reckoning, stream "odometry"), and an absolute
+    # USBL fix every usbl_period_min_s..usbl_period_max_s (stream "fix", over its own link)
+    navigation: Literal["fix", "dvl_usbl"] = "fix"
     nav_rate_hz: float = 10.0
     obstacle_rate_hz: float = 5.0
     nav_std_xy_m: float = 0.5  # USBL/GPS-like position noise, per axis
@@ -26,10 +40,49 @@ class SensorConfig:
     det_std_xy_m: float = 0.2  # sonar/camera position of an obstacle's centre, per axis
     det_std_radius_m: float = 0.1
     p_detect: float = 0.9  # per obstacle per scan
+    # -- navigation = "dvl_usbl"
+    ahrs_std_heading_rad: float = 0.0087  # 0.5 deg, each reading
+    ahrs_bias_std_rad: float = 0.0087  # a constant heading bias drawn once per run
+    ahrs_std_yaw_rate_rps: float = 0.005
+    # the speed through the water an AUV's navigation takes from its propeller's rpm (a
+    # calibrated thrust-speed model: a few cm/s)
+    rpm_speed_std_mps: float = 0.05
+    dvl_std_mps: float = 0.01  # velocity over ground, per axis, each reading
+    # bottom lock is lost at this rate (per s), for dvl_dropout_mean_s on average
+    dvl_dropout_per_s: float = 0.02
+    dvl_dropout_mean_s: float = 3.0
+    usbl_period_min_s: float = 2.0  # the next USBL fix comes this long after the last ...
+    usbl_period_max_s: float = 5.0  # ... at most this long (uniform between)
+    usbl_std_m: float = 0.5  # per axis
+    usbl_outlier_p: float = 0.05  # a fix is an outlier (multipath) with this probability ...
+    usbl_outlier_std_m: float = 10.0  # ... and then this far off, per axis
 
     def __post_init__(self) -> None:
-        for name in ("nav_rate_hz", "obstacle_rate_hz", "det_range_m"):
+        if self.navigation not in ("fix", "dvl_usbl"):
+            raise ConfigValueError(
+                "navigation", f"{self.navigation!r}, expected 'fix' or 'dvl_usbl'"
+            )
+        for name in (
+            "nav_rate_hz", "obstacle_rate_hz", "det_range_m", "dvl_dropout_mean_s",
+            "usbl_period_min_s",
+        ):  # fmt: skip
             positive(name, getattr(self, name))
+        for name in (
+            "ahrs_std_heading_rad", "ahrs_bias_std_rad", "ahrs_std_yaw_rate_rps", "dvl_std_mps",
+            "rpm_speed_std_mps",
+            "dvl_dropout_per_s", "usbl_std_m", "usbl_outlier_std_m",
+        ):  # fmt: skip
+            nonneg(name, getattr(self, name))
+        if self.usbl_period_max_s < self.usbl_period_min_s:
+            raise ConfigValueError(
+                "usbl_period_max_s",
+                f"{self.usbl_period_max_s!r} is below usbl_period_min_s "
+                f"({self.usbl_period_min_s!r})",
+            )
+        if not 0.0 <= self.usbl_outlier_p <= 1.0:
+            raise ConfigValueError(
+                "usbl_outlier_p", f"{self.usbl_outlier_p!r}, expected a probability in [0, 1]"
+            )
         for name in (
             "nav_std_xy_m",
             "nav_std_heading_rad",

@@ -15,10 +15,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 from common.config.checks import int_range, nonneg, positive
 from common.config.errors import ConfigValueError
+from common.config.fossen import FossenConfig
 from common.messages import MAX_SEQUENCE_LEN
 
 
@@ -78,6 +79,11 @@ class WatchdogConfig:
 class VehicleConfig:
     """The simulated vehicle: plant, eq. (11) bounds, actuator loops and watchdog."""
 
+    # the plant (services/vehicle/plant.py): "unicycle", eq. (7) with lags and the turn
+    # bounded by R_min (the planner's own model); "fossen3dof", the REMUS 100's surge, sway
+    # and yaw with its propeller, rudder and autopilots ([fossen]; docs/vehicle-model.md),
+    # whose turn nothing bounds but its hydrodynamics (a ~12 m circle at full rudder)
+    model: Literal["unicycle", "fossen3dof"] = "unicycle"
     period_s: float = 0.05  # publishing period of truth and status
     dt_internal_s: float = 0.01  # fixed RK4 step (sub-stepped to exact delivery times)
     # eq. (11): bounds on surge speed v and yaw rate w. No reverse: v_min >= 0.
@@ -123,6 +129,7 @@ class VehicleConfig:
     # yaw: first-order response of w towards the command, time constant yaw_tau_s
     yaw_tau_s: float = 0.5
     watchdog: WatchdogConfig = field(default_factory=WatchdogConfig)
+    fossen: FossenConfig = field(default_factory=FossenConfig)  # vehicle.model = "fossen3dof"
 
     REMOVED_KEYS: ClassVar[Mapping[str, str]] = {
         "current": "the current moved to world.current, the same water for every vehicle "
@@ -131,6 +138,8 @@ class VehicleConfig:
     }
 
     def __post_init__(self) -> None:
+        if self.model not in ("unicycle", "fossen3dof"):
+            raise ConfigValueError("model", f"{self.model!r}, expected 'unicycle' or 'fossen3dof'")
         for name in (
             "period_s", "dt_internal_s", "v_max_mps", "w_max_rps", "accel_max_mps2",
             "yaw_accel_max_rps2", "cruise_speed_mps", "radius_m", "turn_radius_min_m",

@@ -43,11 +43,15 @@ class AreaConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class PoseConfig:
-    """A planar pose (x, y, heading theta measured from the x axis, counter-clockwise)."""
+    """A planar pose (x, y, heading theta measured from the x axis, counter-clockwise), and for
+    a start the speed through the water the vehicle has there."""
 
     x_m: float
     y_m: float
     theta_rad: float = 0.0
+    # a start under way: the vehicle enters the area at this speed, heading theta_rad (an AUV
+    # reaches its survey area after its dive), and holds it until its first command; 0: at rest
+    speed_mps: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("x_m", "y_m", "theta_rad"):
@@ -55,6 +59,8 @@ class PoseConfig:
                 raise ConfigValueError(
                     name, f"{getattr(self, name)!r} is not finite, expected a number"
                 )
+        if not (math.isfinite(self.speed_mps) and self.speed_mps >= 0.0):
+            raise ConfigValueError("speed_mps", f"{self.speed_mps!r}, expected a speed >= 0")
 
 
 @dataclass(frozen=True, kw_only=True)

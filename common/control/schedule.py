@@ -34,7 +34,8 @@ class Applied:
 class Schedule:
     """The command as a function of time until the next accepted command (immutable).
 
-    Before any command: IDLE, (0, 0). Then RUN with entry k, (vs[k], ws[k]), from starts[k]
+    Before any command: IDLE, (idle_v, 0): at rest, or a vehicle that starts under way
+    holding its speed and heading. Then RUN with entry k, (vs[k], ws[k]), from starts[k]
     (entry 0 also before its start) until t_hold, then HOLD from the last entry: the speed
     command falls to v_floor at `decel` (inf: at once), w = 0 (FAILSAFE from t_fail). The
     plant integrator keeps these per time window and splits its steps at the entry starts and
@@ -49,6 +50,7 @@ class Schedule:
     t_fail: float = math.inf  # starts[-1] + failsafe_after_s
     decel: float = 0.0
     v_floor: float = 0.0
+    idle_v: float = 0.0  # the speed held before any command (m/s)
 
     @property
     def stamp(self) -> float | None:
@@ -58,7 +60,7 @@ class Schedule:
     def at(self, t: float) -> Applied:
         """The command in force at time t (held constant over an integration step from t)."""
         if not self.starts:
-            return Applied(mode="IDLE", v=0.0, w=0.0, age_s=0.0)
+            return Applied(mode="IDLE", v=self.idle_v, w=0.0, age_s=0.0)
         # the entry that started last, at t (entry 0 also before its start)
         k = max(0, bisect_right(self.starts, t) - 1) if len(self.starts) > 1 else 0
         # the age of the entry in force; one from the future (clock skew) counts as fresh

@@ -46,21 +46,26 @@ class NavFix(Message, frozen=True, kw_only=True):
 
 
 class Odometry(Message, frozen=True, kw_only=True):
-    """Dead-reckoning sensors of an AUV, sampled together: the AHRS heading and yaw rate, and
-    the DVL's velocity over ground in the body frame (bottom track; `bottom_lock` False when
-    the DVL has lost the seabed, and then u_ground and v_ground mean nothing)."""
+    """Dead-reckoning sensors of an AUV, sampled together: the AHRS heading and yaw rate, the
+    speed through the water of the propeller's rpm model, and the DVL's velocity over ground
+    in the body frame (bottom track; `bottom_lock` False when the DVL has lost the seabed, and
+    then u_ground and v_ground mean nothing)."""
 
     heading: float  # rad, AHRS (noise and a bias)
     yaw_rate: float  # rad/s, AHRS gyro
+    water_speed: float  # m/s, surge through the water from the propeller's rpm
     bottom_lock: bool
     u_ground: float  # m/s, forward over ground (body frame)
     v_ground: float  # m/s, to port over ground (body frame)
     std_heading: float
     std_yaw_rate: float
+    std_water_speed: float
     std_velocity: float
 
     def validate(self) -> None:
-        check_non_negative(self, "", "std_heading", "std_yaw_rate", "std_velocity")
+        check_non_negative(
+            self, "", "std_heading", "std_yaw_rate", "std_water_speed", "std_velocity"
+        )
 
 
 class PositionFix(Message, frozen=True, kw_only=True):

@@ -39,7 +39,7 @@ from services.estimator.measurements import (
 from services.estimator.prefilter import NavPrefilter
 from services.estimator.replay import ReplayBuffer
 from services.estimator.tracks import ObstacleTracker, TrackerState
-from services.estimator.unicycle import CURRENT, DIM_X, POSE
+from services.estimator.unicycle import BIAS, CURRENT, DIM_X, POSE, SWAY
 from services.estimator.vehicle_filter import make_vehicle_filter
 
 FloatArray = NDArray[np.float64]
@@ -77,13 +77,15 @@ class VehicleBelief:
     memory, how many times the filter was restarted on the way here, and the position fixes
     gated out (in all, and in a row since the last one fused)."""
 
-    x: FloatArray  # (7,): [x, y, theta, v, w, cx, cy]
-    P: FloatArray  # (7, 7)
+    x: FloatArray  # (9,): [x, y, theta, v, w, cx, cy, b, vs]
+    P: FloatArray  # (9, 9)
     stamp: float | None
     prefilter: NavPrefilter  # never mutated once stored: fusing works on a copy
     resets: int = 0
     fixes_gated: int = 0
     gated_in_row: int = 0
+    # the last gated fix: (stamp, its x, y, the belief's x, y then)
+    last_gated: tuple[float, float, float, float, float] | None = None
     located: bool = False  # a position measurement has been fused (or the start explained)
 
 
@@ -106,6 +108,7 @@ class EstimatorCore:
         start: tuple[float, float, float],
         *,
         area: AreaConfig | None = None,
+        start_speed_mps: float = 0.0,
     ) -> None:
         self.cfg = cfg
         self._filter = make_vehicle_filter(cfg)
@@ -113,10 +116,11 @@ class EstimatorCore:
         self._judge = Plausibility.of_area(area if area is not None else AreaConfig())
         self._rejects = RateLimitedLog(log)
         x0 = np.zeros(DIM_X)
-        x0[:3] = start[0], start[1], wrap_angle(start[2])
+        x0[:4] = start[0], start[1], wrap_angle(start[2]), start_speed_mps
         c0 = cfg.init_std_current_mps
         std0 = [cfg.init_std_xy_m, cfg.init_std_xy_m, cfg.init_std_theta_rad, cfg.init_std_v_mps]
-        P0 = np.diag(np.square(std0 + [cfg.init_std_w_rps, c0, c0]))
+        std0 += [cfg.init_std_w_rps, c0, c0, cfg.init_std_heading_bias_rad, cfg.sway_std_mps]
+        P0 = np.diag(np.square(std0))
         prefilter = NavPrefilter(cfg.prefilter, cfg.mean_window, cfg.lag_time_constant_s)
         belief = VehicleBelief(x=x0, P=P0, stamp=None, prefilter=prefilter)
         self.nav: ReplayBuffer[NavMeasurement, VehicleBelief] = ReplayBuffer(
@@ -185,24 +189,42 @@ class EstimatorCore:
         return fused if fused is not None else self._restart(b, fix)
 
     def _fuse_position(self, b: VehicleBelief, fix: PositionFix) -> VehicleBelief:
-        """A USBL/LBL fix, gated on its innovation: an outlier is not fused, but after
-        fix_gate_reset_after of them in a row the filter is the one that is lost."""
+        """A USBL/LBL fix, gated on its innovation: an outlier is not fused. When two gated
+        fixes in a row agree with each other (their difference is the motion the filter
+        dead-reckoned between them, within the gate), or fix_gate_reset_after are gated in
+        a row, the filter is the one that is lost: it is moved to the fix (`_relocate`)."""
         obs = of_position(fix)
-        if not b.located and not self._start_explains(b, fix.x, fix.y, fix.std_xy):
-            return self._relocate(b, fix, obs)
+        x, P = b.x, b.P
         if b.stamp is not None:
             try:
                 x, P = self._filter.predict(b.x, b.P, fix.stamp - b.stamp)
             except NUMERIC_ERRORS:
                 return self._relocate(b, fix, obs)
-            y, S = obs.innovation(x, P)
-            if not self._fix_gate.accepts(y, S):
-                gated = replace(b, fixes_gated=b.fixes_gated + 1, gated_in_row=b.gated_in_row + 1)
-                if gated.gated_in_row >= self.cfg.fix_gate_reset_after:
-                    return self._relocate(gated, fix, obs)
-                return gated
-        fused = self._update(b, fix.stamp, obs, b.prefilter)
-        return fused if fused is not None else self._relocate(b, fix, obs)
+        y, S = obs.innovation(x, P)
+        if self._fix_gate.accepts(y, S):
+            fused = self._update(b, fix.stamp, obs, b.prefilter)
+            return fused if fused is not None else self._relocate(b, fix, obs)
+        # an outlier, or the belief is off: compare with the last gated fix
+        here = (fix.stamp, fix.x, fix.y, float(x[0]), float(x[1]))
+        gated = replace(
+            b, fixes_gated=b.fixes_gated + 1, gated_in_row=b.gated_in_row + 1, last_gated=here
+        )
+        if gated.gated_in_row >= self.cfg.fix_gate_reset_after or self._agrees(b, here, obs):
+            return self._relocate(gated, fix, obs)
+        return gated
+
+    def _agrees(
+        self, b: VehicleBelief, here: tuple[float, float, float, float, float], obs: Observation
+    ) -> bool:
+        """Whether a gated fix agrees with the last one gated in a row (the same offset from
+        the belief, within the gate on twice the fix noise)."""
+        last = b.last_gated
+        if last is None or b.gated_in_row == 0:
+            return False
+        d = np.array(
+            [(here[1] - here[3]) - (last[1] - last[3]), (here[2] - here[4]) - (last[2] - last[4])]
+        )
+        return self._fix_gate.accepts(d, 2.0 * obs.R)
 
     def _relocate(self, b: VehicleBelief, fix: PositionFix, obs: Observation) -> VehicleBelief:
         """The belief moved to a position fix (its noise as the position's covariance, the
@@ -221,6 +243,7 @@ class EstimatorCore:
             stamp=fix.stamp if b.stamp is None else max(b.stamp, fix.stamp),
             resets=b.resets + 1,
             gated_in_row=0,
+            last_gated=None,
             located=True,
         )
 
@@ -230,7 +253,9 @@ class EstimatorCore:
         cfg = self.cfg
         stds = [cfg.init_std_xy_m * 10.0] * 2 + [cfg.init_std_theta_rad, cfg.init_std_v_mps]
         stds += [cfg.init_std_w_rps] + [cfg.init_std_current_mps] * 2
+        stds += [cfg.init_std_heading_bias_rad, cfg.sway_std_mps]
         P = np.diag(np.square(stds))
+        P[BIAS, BIAS] = b.P[BIAS, BIAS]  # a silence says nothing new of the sensor's bias
         return replace(b, P=P, resets=b.resets + 1, located=False)
 
     def _start_explains(self, b: VehicleBelief, x: float, y: float, std_xy: float) -> bool:
@@ -251,6 +276,8 @@ class EstimatorCore:
         P[:4, :4] = fix_noise(fix)
         P[4, 4] = cfg.init_std_w_rps**2
         P[CURRENT, CURRENT] = np.eye(2) * cfg.init_std_current_mps**2
+        P[SWAY, SWAY] = cfg.sway_std_mps**2
+        x[BIAS], P[BIAS, BIAS] = b.x[BIAS], b.P[BIAS, BIAS]  # the sensor's, kept
         return VehicleBelief(
             x=x,
             P=P,
@@ -322,7 +349,7 @@ class EstimatorCore:
             j.stamp(m.stamp, now),
             j.angle(m.heading),
             j.rate(m.yaw_rate, m.std_yaw_rate),
-            j.speed(m.u_ground, m.v_ground, m.std_velocity),
+            j.speed(m.water_speed, m.std_water_speed, m.u_ground, m.v_ground, m.std_velocity),
             j.angle_std(m.std_heading),
         )
 

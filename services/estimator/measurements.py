@@ -2,10 +2,10 @@
 
 Three kinds reach the vehicle filter (services/estimator/unicycle.py's 7-state s):
 - NavFix, the 10 Hz fix: z = [x, y, heading, speed through the water];
-- Odometry, the AHRS and the DVL's bottom track: z = [heading, yaw rate] and, with bottom
-  lock, the velocity over ground in the body frame:
-      u_g = v + cx cos(theta) + cy sin(theta),   v_g = -cx sin(theta) + cy cos(theta)
-  (the current's component across the hull is what the DVL sees sideways);
+- Odometry, the AHRS, the propeller's speed and the DVL's bottom track: z = [heading + bias,
+  yaw rate, v] and, with bottom lock, the velocity over ground in the body frame:
+      u_g = v + cx cos(theta) + cy sin(theta),   v_g = vs - cx sin(theta) + cy cos(theta)
+  (the hull's sway and the current's component across it are what the DVL sees sideways);
 - PositionFix, a USBL/LBL fix every few seconds: z = [x, y], gated by its innovation.
 """
 
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from common.messages import NavFix, Odometry, PositionFix
 from common.scalar import wrap_angle
-from services.estimator.unicycle import DIM_X
+from services.estimator.unicycle import BIAS, DIM_X, SWAY
 
 FloatArray = NDArray[np.float64]
 
@@ -75,37 +75,41 @@ def of_fix(fix: NavFix, z: FloatArray) -> Observation:
 
 
 def _odometry_h(s: FloatArray) -> FloatArray:
-    _, _, th, v, w, cx, cy = s
+    _, _, th, v, w, cx, cy, b, vs = s
     c, sn = math.cos(th), math.sin(th)
-    return np.array([th, w, v + cx * c + cy * sn, -cx * sn + cy * c])
+    return np.array([wrap_angle(th + b), w, v, v + cx * c + cy * sn, vs - cx * sn + cy * c])
 
 
 def _odometry_jacobian(s: FloatArray) -> FloatArray:
-    _, _, th, _, _, cx, cy = s
+    _, _, th, _, _, cx, cy, _, _ = s
     c, sn = math.cos(th), math.sin(th)
-    H = np.zeros((4, DIM_X))
-    H[0, 2] = 1.0
+    H = np.zeros((5, DIM_X))
+    H[0, 2] = H[0, BIAS] = 1.0
     H[1, 4] = 1.0
-    H[2, 2], H[2, 3], H[2, 5], H[2, 6] = -cx * sn + cy * c, 1.0, c, sn
-    H[3, 2], H[3, 5], H[3, 6] = -cx * c - cy * sn, -sn, c
+    H[2, 3] = 1.0
+    H[3, 2], H[3, 3], H[3, 5], H[3, 6] = -cx * sn + cy * c, 1.0, c, sn
+    H[4, 2], H[4, 5], H[4, 6], H[4, SWAY] = -cx * c - cy * sn, -sn, c, 1.0
     return H
 
 
 def of_odometry(m: Odometry) -> Observation:
-    """AHRS heading and yaw rate, and with bottom lock the DVL's velocity over ground."""
+    """AHRS heading and yaw rate, the rpm's speed through the water, and with bottom lock
+    the DVL's velocity over ground."""
     if m.bottom_lock:
         return Observation(
-            z=np.array([m.heading, m.yaw_rate, m.u_ground, m.v_ground]),
-            R=_diag(m.std_heading, m.std_yaw_rate, m.std_velocity, m.std_velocity),
+            z=np.array([m.heading, m.yaw_rate, m.water_speed, m.u_ground, m.v_ground]),
+            R=_diag(
+                m.std_heading, m.std_yaw_rate, m.std_water_speed, m.std_velocity, m.std_velocity
+            ),
             hx=_odometry_h,
             H=_odometry_jacobian,
             angle=0,
         )
     return Observation(
-        z=np.array([m.heading, m.yaw_rate]),
-        R=_diag(m.std_heading, m.std_yaw_rate),
-        hx=lambda s: _odometry_h(s)[:2],
-        H=lambda s: _odometry_jacobian(s)[:2],
+        z=np.array([m.heading, m.yaw_rate, m.water_speed]),
+        R=_diag(m.std_heading, m.std_yaw_rate, m.std_water_speed),
+        hx=lambda s: _odometry_h(s)[:3],
+        H=lambda s: _odometry_jacobian(s)[:3],
         angle=0,
     )
 

@@ -1,7 +1,13 @@
 """The estimator's motion model: the unicycle of eqs. (1), (7) carried by an ocean current.
 
-State s = [x, y, theta, v, w, cx, cy] (DIM_X = 7): the pose, the surge speed through the water
-v and yaw rate w, and the current (cx, cy) that carries the vehicle over ground, world frame.
+State s = [x, y, theta, v, w, cx, cy, b, vs] (DIM_X = 9): the pose, the surge speed through
+the water v and yaw rate w, the current (cx, cy) that carries the vehicle over ground, world
+frame, the AHRS's heading bias b (an AUV's heading sensor reads theta + b; a constant bias
+that the filter took for noise made it average the readings into a heading it was sure of,
+and wrong: dead reckoning then drifted across the track faster than its covariance said),
+and the hull's sway through the water vs (a real hull slips sideways in a turn, which a DVL
+sees; without it the filter took the slip for a current that outlived the turn).
+
 The current is a random walk: its only evidence is the difference between where the vehicle
 goes over ground (position fixes, a DVL's bottom track) and where its heading and speed through
 the water would take it. Without it, a cross current drove the filter off the vehicle: the
@@ -20,38 +26,50 @@ from common.scalar import wrap_angle
 
 FloatArray = NDArray[np.float64]
 
-DIM_X = 7
+DIM_X = 9
 POSE = slice(0, 5)  # [x, y, theta, v, w]: what a StateEstimate carries with its covariance
 CURRENT = slice(5, 7)
+BIAS = 7  # the AHRS heading bias (rad)
+SWAY = 8  # the hull's sway through the water (m/s, to port)
+# the bias's random walk (rad^2/s): essentially constant over a mission, and P stays regular
+Q_BIAS = 1e-9
 
 
-def fx(s: FloatArray, dt: float) -> FloatArray:
-    """eqs. (1), (7) over ground: x' = v cos(theta) + cx, y' = v sin(theta) + cy, theta' = w;
-    v, w and the current held. Midpoint-heading integration over dt (second order in dt)."""
-    x, y, th, v, w, cx, cy = s
+def fx(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
+    """eqs. (1), (7) over ground, with the hull's sway and the current:
+    x' = v cos(theta) - vs sin(theta) + cx, y' = v sin(theta) + vs cos(theta) + cy, theta' = w;
+    v, w, the current and the bias held; the sway decays with sway_tau_s (Gauss-Markov).
+    Midpoint-heading integration over dt (second order in dt)."""
+    x, y, th, v, w, cx, cy, b, vs = s
     mid = th + 0.5 * w * dt
+    c, sn = math.cos(mid), math.sin(mid)
     return np.array(
         [
-            x + (v * math.cos(mid) + cx) * dt,
-            y + (v * math.sin(mid) + cy) * dt,
+            x + (v * c - vs * sn + cx) * dt,
+            y + (v * sn + vs * c + cy) * dt,
             wrap_angle(th + w * dt),
             v,
             w,
             cx,
             cy,
+            b,
+            vs * math.exp(-dt / sway_tau_s),
         ]
     )
 
 
-def jacobian_f(s: FloatArray, dt: float) -> FloatArray:
-    """d fx / d s at s: (7, 7)."""
-    _, _, th, v, w, _, _ = s
+def jacobian_f(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
+    """d fx / d s at s: (9, 9)."""
+    th, v, w, vs = s[2], s[3], s[4], s[SWAY]
     mid = th + 0.5 * w * dt
     c, sn = math.cos(mid), math.sin(mid)
+    dx_dth, dy_dth = (-v * sn - vs * c) * dt, (v * c - vs * sn) * dt
     F = np.eye(DIM_X)
-    F[0, 2], F[0, 3], F[0, 4], F[0, 5] = -v * dt * sn, dt * c, -0.5 * v * dt * dt * sn, dt
-    F[1, 2], F[1, 3], F[1, 4], F[1, 6] = v * dt * c, dt * sn, 0.5 * v * dt * dt * c, dt
+    F[0, 2], F[0, 3], F[0, 4], F[0, 5] = dx_dth, dt * c, 0.5 * dt * dx_dth, dt
+    F[1, 2], F[1, 3], F[1, 4], F[1, 6] = dy_dth, dt * sn, 0.5 * dt * dy_dth, dt
+    F[0, SWAY], F[1, SWAY] = -dt * sn, dt * c
     F[2, 4] = dt
+    F[SWAY, SWAY] = math.exp(-dt / sway_tau_s)
     return F
 
 
@@ -62,15 +80,18 @@ def process_noise(
     q_yaw_accel: float,
     q_current: float,
     q_position: float,
+    sway_std_mps: float = 0.0,
+    sway_tau_s: float = 2.0,
 ) -> FloatArray:
-    """Q: (7, 7) over dt for white surge acceleration (psd q_accel), yaw acceleration
-    (q_yaw_accel), a random-walk current (psd q_current, integrated into the position) and a
-    white velocity over ground in any direction (q_position: what the model leaves out, a
-    hull's sideslip in a turn).
+    """Q: (9, 9) over dt for white surge acceleration (psd q_accel), yaw acceleration
+    (q_yaw_accel), a random-walk current (psd q_current, integrated into the position), a
+    white velocity over ground in any direction (q_position: what the model still leaves
+    out), the Gauss-Markov sway (stationary std sway_std_mps) and the bias's slow walk.
 
     The continuous white-noise model makes Q additive in dt, so splitting a prediction into
-    sub-steps does not change the injected noise. Heading-to-position coupling within one
-    step is O(v q dt^4) and left to the Jacobian of the next steps.
+    sub-steps does not change the injected noise (the sway's exact discretisation is, over
+    sub-steps, to first order). Heading-to-position coupling within one step is
+    O(v q dt^4) and left to the Jacobian of the next steps.
     """
     th, w = s[2], s[4]
     h = np.array([math.cos(th + 0.5 * w * dt), math.sin(th + 0.5 * w * dt)])
@@ -89,6 +110,8 @@ def process_noise(
         Q[i, i] += q_current * d3 + q_position * dt
         Q[i, j] = Q[j, i] = q_current * d2
         Q[j, j] = q_current * dt
+    Q[BIAS, BIAS] = Q_BIAS * dt
+    Q[SWAY, SWAY] = sway_std_mps**2 * (1.0 - math.exp(-2.0 * dt / sway_tau_s))
     return Q
 
 

@@ -62,9 +62,10 @@ class _UnicycleEKF(ExtendedKalmanFilter):
 
     x: FloatArray
     step_dt: float = 0.0
+    sway_tau_s: float = 2.0
 
     def predict_x(self, u: object = 0) -> None:
-        self.x = fx(self.x, self.step_dt)
+        self.x = fx(self.x, self.step_dt, self.sway_tau_s)
 
 
 class _SubstepPredict:
@@ -77,7 +78,10 @@ class _SubstepPredict:
             cfg.yaw_accel_psd_rad2_s3,
             cfg.current_psd_m2_s3,
             cfg.position_psd_m2_s,
+            cfg.sway_std_mps,
+            cfg.sway_tau_s,
         )
+        self._tau = cfg.sway_tau_s
         self._max_dt = cfg.max_predict_dt_s
 
     def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
@@ -99,6 +103,7 @@ class EkfVehicleFilter(_SubstepPredict):
     def __init__(self, cfg: EstimatorConfig) -> None:
         super().__init__(cfg)
         self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=4)
+        self._ekf.sway_tau_s = cfg.sway_tau_s
 
     def advance(
         self, x: FloatArray, P: FloatArray, n: int, h: float
@@ -107,7 +112,7 @@ class EkfVehicleFilter(_SubstepPredict):
         ekf.x, ekf.P = x, P
         ekf.step_dt = h
         for _ in range(n):
-            ekf.F = jacobian_f(ekf.x, h)  # P = F P F' + Q, linearised at the prior
+            ekf.F = jacobian_f(ekf.x, h, self._tau)  # P = F P F' + Q, linearised at the prior
             ekf.Q = process_noise(ekf.x, h, *self._q)
             ekf.predict()
         return _tidy(ekf.x, ekf.P)
@@ -134,7 +139,7 @@ class UkfVehicleFilter(_SubstepPredict):
             dim_z=4,
             dt=cfg.max_predict_dt_s,
             hx=lambda s: s[:4],  # each update passes its observation's own model
-            fx=fx,
+            fx=lambda s, dt: fx(s, dt, cfg.sway_tau_s),
             points=points,
             x_mean_fn=circular_mean,
             residual_x=residual_x,

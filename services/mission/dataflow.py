@@ -1,6 +1,7 @@
 """The AUV mission's dataflow, declared once: four services, their streams and every link.
 
     sensor    --nav, obstacles-->  estimator  --state, tracks-->  planner
+              (sensor.navigation = "dvl_usbl": odometry and fix instead of nav)
     planner   --cmd------------->  vehicle    --truth---------->  sensor
     vehicle   --status---------->  planner    (the one-way delay measured on commands)
     with controller.placement = "onboard" a fifth service, on the vehicle's node:
@@ -23,7 +24,9 @@ from common.messages import (
     NavFix,
     ObstacleDetections,
     ObstacleTracks,
+    Odometry,
     PathMsg,
+    PositionFix,
     StateEstimate,
     TruthState,
     VehicleStatus,
@@ -84,6 +87,7 @@ def _tracker(s: Scenario) -> Service:
 
 def _services(s: Scenario) -> tuple[Service, ...]:
     onboard = commander(s) == "tracker"
+    auv = s.sensor.navigation == "dvl_usbl"  # odometry and USBL fixes instead of nav fixes
     return (
         Service(
             name="sensor",
@@ -91,7 +95,14 @@ def _services(s: Scenario) -> tuple[Service, ...]:
             period_s=s.sensor.period_s,
             inputs=(Input(source="vehicle", stream="truth", msg_type=TruthState, policy=NEWEST),),
             outputs=(
-                Output(stream="nav", msg_type=NavFix),
+                *(
+                    (
+                        Output(stream="odometry", msg_type=Odometry),
+                        Output(stream="fix", msg_type=PositionFix),
+                    )
+                    if auv
+                    else (Output(stream="nav", msg_type=NavFix),)
+                ),
                 Output(stream="obstacles", msg_type=ObstacleDetections),
             ),
         ),
@@ -100,7 +111,14 @@ def _services(s: Scenario) -> tuple[Service, ...]:
             factory=make_estimator,
             period_s=s.estimator.period_s,
             inputs=(
-                Input(source="sensor", stream="nav", msg_type=NavFix),
+                *(
+                    (
+                        Input(source="sensor", stream="odometry", msg_type=Odometry),
+                        Input(source="sensor", stream="fix", msg_type=PositionFix),
+                    )
+                    if auv
+                    else (Input(source="sensor", stream="nav", msg_type=NavFix),)
+                ),
                 Input(source="sensor", stream="obstacles", msg_type=ObstacleDetections),
             ),
             outputs=(
@@ -163,7 +181,9 @@ def make_estimator(ctx: CoreContext) -> EstimatorCore:
     from services.estimator.core import EstimatorCore
 
     s = ctx.scenario
-    return EstimatorCore(s.estimator, _start(s), area=s.world.area)
+    return EstimatorCore(
+        s.estimator, _start(s), area=s.world.area, start_speed_mps=s.world.start.speed_mps
+    )
 
 
 def make_planner(
@@ -239,4 +259,5 @@ def make_vehicle(
         current=current_field(s),
         commander=ctx.sibling(commander(s)),  # defence in depth: whatever the bus lets through
         hull_scans_s=hull_scans_s,
+        start_speed_mps=s.world.start.speed_mps,
     )

@@ -41,6 +41,9 @@ START_UP_S = 1.0
 # |v| / R_min changes in one 0.05 s truth period at the acceleration limit (0.3 m/s^2 * 0.05
 # s / 5 m = 0.003 rad/s): a plant that bounds w by a speed one period old still passes.
 YAW_RATE_TOL_RPS = 0.005
+# the two-sided 95 % band of a chi-square with 3 degrees of freedom: the NEES of (x, y, theta)
+# of a consistent filter lies in it 95 % of the time
+NEES_BAND = (0.2158, 9.3484)
 # `tracking_ahead_*` set a track, extrapolated as the planner extrapolates it (eq. (12)), this
 # far ahead against where its obstacle then is: about the look-ahead of a replan's pass
 TRACK_AHEAD_S = 2.0
@@ -110,7 +113,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     m["success"] = m["outcome"] == "success"
     m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
     m.update(_path_metrics(record, at("planner"), at(commander(s)), t, x, y, end))
-    m.update(_estimation_metrics(record, at("estimator"), t, x, y))
+    m.update(_estimation_metrics(record, at("estimator"), truth))
     m.update(_tracking_metrics(record, at("estimator"), world, s.planner.accel_horizon_s, t))
     statuses: list[VehicleStatus] = _typed(record, at("vehicle"), "status", VehicleStatus)
     if statuses:
@@ -255,21 +258,52 @@ def _path_metrics(
     return out
 
 
-def _estimation_metrics(
-    record: Record, estimator: str, t: np.ndarray, x: np.ndarray, y: np.ndarray
-) -> dict[str, Any]:
+def _estimation_metrics(record: Record, estimator: str, truth: list[TruthState]) -> dict[str, Any]:
+    """Estimate against truth at each estimate's stamp (truth interpolated): position error,
+    heading error, the current's error, and the filter's consistency, NEES of (x, y, theta)
+    against its own covariance (3 dof: the chi-square 95 % band is NEES_BAND)."""
+    t = np.array([q.stamp for q in truth])
     est: list[StateEstimate] = _typed(record, estimator, "state", StateEstimate)
     est = [e for e in est if t[0] <= e.stamp <= t[-1]]
     if not est:
         return {}
     et = np.array([e.stamp for e in est])
-    err = np.hypot(
-        np.array([e.x for e in est]) - np.interp(et, t, x),
-        np.array([e.y for e in est]) - np.interp(et, t, y),
+
+    def at(values: list[float]) -> np.ndarray:
+        return np.interp(et, t, np.asarray(values))
+
+    theta = np.unwrap([q.theta for q in truth])
+    err = np.column_stack(
+        [
+            np.array([e.x for e in est]) - at([q.x for q in truth]),
+            np.array([e.y for e in est]) - at([q.y for q in truth]),
+            np.remainder(np.array([e.theta for e in est]) - at(list(theta)) + np.pi, 2 * np.pi)
+            - np.pi,
+        ]
+    )
+    pos = np.hypot(err[:, 0], err[:, 1])
+    cov = np.array([np.asarray(e.covariance).reshape(5, 5)[:3, :3] for e in est])
+    nees = np.full(len(est), np.nan)
+    for i in range(len(est)):
+        try:
+            nees[i] = float(err[i] @ np.linalg.solve(cov[i], err[i]))
+        except np.linalg.LinAlgError:  # a degenerate covariance says nothing of consistency
+            continue
+    ok = np.isfinite(nees)
+    dc = np.hypot(
+        np.array([e.current_x for e in est]) - at([q.current_x for q in truth]),
+        np.array([e.current_y for e in est]) - at([q.current_y for q in truth]),
     )
     return {
-        "estimation_rms_m": float(np.sqrt(np.mean(err**2))),
-        "estimation_max_m": float(err.max()),
+        "estimation_rms_m": float(np.sqrt(np.mean(pos**2))),
+        "estimation_max_m": float(pos.max()),
+        "heading_error_rms_rad": float(np.sqrt(np.mean(err[:, 2] ** 2))),
+        "current_error_rms_mps": float(np.sqrt(np.mean(dc**2))),
+        "nees_mean": float(np.mean(nees[ok])) if ok.any() else None,
+        # the share of the run's estimates whose NEES lies within the 95 % band
+        "nees_in_band": float(np.mean((nees[ok] >= NEES_BAND[0]) & (nees[ok] <= NEES_BAND[1])))
+        if ok.any()
+        else None,
     }
 
 

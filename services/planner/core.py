@@ -123,7 +123,11 @@ class PlannerCore:
         self.kind = controller.kind
         # delays measured, the state predicted, commands (sequences) sent: command/link.py
         self.link = CommandLink(
-            planner, controller, vehicle, expected_downlink_s=expected_downlink_s
+            planner,
+            controller,
+            vehicle,
+            expected_downlink_s=expected_downlink_s,
+            start_speed_mps=world.start.speed_mps,
         )
         g = world.goal
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
@@ -355,6 +359,18 @@ class PlannerCore:
         extra += self.cfg.clearance_margin_per_current_s * math.hypot(*self.link.model.current_mps)
         return round(self.cfg.clearance_margin_m + extra, 2)
 
+    @property
+    def ground_turn_radius_m(self) -> float:
+        """The tightest turn a plan made now may ask of the vehicle over ground (m): R_min of
+        eqs. (19)-(20) is the hull's, through the water. Its heading turns at most v / R_min
+        while the current carries it on; in a following current of c, the track over ground
+        turns at that rate at speed v + c, and a crab into a cross current asks the same: a
+        bend of radius R_min (1 + |c| / v)^2 over ground is what the hull can hold, at
+        cruise speed, with the current from any side."""
+        c = math.hypot(*self.link.model.current_mps)
+        factor = 1.0 + c / self.vehicle.cruise_speed_mps
+        return self.vehicle.turn_radius_min_m * factor * factor
+
     def _plan_config(self) -> PlannerConfig:
         """The planner's config with the clearance margin in force now."""
         margin = self.clearance_margin_m
@@ -403,7 +419,7 @@ class PlannerCore:
             area=self.world.area,
             obstacles=obstacles,
             vehicle_radius_m=self.vehicle.radius_m,
-            r_min_m=self.vehicle.turn_radius_min_m,
+            r_min_m=self.ground_turn_radius_m,
             v_ref_mps=self.vehicle.cruise_speed_mps,
             fix_goal_heading=self.fix_goal_heading,
         )

@@ -44,7 +44,7 @@ class TrackerCore:
         self.period_s = planner.period_s
         self.kind = controller.kind
         self.world = world
-        self.link = CommandLink(planner, controller, vehicle)
+        self.link = CommandLink(planner, controller, vehicle, start_speed_mps=world.start.speed_mps)
         self.controller = make_controller(
             controller, Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
         )

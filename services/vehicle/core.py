@@ -1,9 +1,9 @@
 """The vehicle service core: plant + watchdog behind the ServiceCore contract, in the world's
 current (common/world/current.py: the water's velocity at each RK4 stage's position and time).
 
-The plant (dynamics.py) turns no tighter than the minimum turning radius, |w| <= v / R_min
-at every instant, whatever it is commanded: eq. (11)'s yaw-rate bound made physical with the
-R_min of eqs. (19)-(20), as a rudder-steered AUV is bound by it (and cannot turn at rest).
+The plant is vehicle.model's (plant.py): the unicycle with lags, which turns no tighter than
+R_min whatever it is commanded (eq. (11)'s yaw-rate bound made physical with the R_min of eqs.
+(19)-(20)), or the REMUS 100's 3-DOF dynamics, whose turn only its rudder bounds.
 
 Time handling: the plant is integrated with RK4 on a fixed absolute grid of dt_internal_s
 (cells [k dt, (k+1) dt]). Every accepted command becomes a command *schedule* in force from
@@ -27,7 +27,7 @@ from common.messages import Message, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit
 from common.scalar import wrap_angle
 from common.world.current import CurrentField
-from services.vehicle.dynamics import PlantParams, State, drag_n, rk4_step, thrust_n
+from services.vehicle.plant import PlantState, make_plant
 from services.vehicle.watchdog import Verdict, Watchdog
 
 log = logging.getLogger("tidelink.vehicle")
@@ -61,17 +61,20 @@ class VehicleCore:
         t0: float = 0.0,
         commander: str | None = None,
         hull_scans_s: tuple[tuple[float, float], ...] = (),
+        start_speed_mps: float = 0.0,
     ) -> None:
         self._cfg = cfg
         self._period_us = round(cfg.period_s * 1e6)
         self._hull_scans_us = tuple(
             sorted({(round(p * 1e6), round(first * 1e6)) for p, first in hull_scans_s})
         )
-        self._p = PlantParams.from_config(cfg)
+        self._plant = make_plant(cfg)
         self._dt = cfg.dt_internal_s
-        self._state: State = (float(start[0]), float(start[1]), float(start[2]), 0.0, 0.0, 0.0)
+        self._state: PlantState = self._plant.initial(
+            float(start[0]), float(start[1]), float(start[2]), start_speed_mps
+        )
         self._t = float(t0)  # committed time: the plant state is known up to here
-        self._pieces: list[tuple[float, Schedule]] = [(self._t, Schedule())]
+        self._pieces: list[tuple[float, Schedule]] = [(self._t, Schedule(idle_v=start_speed_mps))]
         # the water's velocity at (x, y, t); None in still water (the plant skips it)
         self._current = None if current is None or current.is_calm else current.velocity
         self._watchdog = Watchdog(
@@ -81,6 +84,7 @@ class VehicleCore:
             w_min=cfg.w_min_rps,
             w_max=cfg.w_max_rps,
             commander=commander,
+            idle_v=start_speed_mps,
         )
         self._rejection_logged: dict[str, float] = {}  # reason -> mission time last logged
         self._clearance = clearance
@@ -128,7 +132,9 @@ class VehicleCore:
         truth = own.get("truth")
         if not isinstance(truth, TruthState) or truth.stamp > t:
             return None
-        self._state = (truth.x, truth.y, truth.theta, truth.v, truth.w, 0.0)
+        self._state = self._plant.initial(
+            truth.x, truth.y, truth.theta, truth.v, truth.sway, truth.w
+        )
         self._t = truth.stamp
         self._pieces = [(self._t, Schedule())]
         return (
@@ -156,7 +162,7 @@ class VehicleCore:
 
     def step(self, t: float) -> list[Emit]:
         """Integrate to t and publish the true state and the vehicle status."""
-        x, y, theta, v, w, _ = self.state_at(t)
+        x, y, theta, v, sway, w = self._plant.motion(self.state_at(t))
         collided = False
         if self._clearance is not None:
             c = self._clearance(x, y, t)  # eq. (12): d = |x - a_k| - (r + r_k), < 0 = contact
@@ -176,6 +182,7 @@ class VehicleCore:
             v=v,
             w=w,
             collided=collided,
+            sway=sway,
             current_x=cx,
             current_y=cy,
         )
@@ -215,7 +222,7 @@ class VehicleCore:
 
     # -- plant ---------------------------------------------------------------------------------
 
-    def state_at(self, t: float) -> State:
+    def state_at(self, t: float) -> PlantState:
         """The plant state at time t >= the committed time (commits every complete cell)."""
         self._commit(t)
         if t - self._t <= _GRID_TOL_S:
@@ -252,7 +259,7 @@ class VehicleCore:
         a = self._in_force(t).at(t)
         return a.v, a.w
 
-    def _integrate(self, state: State, t_a: float, t_b: float) -> State:
+    def _integrate(self, state: PlantState, t_a: float, t_b: float) -> PlantState:
         """RK4 over [t_a, t_b] inside one grid cell, split where the applied (v, w) changes."""
         cands = {start for start, _ in self._pieces}
         for _, sc in self._pieces:
@@ -268,11 +275,13 @@ class VehicleCore:
                 seg_a, cur = c, val
         return self._rk4(state, seg_a, t_b, cur)
 
-    def _rk4(self, state: State, t_a: float, t_b: float, vw: tuple[float, float]) -> State:
+    def _rk4(
+        self, state: PlantState, t_a: float, t_b: float, vw: tuple[float, float]
+    ) -> PlantState:
         h = t_b - t_a
         if h < _MIN_STEP_S:
             return state
-        return rk4_step(state, h, vw[0], vw[1], self._p, t=t_a, current=self._current)
+        return self._plant.step(state, h, t_a, vw[0], vw[1], self._current)
 
     def applied(self, t: float) -> Applied:
         """Mode and command the watchdog applies at time t."""
@@ -286,7 +295,7 @@ class VehicleCore:
     @property
     def pose(self) -> tuple[float, float, float, float, float]:
         """True (x, y, theta, v, w) at the committed time; theta unwrapped (continuous)."""
-        x, y, theta, v, w, _ = self._state
+        x, y, theta, v, _, w = self._plant.motion(self._state)
         return x, y, theta, v, w
 
     @property
@@ -297,11 +306,9 @@ class VehicleCore:
     @property
     def thrust_n(self) -> float:
         """Thrust the speed loop produces at the committed time (N)."""
-        v_cmd, _ = self._applied_vw(self._t)
-        _, _, _, v, _, z = self._state
-        return thrust_n(v_cmd, drag_n(v_cmd, self._p), v, z, self._p)[0]
+        return self._plant.thrust_n(self._state, self._applied_vw(self._t)[0])
 
     @property
     def drag_n(self) -> float:
-        """Hydrodynamic resistance at the committed time, eq. (14) (N)."""
-        return drag_n(self._state[3], self._p)
+        """Hydrodynamic surge resistance at the committed time (N; eq. (14) for the unicycle)."""
+        return self._plant.drag_n(self._state)

@@ -161,13 +161,13 @@ class FossenPlant:
         integrators at zero."""
         cfg = self.cfg
         u_s = max(u, cfg.autopilot_u_min_mps)
-        thrust = self._drag_n(u) if u > 0.0 else 0.0
+        thrust = self.drag_n(u) if u > 0.0 else 0.0
         thrust = min(max(thrust, cfg.thrust_min_n), cfg.thrust_max_n)
         rudder = self.steady_rudder_rad(r / u_s) if u > 0.0 else 0.0
         rudder = min(max(rudder, -cfg.rudder_max_rad), cfg.rudder_max_rad)
         return (x, y, psi, u, v, r, thrust, rudder, 0.0, 0.0)
 
-    def _drag_n(self, u: float) -> float:
+    def drag_n(self, u: float) -> float:
         """Straight-line surge resistance at u: -X_u|u| u|u| + d_u(u) u (the speed feed-forward)."""
         c2, c1, fade = self._drag
         return c2 * u * abs(u) + c1 * math.exp(-fade * abs(u)) * u
@@ -195,7 +195,7 @@ class FossenPlant:
         # speed autopilot: drag feed-forward + PI
         vc = min(max(v_cmd, 0.0), self.v_max_mps)
         e_u = vc - u
-        t_raw = self._drag_n(vc) + kp_u * e_u + ki_u * s[8]
+        t_raw = self.drag_n(vc) + kp_u * e_u + ki_u * s[8]
         t_dem = min(max(t_raw, t_min), t_max)
         # yaw-rate autopilot: steady-turn feed-forward + PI scheduled with the fin lift ~ u^2
         u_s = max(u, u_min)

@@ -68,12 +68,13 @@ class Watchdog:
         w_min: float,
         w_max: float,
         commander: str | None = None,
+        idle_v: float = 0.0,
     ) -> None:
         self._cfg = cfg
         self._commander = commander  # the only source whose commands count (None: any)
         self._v_bounds = (v_min, v_max)
         self._w_bounds = (w_min, w_max)
-        self.schedule = Schedule()
+        self.schedule = Schedule(idle_v=idle_v)  # a start under way holds its speed
         self.delay = DelayMeter(cfg.delay_window)
         self.applied = 0
         self.clamped = 0

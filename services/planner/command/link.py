@@ -58,6 +58,7 @@ class CommandLink:
         vehicle: VehicleConfig,
         *,
         expected_downlink_s: float = 0.0,
+        start_speed_mps: float = 0.0,
     ) -> None:
         self.max_estimate_age_s = planner.max_estimate_age_s
         self.configured_downlink_s = expected_downlink_s
@@ -72,7 +73,7 @@ class CommandLink:
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
-        self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps)
+        self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps, start_speed_mps)
         self.uplink = DelayMeter(planner.delay_window)  # ages of the estimates as they arrive
         self.status: VehicleStatus | None = None  # the vehicle's newest status (by stamp)
 

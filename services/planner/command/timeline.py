@@ -37,9 +37,10 @@ class Sent:
 class CommandTimeline:
     """The commands sent, their expected arrivals, and the vehicle's state predicted under them."""
 
-    def __init__(self, watchdog: WatchdogConfig, v_min: float) -> None:
+    def __init__(self, watchdog: WatchdogConfig, v_min: float, idle_v: float = 0.0) -> None:
         self._watchdog = watchdog
         self._v_min = v_min
+        self._idle = Schedule(idle_v=idle_v)  # before any command: a start under way holds
         self.sent: list[Sent] = []  # in the order sent (stamps non-decreasing)
 
     def add(
@@ -66,7 +67,7 @@ class CommandTimeline:
     def schedule_at(self, t: float) -> Schedule:
         """The schedule in force at the vehicle at time t (IDLE before any command)."""
         cur = self._in_force(t)
-        return Schedule() if cur is None else cur.schedule
+        return self._idle if cur is None else cur.schedule
 
     def forget_before(self, t: float) -> None:
         """Drop the commands superseded at the vehicle by time t (t: the estimate's stamp)."""
@@ -88,7 +89,7 @@ class CommandTimeline:
             for s in self.sent:
                 if t < s.arrival < end and s.stamp > newer_than:
                     end = s.arrival
-            sched = Schedule() if cur is None else cur.schedule
+            sched = self._idle if cur is None else cur.schedule
             # within, the applied command changes only at the schedule's own transitions
             for c in sorted({end, *sched.transitions_between(t, end)}):
                 a = sched.at(t)
