@@ -45,11 +45,13 @@ def _samples(x_end: float = 95.0) -> int:
 
 def _record(x_end: float, v: np.ndarray | None, w: np.ndarray | None) -> Record:
     """Truth along y = 20 from x = 5 at SPEED, every DT, up to x_end (95: the goal), with
-    the speeds v and yaw rates w given (their own, not the motion's: the metrics read them)."""
+    the speeds v given and the headings turning at the yaw rates w over each period (the
+    positions stay on the line: the metrics of turning read the headings and speeds)."""
     n = _samples(x_end)
     t = DT * np.arange(n)
     v = np.full(n, SPEED) if v is None else v
     w = np.zeros(n) if w is None else w
+    theta = np.concatenate([[0.0], np.cumsum(w[:-1] * DT)])
     rec = Record()
     for i in range(n):
         rec.add(
@@ -57,7 +59,8 @@ def _record(x_end: float, v: np.ndarray | None, w: np.ndarray | None) -> Record:
             "truth",
             TruthState(
                 stamp=float(t[i]), source="vehicle", seq=i + 1,
-                x=5.0 + SPEED * float(t[i]), y=20.0, theta=0.0, v=float(v[i]), w=float(w[i]),
+                x=5.0 + SPEED * float(t[i]), y=20.0, theta=float(theta[i]), v=float(v[i]),
+                w=float(w[i]),
             ),
         )  # fmt: skip
     return rec

@@ -82,8 +82,8 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     }
     if not truth:
         return m | {"reached_goal": False, "outcome": "not_reached", "success": False}
-    arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v, q.w) for q in truth])
-    t, x, y, v, w = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 4], arr[:, 5]
+    arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v) for q in truth])
+    t, x, y, theta, v = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], arr[:, 4]
     g, st = s.world.goal, s.world.start
     dist_goal = np.hypot(x - g.x_m, y - g.y_m)
     arrival = _arrival(truth, dist_goal <= s.world.goal_tolerance_m, reach_mps(s))
@@ -111,7 +111,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     )
     # paper §4 success, with eq. (6)'s safety distance as part of it
     m["success"] = m["outcome"] == "success"
-    m.update(_curvature_metrics(t, v, w, s.vehicle.turn_radius_min_m))
+    m.update(_curvature_metrics(t, x, y, theta, v, s.vehicle.turn_radius_min_m))
     m.update(_path_metrics(record, at("planner"), at(commander(s)), t, x, y, end))
     m.update(_estimation_metrics(record, at("estimator"), truth))
     m.update(_tracking_metrics(record, at("estimator"), world, s.planner.accel_horizon_s, t))
@@ -161,21 +161,43 @@ def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> dict[str
 
 
 def _curvature_metrics(
-    t: np.ndarray, v: np.ndarray, w: np.ndarray, turn_radius_min_m: float
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    theta: np.ndarray,
+    v: np.ndarray,
+    turn_radius_min_m: float,
 ) -> dict[str, Any]:
-    """Executed curvature |w| / v of the true motion, and time beyond eq. (11)'s turning
-    bound |w| <= |v| / R_min; t, v, w: (n,)."""
+    """The turns the vehicle made, measured from its true trajectory t, x, y, theta, v: (n,).
+
+    The hull's turn: its heading's rate over each truth period (from the headings, not the
+    plant's yaw-rate state: the unicycle plant bounds that state by v / R_min by
+    construction, the REMUS 100's does not), against its speed through the water v; time
+    beyond eq. (11)'s turning bound |rate| <= v / R_min. Over ground, the track's curvature
+    from the positions (a current bends it: tighter heading into the current, wider with it).
+    """
+    dt = np.diff(t)
+    rate = np.zeros(len(t))
+    rate[:-1] = np.diff(np.unwrap(theta)) / np.where(dt > 0.0, dt, np.inf)  # over [t_i, t_i+1]
     moving = v > MIN_SPEED_FOR_CURVATURE
-    curv = np.abs(w[moving]) / v[moving]
+    curv = np.abs(rate[moving]) / v[moving]
     started = t[moving][0] + START_UP_S if moving.any() else math.inf
     after = curv[t[moving] >= started]
-    # no speed gate here: at v = 0 a yaw rate is a turn on the spot, the tightest turn of all
-    above = np.abs(w) - np.abs(v) / turn_radius_min_m > YAW_RATE_TOL_RPS
-    return {
+    # no speed gate here: at v = 0 a turn is one on the spot, the tightest turn of all
+    above = np.abs(rate) - np.abs(v) / turn_radius_min_m > YAW_RATE_TOL_RPS
+    out: dict[str, Any] = {
         "max_executed_curvature": float(curv.max()) if len(curv) else 0.0,
         "max_executed_curvature_after_start": float(after.max()) if len(after) else 0.0,
         "time_above_curvature_limit_s": duration_s(t, above),
     }
+    if len(t) >= 3:
+        vx, vy = np.gradient(x, t), np.gradient(y, t)
+        ax, ay = np.gradient(vx, t), np.gradient(vy, t)
+        speed = np.hypot(vx, vy)
+        over = (speed > MIN_SPEED_FOR_CURVATURE) & (t >= started)
+        k = np.abs(vx * ay - vy * ax)[over] / speed[over] ** 3
+        out["max_ground_curvature"] = float(k.max()) if len(k) else 0.0
+    return out
 
 
 def _arrival(truth: list[TruthState], near: np.ndarray, speed_mps: float) -> int | None:
