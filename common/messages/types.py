@@ -122,6 +122,7 @@ class StateEstimate(Message, frozen=True, kw_only=True):
     current_x: float = 0.0
     current_y: float = 0.0
     current_std: float = 0.0  # m/s: the root mean of the current's two variances
+    sway: float = 0.0  # m/s: the hull's sway through the water (to port), a sideslip in turns
 
     def validate(self) -> None:
         _check_cov("covariance", self.covariance, 5)

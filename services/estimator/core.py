@@ -399,6 +399,7 @@ class EstimatorCore:
             current_x=float(x[5]),
             current_y=float(x[6]),
             current_std=math.sqrt(max(0.0, 0.5 * (P[5, 5] + P[6, 6]))),
+            sway=float(x[SWAY]),
         )
         tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]

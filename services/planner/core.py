@@ -78,6 +78,26 @@ class _Asked:
     current: tuple[float, float] = (0.0, 0.0)  # the current it is flown in
 
 
+def _plan_over_ground(
+    req: PlanRequest,
+    r_water_m: float,
+    cfg: PlannerConfig,
+    flight: FlightModel,
+    aside: PlanResult | None,
+) -> PlanResult:
+    """The plan for req, whose R_min is the one over ground in the current (wider than the
+    hull's: `PlannerCore.ground_turn_radius_m`); failing that, one within the hull's own R_min
+    r_water_m: its bends with the current may be flown wide (its flight says so), but a path
+    is better than none, which in a current leaves the vehicle to drift."""
+    result = plan_or_step_aside(req, cfg, flight, aside)
+    if result.ok or req.r_min_m <= r_water_m:
+        return result
+    tighter = plan_or_step_aside(replace(req, r_min_m=r_water_m), cfg, flight, aside)
+    if not tighter.ok:
+        return result
+    return replace(tighter, reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "))
+
+
 def _flat(a: np.ndarray) -> tuple[float, ...]:
     return tuple(float(v) for v in np.asarray(a, dtype=np.float64).ravel())
 
@@ -260,7 +280,9 @@ class PlannerCore:
         # where the vehicle is now and will be when this step's command takes effect
         pred = self.link.predict(t, s)
         if arrived:
-            return [self._command(t, pred.effect_t, self.link.stop())] if self.commands else []
+            return (
+                [self._command(t, pred.effect_t, self.link.stop(t, pred))] if self.commands else []
+            )
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -441,7 +463,8 @@ class PlannerCore:
         )
         last = self.last_result
         aside = last if self.ref is not None and last is not None and last.short_of_goal else None
-        self.plans.start(lambda: plan_or_step_aside(req, cfg, flight, aside))
+        r_water = self.vehicle.turn_radius_min_m
+        self.plans.start(lambda: _plan_over_ground(req, r_water, cfg, flight, aside))
 
     def _plan_done(self, t: float) -> _Asked:
         """A plan is made (step t): what it was asked for, its lag counted (and told, if

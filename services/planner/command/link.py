@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 
 from common.config.controller import ControllerConfig
@@ -28,6 +29,7 @@ from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
+from common.scalar import clamp, wrap_angle
 from services.planner.command.response import Pose, ResponseModel
 from services.planner.command.sequence import Prepared, command_sequence
 from services.planner.command.timeline import CommandTimeline
@@ -37,6 +39,10 @@ from services.planner.controllers.speed import stop_of
 
 # the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
 YAW_SETTLE_TAUS = 3.0
+# a stop keeps station against a current at least this fast (m/s; a slower one is the
+# estimate's wander in still water), turning into it with this gain (1/s) on the heading error
+STATION_KEEP_MPS = 0.05
+STATION_GAIN_PS = 0.5
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -161,6 +167,7 @@ class CommandLink:
         first ones computed now, the rest from the sequence prepared for this step if it holds
         (sequence.py)."""
         controller.current = self.model.current_mps
+        controller.sway = est.sway
         if not self.entries:  # as before sequences: the controller compensates the latency
             latency = max(0.0, t - est.stamp) + self.downlink_s
             v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
@@ -232,13 +239,32 @@ class CommandLink:
         way out of contact included (safety/recover.py: arcs within R_min), so the controller
         follows it from the start."""
         if ref is None:
-            return self.stop()
+            return self.stop(t, pred)
         return self.control(t, controller, ref, est, pred)
 
-    def stop(self) -> tuple[list[float], list[float]]:
-        """Commands that stop the vehicle (and keep it stopped over the horizon)."""
-        zeros = [0.0] * (self.entries + 1)
-        return zeros, list(zeros)
+    def stop(self, t: float, pred: Prediction) -> tuple[list[float], list[float]]:
+        """Commands that stop the vehicle over ground and keep it there over the horizon: in
+        still water, zeros; in a current, station keeping (a stopped vehicle drifts with the
+        current, out of its place and maybe out of the area): it turns into the current and
+        makes way through the water as fast as the current flows, so it holds its ground
+        (entries rolled out on the response model, as a sequence's are)."""
+        n = self.entries + 1
+        cx, cy = self.model.current_mps
+        c = math.hypot(cx, cy)
+        if c < STATION_KEEP_MPS:
+            zeros = [0.0] * n
+            return zeros, list(zeros)
+        upstream = math.atan2(-cy, -cx)
+        v_hold = min(c, self.model.v_max_mps)
+        pose, vs, ws = pred.at_effect, [], []
+        for _ in range(n):
+            x, y, th, v, _ = pose
+            cap = max(v, 0.0) / self.model.r_min_m
+            w = clamp(STATION_GAIN_PS * wrap_angle(upstream - th), -cap, cap)
+            vs.append(v_hold)
+            ws.append(w)
+            pose = self.model.advance(pose, v_hold, w, self.step_s)
+        return vs, ws
 
     def send(
         self,

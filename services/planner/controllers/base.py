@@ -77,6 +77,7 @@ class Controller(Protocol):
 
     name: str
     current: tuple[float, float]  # the estimated current (m/s, world frame) it compensates
+    sway: float  # the estimated sway of the hull (m/s, to port): its course is not its heading
 
     def command(
         self, t: float, pose: Pose, ref: ArcLengthReference, latency_s: float = 0.0

@@ -7,11 +7,13 @@ itself is not left for another leg, and the compensation of the current. They di
 in how they steer.
 
 In a current (cx, cy) the path is followed over ground, so each law steers the unicycle the
-velocity over ground makes (`over_ground`): g = v (cos theta, sin theta) + c, its course
+velocity over ground makes (`over_ground`): g = v e_theta + vs n_theta + c, its course
 chi = atan2(g) as the heading and |g| = U as the speed. A law that drives the course onto the
 path heads the vehicle into the current by the crab angle. Its yaw rate is a course rate,
-and the hull turns only its own velocity through the water: chi' = w v (g . e_theta) / U^2,
-so the yaw rate commanded is the law's times U^2 / (v (g . e_theta)) (`finish`; a following
+and the hull turns only its own velocity through the water, v e_theta + vs n_theta (its sway
+vs: a hull slips sideways in a turn, so its course differs from its heading even in still
+water): chi' = w (v g . e_theta + vs g . n_theta) / U^2, so the yaw rate commanded is the
+law's times U^2 / (v g . e_theta + vs g . n_theta) (`finish`; a following
 current widens every turn over ground, a head current tightens it). The speed a law commands
 stays a speed through the water (the profile's), and the turn it may ask for is capped at the
 speed through the water over R_min, as the hull turns.
@@ -53,6 +55,7 @@ class PathFollower(Generic[G]):
         self.compensate_delay = compensate_delay
         self.speed = SpeedProfile(speed or SpeedConfig(), limits)
         self.current: tuple[float, float] = (0.0, 0.0)  # the estimated current (m/s, world)
+        self.sway = 0.0  # the estimated sway (m/s, to port): the hull slips sideways in a turn
         self.water_speed = 0.0  # the projected pose's speed through the water (m/s)
         self._course_gain = 1.0  # yaw rate per course rate at the projected pose
         self.reset()
@@ -73,22 +76,25 @@ class PathFollower(Generic[G]):
         self._s_hint = s
         self.water_speed = pose[3]
         self._course_gain = 1.0
-        if self.current != (0.0, 0.0):
+        if self.current != (0.0, 0.0) or self.sway != 0.0:
             pose = self.over_ground(pose)
         return pose, s
 
     def over_ground(self, pose: Pose) -> Pose:
         """(x, y, chi, U, w / gain): the unicycle of the velocity over ground (module
-        docstring), the speed through the water taken as at least STEERAGE_MPS; sets the
-        gain `finish` turns a course rate into a yaw rate with."""
+        docstring), the speed through the water taken as at least STEERAGE_MPS, the hull's
+        sway included (a hull slips sideways in a turn: its course is not its heading); sets
+        the gain `finish` turns a course rate into a yaw rate with."""
         x, y, th, v, w = pose
         ve = max(v, STEERAGE_MPS)
         cx, cy = self.current
         c, sn = math.cos(th), math.sin(th)
-        gx, gy = ve * c + cx, ve * sn + cy
+        gx, gy = ve * c - self.sway * sn + cx, ve * sn + self.sway * c + cy
         u = math.hypot(gx, gy)
         along = ve + cx * c + cy * sn  # g . e_theta
-        gain = u * u / (ve * along) if along > 0.0 else COURSE_GAIN_MAX
+        across = self.sway - cx * sn + cy * c  # g . n_theta
+        turned = ve * along + self.sway * across  # chi' = w turned / U^2
+        gain = u * u / turned if turned > 0.0 else COURSE_GAIN_MAX
         self._course_gain = clamp(gain, COURSE_GAIN_MIN, COURSE_GAIN_MAX)
         chi = th + wrap_angle(math.atan2(gy, gx) - th)
         return x, y, chi, u, w / self._course_gain

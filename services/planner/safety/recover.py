@@ -50,6 +50,7 @@ MIN_TURN_RAD = 0.1  # ~6 degrees: a smaller turn cannot help the plan
 TURN_STEP_RAD = math.radians(15.0)  # the turns a recovery tries, either way
 ARC_RADIUS_FACTOR = 1.2  # a recovery's arcs are this much wider than R_min
 COME_ABOUT_INSIDE_M = 1.0  # coming about ends with the hull this far inside the area (m)
+COME_ABOUT_ROOM = 1.0  # ... or that many turning diameters further on
 
 
 def turn_then_plan(
@@ -162,7 +163,8 @@ def leave_then_plan(
 def come_about_then_plan(req: PlanRequest, plan: Plan) -> PlanResult | None:
     """Come about (module docstring): turns by multiples of TURN_STEP_RAD either way up to a
     whole half turn, on arcs of ARC_RADIUS_FACTOR R_min, each then straight until the hull is
-    COME_ABOUT_INSIDE_M inside the area; the hull must stay free of every obstacle (moving
+    COME_ABOUT_INSIDE_M inside the area (or COME_ABOUT_ROOM turning diameters further, for
+    room to turn towards the goal from there); the hull must stay free of every obstacle (moving
     ones where they will be) all the way. Tried shortest first, at most MAX_ESCAPES; None if
     none is clear, else the first that a plan continues (or the first's NO_PATH)."""
     radius, r, area = ARC_RADIUS_FACTOR * req.r_min_m, req.vehicle_radius_m, req.area
@@ -170,6 +172,10 @@ def come_about_then_plan(req: PlanRequest, plan: Plan) -> PlanResult | None:
     turns = np.concatenate([turns, -turns])
     inside = r + COME_ABOUT_INSIDE_M
     runs = np.array([_run_inside(req.start, float(t), radius, area, inside) for t in turns])
+    # each also runs on COME_ABOUT_ROOM turning diameters: the plan from where it ends may
+    # need room to turn towards the goal (near the goal, most of all)
+    turns = np.concatenate([turns, turns])
+    runs = np.concatenate([runs, runs + COME_ABOUT_ROOM * 2.0 * radius])
     lengths = radius * np.abs(turns) + runs
     feasible = np.isfinite(lengths)
     if not feasible.any():
