@@ -345,6 +345,10 @@ def _read_acl(path: Path) -> dict[str, Any]:
 
     try:
         acl = json.loads(path.read_text())
+    except RecursionError:
+        raise ConfigError(
+            str(path), "", "cannot read an access control: nested too deeply"
+        ) from None
     except (OSError, ValueError) as exc:
         raise ConfigError(str(path), "", f"cannot read an access control: {exc}") from None
     if not isinstance(acl, dict) or "rules" not in acl:

@@ -44,6 +44,7 @@ def _runtime_overrides(a: argparse.Namespace) -> list[str]:
 
 
 def cmd_launch(a: argparse.Namespace) -> int:
+    from common.config.errors import ConfigValueError
     from common.config.scenario import load_scenario
     from common.runtime.distributed.acl import LAUNCHER, ROUTER
     from common.runtime.model.mission import load_mission
@@ -64,9 +65,10 @@ def cmd_launch(a: argparse.Namespace) -> int:
         here = names if only is None else select_services(names, only)
         check_credentials(scenario.bus, [ROUTER, LAUNCHER, *here])
     if a.restart and scenario.runtime.kind == "lockstep":
-        raise ValueError(
-            "--restart: lockstep runs cannot restart a service (it would lose its "
-            "state and the run its determinism); use --runtime realtime"
+        raise ConfigValueError(
+            "--restart",
+            "lockstep runs cannot restart a service (it would lose its state and the run "
+            "its determinism); use --runtime realtime",
         )
     default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
     out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
