@@ -8,7 +8,7 @@ import logging
 import sys
 from pathlib import Path
 
-from services.cli.core_commands import watch_fields, watcher_args
+from services.cli.flags import watch_fields, watcher_args
 
 
 def cmd_foxglove(a: argparse.Namespace) -> int:

@@ -11,16 +11,20 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from services.cli.core_commands import (
-    budget_arg,
-    certs_args,
     certs_overrides,
     check_exposure,
-    insecure_arg,
-    no_plot_arg,
     print_metrics,
     report_outcome,
-    scenario_args,
     scenario_check,
+)
+from services.cli.flags import (
+    budget_arg,
+    certs_args,
+    connect_arg,
+    insecure_arg,
+    listen_arg,
+    no_plot_arg,
+    scenario_args,
 )
 
 if TYPE_CHECKING:
@@ -202,11 +206,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "'auv2.*' or 'auv2/*'); the others join with `tidelink service` (--only '' starts "
         "none: router and clock only)",
     )
-    la.add_argument(
-        "--listen",
-        action="append",
-        default=[],
-        metavar="ENDPOINT",
+    listen_arg(
+        la,
+        repeat=True,
         help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; "
         "default a free port on 127.0.0.1)",
     )
@@ -242,12 +244,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="in a fleet, the vehicle whose service this is: NAME planner --vehicle auv2 "
         "is auv2.planner",
     )
-    sv.add_argument(
-        "--connect",
-        required=True,
-        metavar="ENDPOINT",
-        help="the launch's router, e.g. tcp/10.0.0.1:7447",
-    )
+    connect_arg(sv, required=True, help="the launch's router, e.g. tcp/10.0.0.1:7447")
     _runtime_args(
         sv,
         runtime_help="as the launch was started (default realtime)",
