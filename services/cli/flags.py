@@ -73,7 +73,8 @@ def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str
     connect_arg(
         p,
         default=DEFAULT_CONNECT,
-        help=f"the run's router (default {DEFAULT_CONNECT}; `tidelink launch` prints its own)",
+        help=f"the run's router (default {DEFAULT_CONNECT}, where `tidelink launch` listens "
+        "when that port is free; otherwise the launch prints its own)",
     )
     p.add_argument("--run", default=None, help=run_help)
     p.add_argument("--vehicle", default=None, help=vehicle_help)

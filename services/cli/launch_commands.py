@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from common.config.bus import DEFAULT_CONNECT
 from services.cli.core_commands import (
     certs_overrides,
     check_exposure,
@@ -209,8 +210,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     listen_arg(
         la,
         repeat=True,
-        help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; "
-        "default a free port on 127.0.0.1)",
+        help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; default "
+        f"{DEFAULT_CONNECT}, where the watchers look, or a free port on 127.0.0.1 when that "
+        "one is taken)",
     )
     la.add_argument(
         "--restart", action="append", default=[], metavar="[NAME=]MODE[:MAX]", help=RESTART_HELP
