@@ -6,7 +6,6 @@ import argparse
 import functools
 import json
 import logging
-import math
 import os
 import sys
 import threading
@@ -18,6 +17,7 @@ from services.cli.flags import (
     budget_arg,
     certs_args,
     connect_arg,
+    details_arg,
     insecure_arg,
     listen_arg,
     no_plot_arg,
@@ -91,6 +91,7 @@ def cmd_check(a: argparse.Namespace) -> int:
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario, write_outputs
+    from services.cli.summary import print_summary
 
     overrides = list(a.overrides) + certs_overrides(a.certs)
     if a.runtime:
@@ -114,9 +115,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:
-        print_metrics(metrics, out)
-        if plot is not None:
-            print(f"plot: {plot}")
+        outputs = [("metrics", out / "metrics.json")] + ([("plot", plot)] if plot else [])
+        print_summary(metrics, outputs, all_metrics=a.all_metrics)
     return report_outcome(metrics, json_output=a.json)
 
 
@@ -183,23 +183,6 @@ def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
 
 def _json_default(v: Any) -> Any:
     raise TypeError(f"not JSON: {v!r}")
-
-
-def print_metrics(metrics: dict[str, Any], out: Path) -> None:
-    """A readable table of the scalar metrics (the JSON file has everything)."""
-    print_metrics_table(metrics)
-    print(f"metrics: {out / 'metrics.json'}")
-
-
-def print_metrics_table(metrics: dict[str, Any]) -> None:
-    """The scalar metrics, one per line, sorted by name."""
-    width = max(len(k) for k in metrics)
-    for k, v in sorted(metrics.items()):
-        if isinstance(v, dict | list):
-            continue
-        if isinstance(v, float):
-            v = f"{v:.4g}" if math.isfinite(v) else str(v)
-        print(f"  {k:<{width}}  {v}")
 
 
 def cmd_router(a: argparse.Namespace) -> int:
@@ -278,6 +261,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    details_arg(r)
     no_plot_arg(r)
     budget_arg(r)
     certs_args(r, identity=None)

@@ -151,6 +151,17 @@ def no_plot_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-plot", action="store_true", help="do not write DIR/run.png")
 
 
+def details_arg(p: argparse.ArgumentParser) -> None:
+    """--verbose: a command that runs a mission prints its short verdict unless asked for
+    every metric (the top-level -v/--verbose, before the sub-command, is debug logging)."""
+    p.add_argument(
+        "--verbose",
+        dest="all_metrics",
+        action="store_true",
+        help="print every scalar metric after the verdict (DIR/metrics.json has them all)",
+    )
+
+
 def budget_arg(p: argparse.ArgumentParser) -> None:
     """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
     p.add_argument(

@@ -14,7 +14,6 @@ from common.config.bus import DEFAULT_CONNECT
 from services.cli.core_commands import (
     certs_overrides,
     check_exposure,
-    print_metrics,
     report_outcome,
     scenario_check,
 )
@@ -22,6 +21,7 @@ from services.cli.flags import (
     budget_arg,
     certs_args,
     connect_arg,
+    details_arg,
     insecure_arg,
     listen_arg,
     no_plot_arg,
@@ -108,10 +108,12 @@ def cmd_launch(a: argparse.Namespace) -> int:
         for line in recorded:
             print(line, file=sys.stderr)
     else:
-        print_metrics(outcome.metrics, out)
-        if outcome.plot is not None:
-            print(f"plot: {outcome.plot}")
-        print(f"logs: {out / 'logs'}")
+        from services.cli.summary import print_summary
+
+        outputs = [("metrics", out / "metrics.json")]
+        outputs += [("plot", outcome.plot)] if outcome.plot is not None else []
+        outputs += [("logs", out / "logs")]
+        print_summary(outcome.metrics, outputs, all_metrics=a.all_metrics)
         for line in recorded:
             print(line)
     if outcome.result.failure and outcome.result.reason == "service_failed":
@@ -231,6 +233,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "`tidelink metrics`, Foxglove)",
     )
     la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    details_arg(la)
     budget_arg(la)
     certs_args(la, identity=None)
     insecure_arg(la)

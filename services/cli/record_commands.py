@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from services.cli.core_commands import check_exposure, print_metrics_table
+from services.cli.core_commands import check_exposure
 from services.cli.flags import certs_args, connect_arg, insecure_arg, listen_arg, watcher_args
 
 if TYPE_CHECKING:
@@ -123,6 +123,7 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 
 def cmd_metrics(a: argparse.Namespace) -> int:
+    from services.cli.summary import print_metrics_table
     from services.recording.metrics import NOT_RECOMPUTED, recording_metrics
 
     metrics = recording_metrics(_read(a.file))
