@@ -17,9 +17,17 @@ from typing import Any
 
 import foxglove
 import pytest
-from helpers.foxglove_client import FoxgloveClient, schema_bytes
+from helpers.foxglove_client import (
+    LEGACY_SUBPROTOCOL,
+    SUBPROTOCOL,
+    FoxgloveClient,
+    schema_bytes,
+)
 from helpers.launch_proc import REPO, Tidelink, kill_recorded
 from helpers.protobuf_wire import Schemas
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
+from websockets.typing import Subprotocol
 
 from common.bus import Liveliness
 from common.bus.watcher import WatchedFrame
@@ -264,6 +272,74 @@ def test_a_topics_first_message_reaches_a_client_once_when_its_subscription_come
         channels.close()
 
 
+# -- the subprotocol: foxglove.websocket.v1 as well as foxglove.sdk.v1 -------------------------
+@pytest.mark.parametrize("subprotocol", [LEGACY_SUBPROTOCOL, SUBPROTOCOL])
+def test_a_client_of_either_subprotocol_name_is_served_the_channels(subprotocol: str) -> None:
+    # the SDK's server takes only foxglove.sdk.v1*; the bridge's proxy takes ws-protocol's
+    # foxglove.websocket.v1 too, and answers with the name the client offered
+    channels = ViewChannels(foxglove.Context())
+    server = start_server(BridgeOptions(port=free_port()), channels)
+    try:
+        with FoxgloveClient(f"ws://127.0.0.1:{server.port}", subprotocol=subprotocol) as client:
+            assert client.subprotocol == subprotocol
+            client.wait_until(lambda: bool(client.server_infos), WAIT_S, "serverInfo")
+            vm = _pose(b'{"x": 1}')
+            channels.log(vm, 1)
+
+            def served() -> bool:
+                channels.serve_subscriptions(0.0)  # the bridge's loop
+                return bool(client.on(vm.topic))
+
+            client.wait_until(served, WAIT_S, "the pose")
+            assert client.channel(vm.topic)["schemaName"] == "Pose"
+            assert client.on(vm.topic)[0].data == b'{"x": 1}'
+    finally:
+        server.stop()
+        channels.close()
+
+
+def test_a_client_offering_neither_name_gets_a_400_that_names_both() -> None:
+    channels = ViewChannels(foxglove.Context())
+    server = start_server(BridgeOptions(port=free_port()), channels)
+    try:
+        with pytest.raises(InvalidStatus) as info:
+            connect(f"ws://127.0.0.1:{server.port}", subprotocols=[Subprotocol("foxglove.v9")])
+        response = info.value.response
+        assert response.status_code == 400
+        body = response.body.decode()
+        assert "speaks the subprotocols foxglove.websocket.v1, foxglove.sdk.v1 and" in body
+        assert "(it offered foxglove.v9)" in body
+        # a plain HTTP request (a browser on the URL) is told the same
+        with socket.create_connection(("127.0.0.1", server.port), timeout=WAIT_S) as s:
+            s.sendall(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n")
+            reply = b""
+            while chunk := s.recv(4096):
+                reply += chunk
+        assert reply.startswith(b"HTTP/1.1 400 ") and b"foxglove.websocket.v1" in reply
+        assert b"it offered none" in reply
+    finally:
+        server.stop()
+        channels.close()
+
+
+def test_closing_the_server_ends_its_clients_connections() -> None:
+    channels = ViewChannels(foxglove.Context())
+    server = start_server(BridgeOptions(port=free_port()), channels)
+    stopped = False
+    try:
+        with FoxgloveClient(
+            f"ws://127.0.0.1:{server.port}", subprotocol=LEGACY_SUBPROTOCOL
+        ) as client:
+            client.wait_until(lambda: bool(client.server_infos), WAIT_S, "serverInfo")
+            server.stop()  # joins the proxy's threads: returns only once they ended
+            stopped = True
+            client.wait_until(lambda: client.closed, WAIT_S, "the connection's end")
+    finally:
+        if not stopped:
+            server.stop()
+        channels.close()
+
+
 # -- end to end ------------------------------------------------------------------------------
 def _decode(client: FoxgloveClient, topic: str, index: int = -1) -> dict[str, Any]:
     """A received message decoded with the schema its channel advertised."""
@@ -383,3 +459,37 @@ def test_the_bridge_waits_for_a_router_and_a_run_then_follows_runs_one_after_ano
         bridge.signal(signal.SIGTERM)
         assert bridge.wait(WAIT_S) == 0, bridge.stderr
         assert "the router at" in bridge.stderr and "is gone" in bridge.stderr
+
+
+@pytest.mark.slow
+def test_a_foxglove_websocket_v1_client_receives_a_runs_channels(tmp_path: Path) -> None:
+    # the client of the protocol's long-standing name, as ws-protocol's libraries and older
+    # apps connect, against the bridge process and a real run
+    rp, wp = free_port(), free_port()
+    router = f"tcp/127.0.0.1:{rp}"
+    with Tidelink("foxglove", "--connect", router, "--port", str(wp)) as bridge:
+        bridge.wait_for(f"no router at {router} yet; waiting", WAIT_S)
+        assert f"(subprotocol {LEGACY_SUBPROTOCOL} or {SUBPROTOCOL})" in bridge.stderr
+        url = f"ws://127.0.0.1:{wp}"
+        with FoxgloveClient(url, subprotocol=LEGACY_SUBPROTOCOL) as client:
+            assert client.subprotocol == LEGACY_SUBPROTOCOL
+            client.wait_until(lambda: bool(client.server_infos), WAIT_S, "serverInfo")
+            with _run("legacy", router, tmp_path, 20.0) as run:
+                _pump_until_logged(client, bridge, "watching run legacy/auv1", 0)
+                client.wait_until(
+                    lambda: (
+                        PROTOBUF_TOPICS.keys() <= client.advertised_topics
+                        and {"/run/info", "/vehicle/pose_true"}
+                        <= {m.topic for m in client.messages}
+                    ),
+                    WAIT_S,
+                    "the run's channels and its first poses",
+                )
+                while run.proc.poll() is None:
+                    client.pump(0.2)
+                assert run.wait(WAIT_S) == 3, run.stderr  # max_time: goal not reached
+            assert [json.loads(m.data)["name"] for m in client.on("/run/info")] == ["legacy"]
+            for topic, schema in PROTOBUF_TOPICS.items():
+                assert client.channel(topic)["schemaName"] == schema
+        bridge.signal(signal.SIGTERM)
+        assert bridge.wait(WAIT_S) == 0, bridge.stderr

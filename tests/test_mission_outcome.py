@@ -77,8 +77,9 @@ def test_run_exits_3_when_the_goal_is_not_reached(tmp_path: Path) -> None:
         "run", str(DEFAULT), "--runtime", "inproc", "--set", "run.max_time_s=5", "--out", str(out)
     )
     assert r.returncode == 3, r.stderr
-    # the summary: the metrics table, then the verdict
-    assert re.search(r"success\s+False", r.stdout), r.stdout
+    # the summary: the short verdict (not every metric: that is --verbose), then the outcome
+    assert re.search(r"outcome\s+not_reached \(the run ended on max_time\)", r.stdout), r.stdout
+    assert "commands_applied" not in r.stdout
     said = re.search(r"mission failed: goal not reached \(max_time at t=5.00 s, (\S+) m ", r.stdout)
     assert said is not None, r.stdout
     m = json.loads((out / "metrics.json").read_text())

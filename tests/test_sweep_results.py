@@ -14,7 +14,7 @@ from scipy import stats
 
 from services.experiments.claims import compare
 from services.experiments.results import ResultsFile, as_number
-from services.experiments.stats import Estimate, mean_ci, wilson
+from services.experiments.stats import Estimate, bootstrap_ci, proportion_ci, wilson
 from services.experiments.summary import FAILURES, aggregate, write_summary
 
 
@@ -59,25 +59,50 @@ def test_dropping_failed_rows_rewrites_the_file(tmp_path: Path) -> None:
     assert ResultsFile(path).ids() == {"r0"}
 
 
-def test_t_interval_matches_the_textbook_value() -> None:
-    e = mean_ci([1.0, 2.0, 3.0])
-    # mean 2, s = 1, t_{0.975, 2} = 4.3027: half-width 4.3027 / sqrt(3) = 2.4841
-    assert e.mean == 2.0 and e.n == 3
-    assert e.half_width == pytest.approx(4.302652729749 / math.sqrt(3), rel=1e-9)
-    assert math.isnan(mean_ci([5.0]).low) and mean_ci([]).n == 0
-    assert mean_ci([1.0, float("nan"), 3.0]).n == 2  # missing values are not zeros
+def test_a_non_negative_quantity_never_gets_a_negative_bound() -> None:
+    # issue 61: three seeds of rho0_breach_m, mostly 0; the t-interval went to [-0.35, 0.67]
+    breach = [0.0, 0.0, 0.47]
+    lo, _ = stats.t.interval(0.95, 2, loc=np.mean(breach), scale=stats.sem(breach))
+    assert lo < 0.0  # what the summary used to show
+    e = bootstrap_ci(breach)
+    assert e.n == 3 and e.mean == pytest.approx(0.47 / 3)
+    assert 0.0 <= e.low <= e.mean <= e.high <= 0.47
+    assert math.isnan(bootstrap_ci([5.0]).low) and bootstrap_ci([]).n == 0
+    assert bootstrap_ci([1.0, float("nan"), 3.0]).n == 2  # missing values are not zeros
+
+
+def test_the_bootstrap_interval_is_the_same_for_the_same_values() -> None:
+    xs = [3.1, 2.7, 8.4, 0.2, 5.5]
+    assert bootstrap_ci(xs) == bootstrap_ci(list(xs))  # a regenerated summary is the same
 
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(-1e6, 1e6), min_size=2, max_size=40))
-def test_t_interval_agrees_with_scipy(xs: list[float]) -> None:
-    e = mean_ci(xs)
-    if np.std(xs) == 0:
-        assert e.low == e.high == pytest.approx(e.mean)
-    else:
-        lo, hi = stats.t.interval(0.95, len(xs) - 1, loc=np.mean(xs), scale=stats.sem(xs))
-        assert e.low == pytest.approx(lo, rel=1e-9, abs=1e-6)
-        assert e.high == pytest.approx(hi, rel=1e-9, abs=1e-6)
+def test_the_bootstrap_interval_lies_within_the_values_around_their_mean(xs: list[float]) -> None:
+    e = bootstrap_ci(xs)
+    assert min(xs) <= e.low <= e.mean <= e.high <= max(xs)
+    if min(xs) >= 0.0:
+        assert e.low >= 0.0
+
+
+def test_the_bootstrap_interval_of_many_seeds_is_near_the_t_interval() -> None:
+    # for 40 roughly normal values both are sound: they must agree to a few per cent
+    xs = list(np.random.default_rng(7).normal(10.0, 2.0, 40))
+    e = bootstrap_ci(xs)
+    lo, hi = stats.t.interval(0.95, len(xs) - 1, loc=np.mean(xs), scale=stats.sem(xs))
+    assert e.low == pytest.approx(lo, abs=0.1 * (hi - lo))
+    assert e.high == pytest.approx(hi, abs=0.1 * (hi - lo))
+
+
+def test_a_true_false_column_is_a_proportion_with_wilsons_interval() -> None:
+    rows = [
+        {"run_id": str(i), "status": "ok", "g": "a", "reached_goal": str(i < 2), "x": str(i)}
+        for i in range(3)
+    ]
+    (a,) = aggregate(rows, ("g",))
+    assert a.metrics["reached_goal"] == wilson(2, 3)
+    assert a.metrics["x"] == bootstrap_ci([0.0, 1.0, 2.0])
+    assert proportion_ci([1.0, 0.0, float("nan")]) == wilson(1, 2)
 
 
 @given(st.integers(1, 200).flatmap(lambda n: st.tuples(st.integers(0, n), st.just(n))))
@@ -203,3 +228,37 @@ def test_progress_prints_plain_lines_or_a_rich_bar() -> None:
         for _ in range(3):
             p.done("x", ok=True)
     assert "sweep t" in bar.getvalue() and "3/3" in bar.getvalue()
+
+
+def _cell_rows(label: str, n: int) -> list[dict[str, str]]:
+    return [
+        {
+            "run_id": f"{label}{i}",
+            "status": "ok",
+            "g": label,
+            "success": "True",
+            "reached_goal": "True",
+            "rho0_breach_m": "0.0" if i % 3 else "0.5",
+        }
+        for i in range(n)
+    ]
+
+
+def test_the_summary_warns_of_cells_with_fewer_than_10_seeds(tmp_path: Path) -> None:
+    cells = aggregate(_cell_rows("few", 3) + _cell_rows("many", 10), ("g",))
+    write_summary(tmp_path, "t", "intro", cells, ("g",), [])
+    text = (tmp_path / "summary.md").read_text()
+    warning = next(line for line in text.splitlines() if "Warning" in line)
+    assert "1 of 2 cells rest on fewer than 10 runs** (3; marked ⚠): g=few." in warning
+    assert "| few | 3 ⚠ | 0 |" in text and "| many | 10 | 0 |" in text
+    # every interval of the non-negative breach is non-negative, in both tables
+    assert "-" not in next(line for line in text.splitlines() if "| rho0_breach_m |" in line)
+    with (tmp_path / "summary.csv").open() as fh:
+        lows = [float(r["ci_low"]) for r in csv.DictReader(fh) if r["metric"] == "rho0_breach_m"]
+    assert lows and min(lows) >= 0.0
+
+
+def test_no_warning_when_every_cell_has_10_seeds(tmp_path: Path) -> None:
+    write_summary(tmp_path, "t", "intro", aggregate(_cell_rows("a", 10), ("g",)), ("g",), [])
+    text = (tmp_path / "summary.md").read_text()
+    assert "Warning" not in text and "⚠" not in text

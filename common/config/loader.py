@@ -17,15 +17,39 @@ T = TypeVar("T")
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file, turning a missing file or a syntax error into a ConfigError."""
+    """Read a TOML file; anything that keeps it from being read (missing, a directory, not
+    UTF-8 text, a syntax error, nesting deeper than the parser's recursion) is a ConfigError
+    naming the file."""
     p = Path(path)
     try:
         with p.open("rb") as fh:
-            return tomllib.load(fh)
+            data = fh.read()
     except FileNotFoundError:
         raise ConfigError(str(p), (), "file not found") from None
+    except IsADirectoryError:
+        raise ConfigError(str(p), (), "is a directory, not a TOML file") from None
+    except OSError as exc:
+        raise ConfigError(str(p), (), f"cannot be read: {exc.strerror or exc}") from None
+    try:
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ConfigError(str(p), (), _not_utf8(data, exc)) from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(str(p), (), f"not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise ConfigError(str(p), (), "arrays or tables nested too deeply to be read") from None
+
+
+def _not_utf8(data: bytes, exc: UnicodeDecodeError) -> str:
+    """Why bytes that are not UTF-8 are no TOML file, in words a user can act on."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return (
+            "is UTF-16 text, but a TOML file must be UTF-8: convert it "
+            "(e.g. iconv -f UTF-16 -t UTF-8)"
+        )
+    if b"\x00" in data[:4096]:
+        return "is a binary file, not a TOML file (TOML is UTF-8 text)"
+    return f"is not UTF-8 text, as a TOML file must be (byte {exc.start}: {exc.reason})"
 
 
 def read_scenario_toml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:

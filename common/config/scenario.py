@@ -7,6 +7,7 @@ it.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,7 +16,7 @@ from typing import Any
 
 from common.config.bus import BusConfig
 from common.config.controller import ControllerConfig
-from common.config.errors import ConfigValueError
+from common.config.errors import ConfigValueError, KeyPath
 from common.config.estimator import EstimatorConfig
 from common.config.fleet import FleetVehicle, fleet_from_raw
 from common.config.loader import (
@@ -135,12 +136,48 @@ def load_scenario(
     loads a scenario to run it passes `check=common.world.check.check_scenario`.
     """
     raw = read_scenario_toml(path)
+    in_file = copy.deepcopy(raw)
+    given: list[tuple[KeyPath, str]] = []  # (key, the flag that set it), to blame errors on
     for text in overrides or []:
         parts, value = parse_override(text)
         apply_override(raw, parts, value)
+        given.append((tuple(parts), "--set"))
     if seed is not None:
         apply_override(raw, ["run", "seed"], seed)
-    return scenario_from_raw(raw, str(path), check=check), raw
+        given.append((("run", "seed"), "--seed"))
+    try:
+        return scenario_from_raw(raw, str(path), check=check), raw
+    except ConfigError as exc:
+        flag = _flag_of(exc.key_path, given, in_file)
+        if flag is None:
+            raise
+        raise ConfigError(flag, exc.key_path, exc.problem) from None
+
+
+def _flag_of(key: KeyPath, given: list[tuple[KeyPath, str]], in_file: dict[str, Any]) -> str | None:
+    """The flag (--set, --seed) an error at `key` comes from, or None (the file's): the last
+    one that set this key or a table above it, or that named this key when the file has no
+    such key (an unknown table or key only the flag made up). An error at a key of the file
+    that a flag set something below (world.start, after --set world.start.x_m) stays the
+    file's: it names what the file and the flag made together."""
+    at = tuple(str(k) for k in key)
+    for parts, flag in reversed(given):
+        if at[: len(parts)] == parts and len(at) >= len(parts):
+            return flag
+        if at and parts[: len(at)] == at and not _has(in_file, at):
+            return flag
+    return None
+
+
+def _has(tables: dict[str, Any], key: tuple[str, ...]) -> bool:
+    """Whether the file's own tables hold `key` (tables only: an array's elements are not
+    followed)."""
+    node: Any = tables
+    for part in key:
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
 
 
 def scenario_from_raw(

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
+import platform
 import sys
+from typing import Any
 
 from common.config.errors import ConfigValueError
 from common.config.loader import ConfigError
@@ -34,21 +37,73 @@ COMMAND_MODULES = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="tidelink", description="Networked AUV path control over Zenoh."
+class _Version(argparse.Action):
+    """--version: the versions that decide who can talk to whom (looked up only when asked,
+    so that every other command starts without importing the wire format)."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> None:
+        print(version_text())
+        parser.exit()
+
+
+def version_text() -> str:
+    """`tidelink X (wire format vN; eclipse-zenoh Z; Python P)`."""
+    from importlib import metadata
+
+    from common.messages import WIRE_VERSION
+
+    def installed(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    return (
+        f"tidelink {installed('tidelink')} (wire format v{WIRE_VERSION}; eclipse-zenoh "
+        f"{installed('eclipse-zenoh')}; Python {platform.python_version()})"
     )
+
+
+class TidelinkParser(argparse.ArgumentParser):
+    """The top-level parser; it knows its sub-commands' parsers, to suggest one for a typo."""
+
+    commands: dict[str, argparse.ArgumentParser]  # set by build_parser
+
+
+def build_parser() -> TidelinkParser:
+    p = TidelinkParser(prog="tidelink", description="Networked AUV path control over Zenoh.")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    p.add_argument("--version", action=_Version)
     sub = p.add_subparsers(dest="cmd", required=True)
     for module in COMMAND_MODULES:
         module.register(sub)
+    p.commands = dict(sub.choices)
     return p
+
+
+def suggest_command(p: TidelinkParser, argv: list[str]) -> None:
+    """Exit 2 with "did you mean" when the sub-command is none of the parser's: the first
+    argument that is no option (the top-level options take no value)."""
+    given = next((x for x in argv if not x.startswith("-")), None)
+    if given is None or given in p.commands:
+        return
+    names = list(p.commands)
+    close = [n for n in names if n.startswith(given)] or difflib.get_close_matches(
+        given, names, n=3, cutoff=0.6
+    )
+    hint = f"did you mean {' or '.join(repr(n) for n in close[:3])}? " if close else ""
+    p.error(f"unknown command {given!r}; {hint}`tidelink --help` lists them all")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `tidelink` console script."""
     p = build_parser()
-    a = p.parse_args(argv)
+    args = sys.argv[1:] if argv is None else argv
+    suggest_command(p, args)
+    a = p.parse_args(args)
     logging.basicConfig(
         level=logging.DEBUG if a.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from services.cli.core_commands import scenario_args
+from services.cli.flags import scenario_args
 
 
 def cmd_chaos(a: argparse.Namespace) -> int:

@@ -6,7 +6,6 @@ import argparse
 import functools
 import json
 import logging
-import math
 import os
 import sys
 import threading
@@ -14,7 +13,16 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from common.config.bus import DEFAULT_CONNECT
+from services.cli.flags import (
+    budget_arg,
+    certs_args,
+    connect_arg,
+    details_arg,
+    insecure_arg,
+    listen_arg,
+    no_plot_arg,
+    scenario_args,
+)
 
 if TYPE_CHECKING:
     from common.config.scenario import ScenarioCheck
@@ -27,56 +35,6 @@ ROUTER_CLOSE_S = 3.0  # how long `tidelink router` gives its session to close on
 # with an obstacle, the goal not reached, or the goal reached inside the safety distance rho0
 # (services/mission/outcome.py). Distinct from 1 (a service or the run failed).
 EXIT_MISSION_FAILED = 3
-
-
-def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
-    """--connect, --run, --vehicle and the credentials of the tools that watch live runs
-    (monitor, foxglove, record): the run's router, and which run and vehicle to watch."""
-    p.add_argument(
-        "--connect",
-        default=DEFAULT_CONNECT,
-        metavar="ENDPOINT",
-        help=f"the run's router (default {DEFAULT_CONNECT}; `tidelink launch` prints its own)",
-    )
-    p.add_argument("--run", default=None, help=run_help)
-    p.add_argument("--vehicle", default=None, help=vehicle_help)
-    certs_args(p, identity="monitor")
-
-
-def watch_fields(a: argparse.Namespace) -> dict[str, Any]:
-    """What watcher_args read, as the fields of a WatchTarget (common/config/bus.py)."""
-    return {
-        "connect": a.connect,
-        "certs": a.certs,
-        "identity": a.identity,
-        "run": a.run,
-        "vehicle": a.vehicle,
-    }
-
-
-def certs_args(p: argparse.ArgumentParser, *, identity: str | None) -> None:
-    """--certs DIR (mutual TLS with the certificates `tidelink certs` made) and, for tools
-    that are not a service of the run, --identity: whose certificate to present."""
-    p.add_argument(
-        "--certs",
-        type=_certs_dir,
-        default=None,
-        metavar="DIR",
-        help="secure the bus: mutual TLS with the certificates in DIR (`tidelink certs`); "
-        "tcp/ endpoints are then served as tls/ on the same address",
-    )
-    if identity is not None:
-        p.add_argument(
-            "--identity",
-            default=identity,
-            metavar="NAME",
-            help=f"with --certs: whose certificate to present (default {identity})",
-        )
-
-
-def _certs_dir(text: str) -> str:
-    """An absolute path: child processes and other working directories see the same DIR."""
-    return str(Path(text).expanduser().resolve())
 
 
 def certs_overrides(certs: str | None) -> list[str]:
@@ -110,60 +68,6 @@ def check_exposure(listen: list[str] | tuple[str, ...], secured: bool, insecure:
     )
 
 
-def insecure_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--insecure",
-        action="store_true",
-        help="allow a --listen endpoint beyond loopback without --certs (prints a warning)",
-    )
-
-
-def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
-    p.add_argument(
-        "scenario",
-        type=Path,
-        nargs=None if required else "?",
-        default=None,
-        help="scenario TOML file, e.g. configs/default.toml",
-    )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)",
-    )
-    p.add_argument("--seed", type=int, default=None, help="override run.seed")
-
-
-def no_plot_arg(p: argparse.ArgumentParser) -> None:
-    """--no-plot: a command that runs a mission draws it into DIR/run.png unless told not to."""
-    p.add_argument("--no-plot", action="store_true", help="do not write DIR/run.png")
-
-
-def budget_arg(p: argparse.ArgumentParser) -> None:
-    """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
-    p.add_argument(
-        "--budget",
-        type=_budget_factor,
-        default=1.0,
-        metavar="FACTOR",
-        help="allow FACTOR times every work budget a scenario is checked against (the planner "
-        "grid's memory, the record's memory, the run's wall time), e.g. 4 on a bigger machine",
-    )
-
-
-def _budget_factor(text: str) -> float:
-    try:
-        factor = float(text)
-    except ValueError:
-        factor = math.nan
-    if not (math.isfinite(factor) and factor > 0.0):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a factor > 0")
-    return factor
-
-
 def scenario_check(a: argparse.Namespace) -> ScenarioCheck:
     """The check a command that runs a scenario applies: geometry and the --budget'ed work."""
     from common.config.budget import DEFAULT_BUDGET
@@ -187,6 +91,7 @@ def cmd_check(a: argparse.Namespace) -> int:
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario, write_outputs
+    from services.cli.summary import print_summary
 
     overrides = list(a.overrides) + certs_overrides(a.certs)
     if a.runtime:
@@ -210,9 +115,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:
-        print_metrics(metrics, out)
-        if plot is not None:
-            print(f"plot: {plot}")
+        outputs = [("metrics", out / "metrics.json")] + ([("plot", plot)] if plot else [])
+        print_summary(metrics, outputs, all_metrics=a.all_metrics)
     return report_outcome(metrics, json_output=a.json)
 
 
@@ -281,23 +185,6 @@ def _json_default(v: Any) -> Any:
     raise TypeError(f"not JSON: {v!r}")
 
 
-def print_metrics(metrics: dict[str, Any], out: Path) -> None:
-    """A readable table of the scalar metrics (the JSON file has everything)."""
-    print_metrics_table(metrics)
-    print(f"metrics: {out / 'metrics.json'}")
-
-
-def print_metrics_table(metrics: dict[str, Any]) -> None:
-    """The scalar metrics, one per line, sorted by name."""
-    width = max(len(k) for k in metrics)
-    for k, v in sorted(metrics.items()):
-        if isinstance(v, dict | list):
-            continue
-        if isinstance(v, float):
-            v = f"{v:.4g}" if math.isfinite(v) else str(v)
-        print(f"  {k:<{width}}  {v}")
-
-
 def cmd_router(a: argparse.Namespace) -> int:
     from common.bus import Bus, Keys
     from common.config.bus import BusConfig
@@ -345,6 +232,10 @@ def _read_acl(path: Path) -> dict[str, Any]:
 
     try:
         acl = json.loads(path.read_text())
+    except RecursionError:
+        raise ConfigError(
+            str(path), "", "cannot read an access control: nested too deeply"
+        ) from None
     except (OSError, ValueError) as exc:
         raise ConfigError(str(path), "", f"cannot read an access control: {exc}") from None
     if not isinstance(acl, dict) or "rules" not in acl:
@@ -370,6 +261,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
     r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    details_arg(r)
     no_plot_arg(r)
     budget_arg(r)
     certs_args(r, identity=None)
@@ -377,18 +269,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r.set_defaults(func=cmd_run)
 
     z = sub.add_parser("router", help="run a Zenoh router (no zenohd is installable here)")
-    z.add_argument(
-        "--listen",
-        action="append",
-        required=True,
-        metavar="ENDPOINT",
-        help="e.g. tcp/127.0.0.1:7447 (repeatable)",
-    )
-    z.add_argument(
-        "--connect",
-        action="append",
-        default=[],
-        metavar="ENDPOINT",
+    listen_arg(z, required=True, repeat=True, help="e.g. tcp/127.0.0.1:7447 (repeatable)")
+    connect_arg(
+        z,
+        repeat=True,
         help="another router to join (repeatable; retried until it answers): one router per "
         "host of a fleet, each joined to the launch's",
     )

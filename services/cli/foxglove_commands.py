@@ -8,7 +8,7 @@ import logging
 import sys
 from pathlib import Path
 
-from services.cli.core_commands import watch_fields, watcher_args
+from services.cli.flags import watch_fields, watcher_args
 
 
 def cmd_foxglove(a: argparse.Namespace) -> int:
@@ -45,7 +45,11 @@ def _print_layout(scenario_path: Path) -> int:
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add foxglove to the tidelink parser."""
     f = sub.add_parser(
-        "foxglove", help="serve the runs on a router to the Foxglove app (WebSocket)"
+        "foxglove",
+        help="serve the runs on a router to the Foxglove app (WebSocket)",
+        description="Serve the runs on a router to the Foxglove app over WebSocket, to clients "
+        "of the subprotocol foxglove.websocket.v1 (ws-protocol's) or foxglove.sdk.v1 (the "
+        "SDK's, or its revision foxglove.sdk.v1.1).",
     )
     watcher_args(
         f,

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from services.cli.core_commands import certs_args, scenario_args
+from services.cli.flags import certs_args, connect_arg, scenario_args
 from services.cli.graph_render import to_dot, to_png, to_text
 
 
@@ -58,7 +58,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add graph to the tidelink parser."""
     g = sub.add_parser("graph", help="print a mission's dataflow (services, streams, types, links)")
     scenario_args(g, required=False)  # no SCENARIO when --connect asks a live run
-    g.add_argument("--connect", default=None, metavar="ENDPOINT", help="ask a live run instead")
+    connect_arg(g, help="ask the live run on this router instead")
     g.add_argument("--run", default=None, help="with --connect: the run id (default: any)")
     g.add_argument("--vehicle", default=None, help="with --connect: the vehicle id (default: any)")
     g.add_argument("--timeout", type=float, default=3.0, help="with --connect: seconds to wait")

@@ -10,17 +10,22 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from common.config.bus import DEFAULT_CONNECT
 from services.cli.core_commands import (
-    budget_arg,
-    certs_args,
     certs_overrides,
     check_exposure,
-    insecure_arg,
-    no_plot_arg,
-    print_metrics,
     report_outcome,
-    scenario_args,
     scenario_check,
+)
+from services.cli.flags import (
+    budget_arg,
+    certs_args,
+    connect_arg,
+    details_arg,
+    insecure_arg,
+    listen_arg,
+    no_plot_arg,
+    scenario_args,
 )
 
 if TYPE_CHECKING:
@@ -44,6 +49,7 @@ def _runtime_overrides(a: argparse.Namespace) -> list[str]:
 
 
 def cmd_launch(a: argparse.Namespace) -> int:
+    from common.config.errors import ConfigValueError
     from common.config.scenario import load_scenario
     from common.runtime.distributed.acl import LAUNCHER, ROUTER
     from common.runtime.model.mission import load_mission
@@ -64,9 +70,10 @@ def cmd_launch(a: argparse.Namespace) -> int:
         here = names if only is None else select_services(names, only)
         check_credentials(scenario.bus, [ROUTER, LAUNCHER, *here])
     if a.restart and scenario.runtime.kind == "lockstep":
-        raise ValueError(
-            "--restart: lockstep runs cannot restart a service (it would lose its "
-            "state and the run its determinism); use --runtime realtime"
+        raise ConfigValueError(
+            "--restart",
+            "lockstep runs cannot restart a service (it would lose its state and the run "
+            "its determinism); use --runtime realtime",
         )
     default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
     out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
@@ -101,10 +108,12 @@ def cmd_launch(a: argparse.Namespace) -> int:
         for line in recorded:
             print(line, file=sys.stderr)
     else:
-        print_metrics(outcome.metrics, out)
-        if outcome.plot is not None:
-            print(f"plot: {outcome.plot}")
-        print(f"logs: {out / 'logs'}")
+        from services.cli.summary import print_summary
+
+        outputs = [("metrics", out / "metrics.json")]
+        outputs += [("plot", outcome.plot)] if outcome.plot is not None else []
+        outputs += [("logs", out / "logs")]
+        print_summary(outcome.metrics, outputs, all_metrics=a.all_metrics)
         for line in recorded:
             print(line)
     if outcome.result.failure and outcome.result.reason == "service_failed":
@@ -200,13 +209,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "'auv2.*' or 'auv2/*'); the others join with `tidelink service` (--only '' starts "
         "none: router and clock only)",
     )
-    la.add_argument(
-        "--listen",
-        action="append",
-        default=[],
-        metavar="ENDPOINT",
-        help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; "
-        "default a free port on 127.0.0.1)",
+    listen_arg(
+        la,
+        repeat=True,
+        help="router endpoint, e.g. tcp/0.0.0.0:7447 for other hosts (repeatable; default "
+        f"{DEFAULT_CONNECT}, where the watchers look, or a free port on 127.0.0.1 when that "
+        "one is taken)",
     )
     la.add_argument(
         "--restart", action="append", default=[], metavar="[NAME=]MODE[:MAX]", help=RESTART_HELP
@@ -225,6 +233,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "`tidelink metrics`, Foxglove)",
     )
     la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    details_arg(la)
     budget_arg(la)
     certs_args(la, identity=None)
     insecure_arg(la)
@@ -240,12 +249,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="in a fleet, the vehicle whose service this is: NAME planner --vehicle auv2 "
         "is auv2.planner",
     )
-    sv.add_argument(
-        "--connect",
-        required=True,
-        metavar="ENDPOINT",
-        help="the launch's router, e.g. tcp/10.0.0.1:7447",
-    )
+    connect_arg(sv, required=True, help="the launch's router, e.g. tcp/10.0.0.1:7447")
     _runtime_args(
         sv,
         runtime_help="as the launch was started (default realtime)",

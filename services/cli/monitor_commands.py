@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from services.cli.core_commands import watch_fields, watcher_args
+from services.cli.flags import watch_fields, watcher_args
 
 
 def cmd_monitor(a: argparse.Namespace) -> int:

@@ -9,13 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from services.cli.core_commands import (
-    certs_args,
-    check_exposure,
-    insecure_arg,
-    print_metrics_table,
-    watcher_args,
-)
+from services.cli.core_commands import check_exposure
+from services.cli.flags import certs_args, connect_arg, insecure_arg, listen_arg, watcher_args
 
 if TYPE_CHECKING:
     from common.config.scenario import Scenario
@@ -128,6 +123,7 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 
 def cmd_metrics(a: argparse.Namespace) -> int:
+    from services.cli.summary import print_metrics_table
     from services.recording.metrics import NOT_RECOMPUTED, recording_metrics
 
     metrics = recording_metrics(_read(a.file))
@@ -157,15 +153,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("file", type=Path, help="an MCAP recording (launch --record, record)")
     p.add_argument("--speed", type=float, default=1.0, help="time scale (default 1: as recorded)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--connect", default=None, metavar="ENDPOINT", help="publish through this router"
-    )
-    where.add_argument(
-        "--listen",
-        default=None,
-        metavar="ENDPOINT",
-        help="be the router, listening here (default: a free port on 127.0.0.1)",
-    )
+    connect_arg(where, help="publish through this router")
+    listen_arg(where, help="be the router, listening here (default: a free port on 127.0.0.1)")
     p.add_argument(
         "--as", dest="as_run", default=None, metavar="RUN", help="replay under this run id"
     )

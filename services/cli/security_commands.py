@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from services.cli.core_commands import scenario_args
+from services.cli.flags import scenario_args
 
 
 def _csv(text: str) -> list[str]:

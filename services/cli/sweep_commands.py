@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from services.cli.core_commands import budget_arg
+from services.cli.flags import budget_arg
 
 # the same as services.experiments.reproduce.CROSSING (imported lazily: the CLI starts fast)
 CROSSING = Path("configs/experiments/scenarios/crossing.toml")

@@ -281,8 +281,9 @@ def write_report(path: Path, inp: ReportInputs) -> None:
         "A control action is *on the optimal path* when the true vehicle is within "
         f"{inp.on_path_tol_m} m of the first planned path as it is issued; a *return to the "
         "path* is a re-entry into that band after leaving it (services/mission/metrics.py). "
-        "Values are mean ± half-width of the 95 % t-interval over the seeds; success is a "
-        "Wilson 95 % interval; travel time only over runs that reached the goal.",
+        "Values are the mean [95 % interval] over the seeds, the bootstrap percentile "
+        "interval of the mean (within the values' range); success is a Wilson 95 % "
+        "interval; travel time only over runs that reached the goal.",
         "",
         _planning_text(inp),
         "",

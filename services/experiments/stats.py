@@ -1,4 +1,15 @@
-"""Confidence intervals of sweep metrics: t-distribution for means, Wilson for success rates."""
+"""Confidence intervals of sweep metrics that stay within what each quantity can be: the
+bootstrap percentile interval of a mean, Wilson's score interval for a proportion.
+
+A t-interval (mean ± t s / sqrt(n)) is symmetric whatever the data: over 3 seeds of a
+quantity that is mostly 0 and never negative it reached below zero (`rho0_breach_m [-0.35,
+0.67]`). The percentile interval of the bootstrap means lies within the sample's own range,
+so a non-negative quantity gets a non-negative interval and a fraction stays in [0, 1]; its
+asymmetry follows the data's skew. Proportions of runs (success, an outcome, a True/False
+column) get Wilson's interval, sane at 0 % and 100 %. Neither repairs a small sample: from
+fewer than FEW_SEEDS runs the bootstrap interval is too narrow more often than its level
+says, which summary.md warns of.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +17,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 from scipy import stats as st
+
+BOOTSTRAP_RESAMPLES = 4000
+# fixed: the same runs give the same intervals, so a regenerated summary is the same file
+BOOTSTRAP_SEED = 20260611
+FEW_SEEDS = 10  # a cell over fewer runs than this gets a warning: its intervals are rough
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -23,27 +40,41 @@ class Estimate:
         return (self.high - self.low) / 2.0
 
     def text(self, digits: int = 3) -> str:
-        """'mean ± half-width' (just the mean for n = 1, '–' without data)."""
+        """'mean [low, high]' (just the mean for n = 1, '–' without data)."""
         if self.n == 0 or not math.isfinite(self.mean):
             return "–"
         m = f"{self.mean:.{digits}g}"
-        if self.n < 2 or not math.isfinite(self.half_width):
+        if self.n < 2 or not (math.isfinite(self.low) and math.isfinite(self.high)):
             return m
-        return f"{m} ± {self.half_width:.2g}"
+        return f"{m} [{self.low:.2g}, {self.high:.2g}]"
 
 
-def mean_ci(values: Sequence[float], level: float = 0.95) -> Estimate:
-    """Mean and t-interval mean ± t_{(1+level)/2, n-1} s / sqrt(n); nan bounds when n < 2."""
-    xs = [float(v) for v in values if math.isfinite(v)]
+def bootstrap_ci(values: Sequence[float], level: float = 0.95) -> Estimate:
+    """Mean and the bootstrap percentile interval of the mean: the (1 - level) / 2 and
+    (1 + level) / 2 quantiles of BOOTSTRAP_RESAMPLES resampled means (a fixed seed: the
+    same values give the same interval). Within the values' range; nan bounds when n < 2;
+    non-finite values are missing ones, not zeros."""
+    xs = np.array([float(v) for v in values if math.isfinite(v)])
     n = len(xs)
     if n == 0:
         return Estimate(mean=math.nan, low=math.nan, high=math.nan, n=0)
     mean = math.fsum(xs) / n
     if n < 2:
         return Estimate(mean=mean, low=math.nan, high=math.nan, n=1)
-    sd = math.sqrt(math.fsum((x - mean) ** 2 for x in xs) / (n - 1))
-    h = float(st.t.ppf((1.0 + level) / 2.0, n - 1)) * sd / math.sqrt(n)
-    return Estimate(mean=mean, low=mean - h, high=mean + h, n=n)
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    means = xs[rng.integers(0, n, size=(BOOTSTRAP_RESAMPLES, n))].mean(axis=1)
+    low, high = np.quantile(means, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    # rounding of the resampled means: keep within the sample's range, around its mean
+    low = min(max(float(low), float(xs.min())), mean)
+    high = max(min(float(high), float(xs.max())), mean)
+    return Estimate(mean=mean, low=low, high=high, n=n)
+
+
+def proportion_ci(values: Sequence[float], level: float = 0.95) -> Estimate:
+    """A proportion from 0/1 values (True/False of each run) with Wilson's interval; nan and
+    other values are missing."""
+    xs = [v for v in values if v in (0.0, 1.0)]
+    return wilson(int(sum(xs)), len(xs), level)
 
 
 def wilson(successes: int, n: int, level: float = 0.95) -> Estimate:

@@ -8,7 +8,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from services.experiments.results import LEAD, TAIL_FACTS, as_number
-from services.experiments.stats import Estimate, mean_ci, wilson
+from services.experiments.stats import (
+    FEW_SEEDS,
+    Estimate,
+    bootstrap_ci,
+    proportion_ci,
+    wilson,
+)
 from services.mission.outcome import OUTCOMES, outcome_of
 
 # the columns summary.md shows for every cell (all metrics are in summary.csv)
@@ -93,8 +99,7 @@ def aggregate(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[CellSta
         goal = [r for r in ok if as_number(r.get("reached_goal")) == 1.0]
         wins = sum(1 for r in ok if as_number(r.get("success")) == 1.0)
         metrics = {
-            m: mean_ci([as_number(r.get(m)) for r in (goal if m in ON_GOAL_ONLY else ok)])
-            for m in names
+            m: estimate([r.get(m) for r in (goal if m in ON_GOAL_ONLY else ok)]) for m in names
         }
         ends = [row_outcome(r) for r in ok]
         out.append(
@@ -108,6 +113,22 @@ def aggregate(rows: list[dict[str, str]], grid: tuple[str, ...]) -> list[CellSta
             )
         )
     return out
+
+
+def estimate(cells: list[str | None]) -> Estimate:
+    """A metric's mean over a cell's runs with an interval within its bounds: Wilson's for
+    a True/False column (a proportion of runs), else the bootstrap percentile interval
+    (stats.py)."""
+    given = [c for c in cells if c not in (None, "")]
+    values = [as_number(c) for c in given]
+    if given and all(c in ("True", "False") for c in given):
+        return proportion_ci(values)
+    return bootstrap_ci(values)
+
+
+def few_seeds(cells: list[CellStats]) -> list[CellStats]:
+    """The cells whose statistics rest on fewer than FEW_SEEDS runs (of those that ran)."""
+    return [c for c in cells if c.n_runs - c.n_errors < FEW_SEEDS]
 
 
 def row_outcome(r: dict[str, str]) -> str | None:
@@ -129,6 +150,24 @@ def outcome_text(c: CellStats, outcome: str) -> str:
     return f"{c.outcomes.get(outcome, 0)}/{c.n_judged}" if c.n_judged else "–"
 
 
+def _few_seeds_warning(cells: list[CellStats], grid: tuple[str, ...]) -> list[str]:
+    """summary.md's warning (markdown lines) about cells of fewer than FEW_SEEDS runs."""
+    few = few_seeds(cells)
+    if not few:
+        return []
+    names = [", ".join(f"{g}={c.labels[g]}" for g in grid) or "all runs" for c in few]
+    counts = sorted({c.n_runs - c.n_errors for c in few})
+    shown = "; ".join(names[:6]) + (f"; and {len(names) - 6} more" if len(names) > 6 else "")
+    return [
+        f"> **Warning: {len(few)} of {len(cells)} cells rest on fewer than {FEW_SEEDS} runs** "
+        f"({' or '.join(map(str, counts))}; marked ⚠): {shown}. Their intervals are rough: "
+        "from so few seeds a bootstrap interval misses the true mean more often than 5 % of "
+        "the time, and a rate of 0 % or 100 % says little. Run more seeds (the experiment "
+        "file's `seeds`) before reading differences between them.",
+        "",
+    ]
+
+
 def write_summary(
     out: Path,
     title: str,
@@ -147,18 +186,22 @@ def write_summary(
         "Success = reached the goal without contact and never inside the safety distance "
         "rho0 (Wilson 95 % interval). The failures are counted by outcome (of the runs "
         "judged): rho0_breach = goal reached without contact but inside rho0, collision = "
-        "any contact, not_reached = no contact, goal not reached. Other columns: mean ± "
-        "half-width of the 95 % t-interval over the seeds; travel_time_s only over runs "
-        "that reached the goal.",
+        "any contact, not_reached = no contact, goal not reached. Other columns: mean "
+        "[95 % interval] over the seeds, the bootstrap percentile interval of the mean "
+        "(within the values' range: never below 0 for a quantity that cannot be; Wilson's "
+        "for a True/False column); travel_time_s only over runs that reached the goal.",
         "",
+        *_few_seeds_warning(cells, grid),
         "## Key metrics",
         "",
     ]
     head = [*grid, "runs", "errors", "success", *FAILURES, *keys]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rough = {id(c) for c in few_seeds(cells)}
     for c in cells:
+        few = " ⚠" if id(c) in rough else ""
         vals = [c.labels[g] for g in grid] + [
-            str(c.n_runs),
+            f"{c.n_runs}{few}",
             str(c.n_errors),
             success_text(c.success),
         ]

@@ -1,5 +1,7 @@
 """`tidelink foxglove`'s process: a Foxglove WebSocket server fed by the bridge, across runs
-and the routers they bring (docs/monitoring.md)."""
+and the routers they bring (docs/monitoring.md). Clients reach it through a proxy that lets
+them speak either subprotocol name, foxglove.websocket.v1 or foxglove.sdk.v1
+(subprotocol.py)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from common.config.bus import WatchTarget, client_config
 from common.runtime.processes.children import wait_for_endpoint
 from services.foxglove.bridge import FoxgloveBridge
 from services.foxglove.channels import ViewChannels
+from services.foxglove.subprotocol import LEGACY, SDK, SubprotocolProxy
 
 log = logging.getLogger("tidelink.foxglove")
 
@@ -31,19 +34,42 @@ class BridgeOptions(WatchTarget):
     port: int = 8765
 
 
-def start_server(opts: BridgeOptions, channels: ViewChannels) -> WebSocketServer:
+@dataclass(frozen=True)
+class Served:
+    """The SDK's WebSocket server of the channels (on a loopback port of its own) behind the
+    proxy clients reach on host:port, which serves both subprotocol names (subprotocol.py)."""
+
+    sdk: WebSocketServer
+    proxy: SubprotocolProxy
+
+    @property
+    def port(self) -> int:
+        """The port clients connect to."""
+        return self.proxy.port
+
+    def stop(self) -> None:
+        self.proxy.close()
+        self.sdk.stop()
+
+
+def start_server(opts: BridgeOptions, channels: ViewChannels) -> Served:
     """The WebSocket server of the channels; OSError naming the port if it cannot serve."""
     try:
-        return foxglove.start_server(
+        sdk = foxglove.start_server(
             name="tidelink",
-            host=opts.host,
-            port=opts.port,
+            host="127.0.0.1",
+            port=0,
             server_listener=channels.listener,
             context=channels.context,
         )
-    except RuntimeError as exc:  # the SDK's FoxgloveError, e.g. "Address already in use"
+    except RuntimeError as exc:  # the SDK's FoxgloveError
+        raise OSError(f"foxglove: cannot start the WebSocket server: {exc}") from None
+    try:
+        return Served(sdk, SubprotocolProxy(opts.host, opts.port, sdk.port))
+    except OSError as exc:  # e.g. "Address already in use"
+        sdk.stop()
         raise OSError(
-            f"foxglove: cannot serve on {opts.host}:{opts.port}: {exc} "
+            f"foxglove: cannot serve on {opts.host}:{opts.port}: {exc.strerror or exc} "
             "(another bridge on this port? choose one with --port)"
         ) from None
 
@@ -53,9 +79,16 @@ def serve(opts: BridgeOptions) -> None:
     (Shutdown or KeyboardInterrupt) ends it; the bus and the server close on the way out."""
     # not the global context: a recorder in the same process keeps its own channels
     channels = ViewChannels(foxglove.Context())
-    server = start_server(opts, channels)
+    served = start_server(opts, channels)
+    server = served.sdk
     try:
-        log.info("serving Foxglove on ws://%s:%d", opts.host, server.port)
+        log.info(
+            "serving Foxglove on ws://%s:%d (subprotocol %s or %s)",
+            opts.host,
+            served.port,
+            LEGACY,
+            SDK,
+        )
         while True:
             _wait_for_router(opts.connect, server, channels)
             cfg = client_config(opts.connect, opts.certs)
@@ -75,7 +108,7 @@ def serve(opts: BridgeOptions) -> None:
             log.info("the router at %s is gone", opts.connect)
     finally:
         channels.close()
-        server.stop()
+        served.stop()
 
 
 def _wait_for_router(endpoint: str, server: WebSocketServer, channels: ViewChannels) -> None:

@@ -1,6 +1,7 @@
 """`tidelink launch`: a Zenoh router and every service as its own OS process, supervised.
 
-Bring-up: the router (`tidelink router`) listens on an explicit endpoint; the launcher joins
+Bring-up: the router (`tidelink router`) listens on an explicit endpoint (by default 7447 on
+loopback, where the watchers look, when free: router.py); the launcher joins
 it as a client, records everything, and starts the local services as clients; remote ones
 join with `tidelink service`. The mission clock starts only once every service has declared
 its liveliness token. At the end (the mission's end, max_time or Ctrl-C) the services and
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from common.config.bus import DEFAULT_CONNECT, BusConfig
 from common.config.scenario import Scenario
 from common.runtime.distributed import lockstep, realtime_driver
 from common.runtime.distributed.acl import access_control, run_grants
@@ -42,7 +44,7 @@ from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_s
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
 from common.runtime.run import write_outputs
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
-from services.launcher.router import ROUTER, start_router
+from services.launcher.router import ROUTER, Listening, start_router
 
 SERVICE_MODULES = {
     "realtime": realtime_driver.SERVICE_MODULE,
@@ -77,7 +79,7 @@ class LaunchOptions:
     what to attach to the clock's side of the bus."""
 
     only: tuple[str, ...] | None = None  # services started here (None: all of them)
-    listen: tuple[str, ...] = ()  # router endpoints (default: a free loopback port)
+    listen: tuple[str, ...] = ()  # router endpoints (default: 7447 on loopback if free)
     policies: dict[str, RestartPolicy] = field(default_factory=dict)  # default: never
     plot: bool = True
     grace_s: float = 3.0  # per stop signal (SIGINT, then SIGTERM) before the next one
@@ -125,7 +127,7 @@ def launch(
     wall0 = time.monotonic()
     with stop_on_signals() as stop:
         try:
-            endpoint = start_router(
+            listening = start_router(
                 sup,
                 opts.listen,
                 timeout_s=scenario.runtime.start_timeout_s,
@@ -133,17 +135,9 @@ def launch(
                 certs=bus.certs if bus.secured else None,
                 acl=acl_file,
             )
-            shown = bus.endpoint(endpoint)
-            listening = ", ".join(bus.endpoint(e) for e in opts.listen) or shown
+            endpoint = listening.endpoint
+            _say_where(display, bus, opts.listen, listening)
             certs = f" --certs {bus.certs}" if bus.secured else ""
-            display.event(
-                f"router listening on {listening}"
-                + (" (mutual TLS, access control from the dataflow)" if bus.secured else "")
-            )
-            display.event(
-                f"watch it live from another terminal: tidelink monitor --connect {shown}"
-                f"{certs} (or tidelink foxglove; other hosts: --listen tcp/0.0.0.0:PORT)"
-            )
             remote = [n for n in names if n not in local]
             if remote:
                 where = (opts.listen[0] if opts.listen else endpoint).replace(
@@ -169,6 +163,26 @@ def launch(
 
         plot = plot_result(result, scenario, out / "run.png")
     return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot)
+
+
+def _say_where(
+    display: Display, bus: BusConfig, listen: tuple[str, ...], listening: Listening
+) -> None:
+    """Where the router listens and how to watch the run: with no flags at all when it is
+    where the watchers look by default."""
+    shown = bus.endpoint(listening.endpoint)
+    where = ", ".join(bus.endpoint(e) for e in listen) or shown
+    if listening.instead_of_default is not None:
+        where += f" ({listening.instead_of_default}, so the watchers need --connect)"
+    display.event(
+        f"router listening on {where}"
+        + (" (mutual TLS, access control from the dataflow)" if bus.secured else "")
+    )
+    certs = f" --certs {bus.certs}" if bus.secured else ""
+    connect = "" if listening.endpoint == DEFAULT_CONNECT else f" --connect {shown}"
+    watch = f"tidelink monitor{connect}{certs} (or tidelink foxglove{connect}{certs})"
+    hosts = "" if listen else "; for other hosts, launch with --listen tcp/0.0.0.0:PORT"
+    display.event(f"watch it live from another terminal: {watch}{hosts}")
 
 
 def _run(

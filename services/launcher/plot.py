@@ -1,10 +1,12 @@
-"""A PNG plot of a run: true trajectory, estimate, planned NURBS paths, obstacles and their
-tracks, start and goal; a fleet's tracks dotted in time, with its closest approach marked;
-the ocean current, if any, as light arrows at mid-run (matplotlib, Agg canvas: no display
-needed)."""
+"""A PNG plot of a run: true trajectory, estimate, the planned NURBS paths (bold: the part of
+each that was in force as the vehicle flew it; faint: each whole, as planned; each replan
+marked with its reason), obstacles and their tracks, start and goal; a fleet's tracks dotted
+in time, with its closest approach marked; the ocean current, if any, as light arrows at
+mid-run (matplotlib, Agg canvas: no display needed)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +28,7 @@ if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not with thi
 PATH_SAMPLES = 400  # points per planned path: smooth at this figure size
 TIME_MARK_S = 10.0  # a fleet's tracks are dotted this often (mission s)
 CURRENT_COLUMNS = 20  # the current's arrows: this many across the area, rows to keep them square
+LABEL_MERGE_M = 8.0  # replans of one reason this close together share a label ("current x4")
 
 
 # one colour per vehicle of a fleet (matplotlib's qualitative palette)
@@ -189,18 +192,7 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
         ax.plot(w.goal.x_m, w.goal.y_m, "*", color=colour, ms=12)
         _mark_least_clearance(ax, truth, scenario, colour, vid)
         return
-    for i, p in enumerate(paths):
-        xy = path_points(p, PATH_SAMPLES)
-        first = i == 0
-        ax.plot(
-            xy[:, 0],
-            xy[:, 1],
-            "-",
-            color="tab:green",
-            lw=2.0 if first else 0.8,
-            alpha=0.9 if first else 0.5,
-            label="planned NURBS path" if first else ("replans" if i == 1 else None),
-        )
+    _draw_plans(ax, paths, truth)
     est: list[StateEstimate] = _of_type(record, StateEstimate, vid)
     if est:
         ax.plot(
@@ -212,7 +204,7 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
             [q.y for q in truth],
             "-",
             color="tab:blue",
-            lw=1.6,
+            lw=1.2,
             label="true trajectory",
         )
     ax.plot(w.start.x_m, w.start.y_m, "o", color="black", ms=7, label="start")
@@ -221,6 +213,76 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
         Circle((w.goal.x_m, w.goal.y_m), w.goal_tolerance_m, fc="none", ec="tab:red", lw=0.8)
     )
     _mark_least_clearance(ax, truth, scenario, "tab:blue", "")
+
+
+def _draw_plans(ax: Any, paths: list[PathMsg], truth: list[TruthState]) -> None:
+    """Every plan faint over its whole length; bold, the part of each that was in force as
+    the vehicle flew it (the path it followed); where each replan took over, a tick labelled
+    with its reason's first word (one label for a run of replans of the same reason close
+    together, e.g. "current x4")."""
+    drawn = [(p, path_points(p, PATH_SAMPLES)) for p in paths]
+    for i, (_, xy) in enumerate(drawn):
+        ax.plot(
+            xy[:, 0], xy[:, 1], "-", color="tab:green", lw=0.8, alpha=0.35,
+            label="planned paths, as planned" if i == 0 else None,
+        )  # fmt: skip
+    parts = [xy for xy in flown_parts(drawn, truth) if len(xy) > 1]
+    for i, xy in enumerate(parts):
+        ax.plot(
+            xy[:, 0], xy[:, 1], "-", color="tab:green", lw=3.6, alpha=0.75,
+            label="path in force, as flown" if i == 0 else None,
+        )  # fmt: skip
+    for k, (where, text) in enumerate(replan_labels(drawn)):
+        ax.plot(*where, "|", color="darkgreen", ms=8, mew=1.5)
+        ax.annotate(
+            text, xy=where, xytext=(0, 9 if k % 2 == 0 else -15), textcoords="offset points",
+            ha="center", fontsize=7, color="darkgreen",
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7},
+        )  # fmt: skip
+
+
+def flown_parts(
+    drawn: list[tuple[PathMsg, np.ndarray]], truth: list[TruthState]
+) -> list[np.ndarray]:
+    """Of each plan (its samples, (n, 2)), the samples it was in force over: those nearest
+    the true positions from its stamp until the next plan's, first to last; (0, 2) for a plan
+    replaced before the vehicle moved on it."""
+    if not truth or not drawn:
+        return [np.empty((0, 2)) for _ in drawn]
+    t = np.array([q.stamp for q in truth])
+    pos = np.array([(q.x, q.y) for q in truth])
+    ends = [p.stamp for p, _ in drawn[1:]] + [np.inf]
+    out = []
+    for (p, xy), end in zip(drawn, ends, strict=True):
+        here = pos[(t >= p.stamp) & (t <= end)]  # to where the next took over
+        if not len(here):
+            out.append(np.empty((0, 2)))
+            continue
+        # the sample of the plan nearest each position: (positions, samples) distances
+        nearest = np.argmin(np.hypot(*(here[:, None, :] - xy[None, :, :]).transpose(2, 0, 1)), 1)
+        out.append(xy[int(nearest.min()) : int(nearest.max()) + 1])
+    return out
+
+
+def reason_word(reason: str) -> str:
+    """A replan's reason in one word: its first ("infeasible: ..." is "infeasible")."""
+    found = re.match(r"\w+", reason.strip())
+    return found.group(0) if found else "replan"
+
+
+def replan_labels(drawn: list[tuple[PathMsg, np.ndarray]]) -> list[tuple[tuple[float, float], str]]:
+    """Where each replan took over (its path's first point) and its reason's first word; a
+    replan of the same reason within LABEL_MERGE_M of the last label joins it ("current x4")."""
+    labels: list[tuple[tuple[float, float], str, int]] = []
+    for p, xy in drawn[1:]:
+        where, word = (float(xy[0, 0]), float(xy[0, 1])), reason_word(p.reason)
+        if labels:
+            (lx, ly), last, n = labels[-1]
+            if last == word and np.hypot(where[0] - lx, where[1] - ly) <= LABEL_MERGE_M:
+                labels[-1] = ((lx, ly), last, n + 1)
+                continue
+        labels.append((where, word, 1))
+    return [(where, word if n == 1 else f"{word} x{n}") for where, word, n in labels]
 
 
 def _mark_least_clearance(

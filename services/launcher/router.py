@@ -2,16 +2,33 @@
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
-from common.runtime.processes.children import connectable, free_port, how_it_ended
+from common.config.bus import DEFAULT_CONNECT
+from common.runtime.processes.children import connectable, free_port, how_it_ended, port_free
 from common.runtime.processes.signals import Interrupted
 from common.runtime.processes.supervisor import Supervisor
 
 ROUTER = "router"
 READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens
+ADDRESS_IN_USE = "Address already in use"  # in Zenoh's error when a listener cannot bind
+
+
+class PortTaken(RuntimeError):
+    """The router could not listen: its port was taken (by another launch, say)."""
+
+
+@dataclass(frozen=True)
+class Listening:
+    """Where the run's router listens: the endpoint local processes dial, and why it is not
+    the default endpoint (None when it is the default, or the one asked for)."""
+
+    endpoint: str
+    instead_of_default: str | None = None
 
 
 def start_router(
@@ -22,12 +39,37 @@ def start_router(
     cancelled: Callable[[], bool] = lambda: False,
     certs: str | None = None,
     acl: Path | None = None,
+) -> Listening:
+    """Start the router listening on `listen` and wait until it says it listens. Without
+    `listen`: on DEFAULT_CONNECT, where the watchers (monitor, foxglove, record) look by
+    default, when that port is free; else (or when another launch takes it first) on a free
+    loopback port, and Listening says why. With `certs` it listens on TLS only, as the router
+    identity, enforcing the access control in the `acl` file."""
+    go = functools.partial(
+        _start, sup, timeout_s=timeout_s, cancelled=cancelled, certs=certs, acl=acl
+    )
+    if listen:
+        return Listening(go(listen))
+    taken = f"{DEFAULT_CONNECT} is taken"
+    if port_free(DEFAULT_CONNECT):
+        try:
+            return Listening(go((DEFAULT_CONNECT,)))
+        except PortTaken:  # taken between our look and the router's bind
+            sup.forget(ROUTER)
+            taken = f"{DEFAULT_CONNECT} was taken as the router started"
+    return Listening(go((f"tcp/127.0.0.1:{free_port()}",)), instead_of_default=taken)
+
+
+def _start(
+    sup: Supervisor,
+    listen: tuple[str, ...],
+    *,
+    timeout_s: float,
+    cancelled: Callable[[], bool],
+    certs: str | None,
+    acl: Path | None,
 ) -> str:
-    """Start the router listening on `listen` (default: a free loopback port) and wait until it
-    says it listens; returns the endpoint local processes connect to. With `certs` it listens
-    on TLS only, as the router identity, enforcing the access control in the `acl` file."""
-    if not listen:
-        listen = (f"tcp/127.0.0.1:{free_port()}",)
+    """Start `tidelink router` on `listen`, wait for its ready line; the endpoint to dial."""
     args = ["-m", "services.cli", "router"]
     for ep in listen:
         args += ["--listen", ep]
@@ -49,9 +91,12 @@ def start_router(
     while READY_LINE not in child.tail(50):
         code = child.proc.poll()
         if code is not None:
+            tail = child.tail().rstrip()
+            if ADDRESS_IN_USE in tail:
+                raise PortTaken(f"{', '.join(listen)} is taken:\n{tail}")
             raise RuntimeError(
                 f"the Zenoh router {how_it_ended(code)} before listening on "
-                f"{', '.join(listen)}:\n{child.tail().rstrip()}"
+                f"{', '.join(listen)}:\n{tail}"
             )
         if cancelled():
             raise Interrupted("interrupted while the router was starting")

@@ -1,5 +1,6 @@
 """A Foxglove WebSocket client for tests, written from the protocol (subprotocol
-foxglove.sdk.v1) with the `websockets` package, independent of the SDK that serves.
+foxglove.sdk.v1, or foxglove.websocket.v1 as ws-protocol's clients offer it) with the
+`websockets` package, independent of the SDK that serves.
 
 Text frames are JSON operations (serverInfo, advertise, unadvertise, status, ...); a binary
 frame with opcode 1 is a message: u8 opcode, u32 subscription id, u64 log time (ns), payload,
@@ -19,8 +20,10 @@ from typing import Any, NamedTuple
 
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
+from websockets.typing import Subprotocol
 
 SUBPROTOCOL = "foxglove.sdk.v1"
+LEGACY_SUBPROTOCOL = "foxglove.websocket.v1"  # the protocol's first name (foxglove/ws-protocol)
 MESSAGE_DATA = 1  # binary opcode of a message
 
 
@@ -33,10 +36,17 @@ class Received(NamedTuple):
 class FoxgloveClient:
     """Connects, follows advertisements, subscribes to everything, collects messages."""
 
-    def __init__(self, url: str, *, open_timeout_s: float = 10.0) -> None:
+    def __init__(
+        self, url: str, *, open_timeout_s: float = 10.0, subprotocol: str = SUBPROTOCOL
+    ) -> None:
         self._stack = ExitStack()
         self.ws: ClientConnection = self._stack.enter_context(
-            connect(url, subprotocols=[SUBPROTOCOL], open_timeout=open_timeout_s, max_size=None)
+            connect(
+                url,
+                subprotocols=[Subprotocol(subprotocol)],
+                open_timeout=open_timeout_s,
+                max_size=None,
+            )
         )
         self.server_infos: list[dict[str, Any]] = []
         self.statuses: list[dict[str, Any]] = []

@@ -32,6 +32,23 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def port_free(endpoint: str) -> bool:
+    """Whether a tcp/ or tls/HOST:PORT endpoint could be listened on now: nothing listens on
+    its port (a bind as a listener makes it, with SO_REUSEADDR, so connections of an earlier
+    listener left in TIME_WAIT do not count). False for any other endpoint."""
+    address = tcp_address(endpoint)
+    if address is None:
+        return False
+    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(address)
+        except OSError:
+            return False
+    return True
+
+
 def how_it_ended(code: int | None) -> str:
     """'exited with code 3', 'was killed by signal 9' or 'is still running'."""
     if code is None:

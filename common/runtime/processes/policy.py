@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Literal, cast
 
+from common.config.errors import ConfigValueError
+
 RestartMode = Literal["never", "on-failure", "always"]
 MODES: tuple[RestartMode, ...] = ("never", "on-failure", "always")
 
@@ -53,18 +55,21 @@ class RestartPolicy:
 def parse_restart(text: str, default: RestartPolicy) -> tuple[str | None, RestartPolicy]:
     """Parse `[NAME=]MODE[:MAX]`: (the service it is for, or None for every service; policy).
 
-    The back-off of `default` is kept; e.g. "filter=on-failure:5", "always", "never".
+    The back-off of `default` is kept; e.g. "filter=on-failure:5", "always", "never". A bad
+    one is a ConfigValueError naming --restart (the CLI exits 2, as for a bad config).
     """
     name, sep, rest = text.rpartition("=")
     mode, _, count = rest.partition(":")
     if mode not in MODES:
-        raise ValueError(f"--restart {text!r}: mode {mode!r}, expected one of {', '.join(MODES)}")
+        raise _bad(text, f"mode {mode!r}, expected one of {', '.join(MODES)}")
     try:
         max_restarts = int(count) if count else default.max_restarts
     except ValueError:
-        raise ValueError(f"--restart {text!r}: {count!r} is not a number of restarts") from None
+        raise _bad(text, f"{count!r} is not a number of restarts") from None
+    if max_restarts < 0:
+        raise _bad(text, f"{max_restarts} restarts, expected >= 0")
     if sep and not name:
-        raise ValueError(f"--restart {text!r}: expected NAME=MODE[:MAX]")
+        raise _bad(text, "expected NAME=MODE[:MAX]")
     policy = replace(default, mode=cast(RestartMode, mode), max_restarts=max_restarts)
     return (name or None), policy
 
@@ -79,9 +84,12 @@ def policies_for(
         if name is None:
             out = dict.fromkeys(names, policy)
         elif name not in out:
-            raise ValueError(
-                f"--restart {text!r}: unknown service {name!r}; this mission has {', '.join(names)}"
-            )
+            raise _bad(text, f"unknown service {name!r}; this mission has {', '.join(names)}")
         else:
             out[name] = policy
     return out
+
+
+def _bad(text: str, problem: str) -> ConfigValueError:
+    """A --restart option that cannot be read: prints as `--restart: 'TEXT': problem`."""
+    return ConfigValueError("--restart", f"{text!r}: {problem}")

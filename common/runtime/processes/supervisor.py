@@ -150,6 +150,16 @@ class Supervisor:
         self._write_pids()
         return child
 
+    def forget(self, name: str) -> None:
+        """Stop supervising `name`, which has exited (one that never got going, such as a
+        router whose port was taken), so the name can be started again."""
+        e = self._entries[name]
+        if e.child.proc.poll() is None:
+            raise ValueError(f"{name!r} is still running")
+        e.child.close_log()
+        del self._entries[name]
+        self._write_pids()
+
     def poll(self) -> list[Event]:
         """Notice exits, schedule restarts with back-off, and start those that are due."""
         events: list[Event] = []

@@ -1,0 +1,184 @@
+"""The flags several sub-commands share, each declared once here.
+
+As zenoh-python's examples add the Zenoh flags every program shares with one helper, the
+endpoints are `-e/--connect` and `-l/--listen` wherever a command has them (the short flags
+of Zenoh's own tools); what differs between commands (one endpoint or repeatable, required
+or defaulted) is a keyword, the flag itself is not re-declared. The other shared groups:
+a scenario and its overrides, the certificates, --insecure, --no-plot, --budget, and the
+watchers' run selection.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from common.config.bus import DEFAULT_CONNECT
+
+# argparse's containers: a parser, or a group of mutually exclusive flags inside one
+Flags = argparse._ActionsContainer
+
+
+def connect_arg(
+    p: Flags,
+    *,
+    help: str,
+    default: str | list[str] | None = None,
+    required: bool = False,
+    repeat: bool = False,
+) -> None:
+    """-e/--connect ENDPOINT: a router to join (`repeat`: given any number of times)."""
+    _endpoint(p, ("-e", "--connect"), help=help, default=default, required=required, repeat=repeat)
+
+
+def listen_arg(
+    p: Flags,
+    *,
+    help: str,
+    default: str | list[str] | None = None,
+    required: bool = False,
+    repeat: bool = False,
+) -> None:
+    """-l/--listen ENDPOINT: where a router listens (`repeat`: given any number of times)."""
+    _endpoint(p, ("-l", "--listen"), help=help, default=default, required=required, repeat=repeat)
+
+
+def _endpoint(
+    p: Flags,
+    names: tuple[str, str],
+    *,
+    help: str,
+    default: str | list[str] | None,
+    required: bool,
+    repeat: bool,
+) -> None:
+    if repeat:
+        p.add_argument(
+            *names,
+            action="append",
+            default=[] if default is None else default,
+            required=required,
+            metavar="ENDPOINT",
+            help=help,
+        )
+    else:
+        p.add_argument(*names, default=default, required=required, metavar="ENDPOINT", help=help)
+
+
+def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
+    """-e/--connect, --run, --vehicle and the credentials of the tools that watch live runs
+    (monitor, foxglove, record): the run's router, and which run and vehicle to watch."""
+    connect_arg(
+        p,
+        default=DEFAULT_CONNECT,
+        help=f"the run's router (default {DEFAULT_CONNECT}, where `tidelink launch` listens "
+        "when that port is free; otherwise the launch prints its own)",
+    )
+    p.add_argument("--run", default=None, help=run_help)
+    p.add_argument("--vehicle", default=None, help=vehicle_help)
+    certs_args(p, identity="monitor")
+
+
+def watch_fields(a: argparse.Namespace) -> dict[str, Any]:
+    """What watcher_args read, as the fields of a WatchTarget (common/config/bus.py)."""
+    return {
+        "connect": a.connect,
+        "certs": a.certs,
+        "identity": a.identity,
+        "run": a.run,
+        "vehicle": a.vehicle,
+    }
+
+
+def certs_args(p: argparse.ArgumentParser, *, identity: str | None) -> None:
+    """--certs DIR (mutual TLS with the certificates `tidelink certs` made) and, for tools
+    that are not a service of the run, --identity: whose certificate to present."""
+    p.add_argument(
+        "--certs",
+        type=_certs_dir,
+        default=None,
+        metavar="DIR",
+        help="secure the bus: mutual TLS with the certificates in DIR (`tidelink certs`); "
+        "tcp/ endpoints are then served as tls/ on the same address",
+    )
+    if identity is not None:
+        p.add_argument(
+            "--identity",
+            default=identity,
+            metavar="NAME",
+            help=f"with --certs: whose certificate to present (default {identity})",
+        )
+
+
+def _certs_dir(text: str) -> str:
+    """An absolute path: child processes and other working directories see the same DIR."""
+    return str(Path(text).expanduser().resolve())
+
+
+def insecure_arg(p: argparse.ArgumentParser) -> None:
+    """--insecure: listening beyond loopback without --certs is allowed (with a warning)."""
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a --listen endpoint beyond loopback without --certs (prints a warning)",
+    )
+
+
+def scenario_args(p: argparse.ArgumentParser, *, required: bool = True) -> None:
+    """SCENARIO, --set KEY=VALUE (repeatable) and --seed N."""
+    p.add_argument(
+        "scenario",
+        type=Path,
+        nargs=None if required else "?",
+        default=None,
+        help="scenario TOML file, e.g. configs/default.toml",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key, e.g. --set network.default.loss_p=0.2 (repeatable)",
+    )
+    p.add_argument("--seed", type=int, default=None, help="override run.seed")
+
+
+def no_plot_arg(p: argparse.ArgumentParser) -> None:
+    """--no-plot: a command that runs a mission draws it into DIR/run.png unless told not to."""
+    p.add_argument("--no-plot", action="store_true", help="do not write DIR/run.png")
+
+
+def details_arg(p: argparse.ArgumentParser) -> None:
+    """--verbose: a command that runs a mission prints its short verdict unless asked for
+    every metric (the top-level -v/--verbose, before the sub-command, is debug logging)."""
+    p.add_argument(
+        "--verbose",
+        dest="all_metrics",
+        action="store_true",
+        help="print every scalar metric after the verdict (DIR/metrics.json has them all)",
+    )
+
+
+def budget_arg(p: argparse.ArgumentParser) -> None:
+    """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
+    p.add_argument(
+        "--budget",
+        type=_budget_factor,
+        default=1.0,
+        metavar="FACTOR",
+        help="allow FACTOR times every work budget a scenario is checked against (the planner "
+        "grid's memory, the record's memory, the run's wall time), e.g. 4 on a bigger machine",
+    )
+
+
+def _budget_factor(text: str) -> float:
+    try:
+        factor = float(text)
+    except ValueError:
+        factor = math.nan
+    if not (math.isfinite(factor) and factor > 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a factor > 0")
+    return factor
