@@ -77,7 +77,12 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     },
     PositionFix: {"std_xy": NONNEG},
     Detection: {"id": COUNT, "radius": NONNEG, "std_xy": NONNEG, "std_radius": NONNEG},
-    StateEstimate: {"covariance": _cov(5), "predicted_s": NONNEG, "current_std": NONNEG},
+    StateEstimate: {
+        "covariance": _cov(5),
+        "predicted_s": NONNEG,
+        "current_std": NONNEG,
+        "sway_std": NONNEG,
+    },
     Track: {"id": COUNT, "radius": NONNEG, "covariance": _cov(6)},
     VelocityCommand: {"path_id": COUNT},
     VehicleStatus: {

@@ -35,11 +35,11 @@ DEFAULT = REPO / "configs" / "default.toml"
 # over ideal local links).
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
-        "c58a4097b507d6252502f5d15a2a2151fcd5855224156327a3266a7f584696f3"
+        "aad897a15cdc20ba859a24de5f1ada3dd8f9d52b3b2e72bb32efbd7c8b745613"
     ),
     # the machine of 2026-12-01 (AVX512_SPR dispatched too): the same floats
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR")): (
-        "c58a4097b507d6252502f5d15a2a2151fcd5855224156327a3266a7f584696f3"
+        "aad897a15cdc20ba859a24de5f1ada3dd8f9d52b3b2e72bb32efbd7c8b745613"
     ),
 }
 

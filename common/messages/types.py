@@ -123,11 +123,13 @@ class StateEstimate(Message, frozen=True, kw_only=True):
     current_y: float = 0.0
     current_std: float = 0.0  # m/s: the root mean of the current's two variances
     sway: float = 0.0  # m/s: the hull's sway through the water (to port), a sideslip in turns
+    sway_std: float = 0.0  # m/s
 
     def validate(self) -> None:
         _check_cov("covariance", self.covariance, 5)
         check_range("predicted_s", self.predicted_s, 0.0)
         check_range("current_std", self.current_std, 0.0)
+        check_range("sway_std", self.sway_std, 0.0)
 
 
 class Track(WireRecord, frozen=True, kw_only=True):

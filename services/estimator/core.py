@@ -174,6 +174,9 @@ class EstimatorCore:
             prefilter=prefilter,
             resets=b.resets,
             fixes_gated=b.fixes_gated,
+            # a row of gated fixes ends with a fix fused, not with dead reckoning between them
+            gated_in_row=0 if locates else b.gated_in_row,
+            last_gated=None if locates else b.last_gated,
             located=b.located or locates,
         )
 
@@ -400,6 +403,7 @@ class EstimatorCore:
             current_y=float(x[6]),
             current_std=math.sqrt(max(0.0, 0.5 * (P[5, 5] + P[6, 6]))),
             sway=float(x[SWAY]),
+            sway_std=math.sqrt(max(0.0, P[SWAY, SWAY])),
         )
         tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]

@@ -76,6 +76,7 @@ class _Asked:
     why: str
     asked_t: float
     current: tuple[float, float] = (0.0, 0.0)  # the current it is flown in
+    pace: float = 1.0  # speed over ground per speed through the water on its way
 
 
 def _plan_over_ground(
@@ -393,6 +394,21 @@ class PlannerCore:
         factor = 1.0 + c / self.vehicle.cruise_speed_mps
         return self.vehicle.turn_radius_min_m * factor * factor
 
+    def _pace(self, here: Pose2D) -> float:
+        """Speed over ground per speed through the water for a vehicle at cruise speed heading
+        from `here` for the goal and crabbing into the believed current (PlanRequest.pace):
+        a following current brings it past a moving obstacle sooner than its speed through
+        the water says, a head current later (at least a fifth of it)."""
+        cx, cy = self.link.model.current_mps
+        if cx == 0.0 and cy == 0.0:
+            return 1.0
+        d = math.atan2(self.goal.y - here.y, self.goal.x - here.x)
+        c_t = math.cos(d) * cx + math.sin(d) * cy
+        c_n = -math.sin(d) * cx + math.cos(d) * cy
+        v = self.vehicle.cruise_speed_mps
+        across = min(abs(c_n), v)
+        return max(0.2, (math.sqrt(v * v - across * across) + c_t) / v)
+
     def _plan_config(self) -> PlannerConfig:
         """The planner's config with the clearance margin in force now."""
         margin = self.clearance_margin_m
@@ -444,6 +460,7 @@ class PlannerCore:
             r_min_m=self.ground_turn_radius_m,
             v_ref_mps=self.vehicle.cruise_speed_mps,
             fix_goal_heading=self.fix_goal_heading,
+            pace=self._pace(here),
         )
         cfg = self._plan_config()
         self._asked = _Asked(
@@ -452,6 +469,7 @@ class PlannerCore:
             why=why,
             asked_t=t,
             current=self.link.model.current_mps,
+            pace=req.pace,
         )
         flight = FlightModel(
             # a copy now: the plan may be made beside the steps, which go on using it
@@ -563,7 +581,7 @@ class PlannerCore:
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
-        self.policy.on_planned(t_plan, result, self.goal, obstacles, asked.current)
+        self.policy.on_planned(t_plan, result, self.goal, obstacles, asked.current, asked.pace)
         self.last_result = result
         self.path_id += 1
         if result.status != self.path_status:

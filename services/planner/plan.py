@@ -128,7 +128,7 @@ def fit_problem(
         moving=req.obstacles.moving,
         vehicle_radius_m=r,
         r_min_m=req.r_min_m,
-        v_ref_mps=req.v_ref_mps,
+        v_ref_mps=req.pace_mps,  # passing times along the curve
         d_req_m=r + cfg.rho0_m,  # eq. (12)-(13): centre-to-surface r + rho0 (r_k in geometry)
         escape_len_m=cfg.escape_len_m,
         start_inside=start_inside,
@@ -196,7 +196,7 @@ def _plan(
         * float(np.hypot(area.x_max_m - area.x_min_m, area.y_max_m - area.y_min_m))
         / req.v_ref_mps
     )
-    discs = predicted_discs(obs.moving, req.start, req.v_ref_mps, t_max, cfg)
+    discs = predicted_discs(obs.moving, req.start, req.pace_mps, t_max, cfg)
     clk.lap("costmap_s")
 
     rounds = 0
@@ -250,7 +250,7 @@ def _plan(
         passed = True
         # a curve met a moving obstacle at a time the grid did not predict: block each
         # obstacle around the time that curve passes it, and search again
-        discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.v_ref_mps, cfg)])
+        discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.pace_mps, cfg)])
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
     failed = _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)

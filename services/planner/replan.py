@@ -98,6 +98,7 @@ class ReplanPolicy:
         self.slow_until_m = math.inf  # a slower plan's arc length past which cruise resumes
         self.short_of_goal = False  # the path in force steps aside, short of the goal
         self.current: tuple[float, float] = (0.0, 0.0)  # the path in force was flown in it
+        self.pace = 1.0  # speed over ground per speed through the water along it
         self.last_check_t: float | None = None
         # Static obstacles do not move: their distance to each path sample is worked out once
         # per (path, static obstacle set) and sliced at every check, not recomputed at every
@@ -113,10 +114,13 @@ class ReplanPolicy:
         goal: Pose2D,
         obstacles: Obstacles,
         current: tuple[float, float] = (0.0, 0.0),
+        pace: float = 1.0,
     ) -> None:
-        """Record a replan attempt at time t (its result may be NO_PATH), flown in `current`."""
+        """Record a replan attempt at time t (its result may be NO_PATH), flown in `current`
+        at `pace` (PlanRequest.pace)."""
         self.last_replan_t = t
         self.current = current
+        self.pace = pace
         self.goal = goal
         self.s_now = 0.0
         self.last_check_t = t
@@ -267,7 +271,7 @@ class ReplanPolicy:
         if self.pts is None:
             return []
         ahead = self.pts[i_now:]
-        tau = (self.s[i_now:] - s_now) / self.v_ref
+        tau = (self.s[i_now:] - s_now) / (self.v_ref * self.pace)
         # a gap is only ever compared with rho0 and the corridor: another vehicle's route
         # farther than both from the path ahead is that far at every sample (its gap bound
         # stands for its gaps; a fleet's vehicles are mostly far from each other's paths)

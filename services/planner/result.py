@@ -48,14 +48,23 @@ class PlanRequest:
     obstacles: Obstacles = field(default_factory=Obstacles)
     vehicle_radius_m: float  # the vehicle config's radius_m
     r_min_m: float = 2.0  # minimum turning radius R_min (eq. (19)-(20))
-    v_ref_mps: float = 1.5  # cruise speed: converts arc length to passing time, eq. (13)
+    v_ref_mps: float = 1.5  # cruise speed through the water
     fix_goal_heading: bool = True  # eq. (10): also impose theta_f at the goal
+    # speed over ground per speed through the water on the way to the goal: 1 in still
+    # water; in a current, how much faster (or slower) the vehicle passes along its path
+    pace: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("vehicle_radius_m", "r_min_m", "v_ref_mps"):
+        for name in ("vehicle_radius_m", "r_min_m", "v_ref_mps", "pace"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name}: {v!r} is invalid, expected a finite value > 0")
+
+    @property
+    def pace_mps(self) -> float:
+        """The speed over ground that converts arc length to passing time, eq. (13) (m/s):
+        moving obstacles are met where they are at t = s / pace_mps."""
+        return self.v_ref_mps * self.pace
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -41,7 +41,7 @@ from services.planner.controllers.speed import stop_of
 YAW_SETTLE_TAUS = 3.0
 # a stop keeps station against a current at least this fast (m/s; a slower one is the
 # estimate's wander in still water), turning into it with this gain (1/s) on the heading error
-STATION_KEEP_MPS = 0.05
+STATION_KEEP_MPS = 0.1
 STATION_GAIN_PS = 0.5
 
 
@@ -77,6 +77,7 @@ class CommandLink:
         self._last_basis: tuple[float, Pose] | None = None  # (t, state predicted) of a sequence
         self._restarts = 0  # controller restarts: a sequence prepared before one is void
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
+        self.current_known = False
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps, start_speed_mps)
@@ -126,6 +127,8 @@ class CommandLink:
         estimate as it is (without sequences the controller compensates on its own)."""
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
         self.model = self.model.with_current(*believed_current(est))
+        # a current is worth keeping station against once it is told from the fixes' noise
+        self.current_known = math.hypot(est.current_x, est.current_y) > 2.0 * est.current_std
         t_b = basis_time(est)
         settle = YAW_SETTLE_TAUS * self.model.tau_w_s
         self.timeline.forget_before(t_b - settle)
@@ -167,7 +170,7 @@ class CommandLink:
         first ones computed now, the rest from the sequence prepared for this step if it holds
         (sequence.py)."""
         controller.current = self.model.current_mps
-        controller.sway = est.sway
+        controller.sway = _shrunk(est.sway, est.sway_std)
         if not self.entries:  # as before sequences: the controller compensates the latency
             latency = max(0.0, t - est.stamp) + self.downlink_s
             v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
@@ -247,11 +250,12 @@ class CommandLink:
         still water, zeros; in a current, station keeping (a stopped vehicle drifts with the
         current, out of its place and maybe out of the area): it turns into the current and
         makes way through the water as fast as the current flows, so it holds its ground
-        (entries rolled out on the response model, as a sequence's are)."""
+        (entries rolled out on the response model, as a sequence's are), once the estimate
+        tells the current from its fixes' noise (twice its standard deviation)."""
         n = self.entries + 1
         cx, cy = self.model.current_mps
         c = math.hypot(cx, cy)
-        if c < STATION_KEEP_MPS:
+        if c < STATION_KEEP_MPS or not self.current_known:
             zeros = [0.0] * n
             return zeros, list(zeros)
         upstream = math.atan2(-cy, -cx)
@@ -298,16 +302,27 @@ class CommandLink:
 
 
 def believed_current(est: StateEstimate) -> tuple[float, float]:
-    """The current the loop acts on (m/s): the estimate shrunk by its uncertainty, by
-    |c|^2 / (|c|^2 + std^2). A current the estimator has barely seen (its first seconds: fix
-    noise it cannot yet tell from drift, or still water's wander) is not steered against,
-    nor predicted over a whole plan's flight; one it knows well is taken as it is."""
+    """The current the loop acts on (m/s): the estimate shrunk by its uncertainty (`_shrunk`).
+    A current the estimator has barely seen (its first seconds: fix noise it cannot yet tell
+    from drift, or still water's wander) is not steered against, nor predicted over a whole
+    plan's flight; one it knows well is taken as it is."""
     cx, cy, std = est.current_x, est.current_y, est.current_std
-    c2 = cx * cx + cy * cy
-    if c2 == 0.0 or std == 0.0:
-        return cx, cy
-    k = c2 / (c2 + std * std)
+    k = _shrink(cx * cx + cy * cy, std)
     return k * cx, k * cy
+
+
+def _shrink(value2: float, std: float) -> float:
+    """The factor an estimate of squared size value2 and standard deviation std is taken at:
+    value2 / (value2 + std^2) (1 when either is 0)."""
+    if value2 == 0.0 or std == 0.0:
+        return 1.0
+    return value2 / (value2 + std * std)
+
+
+def _shrunk(value: float, std: float) -> float:
+    """A scalar estimate shrunk by its uncertainty (the hull's sway: from 10 Hz fixes alone it
+    is mostly their noise; a DVL measures it)."""
+    return value * _shrink(value * value, std)
 
 
 def basis_time(est: StateEstimate) -> float:

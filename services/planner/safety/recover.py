@@ -85,7 +85,7 @@ def turn_then_plan(
         StaticField.build(req.obstacles.circles, req.obstacles.polygons),
         req.obstacles.moving,
         req.area,
-        v_ref=req.v_ref_mps,
+        v_ref=req.pace_mps,
         accel_horizon_s=math.inf,
     )
     end = np.minimum(np.searchsorted(sw.s, radius * np.abs(turns)), len(sw.s) - 1)  # (J,)
@@ -147,7 +147,7 @@ def leave_then_plan(
         r=r,
         rho0=cfg.rho0_m,
         radius_m=ARC_RADIUS_FACTOR * req.r_min_m,
-        v_ref=req.v_ref_mps,
+        v_ref=req.pace_mps,
         accel_horizon_s=cfg.accel_horizon_s,
         max_len_m=max_len,
     )
@@ -189,7 +189,7 @@ def come_about_then_plan(req: PlanRequest, plan: Plan) -> PlanResult | None:
         StaticField.build(req.obstacles.circles, req.obstacles.polygons),
         req.obstacles.moving,
         area,
-        v_ref=req.v_ref_mps,
+        v_ref=req.pace_mps,
         accel_horizon_s=math.inf,
     )
     end = np.minimum(np.searchsorted(sw.s, lengths), len(sw.s) - 1)
@@ -243,7 +243,7 @@ def _run_inside(start: Pose2D, turn: float, radius: float, area: AreaConfig, m: 
 def _plan_after(req: PlanRequest, esc: Escape, plan: Plan) -> PlanResult:
     """The way out joined to the plan from where it ends (moving obstacles advanced by the
     time it takes at cruise speed)."""
-    dt = esc.duration_s(req.v_ref_mps)
+    dt = esc.duration_s(req.pace_mps)
     moving = tuple(o.advanced(dt) for o in req.obstacles.moving)
     rest = dataclasses.replace(
         req, start=esc.free, obstacles=dataclasses.replace(req.obstacles, moving=moving)

@@ -42,7 +42,7 @@ class FitProblem:
     moving: tuple[ObstacleState, ...]
     vehicle_radius_m: float
     r_min_m: float
-    v_ref_mps: float
+    v_ref_mps: float  # the speed over ground: passing times t = s / v_ref_mps (eq. (13))
     d_req_m: float  # required centre-to-surface clearance r + rho0 (eq. (12)-(13) with r_k)
     escape_len_m: float  # from a start inside the margin only d >= r is required this far
     start_inside: bool
