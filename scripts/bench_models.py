@@ -21,8 +21,8 @@ from pathlib import Path
 from common.config.scenario import load_scenario
 from common.config.vehicle import VehicleConfig
 from common.runtime.model.inproc import run_inproc
-from common.world.current import CurrentField
 from common.world.check import check_scenario
+from common.world.current import CurrentField
 from services.vehicle.plant import make_plant
 
 ROOT = Path(__file__).resolve().parents[1]
