@@ -17,16 +17,17 @@ from common.config.planner import PlannerConfig
 from common.config.scenario import load_scenario
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
-from common.config.world import AreaConfig, WorldConfig
+from common.config.world import AreaConfig, CircleObstacleConfig, WorldConfig
 from common.messages import NavFix, Odometry, PositionFix, StateEstimate, TruthState
 from common.runtime.model.core import Delivery
 from common.runtime.model.inproc import run_inproc
 from common.world import World
 from common.world.check import check_scenario
 from services.estimator import EstimatorCore
-from services.planner.command.link import CommandLink
+from services.planner.command.link import GIVE_WAY_FRACTION, CommandLink
 from services.planner.controllers.base import Limits
 from services.planner.controllers.nurbs_tracker import NurbsTracker
+from services.planner.safety.clearance import StaticField, current_pushes_clear
 from services.sensor.core import SensorCore
 from services.sensor.models import nav_fix, odometry
 
@@ -174,6 +175,25 @@ def test_a_stop_in_a_known_current_keeps_station_head_to_it() -> None:
         current_x=0.0, current_y=-0.2, current_std=0.15,
     )  # fmt: skip
     assert link.stop(0.0, link.predict(0.0, calm)) == ([0.0] * len(vs), [0.0] * len(vs))
+
+
+def test_a_stop_with_an_obstacle_close_upstream_lets_the_current_carry_it_clear() -> None:
+    # issue 60, ocean + faults, seed 809: station kept head to the current, the hull was held
+    # at an obstacle upstream of it, in contact for 153 s with no way out within R_min
+    link = CommandLink(PlannerConfig(), ControllerConfig(), VehicleConfig())
+    est = StateEstimate(
+        stamp=0.0, x=50.0, y=20.0, theta=math.pi / 2, v=0.4, w=0.0, covariance=(0.01,) * 25,
+        current_x=0.0, current_y=-0.4, current_std=0.01,
+    )  # fmt: skip
+    vs, _ = link.stop(0.0, link.predict(0.0, est), give_way=True)
+    assert all(v == pytest.approx(0.4 * GIVE_WAY_FRACTION, abs=0.01) for v in vs)
+    # the current runs south: an obstacle north of the vehicle is upstream, one south is not
+    static = StaticField.build((CircleObstacleConfig(id=1, x_m=50.0, y_m=24.0, radius_m=2.0),), ())
+    south = (0.0, -0.4)
+    assert current_pushes_clear(50.0, 20.0, static, (), south, keep_m=2.5)
+    assert not current_pushes_clear(50.0, 28.0, static, (), south, keep_m=2.5)
+    assert not current_pushes_clear(50.0, 15.0, static, (), south, keep_m=2.5)  # far from it
+    assert not current_pushes_clear(50.0, 20.0, static, (), (0.0, 0.4), keep_m=2.5)
 
 
 @pytest.mark.heavy

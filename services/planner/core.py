@@ -36,6 +36,7 @@ from services.planner.controllers.factory import make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
+from services.planner.safety.clearance import StaticField, current_pushes_clear
 from services.planner.safety.evade import plan_or_step_aside
 from services.planner.safety.flight import ARRIVED_M, FlightModel
 from services.planner.safety.intent import FleetIntents
@@ -154,6 +155,7 @@ class PlannerCore:
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
         self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
         self.fix_goal_heading = g.theta_rad is not None
+        self.static_field = StaticField.build(world.circles, world.polygons)
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
             p.id for p in world.polygons
         )
@@ -281,9 +283,8 @@ class PlannerCore:
         # where the vehicle is now and will be when this step's command takes effect
         pred = self.link.predict(t, s)
         if arrived:
-            return (
-                [self._command(t, pred.effect_t, self.link.stop(t, pred))] if self.commands else []
-            )
+            stop = self.link.stop(t, pred, give_way=self._gives_way(pred))
+            return [self._command(t, pred.effect_t, stop)] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -337,7 +338,17 @@ class PlannerCore:
 
     def _follow(self, t: float, s: StateEstimate, pred: Prediction) -> Commands:
         """The controller's commands on the path in force (a stop without one)."""
-        return self.link.follow(t, self.controller, self.ref, s, pred)
+        give_way = self.ref is None and self._gives_way(pred)
+        return self.link.follow(t, self.controller, self.ref, s, pred, give_way=give_way)
+
+    def _gives_way(self, pred: Prediction) -> bool:
+        """Should a stop let the current carry the vehicle back, rather than keep station at
+        an obstacle close upstream (within rho0 and the margin of its hull)?"""
+        x, y = pred.at_effect[0], pred.at_effect[1]
+        keep_m = self.vehicle.radius_m + self.cfg.rho0_m + self.clearance_margin_m
+        moving = self._obstacles(pred.effect_t).moving
+        current = self.link.model.current_mps
+        return current_pushes_clear(x, y, self.static_field, moving, current, keep_m)
 
     def _command(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         self.last_cmd_t = t

@@ -43,6 +43,9 @@ YAW_SETTLE_TAUS = 3.0
 # estimate's wander in still water), turning into it with this gain (1/s) on the heading error
 STATION_KEEP_MPS = 0.1
 STATION_GAIN_PS = 0.5
+# ... but with an obstacle close upstream it makes way at this fraction of the current only,
+# so that the current carries it back clear of the obstacle instead of holding it there
+GIVE_WAY_FRACTION = 0.5
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -236,22 +239,28 @@ class CommandLink:
         ref: ArcLengthReference | None,
         est: StateEstimate,
         pred: Prediction,
+        *,
+        give_way: bool = False,
     ) -> tuple[list[float], list[float]]:
         """The controller's commands (sequence) on `ref`, or a stop without a feasible path
-        (rather than drive into something). Every path leaves along the vehicle's heading, a
-        way out of contact included (safety/recover.py: arcs within R_min), so the controller
-        follows it from the start."""
+        (rather than drive into something; `give_way`: stop's). Every path leaves along the
+        vehicle's heading, a way out of contact included (safety/recover.py: arcs within
+        R_min), so the controller follows it from the start."""
         if ref is None:
-            return self.stop(t, pred)
+            return self.stop(t, pred, give_way=give_way)
         return self.control(t, controller, ref, est, pred)
 
-    def stop(self, t: float, pred: Prediction) -> tuple[list[float], list[float]]:
+    def stop(
+        self, t: float, pred: Prediction, *, give_way: bool = False
+    ) -> tuple[list[float], list[float]]:
         """Commands that stop the vehicle over ground and keep it there over the horizon: in
         still water, zeros; in a current, station keeping (a stopped vehicle drifts with the
         current, out of its place and maybe out of the area): it turns into the current and
         makes way through the water as fast as the current flows, so it holds its ground
         (entries rolled out on the response model, as a sequence's are), once the estimate
-        tells the current from its fixes' noise (twice its standard deviation)."""
+        tells the current from its fixes' noise (twice its standard deviation). `give_way`:
+        an obstacle lies close upstream, so it makes way at GIVE_WAY_FRACTION of the current
+        and drifts back clear of it, still heading into the current."""
         n = self.entries + 1
         cx, cy = self.model.current_mps
         c = math.hypot(cx, cy)
@@ -259,7 +268,7 @@ class CommandLink:
             zeros = [0.0] * n
             return zeros, list(zeros)
         upstream = math.atan2(-cy, -cx)
-        v_hold = min(c, self.model.v_max_mps)
+        v_hold = min(c * (GIVE_WAY_FRACTION if give_way else 1.0), self.model.v_max_mps)
         pose, vs, ws = pred.at_effect, [], []
         for _ in range(n):
             x, y, th, v, _ = pose

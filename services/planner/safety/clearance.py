@@ -98,3 +98,21 @@ def moving_distance(
     rows = np.arange(m)
     grad = diff[k, rows] / np.maximum(r[k, rows], 1e-12)[:, None]
     return d[k, rows], grad
+
+
+def current_pushes_clear(
+    x: float,
+    y: float,
+    static: StaticField,
+    moving: tuple[ObstacleState, ...],
+    current: tuple[float, float],
+    keep_m: float,
+) -> bool:
+    """Whether the current carries a vehicle at (x, y) away from the obstacle nearest it, one
+    within `keep_m` of its centre (moving obstacles as they are now): that obstacle lies
+    upstream, and station kept against the current would hold the hull at it."""
+    pts = np.array([[x, y]])
+    d, grad = static.distance(pts)
+    dm, gm = moving_distance(moving, pts, np.zeros(1), 0.0)
+    near, away = (d[0], grad[0]) if d[0] <= dm[0] else (dm[0], gm[0])
+    return bool(near < keep_m and float(away @ np.asarray(current)) > 0.0)
