@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from services.cli.sweep_commands import _regenerate_command
-from services.experiments.netreport import SweepCells, cliff
-from services.experiments.networked import NetworkOptions, network_report
-from services.experiments.schema import Axis, AxisValue
+from services.experiments.netreport import SweepCells, cliff, write_report
+from services.experiments.networked import NetworkOptions, in_world, network_report
+from services.experiments.schema import Axis, AxisValue, load_experiment
 from services.experiments.stats import wilson
 from services.experiments.summary import CellStats
 
@@ -128,3 +128,16 @@ def test_a_report_names_the_command_without_the_folder_its_runs_went_to(
     argv: list[str], expected: str
 ) -> None:
     assert _regenerate_command(argv) == expected
+
+
+def test_a_report_in_another_world_runs_there_on_its_time_limit_and_names_it(
+    tmp_path: Path,
+) -> None:
+    exp = load_experiment(Path("configs/experiments/networked/delay.toml"))
+    ocean = in_world(exp, Path("configs/ocean.toml"))
+    assert ocean.scenario == str(Path("configs/ocean.toml").resolve())
+    assert "run.max_time_s" in exp.set and "run.max_time_s" not in ocean.set
+    assert ocean.axes == exp.axes and ocean.seeds == exp.seeds
+    report = tmp_path / "REPORT.md"
+    write_report(report, [], [], runtime="inproc", command="c", world="configs/ocean.toml")
+    assert "World: configs/ocean.toml." in report.read_text()

@@ -159,7 +159,11 @@ def cmd_network_report(a: argparse.Namespace) -> int:
 
     res = network_report(
         NetworkOptions(
-            **_report_options(a), sweeps=a.sweeps, seeds=a.seeds, cost_steps=a.cost_steps
+            **_report_options(a),
+            sweeps=a.sweeps,
+            seeds=a.seeds,
+            cost_steps=a.cost_steps,
+            scenario=a.scenario,
         )
     )
     print(f"network-report: {res.runs} runs ({res.errors} failed); report {res.report}")
@@ -239,6 +243,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=_seeds,
         default=None,
         help="seeds per cell (default: the experiment files', 20)",
+    )
+    n.add_argument(
+        "--scenario",
+        type=Path,
+        default=None,
+        help="run every sweep in this world instead (e.g. configs/ocean.toml, with its own "
+        "time limit; default: the files' calm default.toml); give --out and --report-dir too",
     )
     _common(n, runtime="inproc")
     n.add_argument(

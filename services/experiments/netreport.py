@@ -234,7 +234,13 @@ interval of 19/20 is 76–99 %)."""
 
 
 def write_report(
-    path: Path, sweeps: list[SweepCells], cost: list[CostRow], *, runtime: str, command: str
+    path: Path,
+    sweeps: list[SweepCells],
+    cost: list[CostRow],
+    *,
+    runtime: str,
+    command: str,
+    world: str = "the calm default.toml",
 ) -> None:
     """REPORT.md: how to regenerate it, what is compared, the goals, the cliffs, each sweep."""
     by_name = {s.name: s for s in sweeps}
@@ -244,6 +250,8 @@ def write_report(
         "",
         f"Regenerate with `{command or 'tidelink network-report'}` ({runs} runs, {runtime}, "
         f"{errors} failed to run; the runs resume from the output folder).",
+        "",
+        f"World: {world}.",
         "",
         INTRO,
         "",
