@@ -210,8 +210,8 @@ def _cost_section(cost: list[CostRow]) -> list[str]:
 
 
 INTRO = """\
-What is compared, on the default mission (`configs/default.toml`, the paper's field),
-inproc, every controller on equal terms:
+What is compared, on the default mission's field in the world above (the calm
+`configs/default.toml` is the paper's), inproc, every controller on equal terms:
 
 - **sequences on** (`controller.sequence.horizon_s = 10`, the default): packet-based
   predictive control. Each command carries the controller's commands for now and every
@@ -240,7 +240,7 @@ def write_report(
     *,
     runtime: str,
     command: str,
-    world: str = "the calm default.toml",
+    world: str = "configs/default.toml (calm water)",
 ) -> None:
     """REPORT.md: how to regenerate it, what is compared, the goals, the cliffs, each sweep."""
     by_name = {s.name: s for s in sweeps}

@@ -133,7 +133,7 @@ def network_report(opts: NetworkOptions) -> NetworkResult:
     cost: list[CostRow] = cost_table(opts.cost_steps, opts.cost_horizons)
     opts.report_dir.mkdir(parents=True, exist_ok=True)
     path = opts.report_dir / "REPORT.md"
-    world = "the calm default.toml" if opts.scenario is None else str(opts.scenario)
+    world = "configs/default.toml (calm water)" if opts.scenario is None else str(opts.scenario)
     write_report(path, sweeps, cost, runtime=opts.runtime, command=opts.command, world=world)
     return NetworkResult(
         report=path, runs=sum(s.runs for s in sweeps), errors=sum(s.errors for s in sweeps)
