@@ -15,10 +15,10 @@ from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import TruthState
 from common.runtime.model.record import Record
 from common.world.check import check_scenario
-from services.cli.core_commands import mission_failure
 from services.launcher.plot import run_figure
 from services.mission.fleet_metrics import closest_approach, fleet_metrics
 from services.mission.outcome import describe
+from services.mission.verdict import mission_failure
 
 SPEED, DT = 1.5, 0.05  # m/s along x; the vehicles' truth period (s)
 HULLS = 1.6  # two default hulls of radius 0.8 m: centre distance = hull-to-hull gap + HULLS

@@ -15,9 +15,9 @@ from common.config.scenario import Scenario, load_scenario
 from common.messages import LinkStats, ObstacleTracks, Track, TruthState
 from common.runtime.model.record import Record
 from common.world import World
-from services.cli.core_commands import mission_failure
 from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_metrics
 from services.mission.outcome import OUTCOMES, classify, describe, outcome_of
+from services.mission.verdict import mission_failure
 from services.planner.core import PLANS_DECLINED
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"

@@ -15,9 +15,10 @@ import pytest
 
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
-from services.cli.core_commands import EXIT_MISSION_FAILED, mission_failure
+from services.cli.core_commands import EXIT_MISSION_FAILED
 from services.experiments.grid import RunSpec
 from services.experiments.worker import execute_run, row_of
+from services.mission.verdict import fell_behind, mission_failure
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "configs" / "default.toml"
@@ -187,7 +188,7 @@ def test_an_8_s_planner_outage_is_bridged_by_the_command_sequence() -> None:
 def test_a_realtime_run_whose_services_fell_behind_says_so_beside_its_outcome(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from services.cli.core_commands import fell_behind, report_outcome
+    from services.cli.core_commands import report_outcome
 
     late = {"a.estimator": 11.5, "b.vehicle": 3.0, "a.sensor": 0.0}
     m = {"runtime": "realtime", "unresponsive_s": late, "outcome": "success", "success": True}

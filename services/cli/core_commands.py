@@ -120,59 +120,19 @@ def cmd_run(a: argparse.Namespace) -> int:
     return report_outcome(metrics, json_output=a.json)
 
 
-def mission_failure(metrics: dict[str, Any]) -> str | None:
-    """Why a run that ended is no success ("mission failed: " and its outcome in words), or
-    None: it succeeded, it was interrupted (not a judgment), or its mission does not judge
-    success (no `outcome` or `success`)."""
-    verdict = _verdict(metrics)
-    if verdict is None or verdict[0]:
-        return None
-    return "mission failed: " + verdict[1]
-
-
-def _verdict(metrics: dict[str, Any]) -> tuple[bool, str] | None:
-    """(succeeded, the outcome in words) of a run its mission judged; None if it does not
-    judge or the run was interrupted."""
-    from services.mission.outcome import describe, outcome_of
-
-    outcome = outcome_of(metrics)
-    if outcome is None or metrics.get("end_reason") == "interrupted":
-        return None
-    return outcome == "success", describe(metrics)
-
-
-# several services silent this long in all: the run's timing was not the scenario's
-BEHIND_S = 2.0
-
-
-def fell_behind(metrics: dict[str, Any]) -> str | None:
-    """Why a realtime run's outcome may say little of its method: several services fell
-    silent (unresponsive_s) for seconds, which is the machine not keeping up with the clock
-    or the launcher cut off from them; one frozen service is the alarms' business."""
-    silent = {k: float(v) for k, v in (metrics.get("unresponsive_s") or {}).items() if v}
-    total = sum(silent.values())
-    if metrics.get("runtime") != "realtime" or len(silent) < 2 or total < BEHIND_S:
-        return None
-    worst = max(silent, key=lambda k: silent[k])
-    return (
-        f"{len(silent)} services fell silent for {total:.1f} s of mission time in all "
-        f"(the most: {worst}, {silent[worst]:.1f} s): this machine did not keep up with the "
-        "run's time scale, or the network to them was out; the outcome is that of a late "
-        "loop. A lower --time-scale, or the services spread over more hosts, keeps its timing."
-    )
-
-
 def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
     """Say the run's outcome in words (a failure in the summary on stdout, on stderr when
     stdout is JSON; a success in the summary only) and return the exit code:
     EXIT_MISSION_FAILED for a failure, else 0."""
+    from services.mission.verdict import fell_behind, verdict
+
     behind = fell_behind(metrics)
     if behind is not None:
         print(f"tidelink: note: {behind}", file=sys.stderr, flush=True)
-    verdict = _verdict(metrics)
-    if verdict is None:
+    judged = verdict(metrics)
+    if judged is None:
         return 0
-    succeeded, words = verdict
+    succeeded, words = judged
     if succeeded:
         if not json_output:
             print(f"mission succeeded: {words}", flush=True)
