@@ -352,6 +352,9 @@ def main() -> None:
 
 def bench_monitors(a: argparse.Namespace) -> None:
     """Every case, interleaved over the rounds; prints the two tables."""
+    from tests.helpers.testloop import register  # a fixture of tests/, not a built-in mission
+
+    register(os.environ)  # for this process and the service processes it starts
     cases = CASES
     loop_toml = loop_scenario(a.loop_s, Path(tempfile.mkdtemp(prefix="tidelink-bench-")))
     default = ROOT / "configs" / "default.toml"

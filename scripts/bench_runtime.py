@@ -365,13 +365,17 @@ def print_secured(sec: Secured) -> None:
 def _find_the_test_loop() -> None:
     """The tick floor and the realtime loop run the runtime self-test loop, a fixture of
     tests/ (tests.helpers.testloop): run directly, not by scripts/bench, this process and
-    the service processes it starts must import it from the repository's root too."""
+    the service processes it starts must import it from the repository's root too; and all
+    of them must know it as a mission (TIDELINK_MISSIONS, as tests/conftest.py sets it)."""
     root = str(Path(__file__).resolve().parents[1])
     if root not in sys.path:
         sys.path.insert(0, root)
     paths = os.environ.get("PYTHONPATH", "").split(os.pathsep)
     if root not in paths:
         os.environ["PYTHONPATH"] = os.pathsep.join([root, *filter(None, paths)])
+    from tests.helpers.testloop import register
+
+    register(os.environ)
 
 
 def main() -> None:

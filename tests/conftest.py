@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from helpers import testloop
 from helpers.runs import CACHE_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,8 +78,13 @@ def other_certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """The session's cache of inproc reference runs (helpers/runs.py), made by the controlling
-    process before pytest-xdist starts its workers, which inherit the variable."""
+    """The session's test mission, `testloop`, registered in the environment
+    (TIDELINK_MISSIONS, common/config/missions.py), so every process the tests start knows it
+    too; and the session's cache of inproc reference runs (helpers/runs.py), made by the
+    controlling process before pytest-xdist starts its workers, which inherit both variables."""
+    session = pytest.MonkeyPatch()
+    session.setenv(*testloop.missions_env(os.environ))
+    config.add_cleanup(session.undo)
     if not hasattr(config, "workerinput") and CACHE_ENV not in os.environ:
         os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="tidelink-test-runs-")
         config.add_cleanup(lambda: shutil.rmtree(os.environ.pop(CACHE_ENV), ignore_errors=True))

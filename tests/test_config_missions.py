@@ -11,7 +11,14 @@ from pathlib import Path
 import pytest
 
 from common.config.errors import ConfigError, ConfigValueError
-from common.config.missions import GROUP, registered_missions, resolve_mission
+from common.config.missions import (
+    MISSIONS,
+    MISSIONS_ENV,
+    add_mission,
+    parse_missions,
+    registered_missions,
+    resolve_mission,
+)
 from common.config.run import RunConfig
 from common.config.scenario import Scenario
 from common.runtime.model import mission as mission_module
@@ -31,20 +38,42 @@ class Boom:
 """
 
 
-def _pyproject_missions() -> dict[str, str]:
-    data = tomllib.loads((REPO / "pyproject.toml").read_text())
-    table: dict[str, str] = data["project"]["entry-points"][GROUP]
-    return table
-
-
-def test_the_registry_holds_the_missions_pyproject_declares() -> None:
-    declared = _pyproject_missions()
-    assert declared == {
+def test_the_registry_holds_the_built_in_mission_and_the_one_the_tests_register() -> None:
+    registry = registered_missions()
+    assert registry == {
         "auv": "services.mission:AuvMission",
         "testloop": "tests.helpers.testloop:TestLoop",
     }
-    registry = registered_missions()
-    assert {k: registry[k] for k in declared} == declared
+    assert dict(MISSIONS) == {"auv": "services.mission:AuvMission"}
+
+
+def test_pyproject_registers_no_mission_and_a_bare_environment_knows_only_the_built_in(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a built wheel holds no tests/: nothing in its metadata may name them
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    assert "entry-points" not in project
+    monkeypatch.delenv(MISSIONS_ENV)
+    assert registered_missions() == {"auv": "services.mission:AuvMission"}
+    with pytest.raises(ConfigValueError, match=r"'testloop' is not a registered mission"):
+        RunConfig(mission="testloop")
+
+
+def test_the_environment_adds_missions_by_name_and_keeps_those_it_had() -> None:
+    value = add_mission("a=pkg.a:A", "b", "pkg.b:B")
+    assert value == "a=pkg.a:A,b=pkg.b:B"
+    assert parse_missions(value) == {"a": "pkg.a:A", "b": "pkg.b:B"}
+    assert parse_missions(" a = pkg.a:A , ") == {"a": "pkg.a:A"}
+    assert parse_missions("") == {}
+
+
+@pytest.mark.parametrize("value", ["pkg.a:A", "a=pkg.a", "=pkg.a:A", "auv=pkg.a:A"])
+def test_a_malformed_environment_entry_says_which_and_what_is_expected(
+    monkeypatch: pytest.MonkeyPatch, value: str
+) -> None:
+    monkeypatch.setenv(MISSIONS_ENV, value)
+    with pytest.raises(ConfigError, match=rf"^{MISSIONS_ENV}: '{value}' is no mission entry"):
+        registered_missions()
 
 
 def test_the_default_mission_is_the_auv_by_its_registered_name() -> None:

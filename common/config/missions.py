@@ -1,50 +1,59 @@
-"""The mission registry: the names `[run] mission` may take (entry points tidelink.missions).
+"""The mission registry: the names `[run] mission` may take, a plain mapping to import targets.
 
-A scenario names a mission; it never names code. The registry maps each name to an import
-target ("module:Class") declared by an installed distribution in its entry points, e.g. in
-pyproject.toml:
+A scenario names a mission; it never names code. MISSIONS maps each built-in name to an
+import target ("module:Class"); the environment variable TIDELINK_MISSIONS adds more, as
+comma-separated `name=module:Class` entries, e.g.
 
-    [project.entry-points."tidelink.missions"]
-    auv = "services.mission:AuvMission"
+    TIDELINK_MISSIONS=testloop=tests.helpers.testloop:TestLoop
+
+An environment variable reaches every process a run starts (services, routers, launched
+hosts) and needs no packaging metadata, so it works alike from a checkout and a built wheel;
+the tests register their self-test loop this way (tests/conftest.py).
 
 Looking a name up imports nothing: only `common.runtime.model.mission.load_mission` imports
 a target, and only a registered one. The older spelling of a value, the target itself
 ("services.mission:AuvMission"), is accepted when it is exactly a registered target.
-
-Where tidelink runs from a source checkout (an editable install, or PYTHONPATH=.), the
-checkout's own pyproject.toml table is read instead of the installed metadata of tidelink:
-an editable install's entry points are only as new as its last `pip install -e`, the
-checkout's table is the one that matches the code that runs.
 """
 
 from __future__ import annotations
 
-import tomllib
-from functools import lru_cache
-from importlib.metadata import entry_points
-from pathlib import Path
+import os
+from collections.abc import Mapping
+from types import MappingProxyType
 
-GROUP = "tidelink.missions"
-DISTRIBUTION = "tidelink"
-# the checkout this module belongs to: <root>/common/config/missions.py -> <root>/pyproject.toml
-_CHECKOUT_PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
+from common.config.errors import ConfigError
+
+MISSIONS: Mapping[str, str] = MappingProxyType({"auv": "services.mission:AuvMission"})
+MISSIONS_ENV = "TIDELINK_MISSIONS"
 
 
-@lru_cache(maxsize=1)
 def registered_missions() -> dict[str, str]:
-    """Every registered mission: name -> import target "module:Class", sorted by name.
+    """Every registered mission: name -> import target "module:Class", sorted by name."""
+    added = parse_missions(os.environ.get(MISSIONS_ENV, ""))
+    return dict(sorted({**added, **MISSIONS}.items()))
 
-    Cached for the life of the process: entry points do not change while it runs.
-    """
-    checkout = _checkout_missions(_CHECKOUT_PYPROJECT)
+
+def parse_missions(text: str) -> dict[str, str]:
+    """The missions a TIDELINK_MISSIONS value adds: "a=m:C, b=n:D" -> {"a": "m:C", "b": "n:D"}."""
     found: dict[str, str] = {}
-    for ep in entry_points(group=GROUP):
-        dist = getattr(ep, "dist", None)
-        if checkout is not None and dist is not None and dist.name == DISTRIBUTION:
-            continue  # this checkout's table below is newer than its installed metadata
-        found[ep.name] = ep.value
-    found.update(checkout or {})
-    return dict(sorted(found.items()))
+    for entry in filter(None, (e.strip() for e in text.split(","))):
+        name, _, target = (part.strip() for part in entry.partition("="))
+        module, _, attr = target.partition(":")
+        if not (name and module and attr) or name in MISSIONS:
+            raise ConfigError(
+                "",
+                MISSIONS_ENV,
+                f"{entry!r} is no mission entry, expected name=module:Class with a name other "
+                f"than the built-in {', '.join(MISSIONS)}",
+            )
+        found[name] = target
+    return found
+
+
+def add_mission(value: str, name: str, target: str) -> str:
+    """The TIDELINK_MISSIONS value that adds `name=target` to what `value` adds."""
+    added = parse_missions(value) | {name: target}
+    return ",".join(f"{n}={t}" for n, t in added.items())
 
 
 def resolve_mission(text: str) -> tuple[str, str] | None:
@@ -61,23 +70,9 @@ def resolve_mission(text: str) -> tuple[str, str] | None:
 
 def unknown_mission(text: str) -> str:
     """The problem with a value that names no registered mission, listing the registered."""
-    listed = ", ".join(f"{n!r} ({t})" for n, t in registered_missions().items()) or "none"
+    listed = ", ".join(f"{n!r} ({t})" for n, t in registered_missions().items())
     return (
         f"{text!r} is not a registered mission, expected one of {listed}; a mission is "
-        f'registered as an entry point in group "{GROUP}" (pyproject.toml), never imported '
-        "from a path in the scenario"
+        f"built in (common/config/missions.py) or added by the environment variable "
+        f"{MISSIONS_ENV}=name=module:Class, never imported from a path in the scenario"
     )
-
-
-def _checkout_missions(pyproject: Path) -> dict[str, str] | None:
-    """The mission table of tidelink's pyproject.toml at `pyproject`, or None if there is none
-    (an installed, non-editable tidelink: its metadata is then the only source)."""
-    try:
-        data = tomllib.loads(pyproject.read_text())
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    project = data.get("project", {})
-    if project.get("name") != DISTRIBUTION:
-        return None
-    table = project.get("entry-points", {}).get(GROUP, {})
-    return {str(k): str(v) for k, v in table.items()}

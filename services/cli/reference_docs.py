@@ -38,11 +38,11 @@ Network links are named `source/stream->receiver`; a `[[network.links]]` entry m
 exact link, `source/stream->*` or `*->receiver` and replaces the default profile for it. In a
 fleet, see [fleets.md](fleets.md) for how link names select vehicles.
 
-`run.mission` names a registered mission, never code: `"auv"` (the AUV mission, the default)
-or `"testloop"` (the runtime self-test loop), or any name another installed package registers
-as an entry point in group `tidelink.missions`. Their registered targets (the older spelling
-`"services.mission:AuvMission"`) are accepted too; any other value is a config error listing
-the registered missions, and nothing is imported.
+`run.mission` names a registered mission, never code: `"auv"` (the AUV mission, the default),
+or a name the environment variable `TIDELINK_MISSIONS=name=module:Class[,...]` adds (the tests
+add `testloop=tests.helpers.testloop:TestLoop`, the runtime self-test loop). Their registered
+targets (the older spelling `"services.mission:AuvMission"`) are accepted too; any other value
+is a config error listing the registered missions, and nothing is imported.
 
 ## Ocean current
 

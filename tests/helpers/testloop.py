@@ -2,14 +2,16 @@
 
 It exercises the runtimes end to end without the AUV services: a noisy sensor samples the
 plant, a filter smooths it, a proportional controller drives the plant to a set-point, the
-plant integrates the command. Select it with `[run] mission = "testloop"` (registered in
-pyproject.toml; the older spelling "tests.helpers.testloop:TestLoop" names it too) and set its
-parameters (TestLoopParams) in the scenario's `[run.mission_params]` table.
+plant integrates the command. Select it with `[run] mission = "testloop"` (registered for
+the session by tests/conftest.py, with `missions_env`; the older spelling
+"tests.helpers.testloop:TestLoop" names it too) and set its parameters (TestLoopParams) in the
+scenario's `[run.mission_params]` table.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +19,7 @@ import numpy as np
 
 from common.config.errors import ConfigValueError
 from common.config.loader import build
+from common.config.missions import MISSIONS_ENV, add_mission
 from common.config.scenario import Scenario
 from common.messages import NavFix, StateEstimate, TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery, Emit, QueuePolicy, ServiceCore
@@ -24,6 +27,21 @@ from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, 
 from common.runtime.model.record import Record, trajectory_sha256
 
 _COV = tuple(0.0 for _ in range(25))
+
+# the mission's registered name and import target (common/config/missions.py)
+NAME, TARGET = "testloop", "tests.helpers.testloop:TestLoop"
+
+
+def missions_env(environ: Mapping[str, str]) -> tuple[str, str]:
+    """(variable, value) of the environment that registers the loop as mission NAME beside
+    what `environ` registers: set it, and this process and those it starts know the mission."""
+    return MISSIONS_ENV, add_mission(environ.get(MISSIONS_ENV, ""), NAME, TARGET)
+
+
+def register(environ: MutableMapping[str, str]) -> None:
+    """Register the loop as mission NAME in `environ` (scripts/bench_*.py: `os.environ`)."""
+    variable, value = missions_env(environ)
+    environ[variable] = value
 
 
 class Plant:

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from importlib.metadata import EntryPoint
+import importlib
 from typing import Any, Protocol
 
 from common.config.errors import ConfigError
-from common.config.missions import GROUP, resolve_mission, unknown_mission
+from common.config.missions import resolve_mission, unknown_mission
 from common.config.scenario import Scenario
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.model.record import Record
@@ -62,7 +62,8 @@ def load_mission(scenario: Scenario) -> Mission:
         raise ConfigError("", ("run", "mission"), unknown_mission(scenario.run.mission))
     name, target = found
     try:
-        cls = EntryPoint(name=name, value=target, group=GROUP).load()
+        module, _, attr = target.partition(":")
+        cls = getattr(importlib.import_module(module), attr)
     except (ImportError, AttributeError) as exc:
         raise ValueError(
             f"run.mission: the registered mission {name!r} ({target}) cannot be loaded: {exc}"
