@@ -185,7 +185,7 @@ class FoxgloveView:
         ]
         if self._has_moving:
             out.append(_replace_all(SCENE_MOVING, t, draw.moving(self.world.obstacles_at(t), t)))
-        out += _errors(self._scorer.truth(t, m.x, m.y, m.theta))
+        out += _errors(self._scorer.truth(m))
         return out + _trail(TRAIL_TRUE, self._trail_true, t, m.x, m.y, m.theta)
 
     def _estimate(self, service: str, m: StateEstimate) -> list[ViewMessage]:
@@ -203,7 +203,7 @@ class FoxgloveView:
             _replace_all(SCENE_ESTIMATE, t, [draw.estimate(m)]),
             _json(series.ESTIMATE, values),
         ]
-        out += _errors(self._scorer.estimate(t, m.x, m.y, m.theta))
+        out += _errors(self._scorer.estimate(m))
         return out + _trail(TRAIL_EST, self._trail_est, t, m.x, m.y, m.theta)
 
     def _nav(self, service: str, m: NavFix) -> list[ViewMessage]:

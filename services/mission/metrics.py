@@ -9,6 +9,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
+from common.estimate_error import estimate_errors
 from common.messages import (
     LinkStats,
     ObstacleTracks,
@@ -281,41 +282,23 @@ def _path_metrics(
 
 
 def _estimation_metrics(record: Record, estimator: str, truth: list[TruthState]) -> dict[str, Any]:
-    """Estimate against truth at each estimate's stamp (truth interpolated): position error,
-    heading error, the current's error, and the filter's consistency, NEES of (x, y, theta)
-    against its own covariance (3 dof: the chi-square 95 % band is NEES_BAND)."""
-    t = np.array([q.stamp for q in truth])
+    """Estimate against truth at each estimate's stamp (common/estimate_error.py, which the
+    monitor and Foxglove share): position error, heading error, the current's error, and the
+    filter's consistency, NEES of (x, y, theta) against its own covariance (3 dof: the
+    chi-square 95 % band is NEES_BAND)."""
     est: list[StateEstimate] = _typed(record, estimator, "state", StateEstimate)
-    est = [e for e in est if t[0] <= e.stamp <= t[-1]]
-    if not est:
+    errors = estimate_errors(est, truth)
+    if not errors.scored:
         return {}
-    et = np.array([e.stamp for e in est])
-
-    def at(values: list[float]) -> np.ndarray:
-        return np.interp(et, t, np.asarray(values))
-
-    theta = np.unwrap([q.theta for q in truth])
-    err = np.column_stack(
-        [
-            np.array([e.x for e in est]) - at([q.x for q in truth]),
-            np.array([e.y for e in est]) - at([q.y for q in truth]),
-            np.remainder(np.array([e.theta for e in est]) - at(list(theta)) + np.pi, 2 * np.pi)
-            - np.pi,
-        ]
-    )
-    pos = np.hypot(err[:, 0], err[:, 1])
-    cov = np.array([np.asarray(e.covariance).reshape(5, 5)[:3, :3] for e in est])
-    nees = np.full(len(est), np.nan)
-    for i in range(len(est)):
+    err, pos, dc = errors.error, errors.position_m, errors.current_mps
+    cov = np.array([np.asarray(e.covariance).reshape(5, 5)[:3, :3] for e in errors.scored])
+    nees = np.full(len(errors.scored), np.nan)
+    for i in range(len(nees)):
         try:
             nees[i] = float(err[i] @ np.linalg.solve(cov[i], err[i]))
         except np.linalg.LinAlgError:  # a degenerate covariance says nothing of consistency
             continue
     ok = np.isfinite(nees)
-    dc = np.hypot(
-        np.array([e.current_x for e in est]) - at([q.current_x for q in truth]),
-        np.array([e.current_y for e in est]) - at([q.current_y for q in truth]),
-    )
     return {
         "estimation_rms_m": float(np.sqrt(np.mean(pos**2))),
         "estimation_max_m": float(pos.max()),

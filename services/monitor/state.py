@@ -12,6 +12,7 @@ from common.bus.keys import CLOCK, END
 from common.bus.watcher import END_GRACE_S
 from common.config.scenario import Scenario
 from common.config.world import WorldConfig
+from common.estimate_error import estimate_errors
 from common.messages import (
     LinkStats,
     Message,
@@ -25,6 +26,9 @@ from common.messages import (
 from common.runtime.model.dataflow import vehicle_of
 
 TRUTH_KEEP = 256  # truth samples kept to match estimates by stamp (~25 s at 10 Hz)
+# truth and estimate run at their own periods: an estimate this far outside the truth kept is
+# scored against its nearest end (provisionally: a later truth sample scores it again)
+HOLD_S = 0.2
 
 
 @dataclass
@@ -126,13 +130,12 @@ class VehicleView:
         self._match_estimate(msg)
 
     def _match_estimate(self, est: StateEstimate) -> None:
-        """An estimate's position error against the truth sample nearest its stamp."""
-        if not self._truths:
-            return
-        near = min(self._truths, key=lambda t: abs(t.stamp - est.stamp))
-        # truth and estimate run at their own periods: only compare samples close in time
-        if abs(near.stamp - est.stamp) <= 0.2:
-            self.est_error_m = math.hypot(near.x - est.x, near.y - est.y)
+        """An estimate's position error against the truth at its stamp, by the rule metrics.json
+        and Foxglove share (common/estimate_error.py); ahead of the truth by up to HOLD_S, against
+        the latest truth until the next sample comes (each truth sample scores it again)."""
+        errors = estimate_errors([est], self._truths, hold_s=HOLD_S)
+        if errors.scored:
+            self.est_error_m = float(errors.position_m[0])
 
     def _see_status(self, msg: VehicleStatus) -> list[Happening]:
         old = self.status
