@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from common.config.scenario import Scenario
 from common.jsonsafe import json_safe
+from common.link_table import LinkTable
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
@@ -101,32 +102,35 @@ def loop_times(record: Record) -> dict[str, dict[str, int]]:
     return out
 
 
-def link_stats(record: Record) -> dict[str, dict[str, Any]]:
+def link_stats(record: Record) -> dict[str, dict[str, int | float]]:
     """The last LinkStats of every service, by link name: the sender's counters and modelled
     delays, and the delays the receiver measured (`measured_*`)."""
-    out: dict[str, dict[str, Any]] = {}
+    table = LinkTable()
     for _service, last in last_stats(record):
-        for c in last.links:
-            out.setdefault(c.link, {}).update(
+        table.see(last)
+    out: dict[str, dict[str, int | float]] = {}
+    for row in table.rows():
+        columns: dict[str, int | float] = {}
+        out[row.link] = columns
+        if (c := row.counters) is not None:
+            columns.update(
                 c.counts(),
                 bytes_sent=c.bytes_sent,
                 bytes_per_message=round(c.bytes_sent / c.sent, 1) if c.sent else 0.0,
             )
-        for d in last.measured:
-            out.setdefault(d.link, {}).update(
-                {
-                    "measured_delay_p50_s": d.delay_p50,
-                    "measured_delay_p95_s": d.delay_p95,
-                    "measured_delay_max_s": d.delay_max,
-                }
+        if (d := row.measured) is not None:
+            columns.update(
+                measured_delay_p50_s=d.delay_p50,
+                measured_delay_p95_s=d.delay_p95,
+                measured_delay_max_s=d.delay_max,
             )
     return out
 
 
-def stream_bytes(links: dict[str, dict[str, Any]]) -> dict[str, float]:
+def stream_bytes(links: dict[str, dict[str, int | float]]) -> dict[str, float]:
     """Mean encoded bytes per message of every stream ('source/stream'), from its links
     (each receiver's link sees the same messages: the busiest one counts)."""
-    out: dict[str, tuple[int, int]] = {}
+    out: dict[str, tuple[int | float, int | float]] = {}  # stream -> (sent, bytes_sent)
     for name, c in links.items():
         stream = name.split("->", 1)[0]
         if "sent" in c and c["sent"] > out.get(stream, (0, 0))[0]:

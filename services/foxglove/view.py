@@ -31,6 +31,7 @@ from foxglove.messages import (
 )
 
 from common.config.scenario import Scenario
+from common.link_table import LinkRow, LinkTable, dropped
 from common.messages import (
     LinkStats,
     Message,
@@ -121,7 +122,7 @@ class FoxgloveView:
         self._replans: deque[tuple[int, np.ndarray]] = deque(maxlen=MAX_REPLANS)
         self._n_paths = 0
         self._paths_seen: set[int] = set()
-        self._links: dict[str, dict[str, Any]] = {}  # link name -> table row
+        self._links = LinkTable()
         self._mode: str | None = None
         self._path_status: str | None = None
         self._n_detections = 0
@@ -296,21 +297,8 @@ class FoxgloveView:
 
     # -- the network and the run -------------------------------------------------------------
     def _link_stats(self, service: str, m: LinkStats) -> list[ViewMessage]:
-        # one row per link, filled by its sender's counters and its receiver's measurements
-        for c in m.links:
-            drops = c.dropped_loss + c.dropped_outage + c.dropped_queue
-            self._links.setdefault(c.link, {"link": c.link}).update(
-                c.counts(), loss_fraction=drops / c.sent if c.sent else 0.0
-            )
-        for d in m.measured:
-            self._links.setdefault(d.link, {"link": d.link}).update(
-                {
-                    "measured_p50_s": d.delay_p50,
-                    "measured_p95_s": d.delay_p95,
-                    "measured_max_s": d.delay_max,
-                }
-            )
-        rows = [self._links[k] for k in sorted(self._links)]
+        self._links.see(m)
+        rows = [_link_columns(row) for row in self._links.rows()]
         return [_json(series.LINKS, {"t": m.stamp, "links": rows})]
 
     def _run_end(self, service: str, m: RunEnd) -> list[ViewMessage]:
@@ -384,6 +372,19 @@ def _trail(topic: str, trail: Trail, t: float, x: float, y: float, th: float) ->
 
 def _errors(scored: list[Scored]) -> list[ViewMessage]:
     return [_json(series.ESTIMATE_ERROR, s._asdict()) for s in scored]
+
+
+def _link_columns(row: LinkRow) -> dict[str, str | int | float]:
+    """A link's row of /links (series.LINK_FIELDS): the sender's counters, modelled delays and
+    loss fraction, the receiver's measured delays, each part once it was heard."""
+    out: dict[str, str | int | float] = {"link": row.link}
+    if (c := row.counters) is not None:
+        out.update(c.counts(), loss_fraction=dropped(c) / c.sent if c.sent else 0.0)
+    if (d := row.measured) is not None:
+        out.update(
+            measured_p50_s=d.delay_p50, measured_p95_s=d.delay_p95, measured_max_s=d.delay_max
+        )
+    return out
 
 
 def _event(t: float, level: LogLevel, name: str, text: str) -> ViewMessage:

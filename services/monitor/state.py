@@ -13,6 +13,7 @@ from common.bus.watcher import END_GRACE_S
 from common.config.scenario import Scenario
 from common.config.world import WorldConfig
 from common.estimate_error import estimate_errors
+from common.link_table import LinkRow, LinkTable, dropped
 from common.messages import (
     LinkStats,
     Message,
@@ -209,7 +210,7 @@ class RunState:
         self.arrived: set[str] = set()  # vehicles that have been at their goals
         self.streams: dict[str, StreamSeen] = {}
         self.services: dict[str, ServiceLife] = {}
-        self.links: dict[str, dict[str, Any]] = {}
+        self.links = LinkTable()
         self.end: RunEnd | None = None
         self.rejected = 0  # frames that did not decode
         self._events: list[Event] = []
@@ -242,22 +243,7 @@ class RunState:
                     text, data = f"{vid} {text}", {**data, "member": vid}
                 self._event(wall, kind, text, data)
         elif isinstance(msg, LinkStats):
-            # a link's counters and modelled delays come from its sender, its measured
-            # delays from its receiver: two services' stats fill one row
-            for c in msg.links:
-                self.links.setdefault(c.link, {}).update(
-                    {
-                        "sent": c.sent,
-                        "delivered": c.delivered,
-                        "lost": c.dropped_loss + c.dropped_outage + c.dropped_queue,
-                        "modelled_p50_s": c.delay_p50,
-                        "modelled_p95_s": c.delay_p95,
-                    }
-                )
-            for d in msg.measured:
-                self.links.setdefault(d.link, {}).update(
-                    {"measured_p50_s": d.delay_p50, "measured_p95_s": d.delay_p95}
-                )
+            self.links.see(msg)
         elif isinstance(msg, RunEnd):
             # heard once on its subscription and again in the final poll: one event
             if self.end is None:
@@ -393,10 +379,27 @@ class RunState:
                 k: {"state": life.state, "since": life.since, "restarts": life.restarts}
                 for k, life in sorted(self.services.items())
             },
-            "links": dict(sorted(self.links.items())),
+            "links": {row.link: _link_columns(row) for row in self.links.rows()},
             "alarms": self.alarms(now),
             "end": None
             if self.end is None
             else {"reason": self.end.reason, "t_end_s": self.end.stamp, "ticks": self.end.ticks},
             "rejected": self.rejected,
         }
+
+
+def _link_columns(row: LinkRow) -> dict[str, int | float]:
+    """A link's row as the dashboard shows it: the sender's part (sent, delivered, lost, the
+    modelled delays) and the receiver's (the measured delays), each once it was heard."""
+    out: dict[str, int | float] = {}
+    if (c := row.counters) is not None:
+        out.update(
+            sent=c.sent,
+            delivered=c.delivered,
+            lost=dropped(c),
+            modelled_p50_s=c.delay_p50,
+            modelled_p95_s=c.delay_p95,
+        )
+    if (d := row.measured) is not None:
+        out.update(measured_p50_s=d.delay_p50, measured_p95_s=d.delay_p95)
+    return out
