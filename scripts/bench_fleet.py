@@ -20,7 +20,7 @@ the two clocks' offset, not the services' periods), p50 / p95 / max (the statist
 no p99); under each vehicle, each of its services' own part: how late its ticks ran (p50)
 and how long its step took (p50/p95: the core's step, the link model, encoding), so the
 slowest part is visible, and, after a step, how long preparing the next one took (the
-planner's command sequence: services/planner/command/sequence.py, "Prepared tails"). Goal
+planner's command sequence: services/control/command/sequence.py, "Prepared tails"). Goal
 (issue 18): every vehicle's loop within 10 ms at N = 4; judged here on the sum of its hops'
 p95 (and shown with their max); the largest N that holds it is reported. Each realtime run's
 busy cores (the whole machine's, from /proc/stat: run it otherwise idle) and the periods its

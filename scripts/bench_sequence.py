@@ -6,7 +6,7 @@ clock, then its preparing the next step (the rest of the rollout, computed once 
 is out), and its command's wire bytes (services/experiments/sequence_cost.py, which the
 networked-control report quotes too). Ratios are against the first horizon.
 
---model adds the accuracy of the planner's vehicle model (services/planner/command/response.py)
+--model adds the accuracy of the planner's vehicle model (services/control/command/response.py)
 against the plant: on the default mission of each controller, the position predicted from
 the true state under the commands the vehicle applied, after 0.5 to 5 s, for the model with
 its speed and yaw lags, without them (the command at once, R_min kept), and the constant
@@ -26,9 +26,9 @@ import numpy as np
 from common.config.scenario import load_scenario
 from common.messages import TruthState, VelocityCommand
 from common.runtime.model.inproc import run_inproc
+from services.control.command.response import ResponseModel
+from services.control.controllers import predict_pose
 from services.experiments.sequence_cost import CONTROLLERS, DEFAULT_SCENARIO, cost_table
-from services.planner.command.response import ResponseModel
-from services.planner.controllers import predict_pose
 
 
 def main_steps(steps: int, horizons: list[float]) -> None:

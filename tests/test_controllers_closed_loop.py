@@ -11,9 +11,9 @@ from common.config.controller import ControllerConfig, ControllerKind
 from common.config.vehicle import VehicleConfig
 from common.messages import TruthState, VelocityCommand
 from common.runtime.model.core import Delivery
-from services.planner.controllers import Circle, Limits, StraightLine, make_controller
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import path_errors
+from services.control.controllers import Circle, Limits, StraightLine, make_controller
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import path_errors
 from services.vehicle.core import VehicleCore
 
 VCFG = VehicleConfig()

@@ -18,7 +18,7 @@ from common.config.controller import (
     SpeedConfig,
 )
 from common.config.vehicle import VehicleConfig
-from services.planner.controllers import (
+from services.control.controllers import (
     Backstepping,
     Circle,
     ImmuneFuzzyPid,
@@ -29,9 +29,9 @@ from services.planner.controllers import (
     make_controller,
     predict_pose,
 )
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import path_errors
-from services.planner.controllers.fuzzy import (
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import path_errors
+from services.control.controllers.fuzzy import (
     DKD_TABLE,
     DKI_TABLE,
     DKP_TABLE,
@@ -39,7 +39,7 @@ from services.planner.controllers.fuzzy import (
     memberships,
     parse_table,
 )
-from services.planner.controllers.speed import SpeedProfile, target_speed
+from services.control.controllers.speed import SpeedProfile, target_speed
 
 LIMITS = Limits.from_vehicle(VehicleConfig())
 

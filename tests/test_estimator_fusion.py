@@ -20,9 +20,9 @@ from common.messages import (
     TruthState,
 )
 from common.runtime.model.core import Delivery
+from services.control.controllers import predict_pose
 from services.estimator import EstimatorCore
 from services.estimator.core import DETECTION_BUDGET, FIX_BUDGET
-from services.planner.controllers import predict_pose
 from services.sensor.models import nav_fix
 
 START = (5.0, 20.0, 0.0)

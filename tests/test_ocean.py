@@ -23,11 +23,10 @@ from common.runtime.model.core import Delivery
 from common.runtime.model.inproc import run_inproc
 from common.world import World
 from common.world.check import check_scenario
+from services.control.command.link import CommandLink
+from services.control.controllers.base import Limits
+from services.control.controllers.nurbs_tracker import NurbsTracker
 from services.estimator import EstimatorCore
-from services.planner.command.link import GIVE_WAY_FRACTION, CommandLink
-from services.planner.controllers.base import Limits
-from services.planner.controllers.nurbs_tracker import NurbsTracker
-from services.planner.safety.clearance import StaticField, current_pushes_clear
 from services.sensor.core import SensorCore
 from services.sensor.models import nav_fix, odometry
 

@@ -56,8 +56,8 @@ def test_projection_matches_the_exact_closest_point() -> None:
 def test_the_curvature_bound_holds_over_every_stretch_and_leaves_the_speed_unchanged() -> None:
     from common.config.controller import SpeedConfig
     from common.config.vehicle import VehicleConfig
-    from services.planner.controllers.base import Limits
-    from services.planner.controllers.speed import target_speed
+    from services.control.controllers.base import Limits
+    from services.control.controllers.speed import target_speed
 
     ref = PathArcReference(_path(), 1.5)
     rng = np.random.default_rng(5)
@@ -85,8 +85,8 @@ def test_the_curvature_bound_holds_over_every_stretch_and_leaves_the_speed_uncha
 def test_a_stop_short_of_the_end_brakes_the_speed_profile_there() -> None:
     from common.config.controller import SpeedConfig
     from common.config.vehicle import VehicleConfig
-    from services.planner.controllers.base import Limits
-    from services.planner.controllers.speed import target_speed
+    from services.control.controllers.base import Limits
+    from services.control.controllers.speed import target_speed
 
     ref = PathArcReference(_path(), 1.5)
     cfg, limits = SpeedConfig(), Limits.from_vehicle(VehicleConfig())

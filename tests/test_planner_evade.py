@@ -12,8 +12,8 @@ import pytest
 from helpers.planner_world import circle, default_scenario
 
 from common.world import ObstacleState
-from services.planner.command.response import ResponseModel
-from services.planner.controllers import Limits, make_controller
+from services.control.command.response import ResponseModel
+from services.control.controllers import Limits, make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.safety import evade
 from services.planner.safety.evade import (

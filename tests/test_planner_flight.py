@@ -15,8 +15,8 @@ from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from common.world import ObstacleState
 from common.world.geometry import Box
-from services.planner.command.response import ResponseModel
-from services.planner.controllers import Limits, make_controller
+from services.control.command.response import ResponseModel
+from services.control.controllers import Limits, make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.safety.flight import (
     FLIGHT_CURVATURE_FACTOR,

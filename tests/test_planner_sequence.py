@@ -14,10 +14,10 @@ from common.config.controller import ControllerConfig
 from common.config.scenario import load_scenario
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand, encode
 from common.runtime.model.core import Delivery
-from services.planner.command.response import ResponseModel
-from services.planner.command.sequence import command_sequence
-from services.planner.command.timeline import CommandTimeline
-from services.planner.controllers import Circle, Limits, make_controller
+from services.control.command.response import ResponseModel
+from services.control.command.sequence import command_sequence
+from services.control.command.timeline import CommandTimeline
+from services.control.controllers import Circle, Limits, make_controller
 from services.planner.core import PlannerCore
 from services.vehicle.dynamics import PlantParams, rk4_step
 

@@ -91,7 +91,7 @@ class FuzzyPidGains:
 
 @dataclass(frozen=True, kw_only=True)
 class SpeedConfig:
-    """The speed profile every controller follows (services/planner/controllers/speed.py).
+    """The speed profile every controller follows (services/control/controllers/speed.py).
 
     Cruise: the path's v_ref within eq. (11). Ramp: from the vehicle's speed when a path is
     taken, the commanded speed rises at most accel_mps2. Slow-downs: v |kappa| <= budget *
@@ -122,7 +122,7 @@ class SpeedConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class SequenceConfig:
-    """Packet-based predictive commands (services/planner/command/sequence.py): every command
+    """Packet-based predictive commands (services/control/command/sequence.py): every command
     carries the controller's commands for the times ahead, one per control period
     (planner.period_s), computed on the state predicted along them; the vehicle applies the one
     for its time."""

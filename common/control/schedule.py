@@ -2,7 +2,7 @@
 
 Both ends of the command link use it: the vehicle's watchdog (services/vehicle/watchdog.py)
 runs the schedule of the command in force, and the planner models with the same schedule
-what the vehicle will apply from the commands it has sent (services/planner/command/timeline.py), so
+what the vehicle will apply from the commands it has sent (services/control/command/timeline.py), so
 the two cannot disagree on what a sequence means. A command carries entries k = 0..n (n = 0:
 a single command), entry k in force from stamp + k * step_s (packet-based predictive
 control); HOLD counts from the start of the last entry (hold_after_s), FAILSAFE likewise

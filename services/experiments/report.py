@@ -154,7 +154,7 @@ def _terms(inp: ReportInputs) -> list[str]:
         "turning radius (eqs. 9, 19-20). All three controllers here follow that same planned "
         'path. What the paper calls the "NURBS method" on the control side is, in tidelink, '
         "a path-following law of our own design (curvature feed-forward with line-of-sight "
-        "feedback, services/planner/controllers/nurbs_tracker.py): the paper does not publish "
+        "feedback, services/control/controllers/nurbs_tracker.py): the paper does not publish "
         "its tracking law. The baselines are the published laws (Kanayama backstepping; an "
         "immune fuzzy PID). A verdict below therefore compares tracking laws behind one "
         "planner, not planners.",
@@ -162,7 +162,7 @@ def _terms(inp: ReportInputs) -> list[str]:
         "forward by the estimate's age and the expected downlink delay for all three "
         "controllers (`controller.delay_compensation = true`), or for none (the "
         "`-uncompensated` cases).",
-        "- **Same speed profile** (services/planner/controllers/speed.py): one cruise cap, one "
+        "- **Same speed profile** (services/control/controllers/speed.py): one cruise cap, one "
         "acceleration ramp and one slow-down rule (curvature preview and the end of the path) "
         "for all three; Backstepping's k_x e_x term may slow it below the profile, never push "
         "it past the cruise cap. Travel-time differences come from steering.",

@@ -5,7 +5,7 @@ A PlannerCore on the default mission's first plan is fed estimates of a vehicle 
 after each one as every runtime has it do (core.Prepares); every step is timed on this
 thread's CPU clock (what the command waits for: prediction, the entries computed on the newest
 state, the message), and so is every prepare after it (the rest of the rollout, for the next
-step: services/planner/command/sequence.py, "Prepared tails"), and every command encoded (the wire
+step: services/control/command/sequence.py, "Prepared tails"), and every command encoded (the wire
 bytes, envelope included). Used by scripts/bench_sequence.py and by the networked-control
 report (networked.py).
 """

@@ -28,11 +28,11 @@ from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
-from services.planner.command.arrival import Arrival
-from services.planner.command.inputs import LoopInputs, judge_state
-from services.planner.command.link import CommandLink, Prediction
-from services.planner.controllers.base import Limits
-from services.planner.controllers.factory import make_controller
+from services.control.command.arrival import Arrival
+from services.control.command.inputs import LoopInputs, judge_state
+from services.control.command.link import CommandLink, Prediction
+from services.control.controllers.base import Limits
+from services.control.controllers.factory import make_controller
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus

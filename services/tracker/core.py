@@ -3,7 +3,7 @@
 With ``controller.placement = "onboard"`` the planner (maybe at a topside station, across a
 thin acoustic link) sends paths only, and this core, on the vehicle's node, computes the
 commands from the onboard estimate: the same controller, speed profile, prediction, command
-sequences and input checks as the planner's own (services/planner/command/: link.py
+sequences and input checks as the planner's own (services/control/command/: link.py
 `CommandLink.follow`, inputs.py), on a link that is local. A late or lost path costs
 nothing but freshness: the tracker keeps following the last one it holds.
 """
@@ -20,11 +20,11 @@ from common.config.world import WorldConfig
 from common.guard import first_reason
 from common.messages import PathMsg
 from common.runtime.model.core import Delivery, Emit
-from services.planner.command.arrival import Arrival
-from services.planner.command.inputs import LoopInputs
-from services.planner.command.link import CommandLink
-from services.planner.controllers.base import Limits
-from services.planner.controllers.factory import make_controller
+from services.control.command.arrival import Arrival
+from services.control.command.inputs import LoopInputs
+from services.control.command.link import CommandLink
+from services.control.controllers.base import Limits
+from services.control.controllers.factory import make_controller
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath, curve_of
 

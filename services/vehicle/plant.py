@@ -2,7 +2,7 @@
 
 - "unicycle" (dynamics.py): eq. (7) with a speed loop on eq. (14)'s drag and a first-order yaw
   loop, the turn bounded by |w| <= v / R_min. It is the planner's own prediction model
-  (services/planner/command/response.py), so it tests the loop against itself.
+  (services/control/command/response.py), so it tests the loop against itself.
 - "fossen3dof" (fossen.py): surge, sway and yaw of the REMUS 100 after Fossen with
   Prestero's coefficients, its propeller and rudder with their limits and the vehicle's own
   speed and yaw-rate autopilots. Nothing bounds its turn but its hydrodynamics and rudder:

@@ -45,7 +45,7 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import FloatArray
-from services.planner.command.response import Pose
+from services.control.command.response import Pose
 from services.planner.plan import plan_path
 from services.planner.result import PlanRequest, PlanResult
 from services.planner.safety.clearance import StaticField, moving_distance

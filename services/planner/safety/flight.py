@@ -35,8 +35,8 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import CircleObstacleConfig
 from common.world.geometry import FloatArray
-from services.planner.command.response import Pose, ResponseModel
-from services.planner.controllers.base import Controller
+from services.control.command.response import Pose, ResponseModel
+from services.control.controllers.base import Controller
 from services.planner.result import PlanRequest, PlanResult
 from services.planner.safety.clearance import StaticField, moving_distance
 from services.planner.safety.intent import IntentObstacle

@@ -42,9 +42,9 @@ import math
 
 from common.config.controller import BacksteppingGains
 from common.scalar import clamp, wrap_angle
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Pose
-from services.planner.controllers.follower import PathFollower
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Pose
+from services.control.controllers.follower import PathFollower
 
 
 class Backstepping(PathFollower[BacksteppingGains]):

@@ -8,7 +8,7 @@ from typing import Protocol
 
 from common.config.vehicle import VehicleConfig
 from common.scalar import clamp, wrap_angle
-from services.planner.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.arc_reference import ArcLengthReference
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate or truth)
 

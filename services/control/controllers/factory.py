@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from common.config.controller import ControllerConfig
-from services.planner.controllers.backstepping import Backstepping
-from services.planner.controllers.base import Controller, Limits
-from services.planner.controllers.fuzzy_pid import ImmuneFuzzyPid
-from services.planner.controllers.nurbs_tracker import NurbsTracker
+from services.control.controllers.backstepping import Backstepping
+from services.control.controllers.base import Controller, Limits
+from services.control.controllers.fuzzy_pid import ImmuneFuzzyPid
+from services.control.controllers.nurbs_tracker import NurbsTracker
 
 
 def make_controller(cfg: ControllerConfig, limits: Limits) -> Controller:

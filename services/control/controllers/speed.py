@@ -29,8 +29,8 @@ import math
 
 from common.config.controller import SpeedConfig
 from common.scalar import clamp
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Limits
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Limits
 
 _PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
 _PREVIEW_STEPS = tuple(range(_PREVIEW_SAMPLES))

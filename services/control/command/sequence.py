@@ -51,11 +51,11 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
-from services.planner.command.response import Pose, ResponseModel
-from services.planner.command.timeline import CommandTimeline
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Controller
-from services.planner.controllers.speed import stop_of
+from services.control.command.response import Pose, ResponseModel
+from services.control.command.timeline import CommandTimeline
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Controller
+from services.control.controllers.speed import stop_of
 
 
 def command_sequence(

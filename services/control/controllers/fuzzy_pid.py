@@ -39,10 +39,10 @@ import math
 
 from common.config.controller import FuzzyPidGains
 from common.scalar import wrap_angle
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Pose, path_errors
-from services.planner.controllers.follower import PathFollower
-from services.planner.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Pose, path_errors
+from services.control.controllers.follower import PathFollower
+from services.control.controllers.fuzzy import DKD_TABLE, DKI_TABLE, DKP_TABLE, MamdaniTables
 
 _TABLES = MamdaniTables(DKP_TABLE, DKI_TABLE, DKD_TABLE)
 

@@ -30,12 +30,12 @@ from common.config.vehicle import VehicleConfig
 from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
 from common.scalar import clamp, wrap_angle
-from services.planner.command.response import Pose, ResponseModel
-from services.planner.command.sequence import Prepared, command_sequence
-from services.planner.command.timeline import CommandTimeline
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Controller, predict_pose
-from services.planner.controllers.speed import stop_of
+from services.control.command.response import Pose, ResponseModel
+from services.control.command.sequence import Prepared, command_sequence
+from services.control.command.timeline import CommandTimeline
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Controller, predict_pose
+from services.control.controllers.speed import stop_of
 
 # the yaw rate the vehicle has is taken from the commands of the last 3 yaw time constants
 YAW_SETTLE_TAUS = 3.0

@@ -26,9 +26,9 @@ from typing import Generic, TypeVar
 
 from common.config.controller import SpeedConfig
 from common.scalar import clamp, wrap_angle
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Limits, Pose, predict_pose
-from services.planner.controllers.speed import SpeedProfile
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Limits, Pose, predict_pose
+from services.control.controllers.speed import SpeedProfile
 
 # over_ground takes the vehicle as moving at least this fast through the water (m/s): at
 # rest its course would be the current's, whichever way it heads

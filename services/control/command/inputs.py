@@ -16,7 +16,7 @@ from common.config.world import AreaConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.guard.rejects import warn_rejected
 from common.messages import Message, StateEstimate, VehicleStatus
-from services.planner.command.link import CommandLink
+from services.control.command.link import CommandLink
 
 
 def judge_state(j: Plausibility, m: StateEstimate, now: float) -> Reason | None:

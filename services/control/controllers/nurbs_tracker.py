@@ -39,9 +39,9 @@ import math
 
 from common.config.controller import NurbsGains
 from common.scalar import wrap_angle
-from services.planner.controllers.arc_reference import ArcLengthReference
-from services.planner.controllers.base import Pose, path_errors
-from services.planner.controllers.follower import PathFollower
+from services.control.controllers.arc_reference import ArcLengthReference
+from services.control.controllers.base import Pose, path_errors
+from services.control.controllers.follower import PathFollower
 
 
 class NurbsTracker(PathFollower[NurbsGains]):

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from common.config.vehicle import WatchdogConfig
 from common.control import Schedule
-from services.planner.command.response import Pose, ResponseModel
+from services.control.command.response import Pose, ResponseModel
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
