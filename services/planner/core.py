@@ -28,11 +28,9 @@ from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
 from common.world import ObstacleState
-from services.control.command.arrival import Arrival
-from services.control.command.inputs import LoopInputs, judge_state
-from services.control.command.link import CommandLink, Prediction
-from services.control.controllers.base import Limits
-from services.control.controllers.factory import make_controller
+from services.control.command.inputs import judge_state
+from services.control.command.link import Prediction
+from services.control.loop import CommandLoop
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
@@ -44,9 +42,6 @@ from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 
 log = logging.getLogger("tidelink.planner")
-
-
-Commands = tuple[list[float], list[float]]  # speeds and yaw rates: now, then the sequence
 
 
 # A plan taking longer than this (mission s) is logged when it is adopted: while it is made,
@@ -142,14 +137,14 @@ class PlannerCore:
         self.commands = commands
         self.vehicle = vehicle
         self.world = world
-        self.kind = controller.kind
-        # delays measured, the state predicted, commands (sequences) sent: command/link.py
-        self.link = CommandLink(
-            planner,
-            controller,
-            vehicle,
-            expected_downlink_s=expected_downlink_s,
-            start_speed_mps=world.start.speed_mps,
+        # the link, the controller, the judged inputs, arrival and the path followed
+        self.loop: CommandLoop[PathArcReference] = CommandLoop(
+            planner, controller, vehicle, world, log, expected_downlink_s=expected_downlink_s
+        )
+        self.link, self.controller, self.inputs = (
+            self.loop.link,
+            self.loop.controller,
+            self.loop.inputs,
         )
         g = world.goal
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
@@ -162,27 +157,33 @@ class PlannerCore:
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
-        self.limits = Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
-        self.controller = make_controller(controller, self.limits)
-        # the newest plausible estimate; the link told of estimates and statuses (their delays)
-        self.inputs = LoopInputs(world.area, self.link, log)
         self.tracks: ObstacleTracks | None = None
-        self.ref: PathArcReference | None = None
-        self.path_id = 0
         self.last_result: PlanResult | None = None
         # the status of the last path published and since when it has held without a break:
         # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
         self.path_status: PlanStatus | None = None
         self.status_since = 0.0
-        self.arrival = Arrival((g.x_m, g.y_m), world.goal_tolerance_m)
-        self.stale_skips = 0  # steps without a command because the estimate was too old
         self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
-        self.last_cmd_t: float | None = None  # when the last command was sent
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
         self.resume_after_s = max(
             planner.max_estimate_age_s, self.link.horizon_s + vehicle.watchdog.hold_after_s
         )
+
+    @property
+    def ref(self) -> PathArcReference | None:
+        """The path in force (None: stop)."""
+        return self.loop.ref
+
+    @property
+    def path_id(self) -> int:
+        """The number of the last path published (0: none yet)."""
+        return self.loop.path_id
+
+    @property
+    def stale_skips(self) -> int:
+        """Steps without a command because the estimate was too old."""
+        return self.loop.stale_skips
 
     def deliver(self, d: Delivery) -> list[Emit]:
         """Keep the newest estimate and tracks by stamp, unless implausible: a stamp from the
@@ -265,32 +266,25 @@ class PlannerCore:
 
     def prepare(self, t_next: float) -> None:
         """Once this step's command is out: the sequence for the step at t_next (command/link)."""
-        if self.commands and self.ref is not None and not self.arrival.arrived:
-            self.link.prepare(t_next, self.controller, self.ref)
+        if self.commands:
+            self.loop.prepare(t_next)
 
     def _step(self, t: float) -> list[Emit]:
-        if self.inputs.state is None:
+        begun = self.loop.begin(t)
+        if begun is None:
             return []
-        s = self.inputs.state
+        s, pred = begun
         out: list[Emit] = []
-        arrived = self.arrival.update(s.x, s.y)
-        if self.link.stale(t, s):
-            # the uplink is out (the estimate is older than its measured delay explains):
-            # commanding from a pose extrapolated this far would steer blind, so send nothing;
-            # the vehicle runs out its buffer of commands, then its watchdog holds (and counts)
-            self.stale_skips += 1
-            return []
-        # where the vehicle is now and will be when this step's command takes effect
-        pred = self.link.predict(t, s)
-        if arrived:
-            stop = self.link.stop(t, pred, give_way=self._gives_way(pred))
-            return [self._command(t, pred.effect_t, stop)] if self.commands else []
+        if self.loop.arrival.arrived:
+            return (
+                [self.loop.send(t, pred.effect_t, self.link.stop(t, pred))] if self.commands else []
+            )
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
         t_plan = pred.effect_t
         obstacles = self._obstacles(t_plan)
-        gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
+        gap = self.loop.gap_s(t)
         if self.plans.running:
             decision = ReplanDecision(replan=False, detail="a plan is being made")
         elif self.path_id == 0 and self._awaiting_tracks(t):
@@ -323,37 +317,14 @@ class PlannerCore:
             ):
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
-        if (
-            not adopted
-            and not decision.replan
-            and math.isfinite(gap)
-            and gap > 1.5 * self.cfg.period_s
-        ):
+        if not adopted and not decision.replan and self.loop.skipped(t):
             # steps were skipped (a stale estimate): the plan holds, but the controller's state
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
-            out.append(self._command(t, pred.effect_t, self._follow(t, s, pred)))
+            commands = self.loop.follow(t, s, pred, self.loop.ref)
+            out.append(self.loop.send(t, pred.effect_t, commands))
         return out
-
-    def _follow(self, t: float, s: StateEstimate, pred: Prediction) -> Commands:
-        """The controller's commands on the path in force (a stop without one)."""
-        give_way = self.ref is None and self._gives_way(pred)
-        return self.link.follow(t, self.controller, self.ref, s, pred, give_way=give_way)
-
-    def _gives_way(self, pred: Prediction) -> bool:
-        """Should a stop let the current carry the vehicle back, rather than keep station at
-        an obstacle close upstream (within rho0 and the margin of its hull)?"""
-        x, y = pred.at_effect[0], pred.at_effect[1]
-        keep_m = self.vehicle.radius_m + self.cfg.rho0_m + self.clearance_margin_m
-        moving = self._obstacles(pred.effect_t).moving
-        current = self.link.model.current_mps
-        return current_pushes_clear(x, y, self.static_field, moving, current, keep_m)
-
-    def _command(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
-        self.last_cmd_t = t
-        msg = self.link.send(t, effect_t, *vs_ws, path_id=self.path_id, controller=self.kind)
-        return Emit(stream="cmd", msg=msg)
 
     def _awaiting_tracks(self, t: float) -> bool:
         """Should the first plan wait longer for the first obstacle tracks?
@@ -594,12 +565,11 @@ class PlannerCore:
         t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
         self.policy.on_planned(t_plan, result, self.goal, obstacles, asked.current, asked.pace)
         self.last_result = result
-        self.path_id += 1
+        self.loop.path_id += 1
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
         if result.ok:
-            self.ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
-            self.link.restart(self.controller)
+            self.loop.take(PathArcReference(PlannedPath(result.curve()), self._speed_of(result)))
             return PathMsg(
                 stamp=t,
                 path_id=self.path_id,
@@ -616,7 +586,7 @@ class PlannerCore:
                 max_curvature=result.max_curvature,
                 v_ref=self._speed_of(result),
             )
-        self.ref = None
+        self.loop.take(None)
         return PathMsg(
             stamp=t,
             path_id=self.path_id,

@@ -11,7 +11,6 @@ nothing but freshness: the tracker keeps following the last one it holds.
 from __future__ import annotations
 
 import logging
-import math
 
 from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
@@ -20,11 +19,7 @@ from common.config.world import WorldConfig
 from common.guard import first_reason
 from common.messages import PathMsg
 from common.runtime.model.core import Delivery, Emit
-from services.control.command.arrival import Arrival
-from services.control.command.inputs import LoopInputs
-from services.control.command.link import CommandLink
-from services.control.controllers.base import Limits
-from services.control.controllers.factory import make_controller
+from services.control.loop import CommandLoop
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath, curve_of
 
@@ -41,20 +36,11 @@ class TrackerCore:
         vehicle: VehicleConfig,
         world: WorldConfig,
     ) -> None:
-        self.period_s = planner.period_s
-        self.kind = controller.kind
         self.world = world
-        self.link = CommandLink(planner, controller, vehicle, start_speed_mps=world.start.speed_mps)
-        self.controller = make_controller(
-            controller, Limits.from_vehicle(vehicle, yaw_lag_lead=controller.yaw_lag_lead)
+        self.loop: CommandLoop[PathArcReference] = CommandLoop(
+            planner, controller, vehicle, world, log
         )
-        self.inputs = LoopInputs(world.area, self.link, log)
-        self.ref: PathArcReference | None = None
-        self.path_id = 0  # of the path followed (0: none yet)
-        g = world.goal
-        self.arrival = Arrival((g.x_m, g.y_m), world.goal_tolerance_m)
-        self.stale_skips = 0
-        self.last_cmd_t: float | None = None
+        self.inputs = self.loop.inputs
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
@@ -69,7 +55,7 @@ class TrackerCore:
             why = first_reason(self.inputs.judge.stamp(msg.stamp, d.t))
             if why is not None:
                 self.inputs.reject("path", why, d.t, msg)
-            elif msg.path_id > self.path_id:
+            elif msg.path_id > self.loop.path_id:
                 self._take(msg)
         else:
             self.inputs.offer(d.t, msg)
@@ -77,9 +63,9 @@ class TrackerCore:
 
     def _take(self, p: PathMsg) -> None:
         """Follow path `p` from now on (a NO_PATH stops the vehicle)."""
-        self.path_id = p.path_id
+        self.loop.path_id = p.path_id
         if p.status != "OK":
-            self.ref = None
+            self.loop.take(None)
             return
         try:
             curve = curve_of(p)
@@ -87,31 +73,21 @@ class TrackerCore:
             self.inputs.rejects.warn(
                 "path.curve", p.stamp, "path %d has no curve: %s", p.path_id, exc
             )
-            self.ref = None
+            self.loop.take(None)
             return
-        self.ref = PathArcReference(PlannedPath(curve), p.v_ref)
-        self.link.restart(self.controller)
+        self.loop.take(PathArcReference(PlannedPath(curve), p.v_ref))
 
     def prepare(self, t_next: float) -> None:
         """Once this step's command is out: the sequence for the step at t_next (command/link)."""
-        if self.ref is not None and not self.arrival.arrived:
-            self.link.prepare(t_next, self.controller, self.ref)
+        self.loop.prepare(t_next)
 
     def step(self, t: float) -> list[Emit]:
-        if self.inputs.state is None:
+        """The command for the newest estimate on the newest path (arrived: a stop)."""
+        begun = self.loop.begin(t)
+        if begun is None:
             return []
-        s = self.inputs.state
-        arrived = self.arrival.update(s.x, s.y)
-        if self.link.stale(t, s):
-            self.stale_skips += 1
-            return []
-        pred = self.link.predict(t, s)
-        gap = math.inf if self.last_cmd_t is None else t - self.last_cmd_t
-        if math.isfinite(gap) and gap > 1.5 * self.period_s:
-            # steps were skipped: restart from where the vehicle is
-            self.link.restart(self.controller)
-        ref = None if arrived else self.ref
-        vs, ws = self.link.follow(t, self.controller, ref, s, pred)
-        self.last_cmd_t = t
-        msg = self.link.send(t, pred.effect_t, vs, ws, path_id=self.path_id, controller=self.kind)
-        return [Emit(stream="cmd", msg=msg)]
+        s, pred = begun
+        if self.loop.skipped(t):
+            self.loop.restart()
+        ref = None if self.loop.arrival.arrived else self.loop.ref
+        return [self.loop.send(t, pred.effect_t, self.loop.follow(t, s, pred, ref))]
