@@ -26,11 +26,11 @@ from common.config.scenario import load_scenario
 from common.config.world import CircleObstacleConfig
 from common.world import World
 from common.world.geometry import FloatArray
+from services.planner.geometry.clearance import StaticField
+from services.planner.geometry.nurbs_curve import NurbsCurve, curvature, rational_basis
 from services.planner.plan import Obstacles, PlanRequest, Pose2D, fit_problem, plan_path
-from services.planner.safety.clearance import StaticField
 from services.planner.search.costmap import build_costmap
 from services.planner.shaping.check import check_curve
-from services.planner.shaping.nurbs_curve import NurbsCurve, curvature, rational_basis
 from services.planner.shaping.refine import (
     Objective,
     RefineWeights,

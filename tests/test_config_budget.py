@@ -26,8 +26,8 @@ from common.runtime.model.record import Record
 from common.world.check import check_scenario
 from services.experiments.grid import expand
 from services.experiments.schema import load_experiment
+from services.planner.geometry.clearance import StaticField
 from services.planner.plan import PlanRequest, plan_path
-from services.planner.safety.clearance import StaticField
 from services.planner.search.costmap import build_costmap
 from services.planner.search.graph import _structure
 

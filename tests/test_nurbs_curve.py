@@ -9,7 +9,7 @@ from geomdl import NURBS
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from services.planner.shaping.nurbs_curve import (
+from services.planner.geometry.nurbs_curve import (
     NurbsCurve,
     averaged_knots,
     basis_local,

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from services.planner.shaping.nurbs_curve import NurbsCurve, clamped_uniform_knots
+from services.planner.geometry.nurbs_curve import NurbsCurve, clamped_uniform_knots
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 

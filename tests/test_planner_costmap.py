@@ -11,7 +11,7 @@ from matplotlib.path import Path as MplPath
 from common.config.planner import PlannerConfig, grid_shape
 from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
 from common.world.geometry import vertices_array
-from services.planner.safety.clearance import StaticField
+from services.planner.geometry.clearance import StaticField
 from services.planner.search.costmap import build_costmap, repulsive_cost, smoothing_kernel
 
 R_VEH = default_scenario().vehicle.radius_m

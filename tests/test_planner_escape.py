@@ -17,10 +17,10 @@ from helpers.planner_world import circle, default_scenario, polygon
 from common.config.planner import PlannerConfig
 from common.config.world import WorldConfig
 from common.world import ObstacleState, World
+from services.planner.geometry.clearance import StaticField
+from services.planner.geometry.nurbs_curve import NurbsCurve, averaged_knots, curvature, join
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
-from services.planner.safety.clearance import StaticField
 from services.planner.safety.escape import Escape, find_escapes
-from services.planner.shaping.nurbs_curve import NurbsCurve, averaged_knots, curvature, join
 
 CFG = PlannerConfig()
 SCENARIO = default_scenario()

@@ -1,4 +1,4 @@
-"""Stepping aside (services/planner/safety/evade.py): a vehicle with no plan to its goal, held in a
+"""Stepping aside (services/planner/evade.py): a vehicle with no plan to its goal, held in a
 moving obstacle's way (or where it could no longer turn about outside rho0), takes a way aside
 that its flight shows clears more; a recovery into rho0 waits while holding keeps out of it."""
 
@@ -14,15 +14,15 @@ from helpers.planner_world import circle, default_scenario
 from common.world import ObstacleState
 from services.control.command.response import ResponseModel
 from services.control.controllers import Limits, make_controller
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
-from services.planner.safety import evade
-from services.planner.safety.evade import (
+from services.planner import evade
+from services.planner.evade import (
     EVADE_S,
     GAIN_M,
     HOLD_FIRST_FACTOR,
     plan_or_step_aside,
     step_aside,
 )
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.safety.flight import FlightModel, flown
 
 SCENARIO = default_scenario()

@@ -17,6 +17,7 @@ from common.world import ObstacleState
 from common.world.geometry import Box
 from services.control.command.response import ResponseModel
 from services.control.controllers import Limits, make_controller
+from services.planner.geometry.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.safety.flight import (
     FLIGHT_CURVATURE_FACTOR,
@@ -28,7 +29,6 @@ from services.planner.safety.flight import (
     plan_flown,
 )
 from services.planner.safety.intent import IntentObstacle
-from services.planner.shaping.nurbs_curve import clamped_uniform_knots
 
 SCENARIO = default_scenario()
 CFG = SCENARIO.planner

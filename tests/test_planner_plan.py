@@ -19,12 +19,12 @@ from matplotlib.path import Path as MplPath
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import vertices_array
+from services.planner.geometry.clearance import StaticField
+from services.planner.geometry.nurbs_curve import curvature
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
-from services.planner.safety.clearance import StaticField
 from services.planner.search.costmap import build_costmap
 from services.planner.search.graph import shortest_path
 from services.planner.search.prediction import predicted_discs
-from services.planner.shaping.nurbs_curve import curvature
 
 CFG = PlannerConfig()
 SCENARIO = default_scenario()

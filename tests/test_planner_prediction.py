@@ -8,9 +8,9 @@ import numpy as np
 from helpers.planner_world import moving_circle
 
 from common.config.planner import PlannerConfig
+from services.planner.geometry.nurbs_curve import NurbsCurve, clamped_uniform_knots
 from services.planner.result import Pose2D
 from services.planner.search.prediction import intercept_time, passing_discs, predicted_discs
-from services.planner.shaping.nurbs_curve import NurbsCurve, clamped_uniform_knots
 
 CFG = PlannerConfig(moving_window_s=3.0)
 

@@ -10,7 +10,7 @@ from helpers.planner_world import circle, default_obstacles, default_scenario, p
 
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
-from services.planner.safety.clearance import StaticField
+from services.planner.geometry.clearance import StaticField
 from services.planner.search.costmap import CostMap, build_costmap
 from services.planner.search.graph import directions, edge_weights, shortest_path
 from services.planner.search.prune import prune_path, segment_cost

@@ -11,11 +11,11 @@ import pytest
 from helpers.planner_world import default_obstacles, default_scenario, default_start_goal
 
 from common.config.planner import PlannerConfig
+from services.planner.geometry.clearance import StaticField
+from services.planner.geometry.nurbs_curve import NurbsCurve, curvature
 from services.planner.plan import PlanRequest, fit_problem, plan_path
-from services.planner.safety.clearance import StaticField
 from services.planner.search.costmap import build_costmap
 from services.planner.shaping.fit import FitProblem, initial_curve
-from services.planner.shaping.nurbs_curve import NurbsCurve, curvature
 from services.planner.shaping.refine import Objective, RefineWeights, gauss_legendre
 from services.planner.shaping.turning import K_SMOOTH_PER_M, turn_cost, turn_penalty
 

@@ -18,14 +18,15 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
         |                                      (plan.py runs these stages: a PlanResult)
     planned path        shaping/planned_path.py, shaping/path_arc_reference.py (on s)
         |
-    controller          controllers/           NURBS tracker, Backstepping, immune fuzzy PID
+    controller          services/control/      NURBS tracker, Backstepping, immune fuzzy PID
         |
-    command sequence    command/               predicted over the measured delays, sent
+    command sequence    services/control/      predicted over the measured delays, sent
 
-    Around it, the safety monitor (safety/): clearance.py, the exact distances every stage
-    uses; recover.py and escape.py, ways out near or in contact; flight.py, a plan flown on
-    the response model before it is adopted; evade.py, stepping aside or holding first;
-    intent.py, the other vehicles of a fleet as obstacles with known trajectories.
+    Layers, one way down: geometry/ (clearance.py, the exact distances every stage uses;
+    nurbs_curve.py), then search/, shaping/, plan.py and the safety monitor (safety/):
+    recover.py and escape.py, ways out near or in contact; flight.py, a plan flown on the
+    response model before it is adopted; intent.py, the other vehicles of a fleet as
+    obstacles with known trajectories. evade.py, stepping aside or holding first, plans again.
     core.py is the service core; replan.py decides when to plan again.
 
 Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
@@ -40,10 +41,10 @@ Obstacles use the world's types (common.config.world circles and polygons, commo
 ObstacleState for moving ones); the area is the scenario's AreaConfig.
 """
 
+from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.plan import PlanRequest, PlanResult, PlanTiming, plan_path
 from services.planner.replan import ReplanDecision, ReplanPolicy, replan_request
 from services.planner.result import Obstacles, Pose2D
-from services.planner.shaping.nurbs_curve import NurbsCurve
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 

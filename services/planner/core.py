@@ -31,11 +31,10 @@ from common.world import ObstacleState
 from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
+from services.planner.evade import plan_or_step_aside
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
-from services.planner.safety.clearance import StaticField, current_pushes_clear
-from services.planner.safety.evade import plan_or_step_aside
 from services.planner.safety.flight import ARRIVED_M, FlightModel
 from services.planner.safety.intent import FleetIntents
 from services.planner.shaping.path_arc_reference import PathArcReference

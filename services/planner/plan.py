@@ -22,6 +22,8 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
 from common.world.geometry import FloatArray
+from services.planner.geometry.clearance import StaticField, moving_distance
+from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.result import (
     Obstacles,
     PlanRequest,
@@ -30,7 +32,6 @@ from services.planner.result import (
     PlanTiming,
     Pose2D,
 )
-from services.planner.safety.clearance import StaticField, moving_distance
 from services.planner.safety.recover import (
     come_about_then_plan,
     leave_then_plan,
@@ -42,7 +43,6 @@ from services.planner.search.prediction import passing_discs, predicted_discs
 from services.planner.search.prune import prune_path
 from services.planner.shaping.check import CurveCheck, check_curve
 from services.planner.shaping.fit import FitProblem, initial_curve, resample
-from services.planner.shaping.nurbs_curve import NurbsCurve
 from services.planner.shaping.refine import RefineWeights, refine
 
 __all__ = [

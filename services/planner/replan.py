@@ -35,9 +35,9 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.world.geometry import Box, FloatArray
+from services.planner.geometry.clearance import StaticField
 from services.planner.plan import PlanRequest, PlanResult
 from services.planner.result import Obstacles, Pose2D
-from services.planner.safety.clearance import StaticField
 from services.planner.safety.intent import IntentObstacle
 
 ReplanReason = Literal[

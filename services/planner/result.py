@@ -11,7 +11,7 @@ import numpy as np
 from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
-from services.planner.shaping.nurbs_curve import NurbsCurve
+from services.planner.geometry.nurbs_curve import NurbsCurve
 
 PlanStatus = Literal["OK", "NO_PATH"]
 

@@ -38,9 +38,9 @@ from common.config.world import AreaConfig
 from common.scalar import wrap_angle
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
+from services.planner.geometry.clearance import StaticField, moving_distance
+from services.planner.geometry.nurbs_curve import NurbsCurve, join
 from services.planner.result import PlanResult, Pose2D
-from services.planner.safety.clearance import StaticField, moving_distance
-from services.planner.shaping.nurbs_curve import NurbsCurve, join
 
 N_TURNS = 73  # straight ahead and arcs every 5 degrees to either side, up to +-180 degrees
 STEP_M = 0.05  # sampling step along each candidate

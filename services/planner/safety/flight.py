@@ -37,8 +37,8 @@ from common.config.world import CircleObstacleConfig
 from common.world.geometry import FloatArray
 from services.control.command.response import Pose, ResponseModel
 from services.control.controllers.base import Controller
+from services.planner.geometry.clearance import StaticField, moving_distance
 from services.planner.result import PlanRequest, PlanResult
-from services.planner.safety.clearance import StaticField, moving_distance
 from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath

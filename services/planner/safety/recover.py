@@ -31,8 +31,8 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.config.world import AreaConfig
 from common.scalar import wrap_angle
+from services.planner.geometry.clearance import StaticField
 from services.planner.result import PlanRequest, PlanResult, Pose2D
-from services.planner.safety.clearance import StaticField
 from services.planner.safety.escape import (
     BEYOND_M,
     DEPTH_STEP_M,

@@ -11,7 +11,7 @@ from scipy.ndimage import convolve1d
 from common.config.planner import PlannerConfig, grid_shape
 from common.config.world import AreaConfig
 from common.world.geometry import FloatArray
-from services.planner.safety.clearance import StaticField
+from services.planner.geometry.clearance import StaticField
 
 BoolArray = NDArray[np.bool_]
 

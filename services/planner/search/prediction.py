@@ -16,8 +16,8 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
+from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.result import Pose2D
-from services.planner.shaping.nurbs_curve import NurbsCurve
 
 
 def intercept_time(

@@ -9,9 +9,9 @@ from typing import Literal
 import numpy as np
 
 from common.world.geometry import FloatArray
-from services.planner.safety.clearance import moving_distance
+from services.planner.geometry.clearance import moving_distance
+from services.planner.geometry.nurbs_curve import NurbsCurve, curvature
 from services.planner.shaping.fit import FitProblem
-from services.planner.shaping.nurbs_curve import NurbsCurve, curvature
 from services.planner.shaping.refine import gauss_legendre
 from services.planner.shaping.turning import turn_penalty
 

@@ -24,10 +24,10 @@ import numpy as np
 from common.config.world import AreaConfig
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
+from services.planner.geometry.clearance import StaticField
+from services.planner.geometry.nurbs_curve import NurbsCurve, averaged_knots
 from services.planner.result import Pose2D
-from services.planner.safety.clearance import StaticField
 from services.planner.search.costmap import CostMap
-from services.planner.shaping.nurbs_curve import NurbsCurve, averaged_knots
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,7 +10,7 @@ import numpy as np
 
 from common.messages import PathMsg
 from common.world.geometry import FloatArray
-from services.planner.shaping.nurbs_curve import NurbsCurve, curvature
+from services.planner.geometry.nurbs_curve import NurbsCurve, curvature
 
 # 3-point Gauss-Legendre on [0, 1]: exact for polynomials of degree 5 between table points
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])

@@ -29,8 +29,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from common.world.geometry import FloatArray
+from services.planner.geometry.nurbs_curve import NurbsCurve, rational_basis
 from services.planner.shaping.fit import FitProblem, Layout
-from services.planner.shaping.nurbs_curve import NurbsCurve, rational_basis
 from services.planner.shaping.turning import turn_cost
 
 _BAND_M = 0.3  # clearance hinges this close to active enter the Hessian model (m)

@@ -46,9 +46,9 @@ import numpy as np
 from common.config.planner import PlannerConfig
 from common.world.geometry import FloatArray
 from services.control.command.response import Pose
+from services.planner.geometry.clearance import StaticField, moving_distance
 from services.planner.plan import plan_path
 from services.planner.result import PlanRequest, PlanResult
-from services.planner.safety.clearance import StaticField, moving_distance
 from services.planner.safety.escape import (
     DEPTH_STEP_M,
     N_TURNS,

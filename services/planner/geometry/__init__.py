@@ -1,0 +1,1 @@
+"""Planner geometry every stage uses: clearances to obstacles and the NURBS curve."""
