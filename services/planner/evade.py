@@ -135,16 +135,55 @@ def step_aside(
 ) -> PlanResult | None:
     """A path aside (module docstring), or None when holding, or going on along `aside`,
     is as good."""
-    moving = req.obstacles.moving
-    if not moving:
+    if not req.obstacles.moving:
         return None
     held = _holding(req, cfg, fm, aside)
     if not (held.threatened or held.trapped):
         return None
-    how, stay_clear, threatened, trapped = held.how, held.clear_m, held.threatened, held.trapped
-    r, v = req.vehicle_radius_m, req.v_ref_mps
     static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
     radius = ARC_RADIUS_FACTOR * req.r_min_m
+    ways = _ranked_ways(req, cfg, fm, static, radius, trapped=held.trapped)
+    best = _best_flown(ways, req, cfg, fm, static, radius, held)
+    if best is None:
+        return None
+    got, way = best
+    why = (
+        f"it would come within {held.clear_m:.2f} m of a moving obstacle"
+        if held.threatened
+        else "it would stop with no room to turn about outside rho0"
+    )
+    return replace(
+        way,
+        reason=f"{held.how}, {why}: steps aside {way.length_m:.1f} m (turning "
+        f"{math.degrees(way.turn_rad):+.0f} deg), flown clearing {got:.2f} m, then holds",
+        min_clearance_m=got,
+    )
+
+
+@dataclass(frozen=True)
+class _Ways:
+    """The ways aside swept, best first (`ranked`: (turn j, end e) pairs)."""
+
+    turns: FloatArray  # (J,) the turn each way is swept with (rad)
+    lengths: FloatArray  # (E,) where the ways end, along them (m)
+    score: FloatArray  # (J, E) the least hull clearance on the way and held at its end (m)
+    ranked: list[tuple[int, int]]
+
+
+def _ranked_ways(
+    req: PlanRequest,
+    cfg: PlannerConfig,
+    fm: FlightModel,
+    static: StaticField,
+    radius: float,
+    *,
+    trapped: bool,
+) -> _Ways:
+    """The ways aside that never touch nor leave the area, ranked: room to turn about where
+    they stop, then (trapped) room outside rho0, then clearance up to rho0 +
+    FLIGHT_CUSHION_M, then the shortest, then the smallest turn."""
+    moving = req.obstacles.moving
+    r, v = req.vehicle_radius_m, req.v_ref_mps
     turns = np.linspace(-math.pi, math.pi, N_TURNS)
     sw = sweep(
         req.start,
@@ -195,16 +234,30 @@ def step_aside(
             abs(float(turns[je[0]])),
         ),
     )
+    return _Ways(turns=turns, lengths=sw.s[ends], score=score, ranked=cands)
+
+
+def _best_flown(
+    ways: _Ways,
+    req: PlanRequest,
+    cfg: PlannerConfig,
+    fm: FlightModel,
+    static: StaticField,
+    radius: float,
+    held: Holding,
+) -> tuple[float, PlanResult] | None:
+    """Of the SHORTLIST best ways, the one whose flight, then held, clears the most (one
+    that stops with room to turn about first), with that clearance, if it beats holding."""
     best: tuple[tuple[bool, bool], float, PlanResult] | None = None
-    for j, e in cands[:SHORTLIST]:
-        length = float(sw.s[ends[e]])
+    for j, e in ways.ranked[:SHORTLIST]:
+        length = float(ways.lengths[e])
         esc = Escape(
             start=req.start,
             radius_m=radius,
-            turn_rad=_turn(float(turns[j]), length, radius),
+            turn_rad=_turn(float(ways.turns[j]), length, radius),
             length_m=length,
-            start_clearance_m=stay_clear,
-            end_clearance_m=float(score[j, e]),
+            start_clearance_m=held.clear_m,
+            end_clearance_m=float(ways.score[j, e]),
         )
         way = _as_plan(esc, req, cfg)
         f = flown(way, req, fm)
@@ -212,25 +265,12 @@ def step_aside(
         got = _clearance((got_pts, got_t), req, cfg, static)
         # where the flight stops (past the way's end, as the speed loop lags)
         turns_there, kept_there = _rooms_at(f.last, radius, static, req, cfg)
-        rooms = (turns_there, kept_there or not trapped)
+        rooms = (turns_there, kept_there or not held.trapped)
         # better than holding: clearer by GAIN_M, or (trapped) as clear up to rho0 with room
-        gains = got >= stay_clear + GAIN_M or (trapped and kept_there and got >= cfg.rho0_m)
+        gains = got >= held.clear_m + GAIN_M or (held.trapped and kept_there and got >= cfg.rho0_m)
         if gains and (best is None or (rooms, got) > best[:2]):
             best = (rooms, got, way)
-    if best is None:
-        return None
-    _, got, way = best
-    why = (
-        f"it would come within {stay_clear:.2f} m of a moving obstacle"
-        if threatened
-        else "it would stop with no room to turn about outside rho0"
-    )
-    return replace(
-        way,
-        reason=f"{how}, {why}: steps aside {way.length_m:.1f} m (turning "
-        f"{math.degrees(way.turn_rad):+.0f} deg), flown clearing {got:.2f} m, then holds",
-        min_clearance_m=got,
-    )
+    return None if best is None else (best[1], best[2])
 
 
 def _turn(turn: float, length: float, radius: float) -> float:

@@ -147,21 +147,56 @@ def plan_path(
     return _plan(req, cfg, clock, may_escape=True)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Setup:
+    """What every stage of one plan shares: the static field and the start's clearance."""
+
+    static: StaticField
+    d_start: float  # the start's centre distance to the nearest obstacle (m)
+    d_req: float  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
+    d_min: float  # straight-line start-to-goal distance (m), the f_L denominator
+
+    @property
+    def start_inside(self) -> bool:
+        """Whether the start lies within the safety margin r + rho0 of an obstacle."""
+        return self.d_start < self.d_req
+
+
+Rest = Callable[[PlanRequest], PlanResult]  # the plan after a recovery (never recovers again)
+
+
 def _plan(
     req: PlanRequest, cfg: PlannerConfig, clock: Callable[[], float] | None, *, may_escape: bool
 ) -> PlanResult:
     """plan_path; `may_escape` is False for the plan that follows a recovery (recover.py),
-    so one recovery never nests another."""
+    so one recovery never nests another. The stages, in order: the request's own checks,
+    a start outside the area or in contact (a way out first), search and shape (at most
+    three searches), then the fallbacks near an obstacle."""
     clk = _Clock(clock)
 
     def rest(q: PlanRequest) -> PlanResult:
         return _plan(q, cfg, clock, may_escape=False)
 
-    r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
+    setup = _check_request(req, cfg, clk)
+    if isinstance(setup, PlanResult):
+        return setup
+    stuck = _start_stuck(req, cfg, setup, rest, clk, may_escape=may_escape)
+    if stuck is not None:
+        return stuck
+    result, final = _search_and_shape(req, cfg, setup, clk)
+    if final or not may_escape:
+        return result
+    return _fallbacks(req, cfg, setup, result, rest)
+
+
+def _check_request(req: PlanRequest, cfg: PlannerConfig, clk: _Clock) -> _Setup | PlanResult:
+    """The request's goal and start distances, or a NO_PATH for a goal no plan can reach
+    (outside the area, at the start, within rho0 of a static obstacle)."""
+    r, obs = req.vehicle_radius_m, req.obstacles
     d_req = r + cfg.rho0_m  # eq. (12)-(13): centre-to-surface distance r + rho0 (r_k in geometry)
     s_xy = np.array([req.start.x, req.start.y])
     g_xy = np.array([req.goal.x, req.goal.y])
-    if not _inside(area, req.goal, r):
+    if not _inside(req.area, req.goal, r):
         return _no_path("goal is outside the area", clk)
     d_min = float(np.hypot(*(g_xy - s_xy)))
     if d_min < 1e-6:
@@ -178,19 +213,48 @@ def _plan(
         float(static.distance(s_xy)[0][0]),
         float(moving_distance(obs.moving, s_xy, np.zeros(1), cfg.accel_horizon_s)[0][0]),
     )
-    outside = not _inside(area, req.start, r)
-    if outside or d_start <= r:
-        escaped = leave_then_plan(req, cfg, static, d_start, rest) if may_escape else None
-        if outside and may_escape and (escaped is None or not escaped.ok):
-            escaped = come_about_then_plan(req, rest) or escaped
-        if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
-            where = (
-                "outside the area"
-                if outside
-                else f"in contact with an obstacle (hull clearance {d_start - r:.2f} m)"
-            )
-            return _no_path(f"start is {where} and no way out within R_min is clear", clk)
-        return escaped
+    return _Setup(static=static, d_start=d_start, d_req=d_req, d_min=d_min)
+
+
+def _start_stuck(
+    req: PlanRequest,
+    cfg: PlannerConfig,
+    setup: _Setup,
+    rest: Rest,
+    clk: _Clock,
+    *,
+    may_escape: bool,
+) -> PlanResult | None:
+    """For a start outside the area or in contact: a way out then a plan (leave_then_plan,
+    then come_about_then_plan), or a NO_PATH; None for a start no search needs to leave."""
+    r = req.vehicle_radius_m
+    outside = not _inside(req.area, req.start, r)
+    if not outside and setup.d_start > r:
+        return None
+    escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest) if may_escape else None
+    if outside and may_escape and (escaped is None or not escaped.ok):
+        escaped = come_about_then_plan(req, rest) or escaped
+    if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
+        where = (
+            "outside the area"
+            if outside
+            else f"in contact with an obstacle (hull clearance {setup.d_start - r:.2f} m)"
+        )
+        return _no_path(f"start is {where} and no way out within R_min is clear", clk)
+    return escaped
+
+
+def _search_and_shape(
+    req: PlanRequest, cfg: PlannerConfig, setup: _Setup, clk: _Clock
+) -> tuple[PlanResult, bool]:
+    """Search the cost map and shape a curve on it, at most three times: once more on the
+    static field when the swept discs wall the start off, once more with the obstacles a
+    curve met blocked where it passes them. The result, and whether it is final (a plan, or
+    a goal walled off); a failed curve is not: the fallbacks may still find one."""
+    r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
+    s_xy = np.array([req.start.x, req.start.y])
+    g_xy = np.array([req.goal.x, req.goal.y])
+    escape = cfg.escape_len_m if setup.start_inside else None
     t_max = (
         2.0
         * float(np.hypot(area.x_max_m - area.x_min_m, area.y_max_m - area.y_min_m))
@@ -204,8 +268,7 @@ def _plan(
     chk: CurveCheck | None = None
     unswept = passed = False  # each retry below is made at most once (3 searches at most)
     for _ in range(3):
-        cmap = build_costmap(area, static, discs, r, cfg)
-        escape = cfg.escape_len_m if d_start < d_req else None
+        cmap = build_costmap(area, setup.static, discs, r, cfg)
         cmap = _unblock_start_goal(cmap, req.start, req.goal, r, escape)
         clk.lap("costmap_s")
         sx, sy = cmap.cell_of(req.start.x, req.start.y)
@@ -225,26 +288,14 @@ def _plan(
                 f"goal unreachable: static obstacles{moving}, inflated by r + rho0, wall it off "
                 f"from the start on the {cfg.resolution_m:g} m grid",
                 clk,
-            )
+            ), True
         waypoints = prune_path(cmap, path, s_xy, g_xy)
         clk.lap("search_s")
-        prob = fit_problem(req, cfg, static, cmap, start_inside=d_start < d_req)
+        prob = fit_problem(req, cfg, setup.static, cmap, start_inside=setup.start_inside)
         curve, chk, n, met_moving = _fit_and_check(prob, waypoints, cfg, clk)
         rounds += n
         if chk.ok:
-            return PlanResult.of_curve(
-                curve,
-                reason="",
-                grid_path=waypoints,
-                length_m=chk.length_m,
-                f_l=chk.length_m / d_min,
-                max_curvature=chk.max_curvature,
-                min_clearance_m=chk.min_clearance_m,
-                turn_penalty=chk.turn_penalty,
-                rounds=rounds,
-                timing=clk.timing(),
-                escape_m=cfg.escape_len_m if d_start < d_req else 0.0,
-            )
+            return _planned(curve, chk, waypoints, rounds, setup, cfg, clk), True
         if passed or met_moving is None:
             break
         passed = True
@@ -254,20 +305,52 @@ def _plan(
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
     failed = _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
-    if not may_escape:
-        return failed
-    # near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
-    # turn away on an arc within R_min first; inside the margin, failing that, drive out first
+    return failed, False
+
+
+def _planned(
+    curve: NurbsCurve,
+    chk: CurveCheck,
+    waypoints: FloatArray,
+    rounds: int,
+    setup: _Setup,
+    cfg: PlannerConfig,
+    clk: _Clock,
+) -> PlanResult:
+    """The plan of a curve that passed its check."""
+    return PlanResult.of_curve(
+        curve,
+        reason="",
+        grid_path=waypoints,
+        length_m=chk.length_m,
+        f_l=chk.length_m / setup.d_min,
+        max_curvature=chk.max_curvature,
+        min_clearance_m=chk.min_clearance_m,
+        turn_penalty=chk.turn_penalty,
+        rounds=rounds,
+        timing=clk.timing(),
+        escape_m=cfg.escape_len_m if setup.start_inside else 0.0,
+    )
+
+
+def _fallbacks(
+    req: PlanRequest, cfg: PlannerConfig, setup: _Setup, failed: PlanResult, rest: Rest
+) -> PlanResult:
+    """After no feasible curve, the recoveries in order, the first plan that is ok kept.
+    Near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
+    turn away on an arc within R_min first; inside the margin, failing that, drive out
+    first; the area's edge may be what is in the way: come about across it."""
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok:
         return turned
-    if d_start < d_req:
-        escaped = leave_then_plan(req, cfg, static, d_start, rest)
+    if setup.start_inside:
+        escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest)
         if escaped is not None and escaped.ok:
             return escaped
-    # the area's edge may be what is in the way: come about across it
     about = come_about_then_plan(req, rest)
-    return about if about is not None and about.ok else (turned if d_start >= d_req else failed)
+    if about is not None and about.ok:
+        return about
+    return failed if setup.start_inside else turned
 
 
 def _fit_and_check(

@@ -115,7 +115,7 @@ class Objective:
         self, x: FloatArray, hessian: bool = False
     ) -> tuple[float, FloatArray, FloatArray]:
         """F(x), dF/dx and (if asked) the PSD Hessian model; the last is empty otherwise."""
-        wts, n = self.wts, self.lay.n
+        wts = self.wts
         p = self.lay.ctrl(x)
         c, v1, v2 = self.r0 @ p, self.r1 @ p, self.r2 @ p
         sp = np.maximum(np.hypot(v1[:, 0], v1[:, 1]), 1e-9)
@@ -145,7 +145,22 @@ class Objective:
             g2 += a2
             if hessian:
                 turn_rows = (fr, a1, a2)
-        # eq. (12)-(13): clearance to static (bilinear grid) and moving (exact) obstacles
+        dists, dirs = self._clearances(c)
+        gc = np.zeros_like(c)
+        for dist_m, dd in zip(dists, dirs, strict=True):
+            vd = np.maximum(self.d_t - dist_m, 0.0)
+            f += wts.c_d * float(vd @ vd)
+            gc -= (2.0 * wts.c_d * vd)[:, None] * dd
+        gp = self.r0.T @ gc + self.r1.T @ g1 + self.r2.T @ g2
+        gx = self.lay.m.T @ gp.ravel()
+        if not hessian:
+            return f, gx, np.zeros((0, 0))
+        hp = self._hessian_model(sp, k, dk1, dk2, dists, dirs, turn_rows)
+        return f, gx, self.lay.m.T @ hp @ self.lay.m
+
+    def _clearances(self, c: FloatArray) -> tuple[list[FloatArray], list[FloatArray]]:
+        """eq. (12)-(13): the samples' (m,) clearances to static (bilinear grid) and moving
+        (exact, the nearest per sample) obstacles, with their (m, 2) unit directions away."""
         dist, grad = self.prob.grid.static_clearance_at(c)
         dists, dirs = [dist], [grad]
         if len(self.centres):
@@ -156,15 +171,21 @@ class Objective:
             cols = np.arange(len(c))
             dists.append(dm[kmin, cols])
             dirs.append(diff[kmin, cols] / rr[kmin, cols][:, None])
-        gc = np.zeros_like(c)
-        for dist_m, dd in zip(dists, dirs, strict=True):
-            vd = np.maximum(self.d_t - dist_m, 0.0)
-            f += wts.c_d * float(vd @ vd)
-            gc -= (2.0 * wts.c_d * vd)[:, None] * dd
-        gp = self.r0.T @ gc + self.r1.T @ g1 + self.r2.T @ g2
-        gx = self.lay.m.T @ gp.ravel()
-        if not hessian:
-            return f, gx, np.zeros((0, 0))
+        return dists, dirs
+
+    def _hessian_model(
+        self,
+        sp: FloatArray,
+        k: FloatArray,
+        dk1: FloatArray,
+        dk2: FloatArray,
+        dists: list[FloatArray],
+        dirs: list[FloatArray],
+        turn_rows: tuple[FloatArray, FloatArray, FloatArray] | None,
+    ) -> FloatArray:
+        """The PSD Hessian model (2 n, 2 n) on the control points: the length majoriser plus
+        Gauss-Newton rows of the active hinges and the turning cost."""
+        wts, n = self.wts, self.lay.n
         # length majoriser: sum_j (w_j / |C'_j|) C'_j^T C'_j, the same for x and y
         kmat = self.r1.T @ ((self.wq / sp)[:, None] * self.r1)
         hp = np.zeros((2 * n, 2 * n))
@@ -194,7 +215,7 @@ class Objective:
         if rows:
             jac = np.concatenate(rows)
             hp += jac.T @ jac
-        return f, gx, self.lay.m.T @ hp @ self.lay.m
+        return hp
 
 
 def levenberg_marquardt(
