@@ -376,7 +376,7 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
 
 
 def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None:
-    """flight.py makes a plan again slower when no faster one flies clear of rho0: the core
+    """rollout.py makes a plan again slower when no faster one flies clear of rho0: the core
     then follows it at that speed (the controller's cruise cap), tells it in the path message
     (another vehicle predicts its intent with it) and judges the path's passing times at it
     (eq. (13)); the next plan made for cruise speed restores it."""

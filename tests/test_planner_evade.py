@@ -23,7 +23,7 @@ from services.planner.evade import (
     step_aside,
 )
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
-from services.planner.safety.flight import FlightModel, flown
+from services.planner.safety.rollout import RolloutInputs, roll_out
 
 SCENARIO = default_scenario()
 CFG = SCENARIO.planner
@@ -52,7 +52,7 @@ def _request(
 
 def _flight(start: tuple[float, float, float, float, float] = (5.0, 20.0, 0.0, V, 0.0)):
     limits = Limits.from_vehicle(SCENARIO.vehicle, yaw_lag_lead=True)
-    return FlightModel(
+    return RolloutInputs(
         controller=make_controller(SCENARIO.controller, limits),
         model=ResponseModel.from_vehicle(SCENARIO.vehicle),
         step_s=CFG.period_s,
@@ -61,7 +61,7 @@ def _flight(start: tuple[float, float, float, float, float] = (5.0, 20.0, 0.0, V
     )
 
 
-def _held_clearance(req: PlanRequest, fm: FlightModel) -> float:
+def _held_clearance(req: PlanRequest, fm: RolloutInputs) -> float:
     """The least hull gap to the obstacle of a vehicle that stops (as core.py stops it)."""
     pose, worst = fm.start, np.inf
     for k in range(round(EVADE_S / fm.step_s) + 1):
@@ -83,7 +83,7 @@ def test_held_in_a_moving_obstacles_way_it_steps_aside() -> None:
     assert way.max_curvature <= 1.0 / SCENARIO.vehicle.turn_radius_min_m + 1e-9
     assert way.escape_m == way.length_m
     # flown, it never touches the obstacle where it will be
-    f = flown(way, req, fm)
+    f = roll_out(way, req, fm)
     centres = req.obstacles.moving[0].centre_at(f.t, CFG.accel_horizon_s)
     assert np.min(np.hypot(*(f.pts - centres).T)) - 1.0 - R > 0.0
 
@@ -106,7 +106,7 @@ def test_a_way_aside_in_force_is_kept_unless_another_clears_more() -> None:
     assert way is not None
     # one second on along it, the obstacle where it then is: going on along the way aside is
     # what a new one must beat (by GAIN_M), not holding
-    f = flown(way, req, fm)
+    f = roll_out(way, req, fm)
     k = round(1.0 / fm.step_s)
     x, y = f.pts[k]
     dx, dy = f.pts[k + 1] - f.pts[k]
@@ -124,7 +124,7 @@ def _far_away() -> ObstacleState:
     )
 
 
-def _stop(fm: FlightModel) -> tuple[float, float, float, float, float]:
+def _stop(fm: RolloutInputs) -> tuple[float, float, float, float, float]:
     """Where a vehicle that holds (the stop command on the response model) comes to rest."""
     pose = fm.start
     for _ in range(round(EVADE_S / fm.step_s)):
@@ -159,7 +159,7 @@ def test_holding_where_it_could_no_longer_turn_about_outside_rho0_it_steps_aside
     way = step_aside(req, CFG, fm)
     assert way is not None and way.ok and way.short_of_goal
     assert "no room to turn about outside rho0" in way.reason
-    f = flown(way, req, fm)
+    f = roll_out(way, req, fm)
     gap = np.hypot(f.pts[:, 0] - rock[0], f.pts[:, 1] - rock[1]) - rock[2] - R
     assert gap.min() >= CFG.rho0_m  # the way aside keeps the margin ...
     assert _room_kept(*f.last[:3], rock)  # ... and stops where it can turn about
@@ -186,7 +186,7 @@ def test_a_recovery_into_rho0_waits_while_holding_keeps_out_of_it(
     def recovery(*_: object) -> PlanResult:
         return made
 
-    monkeypatch.setattr(evade, "plan_flown", recovery)
+    monkeypatch.setattr(evade, "plan_and_verify", recovery)
     got = plan_or_step_aside(req, CFG, _flight((5.0, 20.0, 0.0, speed, 0.0)))
     if holds:
         assert got.status == "NO_PATH" and "0.30 m into rho0" in got.reason

@@ -151,7 +151,7 @@ def test_short_of_the_start_only_the_offset_to_the_side_deviates() -> None:
 
 
 def test_a_slower_plan_asks_for_cruise_speed_once_past_where_it_was_slowed() -> None:
-    # flight.py made the plan for half the speed, to hold a bend 30 m along it: past that the
+    # rollout.py made the plan for half the speed, to hold a bend 30 m along it: past that the
     # vehicle would crawl to its goal with no other event to replan on
     res = plan_path(
         PlanRequest(start=START, goal=GOAL, v_ref_mps=V / 2, vehicle_radius_m=R_VEH), CFG

@@ -70,7 +70,7 @@ class PlannerConfig:
     deviation_threshold_m: float = 2.0  # vehicle this far from its path: replan
     min_replan_interval_s: float = 1.0  # no two replans closer than this (no chattering)
     # the estimated current changed by more than this (m/s) since the path in force was
-    # flown (flight.py) before it was adopted: replan, flown in the current as it is now
+    # flown (rollout.py) before it was adopted: replan, flown in the current as it is now
     current_change_mps: float = 0.1
     # the first plan waits (holding the vehicle still) until the estimator's tracks hold a
     # track, i.e. reflect at least one sonar scan, so eq. (12)-(13) see the moving obstacles

@@ -24,7 +24,7 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
 
     Layers, one way down: geometry/ (clearance.py, the exact distances every stage uses;
     nurbs_curve.py), then search/, shaping/, plan.py and the safety monitor (safety/):
-    recover.py and escape.py, ways out near or in contact; flight.py, a plan flown on the
+    recover.py and escape.py, ways out near or in contact; rollout.py, a plan flown on the
     response model before it is adopted; intent.py, the other vehicles of a fleet as
     obstacles with known trajectories. evade.py, stepping aside or holding first, plans again.
     core.py is the service core; replan.py decides when to plan again.

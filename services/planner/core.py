@@ -35,8 +35,8 @@ from services.planner.evade import plan_or_step_aside
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
-from services.planner.safety.flight import ARRIVED_M, FlightModel
 from services.planner.safety.intent import FleetIntents
+from services.planner.safety.rollout import ARRIVED_M, RolloutInputs
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 
@@ -78,7 +78,7 @@ def _plan_over_ground(
     req: PlanRequest,
     r_water_m: float,
     cfg: PlannerConfig,
-    flight: FlightModel,
+    flight: RolloutInputs,
     aside: PlanResult | None,
 ) -> PlanResult:
     """The plan for req, whose R_min is the one over ground in the current (wider than the
@@ -431,7 +431,7 @@ class PlannerCore:
     ) -> None:
         """Start (at step t) a plan from `here`, the pose at t_plan, where the vehicle moves
         with `twist` (v, w) (the obstacles as they are then); flown before it is adopted
-        (flight.py)."""
+        (rollout.py)."""
         req = PlanRequest(
             start=here,
             goal=self.goal,
@@ -452,7 +452,7 @@ class PlannerCore:
             current=self.link.model.current_mps,
             pace=req.pace,
         )
-        flight = FlightModel(
+        flight = RolloutInputs(
             # a copy now: the plan may be made beside the steps, which go on using it
             controller=copy.deepcopy(self.controller),
             model=self.link.model,
@@ -556,7 +556,7 @@ class PlannerCore:
         return True
 
     def _speed_of(self, result: PlanResult) -> float:
-        """The speed a plan is followed at: the one it was made for (flight.py), else cruise."""
+        """The speed a plan is followed at: the one it was made for (rollout.py), else cruise."""
         return self.vehicle.cruise_speed_mps if result.v_ref_mps is None else result.v_ref_mps
 
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:

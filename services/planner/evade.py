@@ -14,8 +14,8 @@ up to a half turn, then straight, ending every LENGTH_STEP_M up to EVADE_S at cr
 where the vehicle stops. The ways are swept (escape.py: never into contact, nor out of the
 area), each held at its end for the rest of EVADE_S; the SHORTLIST of them that clear the
 most (those that end where a full circle of that radius is free to one side first: stopped
-facing an edge or a wall, no curve leaves; then up to rho0 + FLIGHT_CUSHION_M, then the
-shortest, then the smallest turn) are flown by the controller (flight.py), and the one whose
+facing an edge or a wall, no curve leaves; then up to rho0 + ROLLOUT_CUSHION_M, then the
+shortest, then the smallest turn) are flown by the controller (rollout.py), and the one whose
 flight, then held, clears the most (one that stops with room to turn about first) is taken
 if it clears GAIN_M more than holding. Its path ends short of the goal (`short_of_goal`):
 the replan policy tries the goal again at every interval (replan.py, `aside`); while it is in
@@ -57,8 +57,13 @@ from services.planner.safety.escape import (
     sweep,
     to_edge,
 )
-from services.planner.safety.flight import FLIGHT_CUSHION_M, FlightModel, flown, plan_flown
 from services.planner.safety.recover import ARC_RADIUS_FACTOR
+from services.planner.safety.rollout import (
+    ROLLOUT_CUSHION_M,
+    RolloutInputs,
+    plan_and_verify,
+    roll_out,
+)
 
 EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
 LENGTH_STEP_M = 1.0  # the ways aside end every this far along
@@ -69,13 +74,13 @@ HOLD_FIRST_FACTOR = 0.25
 
 
 def plan_or_step_aside(
-    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None = None
+    req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, aside: PlanResult | None = None
 ) -> PlanResult:
-    """The plan to the goal, flown (flight.py), unless it enters the safety margin where
+    """The plan to the goal, flown (rollout.py), unless it enters the safety margin where
     holding keeps out of it (module docstring: holds first); without one, a way aside when
     holding (or going on along `aside`, the way aside in force) is in a moving obstacle's way
     or traps the vehicle, else the NO_PATH."""
-    result = plan_flown(req, cfg, fm, plan_path)
+    result = plan_and_verify(req, cfg, fm, plan_path)
     if result.ok:
         moving_on = fm.start[3] >= HOLD_FIRST_FACTOR * req.v_ref_mps
         if result.margin_entered_m <= 0.0 or not moving_on or not req.obstacles.moving:
@@ -112,7 +117,7 @@ class Holding:
 
 
 def _holding(
-    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None
+    req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, aside: PlanResult | None
 ) -> Holding:
     static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
     if aside is None:
@@ -120,7 +125,7 @@ def _holding(
         pts, t, stop = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start)
     else:
         how = "going on along the way aside in force"
-        f = flown(aside, req, fm)
+        f = roll_out(aside, req, fm)
         pts, t, stop = _held_on(fm, f.pts, f.t, f.last)
     clear = _clearance((pts, t), req, cfg, static)
     radius = ARC_RADIUS_FACTOR * req.r_min_m
@@ -131,7 +136,7 @@ def _holding(
 
 
 def step_aside(
-    req: PlanRequest, cfg: PlannerConfig, fm: FlightModel, aside: PlanResult | None = None
+    req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, aside: PlanResult | None = None
 ) -> PlanResult | None:
     """A path aside (module docstring), or None when holding, or going on along `aside`,
     is as good."""
@@ -173,7 +178,7 @@ class _Ways:
 def _ranked_ways(
     req: PlanRequest,
     cfg: PlannerConfig,
-    fm: FlightModel,
+    fm: RolloutInputs,
     static: StaticField,
     radius: float,
     *,
@@ -181,7 +186,7 @@ def _ranked_ways(
 ) -> _Ways:
     """The ways aside that never touch nor leave the area, ranked: room to turn about where
     they stop, then (trapped) room outside rho0, then clearance up to rho0 +
-    FLIGHT_CUSHION_M, then the shortest, then the smallest turn."""
+    ROLLOUT_CUSHION_M, then the shortest, then the smallest turn."""
     moving = req.obstacles.moving
     r, v = req.vehicle_radius_m, req.v_ref_mps
     turns = np.linspace(-math.pi, math.pi, N_TURNS)
@@ -218,7 +223,7 @@ def _ranked_ways(
     room = _turning_room(end_pts, heading, radius, r, static, req)
     # trapped: ways that leave room to turn about outside rho0 come next (else all alike)
     room_kept = _turning_room(end_pts, heading, radius, r + cfg.rho0_m, static, req) | (not trapped)
-    cap = cfg.rho0_m + FLIGHT_CUSHION_M
+    cap = cfg.rho0_m + ROLLOUT_CUSHION_M
     # a way that ends on its arc is the same as any larger turn's up to there: one of each
     ways = {
         (_turn(float(turns[j]), float(sw.s[ends[e]]), radius), int(e)): (int(j), int(e))
@@ -241,7 +246,7 @@ def _best_flown(
     ways: _Ways,
     req: PlanRequest,
     cfg: PlannerConfig,
-    fm: FlightModel,
+    fm: RolloutInputs,
     static: StaticField,
     radius: float,
     held: Holding,
@@ -260,7 +265,7 @@ def _best_flown(
             end_clearance_m=float(ways.score[j, e]),
         )
         way = _as_plan(esc, req, cfg)
-        f = flown(way, req, fm)
+        f = roll_out(way, req, fm)
         got_pts, got_t, _ = _held_on(fm, f.pts, f.t, f.last)
         got = _clearance((got_pts, got_t), req, cfg, static)
         # where the flight stops (past the way's end, as the speed loop lags)
@@ -279,7 +284,7 @@ def _turn(turn: float, length: float, radius: float) -> float:
 
 
 def _held_on(
-    fm: FlightModel, pts: FloatArray, t: FloatArray, last: Pose
+    fm: RolloutInputs, pts: FloatArray, t: FloatArray, last: Pose
 ) -> tuple[FloatArray, FloatArray, Pose]:
     """Positions pts at times t (a flight, ending in state `last`), then the vehicle stopped
     (the stop command on the response model) every control period up to EVADE_S; and the

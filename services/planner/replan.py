@@ -13,10 +13,10 @@ last replan, so noisy tracks cannot make the planner chatter):
                 margin, or contact, is what that stretch is for);
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes;
-  cruise        the path in force was made for less than cruise speed (flight.py: a bend no
+  cruise        the path in force was made for less than cruise speed (rollout.py: a bend no
                 faster flight held clear of rho0) and the vehicle is past its slow_until_m;
   current       the estimated current differs by more than current_change_mps from the one
-                the path in force was flown in (flight.py) before it was adopted.
+                the path in force was flown in (rollout.py) before it was adopted.
 The core adds one event of its own, ahead of these and of the interval:
   resumed       it sent no command for longer than the vehicle's hold_after_s (and
                 max_estimate_age_s): it was stopped, or its uplink was out, while the vehicle
@@ -86,7 +86,7 @@ class ReplanPolicy:
         self.cfg = cfg
         self.r = vehicle_radius_m
         self.cruise = v_ref_mps
-        self.v_ref = v_ref_mps  # the speed of the path in force (a slower plan's: flight.py)
+        self.v_ref = v_ref_mps  # the speed of the path in force (a slower plan's: rollout.py)
         self.n_samples = n_samples
         self.pts: FloatArray | None = None  # (K, 2) samples of the current path
         self.s: FloatArray = np.zeros(0)  # (K,) arc length of each sample

@@ -105,7 +105,7 @@ class PlanResult:
     # safety margin, or deeper into it (escape.py `deeper_m`); 0 when it keeps out
     margin_entered_m: float = 0.0
     # the speed the plan was made and flown for, when slower than the request's cruise speed
-    # (flight.py: a plan no faster flight kept rho0 on); None: the request's v_ref_mps
+    # (rollout.py: a plan no faster flight kept rho0 on); None: the request's v_ref_mps
     v_ref_mps: float | None = None
     # a slower plan's arc length (from its start) past which the place it was slowed for lies
     # behind: there the replan policy asks for a plan at cruise speed again (replan.py)

@@ -1,4 +1,4 @@
-"""A plan flown before it is adopted (services/planner/safety/flight.py): the controller on the
+"""A plan flown before it is adopted (services/planner/safety/rollout.py): the controller on the
 response model measures how near the vehicle will come, and a plan it would fly inside rho0
 is made again wider."""
 
@@ -19,16 +19,16 @@ from services.control.command.response import ResponseModel
 from services.control.controllers import Limits, make_controller
 from services.planner.geometry.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.safety.flight import (
-    FLIGHT_CURVATURE_FACTOR,
-    FLIGHT_CUSHION_M,
-    FLIGHT_MOVING_S,
-    FLIGHT_SLOW_FACTOR,
-    FlightModel,
-    fly,
-    plan_flown,
-)
 from services.planner.safety.intent import IntentObstacle
+from services.planner.safety.rollout import (
+    ROLLOUT_CURVATURE_FACTOR,
+    ROLLOUT_CUSHION_M,
+    ROLLOUT_MOVING_S,
+    ROLLOUT_SLOW_FACTOR,
+    RolloutInputs,
+    plan_and_verify,
+    rollout_clearance,
+)
 
 SCENARIO = default_scenario()
 CFG = SCENARIO.planner
@@ -63,9 +63,9 @@ def _request(*, circles: tuple[CircleObstacleConfig, ...] = (), moving=()) -> Pl
     )
 
 
-def _flight(w0: float = 0.0, v0: float = V) -> FlightModel:
+def _flight(w0: float = 0.0, v0: float = V) -> RolloutInputs:
     limits = Limits.from_vehicle(SCENARIO.vehicle, yaw_lag_lead=True)
-    return FlightModel(
+    return RolloutInputs(
         controller=make_controller(SCENARIO.controller, limits),
         model=ResponseModel.from_vehicle(SCENARIO.vehicle),
         step_s=CFG.period_s,
@@ -82,7 +82,9 @@ def _circle_left_of_the_line(gap_m: float, x: float = 12.0) -> CircleObstacleCon
 
 def test_a_flight_on_its_path_clears_what_the_path_clears() -> None:
     gap = CFG.rho0_m + 0.3
-    f = fly(_straight(20.0), _request(circles=(_circle_left_of_the_line(gap),)), _flight(), CFG)
+    f = rollout_clearance(
+        _straight(20.0), _request(circles=(_circle_left_of_the_line(gap),)), _flight(), CFG
+    )
     assert f.off_path_m < 0.02
     assert abs(f.min_clearance_m - gap) < 0.02
     assert abs(f.x - 12.0) < 0.2 and abs(f.t_s - 7.0 / V) < 1.0
@@ -93,8 +95,8 @@ def test_a_vehicle_turning_the_other_way_flies_the_start_of_its_path_wide() -> N
     # a while to unwind, and it swings toward the obstacle on its left
     gap = CFG.rho0_m + 0.3
     req = _request(circles=(_circle_left_of_the_line(gap, x=9.0),))
-    straight = fly(_straight(20.0), req, _flight(w0=0.0), CFG)
-    turning = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG)
+    straight = rollout_clearance(_straight(20.0), req, _flight(w0=0.0), CFG)
+    turning = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
     assert straight.off_path_m < 0.02 and turning.off_path_m > 0.05
     assert turning.min_clearance_m < straight.min_clearance_m - 0.05
 
@@ -114,11 +116,11 @@ def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
             moving=True,
         )
 
-    def flown(meets_at_s: float) -> float:
+    def roll_out(meets_at_s: float) -> float:
         req = _request(moving=[crossing_at(meets_at_s)])
-        return fly(_straight(20.0), req, _flight(), CFG).min_clearance_m
+        return rollout_clearance(_straight(20.0), req, _flight(), CFG).min_clearance_m
 
-    soon, late = flown(8.0), flown(FLIGHT_MOVING_S + 8.0)
+    soon, late = roll_out(8.0), roll_out(ROLLOUT_MOVING_S + 8.0)
     assert soon < 0.0  # they meet
     # they would meet too, after the window: only where it is within it counts (metres away)
     assert late > 5.0
@@ -127,7 +129,7 @@ def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
 def test_another_vehicles_broadcast_route_counts_over_the_whole_flight() -> None:
     # the same meeting after the window, the crosser now another vehicle whose route (its
     # plan, broadcast) comes down across the line: a plan, not a guess, so it counts
-    meet_s = FLIGHT_MOVING_S + 8.0
+    meet_s = ROLLOUT_MOVING_S + 8.0
     x_meet, v_other = 5.0 + V * meet_s, 1.0
     ys = np.linspace(20.0 + v_other * meet_s, 0.0, 50)
     xs = np.full_like(ys, x_meet)
@@ -137,7 +139,7 @@ def test_another_vehicles_broadcast_route_counts_over_the_whole_flight() -> None
         moving=True, route_x=xs, route_y=ys, s_route=s_route, route_box=Box.of(xs, ys),
         s0=0.0, speed=v_other,
     )  # fmt: skip
-    f = fly(_straight(20.0), _request(moving=[other]), _flight(), CFG)
+    f = rollout_clearance(_straight(20.0), _request(moving=[other]), _flight(), CFG)
     assert f.min_clearance_m < 0.0 and not f.static  # they meet, and the flight says so
     assert abs(f.t_s - meet_s) < 1.5
 
@@ -145,9 +147,9 @@ def test_another_vehicles_broadcast_route_counts_over_the_whole_flight() -> None
 def test_the_escape_stretch_is_not_held_to_rho0() -> None:
     circle = _circle_left_of_the_line(0.2, x=7.0)  # 0.2 m from the hull, 2 m after the start
     req = _request(circles=(circle,))
-    assert fly(_straight(20.0), req, _flight(), CFG).min_clearance_m < 0.25
+    assert rollout_clearance(_straight(20.0), req, _flight(), CFG).min_clearance_m < 0.25
     escaping = dataclasses.replace(_straight(20.0), escape_m=6.0)
-    assert fly(escaping, req, _flight(), CFG).min_clearance_m > 1.0
+    assert rollout_clearance(escaping, req, _flight(), CFG).min_clearance_m > 1.0
 
 
 class _Planner:
@@ -182,7 +184,7 @@ def test_a_plan_whose_flight_keeps_rho0_is_adopted_as_made() -> None:
     planner = _Planner()
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.3),))
     first = planner(req, CFG)
-    got = plan_flown(req, CFG, _flight(), planner)
+    got = plan_and_verify(req, CFG, _flight(), planner)
     assert (
         len(planner.asked) == 2
         and got.reason == ""
@@ -193,25 +195,25 @@ def test_a_plan_whose_flight_keeps_rho0_is_adopted_as_made() -> None:
 def test_a_plan_flown_inside_rho0_is_made_again_wider_and_says_so() -> None:
     planner = _Planner()
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
-    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    got = plan_and_verify(req, CFG, _flight(w0=W_MAX), planner)
     first, wider = planner.asked
     assert first is CFG
     # the margin asked is the tracking error the first flight showed, plus the cushion
-    flown = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG)
-    assert flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
-    assert math.isclose(wider.clearance_margin_m, flown.off_path_m + FLIGHT_CUSHION_M)
+    flown = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
+    assert flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
+    assert math.isclose(wider.clearance_margin_m, flown.off_path_m + ROLLOUT_CUSHION_M)
     assert wider.clearance_margin_m > CFG.clearance_margin_m
-    assert math.isclose(wider.curvature_margin, CFG.curvature_margin * FLIGHT_CURVATURE_FACTOR)
+    assert math.isclose(wider.curvature_margin, CFG.curvature_margin * ROLLOUT_CURVATURE_FACTOR)
     assert got.ok and got.control_points[0, 1] < 20.0  # the wider one
     assert "made again with a" in got.reason and "off the path" in got.reason
-    again = fly(got, req, _flight(w0=W_MAX), CFG)
-    assert again.min_clearance_m >= CFG.rho0_m + FLIGHT_CUSHION_M
+    again = rollout_clearance(got, req, _flight(w0=W_MAX), CFG)
+    assert again.min_clearance_m >= CFG.rho0_m + ROLLOUT_CUSHION_M
 
 
 def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -> None:
     planner = _Planner(fail_again=True)
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0),))
-    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    got = plan_and_verify(req, CFG, _flight(w0=W_MAX), planner)
     assert len(planner.asked) == 4  # wider, around a disc where it came nearest, slower
     assert got.ok and got.control_points[0, 1] == 20.0
     assert "fared no better" in got.reason
@@ -222,22 +224,22 @@ def test_a_bend_flown_wide_at_any_margin_is_made_again_slower_and_flown_at_that_
     # cruise speed (no wider plan is found here); slower, its yaw lag costs less of the path
     planner = _Planner(fail_again=True, slow_ok=True)
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.17, x=9.0),))
-    keep = CFG.rho0_m + FLIGHT_CUSHION_M
-    at_cruise = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG)
+    keep = CFG.rho0_m + ROLLOUT_CUSHION_M
+    at_cruise = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
     assert at_cruise.min_clearance_m < keep
-    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    got = plan_and_verify(req, CFG, _flight(w0=W_MAX), planner)
     slower = planner.requests[-1]
-    assert math.isclose(slower.v_ref_mps, V * FLIGHT_SLOW_FACTOR)
+    assert math.isclose(slower.v_ref_mps, V * ROLLOUT_SLOW_FACTOR)
     assert planner.asked[-1] is CFG  # the margins as asked: only the speed differs
     assert got.ok and got.v_ref_mps == slower.v_ref_mps  # the speed it is to be followed at
     assert f"made again for {slower.v_ref_mps:.2f} m/s" in got.reason
-    flown = fly(got, slower, _flight(w0=W_MAX), CFG)
+    flown = rollout_clearance(got, slower, _flight(w0=W_MAX), CFG)
     assert flown.off_path_m < at_cruise.off_path_m and flown.min_clearance_m >= keep
     # ... until a turning radius past where its flight came nearest, then at cruise again
     assert got.slow_until_m == pytest.approx(flown.path_s_m + req.r_min_m)
     assert 0.0 < got.slow_until_m < got.length_m
     # a plan that flies clear at cruise speed is kept at it
-    clear = plan_flown(_request(), CFG, _flight(), _Planner())
+    clear = plan_and_verify(_request(), CFG, _flight(), _Planner())
     assert clear.ok and clear.v_ref_mps is None
 
 
@@ -245,11 +247,11 @@ def test_a_squeeze_too_narrow_for_the_wider_margin_is_left_for_another_way() -> 
     planner = _Planner(fail_again=True, detour=True)
     circle = _circle_left_of_the_line(CFG.rho0_m + 0.12, x=9.0)
     req = _request(circles=(circle,))
-    got = plan_flown(req, CFG, _flight(w0=W_MAX), planner)
+    got = plan_and_verify(req, CFG, _flight(w0=W_MAX), planner)
     first, wider, around = planner.requests
     assert first is req and wider is req
     (disc,) = set(around.obstacles.circles) - {circle}
-    flown = fly(_straight(20.0), req, _flight(w0=W_MAX), CFG)
+    flown = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
     assert (disc.x_m, disc.y_m) == (flown.x, flown.y) and disc.id != circle.id
     assert planner.asked[2] is CFG
     assert got.ok and got.control_points[0, 1] == 15.0
@@ -264,9 +266,9 @@ def test_neither_a_detour_nor_slower_round_a_moving_obstacle_it_will_be_elsewher
     )  # fmt: skip
     planner = _Planner(fail_again=True, detour=True)
     req = _request(moving=[mover])
-    flown = fly(_straight(20.0), req, _flight(), CFG)
-    assert not flown.static and flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
-    plan_flown(req, CFG, _flight(), planner)
+    flown = rollout_clearance(_straight(20.0), req, _flight(), CFG)
+    assert not flown.static and flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
+    plan_and_verify(req, CFG, _flight(), planner)
     assert len(planner.asked) == 2  # wider only: slower would meet it at another time
 
 
@@ -274,7 +276,7 @@ def test_no_path_is_not_flown() -> None:
     def nothing(req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
         return PlanResult(status="NO_PATH", reason="walled off")
 
-    got = plan_flown(_request(), CFG, _flight(), nothing)
+    got = plan_and_verify(_request(), CFG, _flight(), nothing)
     assert not got.ok and got.reason == "walled off"
 
 
@@ -296,15 +298,15 @@ def test_just_after_an_escape_the_flight_is_held_to_rho0_without_the_cushion(
         planner(q, c)  # counted
         return escaping if len(planner.asked) == 1 else _straight(19.0, x1=40.0)
 
-    flown = fly(escaping, req, _flight(), CFG)
-    assert CFG.rho0_m < flown.min_clearance_m < CFG.rho0_m + FLIGHT_CUSHION_M
-    got = plan_flown(req, CFG, _flight(), escape_first)
+    flown = rollout_clearance(escaping, req, _flight(), CFG)
+    assert CFG.rho0_m < flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
+    got = plan_and_verify(req, CFG, _flight(), escape_first)
     if past_m < SCENARIO.vehicle.turn_radius_min_m:
         assert flown.short_m <= 0.0 and flown.keep_m == CFG.rho0_m
         assert len(planner.asked) == 1 and got is escaping
     else:
-        assert flown.short_m > 0.0 and flown.keep_m == CFG.rho0_m + FLIGHT_CUSHION_M
+        assert flown.short_m > 0.0 and flown.keep_m == CFG.rho0_m + ROLLOUT_CUSHION_M
         assert len(planner.asked) > 1 and got.control_points[0, 1] == 19.0
         assert "made again with a" in got.reason
-    plain = plan_flown(req, CFG, _flight(), _Planner())
+    plain = plan_and_verify(req, CFG, _flight(), _Planner())
     assert "flown on the response model" in plain.reason  # without an escape: the cushion
