@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from common.config.planner import PlannerConfig
+
+DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 
 
 def test_defaults_are_valid_and_documented_values() -> None:
@@ -46,3 +50,14 @@ def test_defaults_are_valid_and_documented_values() -> None:
 def test_bad_values_are_rejected_naming_the_field(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"^{field}:"):
         PlannerConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_a_sweep_sets_the_planners_tuning_and_a_bad_value_names_its_key() -> None:
+    # plan-and-verify and stepping aside are tuned in one validated section, planner.tuning
+    from common.config.errors import ConfigError
+    from common.config.scenario import load_scenario
+
+    s, _ = load_scenario(DEFAULT, ["planner.tuning.evade_s=5.0"])
+    assert s.planner.tuning.evade_s == 5.0
+    with pytest.raises(ConfigError, match=r"planner\.tuning\.rollout_slow_factor"):
+        load_scenario(DEFAULT, ["planner.tuning.rollout_slow_factor=1.5"])

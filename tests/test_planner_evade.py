@@ -16,9 +16,6 @@ from services.control.command.response import ResponseModel
 from services.control.controllers import Limits, make_controller
 from services.planner import evade
 from services.planner.evade import (
-    EVADE_S,
-    GAIN_M,
-    HOLD_FIRST_FACTOR,
     plan_or_step_aside,
     step_aside,
 )
@@ -64,7 +61,7 @@ def _flight(start: tuple[float, float, float, float, float] = (5.0, 20.0, 0.0, V
 def _held_clearance(req: PlanRequest, fm: RolloutInputs) -> float:
     """The least hull gap to the obstacle of a vehicle that stops (as core.py stops it)."""
     pose, worst = fm.start, np.inf
-    for k in range(round(EVADE_S / fm.step_s) + 1):
+    for k in range(round(CFG.tuning.evade_s / fm.step_s) + 1):
         (c,) = req.obstacles.moving[0].centre_at(np.array([k * fm.step_s]), CFG.accel_horizon_s)
         worst = min(worst, float(np.hypot(pose[0] - c[0], pose[1] - c[1])) - 1.0 - R)
         pose = fm.model.advance(pose, 0.0, 0.0, fm.step_s)
@@ -77,13 +74,13 @@ def test_held_in_a_moving_obstacles_way_it_steps_aside() -> None:
     assert held < 0.0  # braking on its heading, the vehicle would be hit
     way = step_aside(req, CFG, fm)
     assert way is not None and way.ok and way.short_of_goal
-    assert way.min_clearance_m >= held + GAIN_M and way.min_clearance_m > 0.0
+    assert way.min_clearance_m >= held + CFG.tuning.evade_gain_m and way.min_clearance_m > 0.0
     assert abs(way.turn_rad) > 0.0 and "steps aside" in way.reason
     # the way is an exact drivable arc (no tighter than R_min), swept clear of contact
     assert way.max_curvature <= 1.0 / SCENARIO.vehicle.turn_radius_min_m + 1e-9
     assert way.escape_m == way.length_m
     # flown, it never touches the obstacle where it will be
-    f = roll_out(way, req, fm)
+    f = roll_out(way, req, fm, CFG.tuning)
     centres = req.obstacles.moving[0].centre_at(f.t, CFG.accel_horizon_s)
     assert np.min(np.hypot(*(f.pts - centres).T)) - 1.0 - R > 0.0
 
@@ -105,8 +102,8 @@ def test_a_way_aside_in_force_is_kept_unless_another_clears_more() -> None:
     way = step_aside(req, CFG, fm)
     assert way is not None
     # one second on along it, the obstacle where it then is: going on along the way aside is
-    # what a new one must beat (by GAIN_M), not holding
-    f = roll_out(way, req, fm)
+    # what a new one must beat (by CFG.tuning.evade_gain_m), not holding
+    f = roll_out(way, req, fm, CFG.tuning)
     k = round(1.0 / fm.step_s)
     x, y = f.pts[k]
     dx, dy = f.pts[k + 1] - f.pts[k]
@@ -127,7 +124,7 @@ def _far_away() -> ObstacleState:
 def _stop(fm: RolloutInputs) -> tuple[float, float, float, float, float]:
     """Where a vehicle that holds (the stop command on the response model) comes to rest."""
     pose = fm.start
-    for _ in range(round(EVADE_S / fm.step_s)):
+    for _ in range(round(CFG.tuning.evade_s / fm.step_s)):
         pose = fm.model.advance(pose, 0.0, 0.0, fm.step_s)
     return pose
 
@@ -159,7 +156,7 @@ def test_holding_where_it_could_no_longer_turn_about_outside_rho0_it_steps_aside
     way = step_aside(req, CFG, fm)
     assert way is not None and way.ok and way.short_of_goal
     assert "no room to turn about outside rho0" in way.reason
-    f = roll_out(way, req, fm)
+    f = roll_out(way, req, fm, CFG.tuning)
     gap = np.hypot(f.pts[:, 0] - rock[0], f.pts[:, 1] - rock[1]) - rock[2] - R
     assert gap.min() >= CFG.rho0_m  # the way aside keeps the margin ...
     assert _room_kept(*f.last[:3], rock)  # ... and stops where it can turn about
@@ -171,7 +168,9 @@ def test_holding_where_it_could_no_longer_turn_about_outside_rho0_it_steps_aside
     ("speed", "threat", "holds"),
     [
         pytest.param(V, None, True, id="moving on, holding keeps out of rho0: holds first"),
-        pytest.param(0.5 * HOLD_FIRST_FACTOR * V, None, False, id="already held: recovers"),
+        pytest.param(
+            0.5 * CFG.tuning.hold_first_factor * V, None, False, id="already held: recovers"
+        ),
         pytest.param(V, _head_on(), False, id="holding is in a moving obstacle's way"),
     ],
 )

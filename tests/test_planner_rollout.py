@@ -21,10 +21,6 @@ from services.planner.geometry.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.safety.intent import IntentObstacle
 from services.planner.safety.rollout import (
-    ROLLOUT_CURVATURE_FACTOR,
-    ROLLOUT_CUSHION_M,
-    ROLLOUT_MOVING_S,
-    ROLLOUT_SLOW_FACTOR,
     RolloutInputs,
     plan_and_verify,
     rollout_clearance,
@@ -120,7 +116,7 @@ def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
         req = _request(moving=[crossing_at(meets_at_s)])
         return rollout_clearance(_straight(20.0), req, _flight(), CFG).min_clearance_m
 
-    soon, late = roll_out(8.0), roll_out(ROLLOUT_MOVING_S + 8.0)
+    soon, late = roll_out(8.0), roll_out(CFG.tuning.rollout_moving_s + 8.0)
     assert soon < 0.0  # they meet
     # they would meet too, after the window: only where it is within it counts (metres away)
     assert late > 5.0
@@ -129,7 +125,7 @@ def test_moving_obstacles_count_over_the_flights_first_seconds_only() -> None:
 def test_another_vehicles_broadcast_route_counts_over_the_whole_flight() -> None:
     # the same meeting after the window, the crosser now another vehicle whose route (its
     # plan, broadcast) comes down across the line: a plan, not a guess, so it counts
-    meet_s = ROLLOUT_MOVING_S + 8.0
+    meet_s = CFG.tuning.rollout_moving_s + 8.0
     x_meet, v_other = 5.0 + V * meet_s, 1.0
     ys = np.linspace(20.0 + v_other * meet_s, 0.0, 50)
     xs = np.full_like(ys, x_meet)
@@ -200,14 +196,16 @@ def test_a_plan_flown_inside_rho0_is_made_again_wider_and_says_so() -> None:
     assert first is CFG
     # the margin asked is the tracking error the first flight showed, plus the cushion
     flown = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
-    assert flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
-    assert math.isclose(wider.clearance_margin_m, flown.off_path_m + ROLLOUT_CUSHION_M)
+    assert flown.min_clearance_m < CFG.rho0_m + CFG.tuning.rollout_cushion_m
+    assert math.isclose(wider.clearance_margin_m, flown.off_path_m + CFG.tuning.rollout_cushion_m)
     assert wider.clearance_margin_m > CFG.clearance_margin_m
-    assert math.isclose(wider.curvature_margin, CFG.curvature_margin * ROLLOUT_CURVATURE_FACTOR)
+    assert math.isclose(
+        wider.curvature_margin, CFG.curvature_margin * CFG.tuning.rollout_curvature_factor
+    )
     assert got.ok and got.control_points[0, 1] < 20.0  # the wider one
     assert "made again with a" in got.reason and "off the path" in got.reason
     again = rollout_clearance(got, req, _flight(w0=W_MAX), CFG)
-    assert again.min_clearance_m >= CFG.rho0_m + ROLLOUT_CUSHION_M
+    assert again.min_clearance_m >= CFG.rho0_m + CFG.tuning.rollout_cushion_m
 
 
 def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -> None:
@@ -224,12 +222,12 @@ def test_a_bend_flown_wide_at_any_margin_is_made_again_slower_and_flown_at_that_
     # cruise speed (no wider plan is found here); slower, its yaw lag costs less of the path
     planner = _Planner(fail_again=True, slow_ok=True)
     req = _request(circles=(_circle_left_of_the_line(CFG.rho0_m + 0.17, x=9.0),))
-    keep = CFG.rho0_m + ROLLOUT_CUSHION_M
+    keep = CFG.rho0_m + CFG.tuning.rollout_cushion_m
     at_cruise = rollout_clearance(_straight(20.0), req, _flight(w0=W_MAX), CFG)
     assert at_cruise.min_clearance_m < keep
     got = plan_and_verify(req, CFG, _flight(w0=W_MAX), planner)
     slower = planner.requests[-1]
-    assert math.isclose(slower.v_ref_mps, V * ROLLOUT_SLOW_FACTOR)
+    assert math.isclose(slower.v_ref_mps, V * CFG.tuning.rollout_slow_factor)
     assert planner.asked[-1] is CFG  # the margins as asked: only the speed differs
     assert got.ok and got.v_ref_mps == slower.v_ref_mps  # the speed it is to be followed at
     assert f"made again for {slower.v_ref_mps:.2f} m/s" in got.reason
@@ -267,7 +265,7 @@ def test_neither_a_detour_nor_slower_round_a_moving_obstacle_it_will_be_elsewher
     planner = _Planner(fail_again=True, detour=True)
     req = _request(moving=[mover])
     flown = rollout_clearance(_straight(20.0), req, _flight(), CFG)
-    assert not flown.static and flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
+    assert not flown.static and flown.min_clearance_m < CFG.rho0_m + CFG.tuning.rollout_cushion_m
     plan_and_verify(req, CFG, _flight(), planner)
     assert len(planner.asked) == 2  # wider only: slower would meet it at another time
 
@@ -299,13 +297,13 @@ def test_just_after_an_escape_the_flight_is_held_to_rho0_without_the_cushion(
         return escaping if len(planner.asked) == 1 else _straight(19.0, x1=40.0)
 
     flown = rollout_clearance(escaping, req, _flight(), CFG)
-    assert CFG.rho0_m < flown.min_clearance_m < CFG.rho0_m + ROLLOUT_CUSHION_M
+    assert CFG.rho0_m < flown.min_clearance_m < CFG.rho0_m + CFG.tuning.rollout_cushion_m
     got = plan_and_verify(req, CFG, _flight(), escape_first)
     if past_m < SCENARIO.vehicle.turn_radius_min_m:
         assert flown.short_m <= 0.0 and flown.keep_m == CFG.rho0_m
         assert len(planner.asked) == 1 and got is escaping
     else:
-        assert flown.short_m > 0.0 and flown.keep_m == CFG.rho0_m + ROLLOUT_CUSHION_M
+        assert flown.short_m > 0.0 and flown.keep_m == CFG.rho0_m + CFG.tuning.rollout_cushion_m
         assert len(planner.asked) > 1 and got.control_points[0, 1] == 19.0
         assert "made again with a" in got.reason
     plain = plan_and_verify(req, CFG, _flight(), _Planner())

@@ -7,11 +7,12 @@ they live in the vehicle / world sections and are handed to the planner as argum
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from common.config.checks import int_range, nonneg, positive
 from common.config.errors import ConfigValueError
+from common.config.planner_tuning import PlannerTuning
 from common.config.world import AreaConfig
 
 SearchKind = Literal["dijkstra", "astar"]
@@ -93,6 +94,8 @@ class PlannerConfig:
     # who plans around whose intent (services/planner/safety/intent.py): "priority", a vehicle gives
     # way to those listed before it in [[vehicles]]; "mutual", to every other vehicle
     deconfliction: Literal["priority", "mutual"] = "priority"
+    # plan-and-verify and stepping aside (common/config/planner_tuning.py)
+    tuning: PlannerTuning = field(default_factory=PlannerTuning)
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "k_r", "cost_cap", "ctrl_spacing_m"):

@@ -36,7 +36,7 @@ from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
-from services.planner.safety.rollout import ARRIVED_M, RolloutInputs
+from services.planner.safety.rollout import RolloutInputs
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 
@@ -536,7 +536,9 @@ class PlannerCore:
         # at its end the vehicle stops either way: the NO_PATH is then told (the launcher's
         # alarm on a NO_PATH that lasts), not kept silent behind a way aside run out
         stepping_aside = (
-            last is not None and last.short_of_goal and self.policy.remaining_m > ARRIVED_M
+            last is not None
+            and last.short_of_goal
+            and self.policy.remaining_m > self.cfg.tuning.arrived_m
         )
         if stepping_aside:
             # a way aside (evade.py) is kept until a plan reaches the goal or a better way

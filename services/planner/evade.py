@@ -8,16 +8,16 @@ vehicle brakes on its heading over metres (the speed loop's lag), and the obstac
 
 So when the vehicle, held (its stop flown on the response model: response.py), would come
 within rho0 of a moving obstacle (eq. (12)-(13), obstacles where they will be, tracked ones
-and other vehicles' intents alike) over the next EVADE_S, it takes a way aside instead: an
+and other vehicles' intents alike) over the next evade_s, it takes a way aside instead: an
 arc no tighter than ARC_RADIUS_FACTOR R_min (as a recovery's, recover.py) turning either way
-up to a half turn, then straight, ending every LENGTH_STEP_M up to EVADE_S at cruise speed,
+up to a half turn, then straight, ending every evade_length_step_m up to evade_s at cruise speed,
 where the vehicle stops. The ways are swept (escape.py: never into contact, nor out of the
-area), each held at its end for the rest of EVADE_S; the SHORTLIST of them that clear the
+area), each held at its end for the rest of evade_s; the evade_shortlist of them that clear the
 most (those that end where a full circle of that radius is free to one side first: stopped
-facing an edge or a wall, no curve leaves; then up to rho0 + ROLLOUT_CUSHION_M, then the
+facing an edge or a wall, no curve leaves; then up to rho0 + rollout_cushion_m, then the
 shortest, then the smallest turn) are flown by the controller (rollout.py), and the one whose
 flight, then held, clears the most (one that stops with room to turn about first) is taken
-if it clears GAIN_M more than holding. Its path ends short of the goal (`short_of_goal`):
+if it clears evade_gain_m more than holding. Its path ends short of the goal (`short_of_goal`):
 the replan policy tries the goal again at every interval (replan.py, `aside`); while it is in
 force, what a new way aside must beat is going on along it (core.py keeps it over a NO_PATH
 until its end).
@@ -28,11 +28,12 @@ stop only a recovery into the margin turns it about): then the ways that stop wi
 room come first, and one is taken if its flight keeps rho0.
 
 And a plan whose recovery turns into the margin (recover.py, `margin_entered_m`) waits while
-the vehicle still moves at HOLD_FIRST_FACTOR of cruise speed or more and holding keeps rho0
+the vehicle still moves at hold_first_factor of cruise speed or more and holding keeps rho0
 with that room: the planner answers NO_PATH ("holds first"), the vehicle brakes, and the
 next replans try again from nearer rest, where the moving obstacles that blocked a way
 keeping the margin may have passed. Slower than that, holding no longer changes where the
 vehicle is, and the recovery is taken.
+The tunables named here are planner.tuning's (common/config/planner_tuning.py).
 Pure: the same floats in every runtime.
 """
 
@@ -59,18 +60,10 @@ from services.planner.safety.escape import (
 )
 from services.planner.safety.recover import ARC_RADIUS_FACTOR
 from services.planner.safety.rollout import (
-    ROLLOUT_CUSHION_M,
     RolloutInputs,
     plan_and_verify,
     roll_out,
 )
-
-EVADE_S = 10.0  # how far ahead a moving obstacle's approach is weighed (s)
-LENGTH_STEP_M = 1.0  # the ways aside end every this far along
-SHORTLIST = 6  # of the swept ways, this many (the best) are flown
-GAIN_M = 0.1  # a way aside is taken if its flight clears this much more than holding
-# a recovery into rho0 waits while the vehicle, holding, is faster than this share of cruise
-HOLD_FIRST_FACTOR = 0.25
 
 
 def plan_or_step_aside(
@@ -82,7 +75,7 @@ def plan_or_step_aside(
     or traps the vehicle, else the NO_PATH."""
     result = plan_and_verify(req, cfg, fm, plan_path)
     if result.ok:
-        moving_on = fm.start[3] >= HOLD_FIRST_FACTOR * req.v_ref_mps
+        moving_on = fm.start[3] >= cfg.tuning.hold_first_factor * req.v_ref_mps
         if result.margin_entered_m <= 0.0 or not moving_on or not req.obstacles.moving:
             return result
         held = _holding(req, cfg, fm, aside)
@@ -104,7 +97,7 @@ def plan_or_step_aside(
 @dataclass(frozen=True)
 class Holding:
     """What holding (or going on along the way aside in force, then holding) comes to over
-    EVADE_S: its least clearance, whether the vehicle then has room to turn about (hull
+    evade_s: its least clearance, whether the vehicle then has room to turn about (hull
     free, rho0 kept: `_rooms_at`), and so whether it is in a moving obstacle's way
     (`threatened`) or, clear of every obstacle, would stop where it can no longer turn about
     outside rho0 while where it is now it can (`trapped`)."""
@@ -120,13 +113,14 @@ def _holding(
     req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, aside: PlanResult | None
 ) -> Holding:
     static = StaticField.build(req.obstacles.circles, req.obstacles.polygons)
+    evade_s = cfg.tuning.evade_s
     if aside is None:
         how = "holding"
-        pts, t, stop = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start)
+        pts, t, stop = _held_on(fm, np.array([fm.start[:2]]), np.zeros(1), fm.start, evade_s)
     else:
         how = "going on along the way aside in force"
-        f = roll_out(aside, req, fm)
-        pts, t, stop = _held_on(fm, f.pts, f.t, f.last)
+        f = roll_out(aside, req, fm, cfg.tuning)
+        pts, t, stop = _held_on(fm, f.pts, f.t, f.last, evade_s)
     clear = _clearance((pts, t), req, cfg, static)
     radius = ARC_RADIUS_FACTOR * req.r_min_m
     rooms = _rooms_at(stop, radius, static, req, cfg)
@@ -186,7 +180,7 @@ def _ranked_ways(
 ) -> _Ways:
     """The ways aside that never touch nor leave the area, ranked: room to turn about where
     they stop, then (trapped) room outside rho0, then clearance up to rho0 +
-    ROLLOUT_CUSHION_M, then the shortest, then the smallest turn."""
+    rollout_cushion_m, then the shortest, then the smallest turn."""
     moving = req.obstacles.moving
     r, v = req.vehicle_radius_m, req.v_ref_mps
     turns = np.linspace(-math.pi, math.pi, N_TURNS)
@@ -194,19 +188,20 @@ def _ranked_ways(
         req.start,
         turns,
         radius,
-        v * EVADE_S,
+        v * cfg.tuning.evade_s,
         static,
         moving,
         req.area,
         v_ref=v,
         accel_horizon_s=cfg.accel_horizon_s,
     )
-    ends = np.searchsorted(sw.s, np.arange(LENGTH_STEP_M, v * EVADE_S + 1e-9, LENGTH_STEP_M))
+    step_m, evade_s = cfg.tuning.evade_length_step_m, cfg.tuning.evade_s
+    ends = np.searchsorted(sw.s, np.arange(step_m, v * evade_s + 1e-9, step_m))
     ends = ends[ends < len(sw.s)]
     free = sw.deeper(r, r)[:, ends] <= 1e-9  # (J, E) never into contact, nor out of the area
     on_way = np.minimum.accumulate(sw.d, axis=1)[:, ends]  # (J, E) the least on the way there
-    # held at its end from when it gets there (at cruise speed) to EVADE_S
-    t_hold = np.arange(0.0, EVADE_S + 1e-9, fm.step_s)
+    # held at its end from when it gets there (at cruise speed) to evade_s
+    t_hold = np.arange(0.0, evade_s + 1e-9, fm.step_s)
     end_pts = points_along(req.start, turns, radius, sw.s[ends])  # (J, E, 2)
     flat = np.repeat(end_pts.reshape(-1, 2), len(t_hold), axis=0)
     d_end = moving_distance(
@@ -223,7 +218,7 @@ def _ranked_ways(
     room = _turning_room(end_pts, heading, radius, r, static, req)
     # trapped: ways that leave room to turn about outside rho0 come next (else all alike)
     room_kept = _turning_room(end_pts, heading, radius, r + cfg.rho0_m, static, req) | (not trapped)
-    cap = cfg.rho0_m + ROLLOUT_CUSHION_M
+    cap = cfg.rho0_m + cfg.tuning.rollout_cushion_m
     # a way that ends on its arc is the same as any larger turn's up to there: one of each
     ways = {
         (_turn(float(turns[j]), float(sw.s[ends[e]]), radius), int(e)): (int(j), int(e))
@@ -251,10 +246,10 @@ def _best_flown(
     radius: float,
     held: Holding,
 ) -> tuple[float, PlanResult] | None:
-    """Of the SHORTLIST best ways, the one whose flight, then held, clears the most (one
+    """Of the evade_shortlist best ways, the one whose flight, then held, clears the most (one
     that stops with room to turn about first), with that clearance, if it beats holding."""
     best: tuple[tuple[bool, bool], float, PlanResult] | None = None
-    for j, e in ways.ranked[:SHORTLIST]:
+    for j, e in ways.ranked[: cfg.tuning.evade_shortlist]:
         length = float(ways.lengths[e])
         esc = Escape(
             start=req.start,
@@ -265,14 +260,16 @@ def _best_flown(
             end_clearance_m=float(ways.score[j, e]),
         )
         way = _as_plan(esc, req, cfg)
-        f = roll_out(way, req, fm)
-        got_pts, got_t, _ = _held_on(fm, f.pts, f.t, f.last)
+        f = roll_out(way, req, fm, cfg.tuning)
+        got_pts, got_t, _ = _held_on(fm, f.pts, f.t, f.last, cfg.tuning.evade_s)
         got = _clearance((got_pts, got_t), req, cfg, static)
         # where the flight stops (past the way's end, as the speed loop lags)
         turns_there, kept_there = _rooms_at(f.last, radius, static, req, cfg)
         rooms = (turns_there, kept_there or not held.trapped)
-        # better than holding: clearer by GAIN_M, or (trapped) as clear up to rho0 with room
-        gains = got >= held.clear_m + GAIN_M or (held.trapped and kept_there and got >= cfg.rho0_m)
+        # better than holding: clearer by evade_gain_m, or (trapped) as clear up to rho0 with room
+        gains = got >= held.clear_m + cfg.tuning.evade_gain_m or (
+            held.trapped and kept_there and got >= cfg.rho0_m
+        )
         if gains and (best is None or (rooms, got) > best[:2]):
             best = (rooms, got, way)
     return None if best is None else (best[1], best[2])
@@ -284,12 +281,12 @@ def _turn(turn: float, length: float, radius: float) -> float:
 
 
 def _held_on(
-    fm: RolloutInputs, pts: FloatArray, t: FloatArray, last: Pose
+    fm: RolloutInputs, pts: FloatArray, t: FloatArray, last: Pose, evade_s: float
 ) -> tuple[FloatArray, FloatArray, Pose]:
     """Positions pts at times t (a flight, ending in state `last`), then the vehicle stopped
-    (the stop command on the response model) every control period up to EVADE_S; and the
+    (the stop command on the response model) every control period up to evade_s; and the
     state it is left in."""
-    n = math.ceil((EVADE_S - float(t[-1])) / fm.step_s)
+    n = math.ceil((evade_s - float(t[-1])) / fm.step_s)
     if n <= 0:
         return pts, t, last
     pose = last

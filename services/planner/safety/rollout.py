@@ -10,17 +10,18 @@ of an obstacle the plan cleared.
 So a plan is flown here first, as the planner's command sequences fly it (sequence.py): the
 controller (a copy, reset as on adoption) commands every control period, the response model
 (response.py) answers, from the state the plan starts at, twist included, for the whole path
-(at most ROLLOUT_MAX_S). Where the flight comes inside rho0 of an obstacle (past the stretch
+(at most rollout_max_s). Where the flight comes inside rho0 of an obstacle (past the stretch
 the plan itself may pass nearer: escape_m), the flight's distance off the path there is the
 tracking error, and the plan is made again with a clearance margin that wide plus
-ROLLOUT_CUSHION_M, its curvature aimed ROLLOUT_CURVATURE_FACTOR lower; if that flight does not
-keep rho0 + ROLLOUT_CUSHION_M either (a squeeze at a bend can be too narrow for the wider
+rollout_cushion_m, its curvature aimed rollout_curvature_factor lower; if that flight does not
+keep rho0 + rollout_cushion_m either (a squeeze at a bend can be too narrow for the wider
 margin), once more around a disc
-of ROLLOUT_DETOUR_M where the first flight came nearest a static obstacle, so the search takes
-another way; and then (that, too, near a static obstacle only) for ROLLOUT_SLOW_FACTOR of the
+of rollout_detour_m where the first flight came nearest a static obstacle, so the search takes
+another way; and then (that, too, near a static obstacle only) for rollout_slow_factor of the
 speed, flown at it. The plan whose flight clears the most is adopted (the first when none
 fares better), with the speed it was made for (`PlanResult.v_ref_mps`); either way its
-reason says what the flight found. Pure: the same floats in every runtime.
+reason says what the flight found. The tunables named here are planner.tuning's
+(common/config/planner_tuning.py). Pure: the same floats in every runtime.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from common.config.planner import PlannerConfig
+from common.config.planner_tuning import PlannerTuning
 from common.config.world import CircleObstacleConfig
 from common.world.geometry import FloatArray
 from services.control.command.response import Pose, ResponseModel
@@ -43,35 +45,12 @@ from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 
-ROLLOUT_MAX_S = 90.0  # a flight ends at the path's end, or after this long (s)
-# a flight must keep rho0 + this (rho0 alone for a turning radius past an escape, which ends
-# at rho0 + 1 cm): the model knows no current and no estimation error. The same cushion is
-# added to the tracking error the flight showed, for the margin the plan is made again with
-# (docs/notes/planner-flight-keeps-rho0-plus-cushion.md)
-ROLLOUT_CUSHION_M = 0.1
-# moving obstacles count over the flight's first seconds only, as far ahead as a command
-# sequence looks (controller.sequence.horizon_s): their prediction a minute ahead is a guess
-# (the plan's own check, at v_ref, covers them; replans judge them anew as they come). A
-# fleet vehicle's broadcast route (IntentObstacle) is its plan and counts throughout.
-ROLLOUT_MOVING_S = 10.0
-ROLLOUT_CURVATURE_FACTOR = 0.9  # the second plan aims its curvature this much lower
-# ... and failing that, a third avoids a disc this wide where the flight came nearest
-# (docs/notes/planner-flight-detour.md)
-ROLLOUT_DETOUR_M = 0.5
-# ... and failing that, near a static obstacle, a fourth is made and flown for this fraction
-# of the speed: the yaw lag costs a slower vehicle less of the path (near a moving obstacle
-# slower only meets it at another time). The vehicle keeps that speed up to a turning radius
-# past where its flight came nearest (`PlanResult.slow_until_m`), then replans at cruise.
-ROLLOUT_SLOW_FACTOR = 0.5
-ARRIVED_M = 0.5  # a flight within this of the path's end, slower than ARRIVED_MPS, is over
-ARRIVED_MPS = 0.05
-
 
 @dataclass(frozen=True, kw_only=True)
 class RolloutClearance:
     """The clearance report of a rollout: how near a flown path comes to the obstacles,
     where it comes nearest what it must keep
-    (`keep_m`: rho0 + ROLLOUT_CUSHION_M, rho0 alone just after an escape): the hull clearance
+    (`keep_m`: rho0 + rollout_cushion_m, rho0 alone just after an escape): the hull clearance
     there (m), where and when (s after the plan's start), and how far off the path the flight
     was there (its tracking error, m)."""
 
@@ -116,14 +95,16 @@ class Rollout:
     last: Pose
 
 
-def roll_out(result: PlanResult, req: PlanRequest, fm: RolloutInputs) -> Rollout:
+def roll_out(
+    result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning
+) -> Rollout:
     """An OK plan flown (see the module docstring)."""
     ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as PlannerCore._adopt resets it for a new path
     pose = fm.start
     end = ref.point_at_s(ref.length)
-    n = max(1, math.ceil(min(ROLLOUT_MAX_S, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
+    n = max(1, math.ceil(min(tuning.rollout_max_s, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
     xs, ys, dist = [pose[0]], [pose[1]], [0.0]
     for k in range(n):
         v, w = ctrl.command(fm.t0 + k * fm.step_s, pose, ref)
@@ -132,7 +113,10 @@ def roll_out(result: PlanResult, req: PlanRequest, fm: RolloutInputs) -> Rollout
         pose = nxt
         xs.append(pose[0])
         ys.append(pose[1])
-        if pose[3] < ARRIVED_MPS and math.hypot(pose[0] - end[0], pose[1] - end[1]) < ARRIVED_M:
+        if (
+            pose[3] < tuning.arrived_mps
+            and math.hypot(pose[0] - end[0], pose[1] - end[1]) < tuning.arrived_m
+        ):
             break
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
@@ -145,16 +129,16 @@ def rollout_clearance(
     """Fly an OK plan (see the module docstring) and measure its clearance against what it
     must keep."""
     accel_horizon_s = cfg.accel_horizon_s
-    f = roll_out(result, req, fm)
+    f = roll_out(result, req, fm, cfg.tuning)
     ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
     obs = req.obstacles
     d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
     d = d_static.copy()
     # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
-    # flight, where a head-on pass tens of seconds on is decided (the rest: ROLLOUT_MOVING_S)
+    # flight, where a head-on pass tens of seconds on is decided (the rest: rollout_moving_s)
     intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
     guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
-    soon = t <= ROLLOUT_MOVING_S
+    soon = t <= cfg.tuning.rollout_moving_s
     d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
     d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
     d[gone < result.escape_m] = math.inf  # the plan itself may pass nearer there
@@ -162,7 +146,7 @@ def rollout_clearance(
     # turning radius on, rho0 alone is kept; beyond, the cushion too (held to rho0 alone for
     # the whole flight, a plan flown off its path well past its escape was adopted as made)
     settling = (result.escape_m > 0.0) & (gone < result.escape_m + req.r_min_m)
-    keep = cfg.rho0_m + np.where(settling, 0.0, ROLLOUT_CUSHION_M)
+    keep = cfg.rho0_m + np.where(settling, 0.0, cfg.tuning.rollout_cushion_m)
     clearance = d - req.vehicle_radius_m
     j = int(np.argmin(clearance - keep))
     x, y = float(pts[j, 0]), float(pts[j, 1])
@@ -200,15 +184,17 @@ def plan_and_verify(
     )
     wider = replace(
         cfg,
-        clearance_margin_m=max(cfg.clearance_margin_m, f1.off_path_m + ROLLOUT_CUSHION_M),
-        curvature_margin=cfg.curvature_margin * ROLLOUT_CURVATURE_FACTOR,
+        clearance_margin_m=max(
+            cfg.clearance_margin_m, f1.off_path_m + cfg.tuning.rollout_cushion_m
+        ),
+        curvature_margin=cfg.curvature_margin * cfg.tuning.rollout_curvature_factor,
     )
     tried = [(f"made again with a {wider.clearance_margin_m:.2f} m margin", req, wider)]
     around = _detour(req, cfg, f1)
     if around is not None:
         tried.append(("made again around where it came nearest", around, cfg))
     if f1.static:  # (near a moving obstacle slower would only pass it at another time)
-        slower = replace(req, v_ref_mps=req.v_ref_mps * ROLLOUT_SLOW_FACTOR)
+        slower = replace(req, v_ref_mps=req.v_ref_mps * cfg.tuning.rollout_slow_factor)
         tried.append((f"made again for {slower.v_ref_mps:.2f} m/s", slower, cfg))
     best, best_f, how = first, f1, ""
     for what, q, c in tried:
@@ -236,19 +222,20 @@ def plan_and_verify(
 
 
 def _detour(req: PlanRequest, cfg: PlannerConfig, f: RolloutClearance) -> PlanRequest | None:
-    """The request with a disc of ROLLOUT_DETOUR_M where a flight came nearest a static
+    """The request with a disc of rollout_detour_m where a flight came nearest a static
     obstacle: the search then leaves the squeeze (a gap at a bend) for another way. None when
     that was a moving obstacle (it will be elsewhere) or the disc would crowd the start or goal."""
     if not f.static:
         return None
-    reach = ROLLOUT_DETOUR_M + req.vehicle_radius_m + cfg.rho0_m + ROLLOUT_CUSHION_M
+    t = cfg.tuning
+    reach = t.rollout_detour_m + req.vehicle_radius_m + cfg.rho0_m + t.rollout_cushion_m
     for p in (req.start, req.goal):
         if math.hypot(p.x - f.x, p.y - f.y) < reach:
             return None
     obs = req.obstacles
     ids = [c.id for c in obs.circles] + [q.id for q in obs.polygons] + [m.id for m in obs.moving]
     disc = CircleObstacleConfig(
-        id=max(ids, default=0) + 1, x_m=f.x, y_m=f.y, radius_m=ROLLOUT_DETOUR_M
+        id=max(ids, default=0) + 1, x_m=f.x, y_m=f.y, radius_m=t.rollout_detour_m
     )
     return replace(req, obstacles=replace(obs, circles=(*obs.circles, disc)))
 
