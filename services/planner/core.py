@@ -16,8 +16,6 @@ from collections import deque
 from dataclasses import dataclass, replace
 from statistics import median
 
-import numpy as np
-
 from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
@@ -31,7 +29,9 @@ from common.world import ObstacleState
 from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
+from services.planner.broadcast import FleetBroadcast
 from services.planner.evade import plan_or_step_aside
+from services.planner.path_message import path_message
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
 from services.planner.result import PlanStatus
@@ -94,10 +94,6 @@ def _plan_over_ground(
     return replace(tighter, reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "))
 
 
-def _flat(a: np.ndarray) -> tuple[float, ...]:
-    return tuple(float(v) for v in np.asarray(a, dtype=np.float64).ravel())
-
-
 class PlannerCore:
     """Consumes estimator/state, estimator/tracks and vehicle/status (the delay the vehicle
     measures on commands); publishes path (on replans) and cmd."""
@@ -125,13 +121,7 @@ class PlannerCore:
         self._plan_lags: deque[float] = deque(maxlen=PLAN_LAGS_KEPT)  # how long plans took
         # in a fleet, the other vehicles' broadcast estimates and paths (safety/intent.py)
         self.intents = intents
-        self.pose_every_s = pose_every_s  # > 0 in a fleet: publish "pose" this often
-        self._next_pose_t = 0.0
-        # > 0 in a fleet: publish the newest path on "intent" when it is made and this often
-        # after, so that one lost on the way is repaired (a path is made once per replan)
-        self.intent_every_s = intent_every_s
-        self._intent: PathMsg | None = None
-        self._next_intent_t = 0.0
+        self.broadcast = FleetBroadcast(pose_every_s=pose_every_s, intent_every_s=intent_every_s)
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
         self.vehicle = vehicle
@@ -249,18 +239,7 @@ class PlannerCore:
         if self.intents is not None and self.inputs.state is not None:
             self.intents.tally(t)
         out = self._step(t)
-        # a fleet's planner broadcasts the estimate it plans from: others take it, with its
-        # path, as its intent while it comes (a dead planner's vehicle is a track again)
-        if self.pose_every_s > 0.0 and self.inputs.state is not None and t >= self._next_pose_t:
-            self._next_pose_t = t + self.pose_every_s - 1e-9
-            out.append(Emit(stream="pose", msg=self.inputs.state))
-        if self.intent_every_s > 0.0:
-            made = [e.msg for e in out if e.stream == "path" and isinstance(e.msg, PathMsg)]
-            if made:
-                self._intent, self._next_intent_t = made[-1], t
-            if self._intent is not None and t >= self._next_intent_t:
-                self._next_intent_t = t + self.intent_every_s - 1e-9
-                out.append(Emit(stream="intent", msg=self._intent))
+        out.extend(self.broadcast.emits(t, self.inputs.state, out))
         return out
 
     def prepare(self, t_next: float) -> None:
@@ -563,44 +542,20 @@ class PlannerCore:
 
     def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
-        t_plan, obstacles, why = asked.t_plan, asked.obstacles, asked.why
-        self.policy.on_planned(t_plan, result, self.goal, obstacles, asked.current, asked.pace)
+        self.policy.on_planned(
+            asked.t_plan, result, self.goal, asked.obstacles, asked.current, asked.pace
+        )
         self.last_result = result
         self.loop.path_id += 1
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
-        if result.ok:
-            self.loop.take(PathArcReference(PlannedPath(result.curve()), self._speed_of(result)))
-            return PathMsg(
-                stamp=t,
-                path_id=self.path_id,
-                status="OK",
-                status_since=self.status_since,
-                reason=f"{why}: {result.reason}" if result.reason else why,
-                degree=result.degree,
-                control_points=_flat(result.control_points),
-                weights=_flat(result.weights),
-                knots=_flat(result.knots),
-                waypoints=_flat(result.grid_path),
-                length=result.length_m,
-                f_l=result.f_l,
-                max_curvature=result.max_curvature,
-                v_ref=self._speed_of(result),
-            )
-        self.loop.take(None)
-        return PathMsg(
+        v_ref = self._speed_of(result)
+        self.loop.take(PathArcReference(PlannedPath(result.curve()), v_ref) if result.ok else None)
+        return path_message(
+            result,
             stamp=t,
             path_id=self.path_id,
-            status="NO_PATH",
             status_since=self.status_since,
-            reason=f"{why}: {result.reason}",
-            degree=0,
-            control_points=(),
-            weights=(),
-            knots=(),
-            waypoints=(),
-            length=0.0,
-            f_l=0.0,
-            max_curvature=0.0,
-            v_ref=0.0,
+            why=asked.why,
+            v_ref=v_ref,
         )
