@@ -16,7 +16,8 @@ from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
 from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
-from services.planner.core import PLANS_DECLINED, PRECAUTIONS, PlannerCore
+from services.planner.core import PLANS_DECLINED, PlannerCore
+from services.planner.decline import PRECAUTIONS
 from services.planner.replan import ReplanDecision, ReplanReason
 from services.planner.result import PlanResult, Pose2D
 

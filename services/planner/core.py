@@ -30,10 +30,11 @@ from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
 from services.planner.broadcast import FleetBroadcast
+from services.planner.decline import keeps_path_in_force, overtaken
 from services.planner.evade import plan_or_step_aside
 from services.planner.path_message import path_message
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.replan import ReplanDecision, ReplanPolicy, deviation_near_start
+from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
 from services.planner.safety.rollout import RolloutInputs
@@ -50,14 +51,8 @@ SLOW_PLAN_S = 2.0
 PLAN_LAGS_KEPT = 3
 # a plan made for where the vehicle will be is made for at most this far ahead (s)
 PLAN_AHEAD_MAX_S = 10.0
-# a plan made too late (realtime) that would turn the vehicle by more than this where it
-# would have it by now is declined (`_overtaken`): with R_min it cannot join it there
-STALE_HEADING_RAD = math.radians(45.0)
 # replans that start from where the vehicle is on its path (not off it, nor after a silence)
 _ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed", "current")
-# replans asked while the path in force is still feasible (replan.py): their result replaces
-# it only if it is an ordinary plan (`_keeps_path_in_force`)
-PRECAUTIONS = ("corridor", "cruise")
 PLANS_DECLINED = "plans_declined"  # its statistics counter of them (the metric of that name)
 
 
@@ -290,9 +285,7 @@ class PlannerCore:
         made, adopted = self.plans.result(), False
         if made is not None:
             asked = self._plan_done(t)
-            if not self._overtaken(t, pred, asked, made) and not self._keeps_path_in_force(
-                t, asked, made
-            ):
+            if not self._declined(t, pred, asked, made):
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
         if not adopted and not decision.replan and self.loop.skipped(t):
@@ -462,77 +455,41 @@ class PlannerCore:
             )
         return asked
 
-    def _overtaken(self, t: float, pred: Prediction, asked: _Asked, result: PlanResult) -> bool:
-        """Decline a plan made later than the time it starts (realtime only: a plan of seconds
-        on a loaded machine) that the vehicle, going on meanwhile, has left: where the plan
-        would have it by now, farther from where it is than the replan policy's deviation
-        threshold, or heading more than STALE_HEADING_RAD apart. Adopted, the controller would
-        steer onto a path checked (and flown) from a place the vehicle is no longer at, through
-        water no check covered. The path in force is kept (it still stops short of its
-        conflict) and the next step decides afresh. Returns whether it was declined."""
-        if not result.ok or t <= asked.t_plan:
-            return False
-        x, y, theta, v = pred.at_effect[:4]
-        ref = PathArcReference(PlannedPath(result.curve()), self._speed_of(result))
-        s_then = min(max(v, 0.0) * (pred.effect_t - asked.t_plan), ref.length)
-        s_near = ref.closest_s(x, y, s_then)
-        px, py = ref.point_at_s(s_near)
-        off = math.hypot(x - px, y - py)
-        turn = abs(math.remainder(theta - ref.heading_at_s(s_near), 2.0 * math.pi))
-        if s_near <= 0.0:  # short of its start, in line: on its way to it
-            start = (math.cos(ref.heading_at_s(0.0)), math.sin(ref.heading_at_s(0.0)))
-            off = deviation_near_start(Pose2D(x=x, y=y, theta=theta), (px, py), start, off)
-            turn = 0.0
-        limit = self.policy.cfg.deviation_threshold_m
-        if off <= limit and turn <= STALE_HEADING_RAD:
+    def _declined(self, t: float, pred: Prediction, asked: _Asked, result: PlanResult) -> bool:
+        """Whether the plan made is declined (decline.py), the path in force kept; counted
+        and logged with its reason."""
+        why = overtaken(
+            t,
+            pred,
+            asked.t_plan,
+            result,
+            self._speed_of(result),
+            self.policy.cfg.deviation_threshold_m,
+        )
+        if why is None:
+            last = self.last_result
+            # at its end the vehicle stops either way: the NO_PATH is then told (the
+            # launcher's alarm on a NO_PATH that lasts), not kept silent behind a way aside
+            stepping_aside = (
+                last is not None
+                and last.short_of_goal
+                and self.policy.remaining_m > self.cfg.tuning.arrived_m
+            )
+            why = keeps_path_in_force(
+                asked.why, result, has_path=self.ref is not None, stepping_aside=stepping_aside
+            )
+            if why is not None:
+                self.policy.on_kept(asked.t_plan, asked.obstacles)
+        if why is None:
             return False
         self.declined += 1
         log.info(
-            "t=%.2f s: declined the %s plan made for t=%.2f s: the vehicle is %.2f m from where "
-            "it would have it now, heading %.0f deg apart (> %.2f m or %.0f deg); the path in "
-            "force is kept",
+            "t=%.2f s: declined the %s plan made for t=%.2f s (%s): %s; the path in force is kept",
             t,
             asked.why,
             asked.t_plan,
-            off,
-            math.degrees(turn),
-            limit,
-            math.degrees(STALE_HEADING_RAD),
-        )
-        return True
-
-    def _keeps_path_in_force(self, t: float, asked: _Asked, result: PlanResult) -> bool:
-        """Decline a plan asked as a precaution (PRECAUTIONS: the path in force was still
-        feasible when it was asked) that can only turn about or leave by a recovery, which
-        may enter the safety margin, or found none: keep following the path in force, which
-        the replan check goes on judging (such a turn about can pass inside rho0 of a static
-        obstacle the path in force keeps clear of); and a NO_PATH found while the vehicle
-        steps aside (evade.py), which
-        judged going on along the way aside as good as any. Returns whether it was declined."""
-        if self.ref is None:
-            return False
-        last = self.last_result
-        # at its end the vehicle stops either way: the NO_PATH is then told (the launcher's
-        # alarm on a NO_PATH that lasts), not kept silent behind a way aside run out
-        stepping_aside = (
-            last is not None
-            and last.short_of_goal
-            and self.policy.remaining_m > self.cfg.tuning.arrived_m
-        )
-        if stepping_aside:
-            # a way aside (evade.py) is kept until a plan reaches the goal or a better way
-            # aside is found: its NO_PATH judged going on along it as good as any other
-            if result.ok:
-                return False
-        elif asked.why not in PRECAUTIONS or (result.ok and result.escape_m <= 0.0):
-            return False
-        self.policy.on_kept(asked.t_plan, asked.obstacles)
-        self.declined += 1
-        log.info(
-            "t=%.2f s: kept the path in force: the %s replan found %s",
-            t,
-            asked.why,
-            "no path" if not result.ok else f"only a recovery ({result.reason})",
+            why.code,
+            why.detail,
         )
         return True
 

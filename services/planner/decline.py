@@ -1,0 +1,91 @@
+"""The two rules by which a planner declines a plan it made and keeps the path in force.
+
+Each rule returns a `Declined` (a reason code and what the log says) or None. `overtaken`:
+a plan made later than the time it starts (realtime only: a plan of seconds on a loaded
+machine) that the vehicle, going on meanwhile, has left. `keeps_path_in_force`: a plan asked
+as a precaution that found only a recovery or none, or a NO_PATH while the vehicle steps aside.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from services.control.command.link import Prediction
+from services.planner.replan import deviation_near_start
+from services.planner.result import PlanResult, Pose2D
+from services.planner.shaping.path_arc_reference import PathArcReference
+from services.planner.shaping.planned_path import PlannedPath
+
+# a plan made too late (realtime) that would turn the vehicle by more than this where it
+# would have it by now is declined (`overtaken`): with R_min it cannot join it there
+STALE_HEADING_RAD = math.radians(45.0)
+# replans asked while the path in force is still feasible (replan.py): their result replaces
+# it only if it is an ordinary plan (`keeps_path_in_force`)
+PRECAUTIONS = ("corridor", "cruise")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Declined:
+    """Why a plan made was declined: a reason code and the sentence the log says."""
+
+    code: str  # "overtaken" or "kept_path_in_force"
+    detail: str
+
+
+def overtaken(
+    t: float,
+    pred: Prediction,
+    t_plan: float,
+    result: PlanResult,
+    v_ref: float,
+    deviation_threshold_m: float,
+) -> Declined | None:
+    """Decline a plan made at t (s) for t_plan (s) that the vehicle (predicted: `pred`) has
+    left: where the plan, followed at v_ref (m/s), would have it by now, farther from where it
+    is than deviation_threshold_m, or heading more than STALE_HEADING_RAD apart. Adopted, the
+    controller would steer onto a path checked (and flown) from a place the vehicle is no
+    longer at, through water no check covered; the path in force still stops short of its
+    conflict, and the next step decides afresh."""
+    if not result.ok or t <= t_plan:
+        return None
+    x, y, theta, v = pred.at_effect[:4]
+    ref = PathArcReference(PlannedPath(result.curve()), v_ref)
+    s_then = min(max(v, 0.0) * (pred.effect_t - t_plan), ref.length)
+    s_near = ref.closest_s(x, y, s_then)
+    px, py = ref.point_at_s(s_near)
+    off = math.hypot(x - px, y - py)
+    turn = abs(math.remainder(theta - ref.heading_at_s(s_near), 2.0 * math.pi))
+    if s_near <= 0.0:  # short of its start, in line: on its way to it
+        start = (math.cos(ref.heading_at_s(0.0)), math.sin(ref.heading_at_s(0.0)))
+        off = deviation_near_start(Pose2D(x=x, y=y, theta=theta), (px, py), start, off)
+        turn = 0.0
+    if off <= deviation_threshold_m and turn <= STALE_HEADING_RAD:
+        return None
+    return Declined(
+        code="overtaken",
+        detail=f"the vehicle is {off:.2f} m from where it would have it now, heading "
+        f"{math.degrees(turn):.0f} deg apart (> {deviation_threshold_m:.2f} m or "
+        f"{math.degrees(STALE_HEADING_RAD):.0f} deg)",
+    )
+
+
+def keeps_path_in_force(
+    why: str, result: PlanResult, *, has_path: bool, stepping_aside: bool
+) -> Declined | None:
+    """Decline a plan asked `why` as a precaution (PRECAUTIONS: the path in force was still
+    feasible when it was asked) that can only turn about or leave by a recovery, which may
+    enter the safety margin, or found none: the path in force is kept, and the replan check
+    goes on judging it (such a turn about can pass inside rho0 of a static obstacle the path
+    in force keeps clear of). And while the vehicle steps aside (evade.py), a NO_PATH: it
+    judged going on along the way aside as good as any; a way aside is kept until a plan
+    reaches the goal or a better way aside is found."""
+    if not has_path:
+        return None
+    if stepping_aside:
+        if result.ok:
+            return None
+    elif why not in PRECAUTIONS or (result.ok and result.escape_m <= 0.0):
+        return None
+    found = "no path" if not result.ok else f"only a recovery ({result.reason})"
+    return Declined(code="kept_path_in_force", detail=f"the {why} replan found {found}")
