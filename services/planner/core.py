@@ -9,12 +9,8 @@ estimator's tracks, predicted with their velocity and acceleration (paper §2).
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
-from collections import deque
-from dataclasses import dataclass, replace
-from statistics import median
 
 from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
@@ -29,64 +25,21 @@ from common.world import ObstacleState
 from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
+from services.planner.asking import Asked, PlanAsking
 from services.planner.broadcast import FleetBroadcast
 from services.planner.decline import keeps_path_in_force, overtaken
-from services.planner.evade import plan_or_step_aside
 from services.planner.path_message import path_message
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
+from services.planner.plan import Obstacles, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
-from services.planner.safety.rollout import RolloutInputs
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
 
 log = logging.getLogger("tidelink.planner")
 
 
-# A plan taking longer than this (mission s) is logged when it is adopted: while it is made,
-# the path in force is followed and no other replan can start
-SLOW_PLAN_S = 2.0
-# the plan durations (mission s) a plan's expected duration is the median of
-PLAN_LAGS_KEPT = 3
-# a plan made for where the vehicle will be is made for at most this far ahead (s)
-PLAN_AHEAD_MAX_S = 10.0
-# replans that start from where the vehicle is on its path (not off it, nor after a silence)
-_ALONG_THE_PATH = ("infeasible", "corridor", "cruise", "aside", "goal_changed", "current")
 PLANS_DECLINED = "plans_declined"  # its statistics counter of them (the metric of that name)
-
-
-@dataclass(frozen=True, kw_only=True)
-class _Asked:
-    """What a plan was asked for: the time it plans for, the obstacles then, and why; and the
-    step that asked (`asked_t`)."""
-
-    t_plan: float
-    obstacles: Obstacles
-    why: str
-    asked_t: float
-    current: tuple[float, float] = (0.0, 0.0)  # the current it is flown in
-    pace: float = 1.0  # speed over ground per speed through the water on its way
-
-
-def _plan_over_ground(
-    req: PlanRequest,
-    r_water_m: float,
-    cfg: PlannerConfig,
-    flight: RolloutInputs,
-    aside: PlanResult | None,
-) -> PlanResult:
-    """The plan for req, whose R_min is the one over ground in the current (wider than the
-    hull's: `PlannerCore.ground_turn_radius_m`); failing that, one within the hull's own R_min
-    r_water_m: its bends with the current may be flown wide (its flight says so), but a path
-    is better than none, which in a current leaves the vehicle to drift."""
-    result = plan_or_step_aside(req, cfg, flight, aside)
-    if result.ok or req.r_min_m <= r_water_m:
-        return result
-    tighter = plan_or_step_aside(replace(req, r_min_m=r_water_m), cfg, flight, aside)
-    if not tighter.ok:
-        return result
-    return replace(tighter, reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "))
 
 
 class PlannerCore:
@@ -112,8 +65,6 @@ class PlannerCore:
         # beside the steps, which go on tracking the path in force until it is there (the
         # wall clock: a replan of seconds must not stop the commands; common/runtime/deferred.py)
         self.plans: Deferred[PlanResult] = AtOnce() if plans is None else plans
-        self._asked: _Asked | None = None  # what the plan being made was asked for
-        self._plan_lags: deque[float] = deque(maxlen=PLAN_LAGS_KEPT)  # how long plans took
         # in a fleet, the other vehicles' broadcast estimates and paths (safety/intent.py)
         self.intents = intents
         self.broadcast = FleetBroadcast(pose_every_s=pose_every_s, intent_every_s=intent_every_s)
@@ -137,6 +88,15 @@ class PlannerCore:
         self.static_field = StaticField.build(world.circles, world.polygons)
         self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
             p.id for p in world.polygons
+        )
+        self.asking = PlanAsking(
+            planner,
+            vehicle,
+            world,
+            self.link,
+            self.plans,
+            self.goal,
+            fix_goal_heading=self.fix_goal_heading,
         )
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
@@ -278,13 +238,28 @@ class PlannerCore:
                 # the path in force is unsafe ahead: until its replacement is in force (seconds,
                 # in realtime; at once in virtual time), stop short of the first conflict
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
-            t_start, start, twist = self._plan_start(t_plan, here, pred, decision.reason)
+            t_start, start, twist = self.asking.start_of(
+                t_plan, here, pred, decision.reason, self.ref, self.policy.s_now
+            )
             if t_start != t_plan:
                 obstacles = self._obstacles(t_start)
-            self._ask_plan(t, t_start, start, twist, obstacles, decision.reason)
+            last = self.last_result
+            aside = (
+                last if self.ref is not None and last is not None and last.short_of_goal else None
+            )
+            self.asking.ask(
+                t,
+                t_start,
+                start,
+                twist,
+                obstacles,
+                decision.reason,
+                controller=self.controller,
+                aside=aside,
+            )
         made, adopted = self.plans.result(), False
         if made is not None:
-            asked = self._plan_done(t)
+            asked = self.asking.done(t)
             if not self._declined(t, pred, asked, made):
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
@@ -328,134 +303,10 @@ class PlannerCore:
 
     @property
     def clearance_margin_m(self) -> float:
-        """The margin a plan made now aims beyond the required clearance (m): the configured
-        one widened by the loop's measured delay (a tube as wide as the prediction's drift
-        grows) and by the estimated current, to the centimetre."""
-        extra = self.cfg.clearance_margin_per_delay_s * self.link.loop_delay_s
-        extra += self.cfg.clearance_margin_per_current_s * math.hypot(*self.link.model.current_mps)
-        return round(self.cfg.clearance_margin_m + extra, 2)
+        """The margin a plan made now aims beyond the required clearance (m; asking.py)."""
+        return self.asking.clearance_margin_m
 
-    @property
-    def ground_turn_radius_m(self) -> float:
-        """The tightest turn a plan made now may ask of the vehicle over ground (m): R_min of
-        eqs. (19)-(20) is the hull's, through the water. Its heading turns at most v / R_min
-        while the current carries it on; in a following current of c, the track over ground
-        turns at that rate at speed v + c, and a crab into a cross current asks the same: a
-        bend of radius R_min (1 + |c| / v)^2 over ground is what the hull can hold, at
-        cruise speed, with the current from any side."""
-        c = math.hypot(*self.link.model.current_mps)
-        factor = 1.0 + c / self.vehicle.cruise_speed_mps
-        return self.vehicle.turn_radius_min_m * factor * factor
-
-    def _pace(self, here: Pose2D) -> float:
-        """Speed over ground per speed through the water for a vehicle at cruise speed heading
-        from `here` for the goal and crabbing into the believed current (PlanRequest.pace):
-        a following current brings it past a moving obstacle sooner than its speed through
-        the water says, a head current later (at least a fifth of it)."""
-        cx, cy = self.link.model.current_mps
-        if cx == 0.0 and cy == 0.0:
-            return 1.0
-        d = math.atan2(self.goal.y - here.y, self.goal.x - here.x)
-        c_t = math.cos(d) * cx + math.sin(d) * cy
-        c_n = -math.sin(d) * cx + math.cos(d) * cy
-        v = self.vehicle.cruise_speed_mps
-        across = min(abs(c_n), v)
-        return max(0.2, (math.sqrt(v * v - across * across) + c_t) / v)
-
-    def _plan_config(self) -> PlannerConfig:
-        """The planner's config with the clearance margin in force now."""
-        margin = self.clearance_margin_m
-        if margin == self.cfg.clearance_margin_m:
-            return self.cfg
-        return replace(self.cfg, clearance_margin_m=margin)
-
-    def _plan_start(
-        self, t_plan: float, here: Pose2D, pred: Prediction, why: str
-    ) -> tuple[float, Pose2D, tuple[float, float]]:
-        """When and where a plan asked now should start, and the vehicle's twist (v, w) then:
-        where the vehicle will be on the path in force once the plan is made, as long as the
-        last plans took (the median of the last PLAN_LAGS_KEPT). A plan of seconds made from
-        where the vehicle was when it was asked starts metres behind it by the time it is in
-        force, and the vehicle replans at once for the deviation. In virtual time a plan is
-        made within its step: t_plan and `here`.
-        Only for a vehicle on its path (not off it, nor after a silence) and at most up to the
-        stop short of a conflict (PathArcReference.stop_s)."""
-        lag = min(median(self._plan_lags), PLAN_AHEAD_MAX_S) if self._plan_lags else 0.0
-        ref = self.ref
-        v = pred.at_effect[3]
-        if lag <= 0.0 or ref is None or why not in _ALONG_THE_PATH:
-            return t_plan, here, (v, pred.at_effect[4])
-        s_here = ref.closest_s(here.x, here.y, self.policy.s_now)
-        s_then = min(s_here + max(v, 0.0) * lag, ref.stop_s, ref.length)
-        x, y = ref.point_at_s(s_then)
-        # there it turns as the path in force does
-        twist = (v, v * ref.curvature_at_s(s_then))
-        return t_plan + lag, Pose2D(x=x, y=y, theta=ref.heading_at_s(s_then)), twist
-
-    def _ask_plan(
-        self,
-        t: float,
-        t_plan: float,
-        here: Pose2D,
-        twist: tuple[float, float],
-        obstacles: Obstacles,
-        why: str,
-    ) -> None:
-        """Start (at step t) a plan from `here`, the pose at t_plan, where the vehicle moves
-        with `twist` (v, w) (the obstacles as they are then); flown before it is adopted
-        (rollout.py)."""
-        req = PlanRequest(
-            start=here,
-            goal=self.goal,
-            area=self.world.area,
-            obstacles=obstacles,
-            vehicle_radius_m=self.vehicle.radius_m,
-            r_min_m=self.ground_turn_radius_m,
-            v_ref_mps=self.vehicle.cruise_speed_mps,
-            fix_goal_heading=self.fix_goal_heading,
-            pace=self._pace(here),
-        )
-        cfg = self._plan_config()
-        self._asked = _Asked(
-            t_plan=t_plan,
-            obstacles=obstacles,
-            why=why,
-            asked_t=t,
-            current=self.link.model.current_mps,
-            pace=req.pace,
-        )
-        flight = RolloutInputs(
-            # a copy now: the plan may be made beside the steps, which go on using it
-            controller=copy.deepcopy(self.controller),
-            model=self.link.model,
-            step_s=self.cfg.period_s,
-            start=(here.x, here.y, here.theta, *twist),
-            t0=t_plan,
-        )
-        last = self.last_result
-        aside = last if self.ref is not None and last is not None and last.short_of_goal else None
-        r_water = self.vehicle.turn_radius_min_m
-        self.plans.start(lambda: _plan_over_ground(req, r_water, cfg, flight, aside))
-
-    def _plan_done(self, t: float) -> _Asked:
-        """A plan is made (step t): what it was asked for, its lag counted (and told, if
-        slow)."""
-        asked, self._asked = self._asked, None
-        assert asked is not None
-        self._plan_lags.append(t - asked.asked_t)  # 0 in virtual time: made within the step
-        if t - asked.asked_t > SLOW_PLAN_S:  # realtime only: in virtual time a plan is at once
-            log.info(
-                "t=%.2f s: a plan asked at t=%.2f s (%s, for t=%.2f s) took until now: the "
-                "path in force was followed meanwhile, unchecked (short of its conflict, if "
-                "infeasible)",
-                t,
-                asked.asked_t,
-                asked.why,
-                asked.t_plan,
-            )
-        return asked
-
-    def _declined(self, t: float, pred: Prediction, asked: _Asked, result: PlanResult) -> bool:
+    def _declined(self, t: float, pred: Prediction, asked: Asked, result: PlanResult) -> bool:
         """Whether the plan made is declined (decline.py), the path in force kept; counted
         and logged with its reason."""
         why = overtaken(
@@ -497,7 +348,7 @@ class PlannerCore:
         """The speed a plan is followed at: the one it was made for (rollout.py), else cruise."""
         return self.vehicle.cruise_speed_mps if result.v_ref_mps is None else result.v_ref_mps
 
-    def _adopt(self, t: float, asked: _Asked, result: PlanResult) -> PathMsg:
+    def _adopt(self, t: float, asked: Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""
         self.policy.on_planned(
             asked.t_plan, result, self.goal, asked.obstacles, asked.current, asked.pace
