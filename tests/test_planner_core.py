@@ -102,7 +102,7 @@ def test_a_start_in_contact_drives_out_on_an_arc() -> None:
     for u in (0.005, 0.01, 0.02):
         x, y = (float(c) for c in curve.evaluate(np.array([u]), 0)[0, 0])
         assert not core.policy.check(
-            1.0, Pose2D(x=x, y=y, theta=1.7), core.goal, core._obstacles(1.0)
+            1.0, Pose2D(x=x, y=y, theta=1.7), core.goal, core.seen.at(1.0)
         ).replan
 
 

@@ -16,20 +16,19 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from common.guard import Reason, first_reason
 from common.messages import ObstacleTracks, PathMsg, StateEstimate
 from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
 from common.runtime.model.dataflow import vehicle_of
-from common.world import ObstacleState
 from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
 from services.planner.asking import Asked, PlanAsking
 from services.planner.broadcast import FleetBroadcast
 from services.planner.decline import keeps_path_in_force, overtaken
+from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
 from services.planner.path_message import path_message
-from services.planner.plan import Obstacles, PlanResult, Pose2D
+from services.planner.plan import PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
@@ -85,10 +84,6 @@ class PlannerCore:
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
         self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
         self.fix_goal_heading = g.theta_rad is not None
-        self.static_field = StaticField.build(world.circles, world.polygons)
-        self.static_ids = frozenset(c.id for c in world.circles) | frozenset(
-            p.id for p in world.polygons
-        )
         self.asking = PlanAsking(
             planner,
             vehicle,
@@ -101,7 +96,7 @@ class PlannerCore:
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
-        self.tracks: ObstacleTracks | None = None
+        self.seen = ObstaclePicture(world, intents, planner.first_plan_wait_s)
         self.last_result: PlanResult | None = None
         # the status of the last path published and since when it has held without a break:
         # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
@@ -142,46 +137,24 @@ class PlannerCore:
                 self.intents.offer(other, msg)
             return []
         if isinstance(msg, ObstacleTracks):
-            why = self._judge_tracks(msg, d.t)
+            why = judge_tracks(self.inputs.judge, msg, d.t)
             if why is not None:
                 self.inputs.reject("tracks", why, d.t, msg)
-            elif self.tracks is None or msg.stamp >= self.tracks.stamp:
-                self.tracks = msg
+            else:
+                self.seen.take(msg)
         else:
             self.inputs.offer(d.t, msg)
         return []
-
-    def _judge_tracks(self, m: ObstacleTracks, now: float) -> Reason | None:
-        j = self.inputs.judge
-        why = first_reason(j.stamp(m.stamp, now), j.items(len(m.tracks)))
-        for k in m.tracks:
-            if why is not None:
-                break
-            why = first_reason(
-                j.position(k.x, k.y), j.speed(k.vx, k.vy), j.accel(k.ax, k.ay), j.length(k.radius)
-            )
-        return why
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
         """Estimates, statuses and track sets rejected, by '<stream>.<reason>'."""
         return self.inputs.rejected
 
-    def _obstacles(self, t: float) -> Obstacles:
-        moving: list[ObstacleState] = []
-        covered: frozenset[int] = frozenset()
-        if self.intents is not None:  # other vehicles' intents replace their sonar tracks
-            intents, covered = self.intents.obstacles(t)
-            moving.extend(intents)
-        if self.tracks is not None:
-            dt = max(0.0, t - self.tracks.stamp)  # predict the tracks to now (constant accel.)
-            for k in self.tracks.tracks:
-                if k.id in self.static_ids or k.id in covered:
-                    continue  # charted static obstacles are planned from the chart
-                moving.append(ObstacleState.of_track(k).advanced(dt))
-        return Obstacles(
-            circles=self.world.circles, polygons=self.world.polygons, moving=tuple(moving)
-        )
+    @property
+    def tracks(self) -> ObstacleTracks | None:
+        """The newest plausible obstacle tracks (obstacle_picture.py)."""
+        return self.seen.tracks
 
     @property
     def stats_counters(self) -> dict[str, int]:
@@ -216,11 +189,11 @@ class PlannerCore:
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
         t_plan = pred.effect_t
-        obstacles = self._obstacles(t_plan)
+        obstacles = self.seen.at(t_plan)
         gap = self.loop.gap_s(t)
         if self.plans.running:
             decision = ReplanDecision(replan=False, detail="a plan is being made")
-        elif self.path_id == 0 and self._awaiting_tracks(t):
+        elif self.path_id == 0 and self.seen.awaiting_first(t):
             decision = ReplanDecision(
                 replan=False, detail="the first plan waits for the first obstacle tracks"
             )
@@ -242,7 +215,7 @@ class PlannerCore:
                 t_plan, here, pred, decision.reason, self.ref, self.policy.s_now
             )
             if t_start != t_plan:
-                obstacles = self._obstacles(t_start)
+                obstacles = self.seen.at(t_start)
             last = self.last_result
             aside = (
                 last if self.ref is not None and last is not None and last.short_of_goal else None
@@ -271,35 +244,6 @@ class PlannerCore:
             commands = self.loop.follow(t, s, pred, self.loop.ref)
             out.append(self.loop.send(t, pred.effect_t, commands))
         return out
-
-    def _awaiting_tracks(self, t: float) -> bool:
-        """Should the first plan wait longer for the first obstacle tracks?
-
-        The estimator publishes tracks every period from the start, empty until it has fused
-        a sonar scan that detected something: a track exists only after a detection. So the
-        tracks are "in" once a message holding at least one track has arrived (charted static
-        obstacles count: the scan that saw them could see a moving one in view too). An empty
-        message cannot tell "no scan yet" from "nothing in view", so the wait is bounded by
-        mission time first_plan_wait_s: then the planner plans with what it has (a field with
-        nothing in sonar range still starts) and says why. A planner restarted later in the
-        mission (its estimator has long fused scans) plans at once.
-        """
-        if self.tracks is not None and self.tracks.tracks:
-            return False
-        if t < self.cfg.first_plan_wait_s:
-            return True
-        # reached once: the plan is made in this step
-        log.info(
-            "t=%.2f s: first plan without obstacle tracks (none by planner.first_plan_wait_s "
-            "= %.2f s): %s",
-            t,
-            self.cfg.first_plan_wait_s,
-            "no tracks message arrived"
-            if self.tracks is None
-            else f"the newest tracks (stamp {self.tracks.stamp:.2f} s) hold none: "
-            "no scan fused yet, or nothing in sonar range",
-        )
-        return False
 
     @property
     def clearance_margin_m(self) -> float:
