@@ -25,10 +25,10 @@ from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
 from services.planner.asking import Asked, PlanAsking
 from services.planner.broadcast import FleetBroadcast
-from services.planner.decline import keeps_path_in_force, overtaken
+from services.planner.decline import decline
 from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
 from services.planner.path_message import path_message
-from services.planner.plan import PlanResult, Pose2D
+from services.planner.plan import Obstacles, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
@@ -190,50 +190,30 @@ class PlannerCore:
         # obstacles as they will be then
         t_plan = pred.effect_t
         obstacles = self.seen.at(t_plan)
-        gap = self.loop.gap_s(t)
-        if self.plans.running:
-            decision = ReplanDecision(replan=False, detail="a plan is being made")
-        elif self.path_id == 0 and self.seen.awaiting_first(t):
-            decision = ReplanDecision(
-                replan=False, detail="the first plan waits for the first obstacle tracks"
-            )
-        elif math.isfinite(gap) and gap > self.resume_after_s:
-            # no command for so long that the vehicle's watchdog made it hold, off the plan:
-            # plan and controller state are stale, so plan afresh from the (fresh) estimate
-            decision = ReplanDecision(
-                replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
-            )
-        else:
-            current = self.link.model.current_mps
-            decision = self.policy.check(t_plan, here, self.goal, obstacles, current)
+        decision = self._decide(t, t_plan, here, obstacles)
         if decision.replan:
             if self.ref is not None and math.isfinite(decision.conflict_s):
                 # the path in force is unsafe ahead: until its replacement is in force (seconds,
                 # in realtime; at once in virtual time), stop short of the first conflict
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
-            t_start, start, twist = self.asking.start_of(
-                t_plan, here, pred, decision.reason, self.ref, self.policy.s_now
-            )
-            if t_start != t_plan:
-                obstacles = self.seen.at(t_start)
-            last = self.last_result
-            aside = (
-                last if self.ref is not None and last is not None and last.short_of_goal else None
-            )
-            self.asking.ask(
-                t,
-                t_start,
-                start,
-                twist,
-                obstacles,
-                decision.reason,
-                controller=self.controller,
-                aside=aside,
-            )
+            self._ask(t, t_plan, here, pred, obstacles, decision.reason)
         made, adopted = self.plans.result(), False
         if made is not None:
             asked = self.asking.done(t)
-            if not self._declined(t, pred, asked, made):
+            declined = decline(
+                t,
+                pred,
+                asked,
+                made,
+                v_ref=self._speed_of(made),
+                policy=self.policy,
+                last=self.last_result,
+                has_path=self.ref is not None,
+                arrived_m=self.cfg.tuning.arrived_m,
+            )
+            if declined is not None:
+                self.declined += 1
+            else:
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
         if not adopted and not decision.replan and self.loop.skipped(t):
@@ -245,48 +225,54 @@ class PlannerCore:
             out.append(self.loop.send(t, pred.effect_t, commands))
         return out
 
+    def _decide(
+        self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles
+    ) -> ReplanDecision:
+        """Whether to plan again at step t (replan.py), for a vehicle `here` at t_plan: not
+        while a plan is being made, nor (the first) before the first obstacle tracks; afresh
+        after a silence long enough for the vehicle to hold; else as the policy judges."""
+        gap = self.loop.gap_s(t)
+        if self.plans.running:
+            return ReplanDecision(replan=False, detail="a plan is being made")
+        if self.path_id == 0 and self.seen.awaiting_first(t):
+            return ReplanDecision(
+                replan=False, detail="the first plan waits for the first obstacle tracks"
+            )
+        if math.isfinite(gap) and gap > self.resume_after_s:
+            # no command for so long that the vehicle's watchdog made it hold, off the plan:
+            # plan and controller state are stale, so plan afresh from the (fresh) estimate
+            return ReplanDecision(
+                replan=True, reason="resumed", detail=f"no command for {gap:.1f} s"
+            )
+        current = self.link.model.current_mps
+        return self.policy.check(t_plan, here, self.goal, obstacles, current)
+
+    def _ask(
+        self,
+        t: float,
+        t_plan: float,
+        here: Pose2D,
+        pred: Prediction,
+        obstacles: Obstacles,
+        why: str,
+    ) -> None:
+        """Ask for a plan at step t (asking.py): from where the vehicle will be once it is
+        made, among the obstacles as they will be then, the way aside in force kept in mind."""
+        t_start, start, twist = self.asking.start_of(
+            t_plan, here, pred, why, self.ref, self.policy.s_now
+        )
+        if t_start != t_plan:
+            obstacles = self.seen.at(t_start)
+        last = self.last_result
+        aside = last if self.ref is not None and last is not None and last.short_of_goal else None
+        self.asking.ask(
+            t, t_start, start, twist, obstacles, why, controller=self.controller, aside=aside
+        )
+
     @property
     def clearance_margin_m(self) -> float:
         """The margin a plan made now aims beyond the required clearance (m; asking.py)."""
         return self.asking.clearance_margin_m
-
-    def _declined(self, t: float, pred: Prediction, asked: Asked, result: PlanResult) -> bool:
-        """Whether the plan made is declined (decline.py), the path in force kept; counted
-        and logged with its reason."""
-        why = overtaken(
-            t,
-            pred,
-            asked.t_plan,
-            result,
-            self._speed_of(result),
-            self.policy.cfg.deviation_threshold_m,
-        )
-        if why is None:
-            last = self.last_result
-            # at its end the vehicle stops either way: the NO_PATH is then told (the
-            # launcher's alarm on a NO_PATH that lasts), not kept silent behind a way aside
-            stepping_aside = (
-                last is not None
-                and last.short_of_goal
-                and self.policy.remaining_m > self.cfg.tuning.arrived_m
-            )
-            why = keeps_path_in_force(
-                asked.why, result, has_path=self.ref is not None, stepping_aside=stepping_aside
-            )
-            if why is not None:
-                self.policy.on_kept(asked.t_plan, asked.obstacles)
-        if why is None:
-            return False
-        self.declined += 1
-        log.info(
-            "t=%.2f s: declined the %s plan made for t=%.2f s (%s): %s; the path in force is kept",
-            t,
-            asked.why,
-            asked.t_plan,
-            why.code,
-            why.detail,
-        )
-        return True
 
     def _speed_of(self, result: PlanResult) -> float:
         """The speed a plan is followed at: the one it was made for (rollout.py), else cruise."""

@@ -8,14 +8,18 @@ as a precaution that found only a recovery or none, or a NO_PATH while the vehic
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 from services.control.command.link import Prediction
-from services.planner.replan import deviation_near_start
+from services.planner.asking import Asked
+from services.planner.replan import ReplanPolicy, deviation_near_start
 from services.planner.result import PlanResult, Pose2D
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
+
+log = logging.getLogger("tidelink.planner")
 
 # a plan made too late (realtime) that would turn the vehicle by more than this where it
 # would have it by now is declined (`overtaken`): with R_min it cannot join it there
@@ -89,3 +93,38 @@ def keeps_path_in_force(
         return None
     found = "no path" if not result.ok else f"only a recovery ({result.reason})"
     return Declined(code="kept_path_in_force", detail=f"the {why} replan found {found}")
+
+
+def decline(
+    t: float,
+    pred: Prediction,
+    asked: Asked,
+    result: PlanResult,
+    *,
+    v_ref: float,
+    policy: ReplanPolicy,
+    last: PlanResult | None,
+    has_path: bool,
+    arrived_m: float,
+) -> Declined | None:
+    """The first rule that declines the plan `result` made at t (s) for `asked`, logged;
+    None: it is adopted. A plan kept out by keeps_path_in_force is told to the replan policy,
+    which goes on judging the path in force."""
+    why = overtaken(t, pred, asked.t_plan, result, v_ref, policy.cfg.deviation_threshold_m)
+    if why is None:
+        # at its end the vehicle stops either way: the NO_PATH is then told (the launcher's
+        # alarm on a NO_PATH that lasts), not kept silent behind a way aside run out
+        aside = last is not None and last.short_of_goal and policy.remaining_m > arrived_m
+        why = keeps_path_in_force(asked.why, result, has_path=has_path, stepping_aside=aside)
+        if why is not None:
+            policy.on_kept(asked.t_plan, asked.obstacles)
+    if why is not None:
+        log.info(
+            "t=%.2f s: declined the %s plan made for t=%.2f s (%s): %s; the path in force is kept",
+            t,
+            asked.why,
+            asked.t_plan,
+            why.code,
+            why.detail,
+        )
+    return why
