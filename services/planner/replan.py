@@ -183,6 +183,31 @@ class ReplanPolicy:
                 reason="deviation",
                 detail=f"{dev:.2f} m from the path > {self.cfg.deviation_threshold_m:.2f} m",
             )
+        conflict = self._static_conflict(obstacles, i_now)
+        if conflict is None:
+            conflict = self._moving_conflict(obstacles, i_now)
+        if conflict is not None:
+            return conflict
+        change = math.hypot(current[0] - self.current[0], current[1] - self.current[1])
+        if change > self.cfg.current_change_mps:
+            return ReplanDecision(
+                replan=True,
+                reason="current",
+                detail=f"the current changed by {change:.2f} m/s since the path was flown",
+            )
+        if self.v_ref < self.cruise and self.s_now >= self.slow_until_m:
+            return ReplanDecision(
+                replan=True,
+                reason="cruise",
+                detail=f"{self.s_now:.1f} m along a path made for {self.v_ref:.2f} m/s, past "
+                f"where it was slowed: back to {self.cruise:.2f} m/s",
+            )
+        return ReplanDecision(replan=False)
+
+    # --- helpers -------------------------------------------------------------------------
+    def _static_conflict(self, obstacles: Obstacles, i_now: int) -> ReplanDecision | None:
+        """A replan for a static obstacle within rho0 of the path ahead of sample i_now."""
+        assert self.pts is not None
         d_req = self.r + self.cfg.rho0_m
         ahead = self.pts[i_now:]
         d = self._static_distance(obstacles)[i_now:]
@@ -198,6 +223,11 @@ class ReplanPolicy:
                     f"at ({ahead[j, 0]:.1f}, {ahead[j, 1]:.1f}) < rho0",
                     conflict_s=float(self.s[i_now + int(np.argmax(d < d_req - 1e-6))]),
                 )
+        return None
+
+    def _moving_conflict(self, obstacles: Obstacles, i_now: int) -> ReplanDecision | None:
+        """A replan for a moving obstacle predicted within rho0 of the path ahead of sample
+        i_now, or a new one within the corridor."""
         per_sample = self._sample_gaps(obstacles, i_now, self.s_now)
         gap, ids = _least_gaps(per_sample, obstacles)
         if len(gap):
@@ -220,23 +250,8 @@ class ReplanPolicy:
                     reason="corridor",
                     detail=f"moving obstacle {ids[k]} predicted {gap[k]:.2f} m from the path",
                 )
-        change = math.hypot(current[0] - self.current[0], current[1] - self.current[1])
-        if change > self.cfg.current_change_mps:
-            return ReplanDecision(
-                replan=True,
-                reason="current",
-                detail=f"the current changed by {change:.2f} m/s since the path was flown",
-            )
-        if self.v_ref < self.cruise and self.s_now >= self.slow_until_m:
-            return ReplanDecision(
-                replan=True,
-                reason="cruise",
-                detail=f"{self.s_now:.1f} m along a path made for {self.v_ref:.2f} m/s, past "
-                f"where it was slowed: back to {self.cruise:.2f} m/s",
-            )
-        return ReplanDecision(replan=False)
+        return None
 
-    # --- helpers -------------------------------------------------------------------------
     def _static_distance(self, obstacles: Obstacles) -> FloatArray:
         """Distance from every sample of the path to the nearest static obstacle (empty array
         when there are none), cached while the path and the static obstacles stay the same."""
