@@ -253,3 +253,17 @@ def test_plans_declined_come_from_the_planners_last_statistics() -> None:
         )
         rec.add("planner", "stats", stats)
     assert mission_metrics(rec, s, World(s.world))["plans_declined"] == 3
+
+
+def test_plans_declined_by_reason_come_from_the_planners_counters_by_code() -> None:
+    # decline.py names the rule that declined a plan; the planner counts each code apart
+    s = _scenario(24.0)
+    rec = _record(95.0, None, None)
+    assert mission_metrics(rec, s, World(s.world))["plans_declined_by_reason"] == {}
+    counters = {PLANS_DECLINED: 3, f"{PLANS_DECLINED}.overtaken": 1}
+    counters[f"{PLANS_DECLINED}.kept_path_in_force"] = 2
+    stats = LinkStats(stamp=1.0, source="planner", seq=1, links=(), counters=counters)
+    rec.add("planner", "stats", stats)
+    m = mission_metrics(rec, s, World(s.world))
+    assert m["plans_declined"] == 3
+    assert m["plans_declined_by_reason"] == {"kept_path_in_force": 2, "overtaken": 1}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,12 @@ def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
 
 def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
     return [m for m in record.stream(service, stream) if isinstance(m, cls)]
+
+
+def _by_reason(counters: dict[str, int]) -> dict[str, int]:
+    """The planner's declined plans by reason code ("plans_declined.<code>" counters)."""
+    head = PLANS_DECLINED + "."
+    return {k[len(head) :]: n for k, n in sorted(counters.items()) if k.startswith(head)}
 
 
 def last_counters(record: Record, service: str) -> dict[str, int]:
@@ -242,6 +249,10 @@ def _path_metrics(
         # precautionary replans whose result was declined, the path in force kept (no path
         # message: the planner counts them, services/planner/core.py)
         "plans_declined": last_counters(record, planner).get(PLANS_DECLINED, 0),
+        # ... by the rule that declined them (services/planner/decline.py), and the paths
+        # published by why they were asked (the replan policy's reason, replan.py)
+        "plans_declined_by_reason": _by_reason(last_counters(record, planner)),
+        "replans_by_reason": dict(sorted(Counter(p.reason.split(":")[0] for p in paths).items())),
         "control_actions": len(cmds),
     }
     if not ok:

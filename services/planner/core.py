@@ -103,6 +103,7 @@ class PlannerCore:
         self.path_status: PlanStatus | None = None
         self.status_since = 0.0
         self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
+        self.declined_by: dict[str, int] = {}  # ... by reason code (decline.py)
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
         self.resume_after_s = max(
@@ -161,7 +162,8 @@ class PlannerCore:
         """The precautionary plans this planner declined (PLANS_DECLINED), and, in a fleet,
         its steps by each other vehicle's intent or track."""
         fleet = self.intents.counters if self.intents is not None else {}
-        return {PLANS_DECLINED: self.declined, **fleet}
+        by = {f"{PLANS_DECLINED}.{code}": n for code, n in self.declined_by.items()}
+        return {PLANS_DECLINED: self.declined, **by, **fleet}
 
     def step(self, t: float) -> list[Emit]:
         if self.intents is not None and self.inputs.state is not None:
@@ -213,6 +215,7 @@ class PlannerCore:
             )
             if declined is not None:
                 self.declined += 1
+                self.declined_by[declined.code] = self.declined_by.get(declined.code, 0) + 1
             else:
                 out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
                 adopted = True
