@@ -23,10 +23,11 @@ from common.runtime.model.core import Delivery
 from common.runtime.model.inproc import run_inproc
 from common.world import World
 from common.world.check import check_scenario
-from services.control.command.link import CommandLink
+from services.control.command.link import GIVE_WAY_FRACTION, CommandLink
 from services.control.controllers.base import Limits
 from services.control.controllers.nurbs_tracker import NurbsTracker
 from services.estimator import EstimatorCore
+from services.planner.geometry.clearance import StaticField, current_pushes_clear
 from services.sensor.core import SensorCore
 from services.sensor.models import nav_fix, odometry
 

@@ -106,9 +106,11 @@ class CommandLoop(Generic[R]):
         if ref is not None:
             self.restart()
 
-    def follow(self, t: float, s: StateEstimate, pred: Prediction, ref: R | None) -> Commands:
-        """The controller's commands on `ref` (a stop without one)."""
-        return self.link.follow(t, self.controller, ref, s, pred)
+    def follow(
+        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, give_way: bool = False
+    ) -> Commands:
+        """The controller's commands on `ref` (a stop without one; `give_way`: the link's)."""
+        return self.link.follow(t, self.controller, ref, s, pred, give_way=give_way)
 
     def send(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         """The command (sequence) sent at t to take effect at effect_t, on stream 'cmd'."""

@@ -26,6 +26,7 @@ from services.control.loop import CommandLoop
 from services.planner.asking import Asked, PlanAsking
 from services.planner.broadcast import FleetBroadcast
 from services.planner.decline import decline
+from services.planner.geometry.clearance import StaticField, current_pushes_clear
 from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
 from services.planner.path_message import path_message
 from services.planner.plan import Obstacles, PlanResult, Pose2D
@@ -97,6 +98,7 @@ class PlannerCore:
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
         self.seen = ObstaclePicture(world, intents, planner.first_plan_wait_s)
+        self.static_field = StaticField.build(world.circles, world.polygons)
         self.last_result: PlanResult | None = None
         # the status of the last path published and since when it has held without a break:
         # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
@@ -184,9 +186,8 @@ class PlannerCore:
         s, pred = begun
         out: list[Emit] = []
         if self.loop.arrival.arrived:
-            return (
-                [self.loop.send(t, pred.effect_t, self.link.stop(t, pred))] if self.commands else []
-            )
+            stop = self.link.stop(t, pred, give_way=self._gives_way(pred))
+            return [self.loop.send(t, pred.effect_t, stop)] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -224,9 +225,19 @@ class PlannerCore:
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
-            commands = self.loop.follow(t, s, pred, self.loop.ref)
+            give_way = self.loop.ref is None and self._gives_way(pred)
+            commands = self.loop.follow(t, s, pred, self.loop.ref, give_way=give_way)
             out.append(self.loop.send(t, pred.effect_t, commands))
         return out
+
+    def _gives_way(self, pred: Prediction) -> bool:
+        """Should a stop let the current carry the vehicle back, rather than keep station at
+        an obstacle close upstream (within rho0 and the margin of its hull)?"""
+        x, y = pred.at_effect[0], pred.at_effect[1]
+        keep_m = self.vehicle.radius_m + self.cfg.rho0_m + self.clearance_margin_m
+        moving = self.seen.at(pred.effect_t).moving
+        current = self.link.model.current_mps
+        return current_pushes_clear(x, y, self.static_field, moving, current, keep_m)
 
     def _decide(
         self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles
