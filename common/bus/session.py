@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,6 +17,18 @@ if TYPE_CHECKING:
 
 
 ROUTER_BLOCK_CLOSE_US = 3_000_000
+# A router waits this long (us) for room in a client's queue before dropping a DROP sample for
+# it (Zenoh's default: 1000). The wait is spent on the task that reads the publisher's link:
+# behind a stopped watcher, 1 ms per watch copy was most of a second per second of the run's
+# copies, and the link that carries them fell behind (docs/notes/0044-watchers-off-the-loop.md)
+ROUTER_WAIT_BEFORE_DROP_US = 50
+# Zenoh's RX runtime: the threads that read every link of a router and route what arrives.
+# Closing the session of a client that stopped reading (its lease expired while its socket
+# was full) holds one of them for up to 10 s; with Zenoh's default of 2, two watchers frozen
+# together (a laptop put to sleep) stalled every stream of the run for 10 s
+# (docs/notes/0044-watchers-off-the-loop.md). ZENOH_RUNTIME set by the user wins.
+ROUTER_RUNTIME = "(rx: (worker_threads: 8))"
+RUNTIME_ENV = "ZENOH_RUNTIME"
 
 
 def zenoh_config(
@@ -60,6 +73,10 @@ def zenoh_config(
             "transport/link/tx/queue/congestion_control/block/wait_before_close",
             json.dumps(ROUTER_BLOCK_CLOSE_US),
         )
+        conf.insert_json5(
+            "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+            json.dumps(ROUTER_WAIT_BEFORE_DROP_US),
+        )
     if cfg.secured:
         from common.bus.certs import tls_settings
 
@@ -81,6 +98,9 @@ def open_session(
     ConnectionError (an OSError: the CLI prints it as one line) when a client cannot reach
     its router, or the endpoints are refused, naming them."""
     conf = zenoh_config(cfg, identity=identity, access_control=access_control)
+    if cfg.mode == "router":
+        # read when this process's first session starts Zenoh's runtimes (a router is the first)
+        os.environ.setdefault(RUNTIME_ENV, ROUTER_RUNTIME)
     try:
         return zenoh.open(conf)
     except zenoh.ZError as exc:
