@@ -14,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
+from common.bus.gaps import SeqGaps
 from common.config.scenario import load_scenario
 from common.messages import (
     WIRE_VERSION,
@@ -26,7 +27,6 @@ from common.messages import (
 )
 from services.cli import main
 from services.recording import layout
-from services.recording.gaps import SeqGaps
 from services.recording.layout import stream_types
 from services.recording.metrics import rebuild_record
 from services.recording.reader import (

@@ -71,7 +71,9 @@ def cmd_record(a: argparse.Namespace) -> int:
         say("stopped before any run showed up; nothing recorded")
         return 130
     _report(outcome)
-    return 130 if outcome.ended.startswith("stopped") else 0
+    if outcome.ended.startswith("stopped"):
+        return 130
+    return 0 if outcome.complete else 1
 
 
 def _report(o: RecordOutcome) -> None:
@@ -86,11 +88,18 @@ def _report(o: RecordOutcome) -> None:
         print(f"  {stream:<{width}}  {n:>7}" + (f"  ({lost} lost)" if lost else ""))
     if o.gaps.total:
         print(
-            f"lost {o.gaps.total} frames (gaps in their seqs): the run's watch copies are "
-            "sent DROP, and this recorder or its link could not keep up"
+            f"lost {o.gaps.total} frames (gaps in their seqs, and the run's newest frames "
+            "this recorder never got): the run's watch copies are sent DROP, and this recorder "
+            "or its link could not keep up, or it was stopped for a while"
         )
-    else:
+    elif o.complete:
         print("lost: none (every stream's seqs are contiguous)")
+    if not o.complete:
+        after = "" if o.last_stamp_s is None else f" (t={o.last_stamp_s:.2f} s)"
+        print(
+            f"lost: everything the run sent after the last frame recorded here{after}, "
+            "how much is unknown: the run's end never reached this recorder"
+        )
 
 
 def cmd_replay(a: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ from foxglove import StatusLevel
 from foxglove.websocket import WebSocketServer
 
 from common.bus import CLOCK, Keys, Liveliness
+from common.bus.gaps import SeqGaps
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.loader import ConfigError
 from common.config.scenario import scenario_from_raw
@@ -42,6 +43,9 @@ class Attached:
     view: FoxgloveView
     last_n: dict[tuple[str, str], int] = field(default_factory=dict)
     frames: int = 0
+    # copies that never came (gaps in each stream's seqs): the tap sends them DROP, and a
+    # bridge that fell behind loses them
+    gaps: SeqGaps = field(default_factory=SeqGaps)
 
 
 class FoxgloveBridge:
@@ -108,10 +112,11 @@ class FoxgloveBridge:
             self.alive.remove(keys)
         if self.attached is not None and self.attached.keys == keys:
             log.info(
-                "run %s/%s is over (%d frames shown); waiting for the next run on %s",
+                "run %s/%s is over (%d frames shown, %d lost); waiting for the next run on %s",
                 run,
                 vehicle,
                 self.attached.frames,
+                self.attached.gaps.total,
                 self.where,
             )
             self.server.publish_status(
@@ -187,6 +192,7 @@ class FoxgloveBridge:
                 log.warning("ignoring an undecodable frame on %s/%s: %s", *stream, exc)
             return
         a.frames += 1
+        a.gaps.see(f"{f.service}/{f.stream}", msg.seq)
         log_time_ns = int(f.wall * 1e9)  # when the run's tap got it: one clock for all topics
         for vm in a.view.translate(f.service, f.stream, msg):
             self.channels.log(vm, log_time_ns)

@@ -260,7 +260,9 @@ class Monitor:
         if key in self._ended:
             return
         state = self._state(watcher, *key)
-        self._see(state, ev)
+        msg = self._see(state, ev)
+        if msg is not None:  # a copy heard on a subscription: a gap in its seqs is a loss
+            state.copies.see(f"{ev.service}/{ev.stream}", msg.seq)
         if (ev.service, ev.stream) == (CLOCK, END) and not self.opts.every_frame:
             # the run's last word: its tap still answers, so take the final state now (a run
             # faster than the poll rate would otherwise end between two polls)

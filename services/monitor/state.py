@@ -8,6 +8,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from common.bus.gaps import SeqGaps
 from common.bus.keys import CLOCK, END
 from common.bus.watcher import END_GRACE_S
 from common.config.scenario import Scenario
@@ -213,6 +214,9 @@ class RunState:
         self.links = LinkTable()
         self.end: RunEnd | None = None
         self.rejected = 0  # frames that did not decode
+        # copies heard on subscriptions that never came: the tap sends them DROP, so a monitor
+        # that fell behind (stopped, slow, a thin link) loses them, and says so
+        self.copies = SeqGaps()
         self._events: list[Event] = []
         self._alarms: set[str] = set()
 
@@ -385,6 +389,7 @@ class RunState:
             if self.end is None
             else {"reason": self.end.reason, "t_end_s": self.end.stamp, "ticks": self.end.ticks},
             "rejected": self.rejected,
+            "copies_lost": self.copies.total,
         }
 
 

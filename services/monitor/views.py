@@ -131,6 +131,8 @@ def _panel(snap: dict[str, Any]) -> Any:
         head.add_row("path", _path(snap["path"]))
         head.add_row("estimate error", _num(snap["est_error_m"], ".2f", " m"))
     head.add_row("mission time", _num(snap["t_mission"], ".1f", " s"))
+    if snap.get("copies_lost"):
+        head.add_row("copies lost", f"[yellow]{snap['copies_lost']}[/] (this monitor fell behind)")
     if snap["end"] is not None:
         head.add_row("ended", f"{snap['end']['reason']} at t={snap['end']['t_end_s']:.1f} s")
 

@@ -1,4 +1,5 @@
-"""Frames a watcher lost, counted from the gaps in each stream's seq numbers.
+"""Frames a watcher lost, counted from the gaps in each stream's seq numbers (recorders,
+monitors and Foxglove bridges count their own losses with it).
 
 A run's services number each stream's messages 1, 2, 3, ... and the watch tap copies them
 with congestion DROP: a watcher that cannot keep up loses copies, and the gaps show how many.
@@ -33,6 +34,14 @@ class SeqGaps:
             self.restarts[stream] += 1
             self.lost[stream] += max(0, seq - 1)
         self._last[stream] = seq
+
+    def behind(self, stream: str, seq: int) -> None:
+        """The run's newest frame of `stream` (asked for when a watcher stops): every frame up
+        to it that the watcher never got is lost too, it included."""
+        last = self._last.get(stream)
+        if last is not None and seq > last:
+            self.lost[stream] += seq - last
+            self._last[stream] = seq
 
     @property
     def total(self) -> int:
