@@ -53,7 +53,7 @@ def test_only_the_planner_puts_commands_only_the_launcher_ticks_monitor_puts_not
         g = grants[name]
         own = {keys.stream(name, o.stream) for o in svc.outputs} | {keys.stream(name, "stats")}
         assert set(g.put) == own | {keys.ack(name)}
-        assert g.token == (keys.alive(name),)
+        assert g.token == (keys.alive(name), keys.claims(name))  # its token, its role claimed
         assert set(g.subscribe) == {keys.stream(i.source, i.stream) for i in svc.inputs} | {
             keys.ack(i.source) for i in svc.inputs
         } | {keys.ticks_for(name)}

@@ -12,8 +12,10 @@ _SERVICE = re.compile(r"^[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+)?$")
 CLOCK = "runtime"  # the clock's service name in keys: .../runtime/tick/..., .../runtime/ack/...
 WATCH = "watch"  # .../watch/<service>/<stream>: the monitoring copy of every stream
 END = "end"  # .../watch/runtime/end: the clock's RunEnd
+PROBE = "probe"  # .../watch/runtime/probe: a replay's check that its puts get through
 LATEST = "latest"  # .../latest/<service>/<stream>: queryable newest frame of every stream
 ANY = "*"  # a run or vehicle of Keys.matching left open
+CLAIM = "claim"  # .../claim/<role>/<id>: one process per role (common/runtime/distributed/claim.py)
 
 
 @dataclass(frozen=True)
@@ -90,6 +92,29 @@ class Keys:
     def all_alive(self) -> str:
         return self.alive("*")
 
+    def claim(self, role: str, ident: str) -> str:
+        """The liveliness key of one process's claim to a role (a service, or the clock)."""
+        return f"{self.root}/{CLAIM}/{role}/{ident}"
+
+    def claims(self, role: str) -> str:
+        """Every claim to `role`."""
+        return self.claim(role, "*")
+
+    @property
+    def all_claims(self) -> str:
+        return f"{self.root}/{CLAIM}/*/*"
+
+    def is_claim(self, key: str) -> bool:
+        return key.startswith(f"{self.root}/{CLAIM}/")
+
+    @staticmethod
+    def parse_claim(key: str) -> tuple[str, str, str, str]:
+        """(run, vehicle, role, claim id) of a claim key; ValueError for any other key."""
+        parts = key.split("/")
+        if len(parts) != 6 or parts[0] != "tidelink" or parts[3] != CLAIM:
+            raise ValueError(f"{key!r} is not a tidelink claim key")
+        return parts[1], parts[2], parts[4], parts[5]
+
     @property
     def all_streams(self) -> str:
         """Every <service>/<stream> key of the run: data and stats, but no clock ticks or acks
@@ -122,6 +147,12 @@ class Keys:
     def scenario(self) -> str:
         """The queryable answering with the run's scenario (its static world included)."""
         return f"{self.root}/scenario"
+
+    @property
+    def probe(self) -> str:
+        """Where a replay checks that the router lets its puts through (common/bus/probe.py);
+        watchers ignore it."""
+        return self.watch(CLOCK, PROBE)
 
     @property
     def end(self) -> str:

@@ -4,10 +4,11 @@ Each identity (a certificate's common name) gets exactly what its code does on t
 (docs/security.md):
 - a service puts its own output streams, its stats and its lockstep acks, subscribes to its
   inputs, to their publishers' acks and to the ticks addressed to it, declares only its own
-  liveliness token, and may ask the tap for its own newest frames (a restarted vehicle
-  resumes from them);
+  liveliness token and claim to its role (and sees the other claims of it), and may ask the
+  tap for its own newest frames (a restarted vehicle resumes from them);
 - the launcher (the clock) puts ticks and the watch copies, hears every stream, serves the
-  run's dataflow, latest frames and scenario, and owns the clock's token;
+  run's dataflow, latest frames and scenario, owns the clock's token and claim, and sees
+  every claim;
 - a monitor sees every run on the router through its watch tap (subscribes to the watch
   copies and liveliness, queries latest frames, scenario and dataflow) and puts nothing;
 - the router identity only routes.
@@ -92,18 +93,20 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
                 *(keys.ack(source) for source in sorted({i.source for i in svc.inputs})),
                 keys.ticks_for(name),
             ),
-            token=(keys.alive(name),),
-            watch=(keys.alive(CLOCK),),
+            # its token, and its claim to its role (claim.py): it asks for the others' claims
+            token=(keys.alive(name), keys.claims(name)),
+            watch=(keys.alive(CLOCK), keys.claims(name)),
             # its own newest frames, kept by the launcher's tap: a restarted core resumes
             # from them (service_process.resume_from_tap)
             query=(keys.latest(name, "*"),),
         )
     out[LAUNCHER] = Grants(
         put=(f"{keys.root}/{CLOCK}/tick/**", keys.all_watch),
-        subscribe=(keys.all_streams, keys.all_acks),
+        # the probe: a replay (this identity) checks that its puts get through (probe.py)
+        subscribe=(keys.all_streams, keys.all_acks, keys.probe),
         serve=(keys.dataflow, keys.all_latest, keys.scenario),
-        token=(keys.alive(CLOCK),),
-        watch=(keys.all_alive,),
+        token=(keys.alive(CLOCK), keys.claims(CLOCK)),
+        watch=(keys.all_alive, keys.all_claims),
     )
     # any run on this router (a watcher need not name the run), but through the watch tap
     # only: a monitor that subscribed to the BLOCK control streams and stopped reading could

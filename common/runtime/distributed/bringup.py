@@ -27,6 +27,7 @@ from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
 from common.runtime.distributed.acl import LAUNCHER, access_control, run_grants
+from common.runtime.distributed.claim import claim
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.ticks import TickSender
 from common.runtime.model.dataflow import Dataflow
@@ -90,18 +91,23 @@ def clock_bus(
         bus.subscribe(keys.all_streams, inbox)
         bus.subscribe(keys.all_acks, inbox)  # a lockstep run's; a realtime run has none
         bus.watch_alive(inbox)
+        claim(bus, keys, CLOCK)  # RoleTaken: another clock (a launch, a replay) runs it
+        bus.watch_alive(inbox, keys.all_claims)  # a second claimant of a role: an alarm
         tap = serve_watchers(bus, keys, flow, scenario_raw)
         ticks = TickSender(bus, flow.names, express=not lockstep)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks, tap)
 
 
-def serve_watchers(bus: Bus, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any]) -> WatchTap:
+def serve_watchers(
+    bus: Bus, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any], *, listen: bool = True
+) -> WatchTap:
     """What tools joining a run ask it for: its declared dataflow (a queryable) and the watch
-    tap (copies, latest frames, scenario). A run's clock serves them, and so does a replay."""
+    tap (copies, latest frames, scenario). A run's clock serves them, and so does a replay
+    (`listen=False`: it feeds the tap its recorded frames, never the run's control keys)."""
     described = json.dumps(flow.describe(), sort_keys=True).encode()
     bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
-    return WatchTap(bus, keys, scenario_raw)
+    return WatchTap(bus, keys, scenario_raw, listen=listen)
 
 
 def run_locally(

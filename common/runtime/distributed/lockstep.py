@@ -23,6 +23,7 @@ from common.bus import Inbox, Liveliness, Received
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
+from common.runtime.distributed.claim import ClaimWatch
 from common.runtime.distributed.lookahead import Lookahead
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
@@ -72,6 +73,7 @@ class Coordinator:
         self._max_us = 0  # the run's end (drive)
         self.started_early = 0  # ticks sent to some services before the last one was done
         self.alive: set[str] = set()
+        self.claims = ClaimWatch()  # who holds each role: a second claimant is an alarm
         self.finished: set[str] = set()  # services that acknowledged the stop tick
         self.stopping = False
         self.t_us = 0  # mission time of the newest tick
@@ -118,6 +120,10 @@ class Coordinator:
         if ev is None:
             return
         if isinstance(ev, Liveliness):
+            if (alarm := self.claims.seen(ev.key, ev.alive)) is not None:
+                self.observer.event(alarm)
+            if self.keys.is_claim(ev.key):
+                return
             service = ev.key.rsplit("/", 1)[-1]
             if ev.alive:
                 self.alive.add(service)

@@ -14,6 +14,7 @@ import time
 
 from common.bus import Bus, Inbox, Liveliness, Received
 from common.messages import Tick, TickAck, encode_routing
+from common.runtime.distributed.claim import claim
 from common.runtime.distributed.lookahead import Lookahead
 from common.runtime.distributed.service_process import (
     ServiceSetup,
@@ -53,6 +54,7 @@ class LockstepService:
         # Zenoh's network thread: Zenoh sends a batch as soon as its link is free, so nothing
         # waits for a batch to fill.
         with Bus(self.bus_cfg, self.keys, identity=self.name) as bus:
+            claim(bus, self.keys, self.name)  # RoleTaken: another one is in the run
             inbox = Inbox()
             # data are quiet: taken when the tick comes, not each on arrival (a wake-up per
             # message was most of a fleet sensor's CPU)

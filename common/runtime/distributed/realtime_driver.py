@@ -21,6 +21,7 @@ from common.bus import Event, Inbox, Liveliness
 from common.config.scenario import Scenario
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
+from common.runtime.distributed.claim import ClaimWatch
 from common.runtime.distributed.clock import MissionClock
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
@@ -85,6 +86,7 @@ class RealtimeDriver:
         self.ending = False
         self.fleet = bool(scenario.vehicles)
         self.lost: dict[str, str] = {}  # fleet services gone for good, and how
+        self.claims = ClaimWatch()  # who holds each role: a second claimant is an alarm
 
     # -- events ------------------------------------------------------------------------------
     def supervise(self) -> None:
@@ -107,7 +109,10 @@ class RealtimeDriver:
         if ev is None:
             return
         if isinstance(ev, Liveliness):
-            self._liveliness(ev.key.rsplit("/", 1)[-1], ev.alive)
+            if (alarm := self.claims.seen(ev.key, ev.alive)) is not None:
+                self.observer.event(alarm)
+            elif not self.keys.is_claim(ev.key):
+                self._liveliness(ev.key.rsplit("/", 1)[-1], ev.alive)
             return
         msg = ev.msg
         if isinstance(msg, Tick | TickAck):

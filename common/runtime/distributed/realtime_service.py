@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 from common.bus import Bus, Inbox, Liveliness, Publisher, Received
 from common.messages import Tick, encode_routing
+from common.runtime.distributed.claim import claim
 from common.runtime.distributed.loop_times import LoopTimes
 from common.runtime.distributed.service_process import (
     ServiceSetup,
@@ -103,6 +104,7 @@ class RealtimeService:
     def run(self) -> int:
         tighten_timer_slack()  # each step's timed wait ends on time, not up to 50 us late
         with Bus(self.bus_cfg, self.keys, low_latency=True, identity=self.name) as bus:
+            claim(bus, self.keys, self.name)  # RoleTaken: another one is in the run
             self._bus = bus
             inbox = Inbox(max_pending=INBOX_MAX_PENDING, keep=self.keys.is_tick, on_shed=self._shed)
             pubs = wire(bus, self.host, self.keys, inbox, express=False)

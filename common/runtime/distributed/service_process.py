@@ -18,6 +18,7 @@ from common.bus.watcher import watched
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario, scenario_from_raw
 from common.messages import WireError, decode_routing
+from common.runtime.distributed.claim import RoleTaken
 from common.runtime.model.host import Host
 from common.runtime.model.inproc import build_host
 from common.runtime.model.mission import Mission, load_mission
@@ -153,6 +154,9 @@ def service_main(make: Callable[[ServiceSetup], Runnable], doc: str, argv: list[
     except Shutdown as exc:
         log.info("stopping on %s", exc)
         return 0
+    except RoleTaken as exc:
+        log.error("%s", exc)
+        return 1
     finally:
         # what this process cost the machine: the measure of how many cores a run needs
         use = resource.getrusage(resource.RUSAGE_SELF)
