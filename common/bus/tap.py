@@ -44,7 +44,11 @@ SCENARIO_ENCODING = "application/json"
 class WatchTap:
     """Copies a run's streams for watchers and answers their late-join queries."""
 
-    def __init__(self, bus: Bus, keys: Keys, scenario_raw: dict[str, Any]) -> None:
+    def __init__(
+        self, bus: Bus, keys: Keys, scenario_raw: dict[str, Any], *, listen: bool = True
+    ) -> None:
+        """`listen`: copy every stream the run's bus carries; else only what is `feed`-ed (a
+        replay, which puts nothing on the run's control keys)."""
         self.bus = bus
         self.keys = keys
         self._lock = threading.Lock()
@@ -59,7 +63,8 @@ class WatchTap:
         scenario = json.dumps(scenario_raw, sort_keys=True).encode()
         bus.serve(keys.scenario, lambda: scenario, encoding=SCENARIO_ENCODING)
         bus.serve_frames(keys.all_latest, self._answer)
-        bus.subscribe_raw(keys.all_streams, self._take)
+        if listen:
+            bus.subscribe_raw(keys.all_streams, self._take)
 
     def add_sink(self, sink: Callable[[WatchedFrame], None]) -> None:
         """Also hand every tapped frame to `sink`, on Zenoh's thread (an in-process recorder:
@@ -86,6 +91,12 @@ class WatchTap:
         service, stream = self.keys.split(f.key)
         if service == CLOCK:
             return  # the clock's own protocol (acks), not a stream of the mission
+        self.feed(service, stream, f.payload, f.attachment)
+
+    def feed(self, service: str, stream: str, payload: bytes, attachment: bytes | None) -> None:
+        """Copy one frame of `service`/`stream` for watchers (what the run's bus carried, or
+        what a replay reads from its recording)."""
+        f = RawFrame(self.keys.stream(service, stream), payload, attachment)
         with self._lock:
             if self._closed:
                 return

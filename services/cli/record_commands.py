@@ -13,6 +13,8 @@ from services.cli.core_commands import check_exposure
 from services.cli.flags import certs_args, connect_arg, insecure_arg, listen_arg, watcher_args
 
 if TYPE_CHECKING:
+    from common.bus import Bus
+    from common.config.bus import BusConfig
     from common.config.scenario import Scenario
     from common.view import View
     from services.recording.reader import Recording
@@ -103,7 +105,6 @@ def _report(o: RecordOutcome) -> None:
 
 
 def cmd_replay(a: argparse.Namespace) -> int:
-    from common.bus import Bus, Keys
     from common.config.bus import client_config
     from common.runtime.processes.children import connectable, free_port, wait_for_endpoint
     from common.runtime.processes.signals import stop_on_signals
@@ -124,11 +125,49 @@ def cmd_replay(a: argparse.Namespace) -> int:
             f"listening on {cfg.endpoint(listen)}: watch with --connect "
             f"{cfg.endpoint(connectable(listen))}{certs}"
         )
-    keys = Keys(a.as_run or rec.run, rec.vehicle)
-    with stop_on_signals() as stop, Bus(cfg, keys, identity=a.identity) as bus:
+    with stop_on_signals() as stop, _replay_bus(cfg, rec, a.as_run, a.identity, say) as bus:
         outcome = replay(rec, bus, speed=a.speed, stop=stop, lead_s=a.lead, say=say)
-    say(f"published {outcome.published} frames as run {outcome.keys.run}; end: {outcome.reason}")
+    say(
+        f"published {outcome.published} frames to watchers as run {outcome.keys.run}; "
+        f"end: {outcome.reason}"
+    )
     return 130 if outcome.reason == "interrupted" else 0
+
+
+REPLAY_NAMES = 10  # a replay without --as into a router where its run is live: <run>-replay..9
+
+
+def _replay_bus(
+    cfg: BusConfig, rec: Recording, as_run: str | None, identity: str, say: Callable[[str], None]
+) -> Bus:
+    """The replay's bus, opened under a run name that is not live on the router: --as RUN, or
+    else the recorded run's name, or <run>-replay (then -replay2, ...) when that is live.
+    RuntimeError (RoleTaken) when --as names a live run; PermissionError when the router's
+    access control drops the replay's puts."""
+    from common.bus import Bus, Keys
+    from common.runtime.distributed.claim import RoleTaken
+    from services.recording.replay import claim_run
+
+    names = [as_run] if as_run else [rec.run, f"{rec.run}-replay"]
+    names += [] if as_run else [f"{rec.run}-replay{i}" for i in range(2, REPLAY_NAMES)]
+    for name in names:
+        bus = Bus(cfg, Keys(name, rec.vehicle), identity=identity)
+        bus.__enter__()
+        try:
+            claim_run(bus)
+            return bus
+        except RoleTaken as exc:
+            bus.close()
+            if as_run is not None:
+                raise RoleTaken(
+                    f"replay --as {as_run}: {exc}; replaying into it would falsify it: refused "
+                    "(choose another --as)"
+                ) from None
+            say(f"{exc}: not replaying into it")
+        except BaseException:
+            bus.close()
+            raise
+    raise RoleTaken(f"runs {names[0]} to {names[-1]} are all live on the router")
 
 
 def cmd_metrics(a: argparse.Namespace) -> int:
