@@ -99,7 +99,12 @@ def test_forged_acks_forged_truth_and_a_frozen_monitor_change_nothing(tmp_path: 
     m = json.loads((out / "metrics.json").read_text())
     assert m["end_reason"] == "goal" and m["success"] is True, m
     rounds = forged.truth_rounds
-    assert m["record_rejected"] == {"wrong_source": 2 * rounds, "seq_jump": rounds, "conflict": 0}
+    assert m["record_rejected"] == {
+        "wrong_source": 2 * rounds,
+        "seq_jump": rounds,
+        "conflict": 0,
+        "future": 0,
+    }
     assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
     ref = inproc(load_scenario(SHORT)[0])  # the whole run, exactly as if nobody had interfered
     assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]

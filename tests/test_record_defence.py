@@ -65,6 +65,7 @@ def test_forged_truth_at_the_goal_is_refused_and_the_run_ends_for_real(tmp_path:
         "wrong_source": 2 * rounds,
         "seq_jump": rounds,
         "conflict": 0,
+        "future": 0,
     }
     assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
     # the real vehicle's arrival, not a forged one at 5 s

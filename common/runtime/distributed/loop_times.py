@@ -12,7 +12,8 @@ from common.netmodel.stats import DurationHistogram
 #   publish  the Zenoh puts of what the tick emitted
 # and, after them, off the path from the tick's inputs to its outputs:
 #   prepare  Host.prepare: the core's work for its next step (core.Prepares), per step
-# and how many periods the loop skipped because it fell behind ("loop.skipped_periods")
+# and how many periods the loop skipped because it fell behind ("loop.skipped_periods"), and
+# how many Ticks it refused for leaping its clock ahead unconfirmed ("loop.ticks_refused")
 PHASES = ("wake", "step", "publish")
 PREPARE = "prepare"
 QUANTILES = {"p50": 0.5, "p95": 0.95}
@@ -26,6 +27,7 @@ class LoopTimes:
     def __init__(self) -> None:
         self._phases = {p: DurationHistogram() for p in (*PHASES, PREPARE)}
         self.skipped = 0  # periods skipped because the loop fell behind
+        self.ticks_refused = 0  # Ticks that would have leapt the clock ahead, unconfirmed
 
     def record(self, wake_s: float, step_s: float, publish_s: float) -> None:
         """One tick's phases (s)."""
@@ -48,4 +50,6 @@ class LoopTimes:
             out[f"loop.{phase}_max_us"] = round(h.max * 1e6)
         if self.skipped:
             out["loop.skipped_periods"] = self.skipped
+        if self.ticks_refused:
+            out["loop.ticks_refused"] = self.ticks_refused
         return out

@@ -45,6 +45,10 @@ RETELL_S = 0.2
 CHECK_EVERY_S = 0.1  # wall seconds between supervision checks and progress reports
 FINAL_STATS_S = 5.0  # wall seconds to wait for the services' final statistics after the end
 GONE_GRACE_S = 0.5  # after a service's token went: its last frames may still be on their way
+# how far (mission seconds) a message's stamp may be ahead of this clock when it is recorded:
+# a service's clock is set by the least-delayed Tick, so it is never ahead of the launcher's
+# but by the jitter of reading two monotonic clocks; beyond that it is refused ("future")
+AHEAD_S = 0.5
 
 
 class GoneGrace:
@@ -121,7 +125,10 @@ class RealtimeDriver:
             service, stream = self.keys.split(ev.key)
         except ValueError:
             return
-        recorded = self.renumbering.add(service, stream, msg)
+        # no service's clock runs ahead of this one: a later stamp is a forgery (or a forged
+        # Tick's doing), and would carry the run's metrics past its end
+        latest_s = None if self.clock is None else self.clock.now_us() / 1e6 + AHEAD_S
+        recorded = self.renumbering.add(service, stream, msg, latest_s=latest_s)
         if recorded is not None:  # a refused message is not shown either
             self.observer.message(service, stream, recorded)
 

@@ -30,6 +30,11 @@ INBOX_MAX_PENDING = 1024
 # service is catching up (it just joined, or was frozen): it takes every event already
 # waiting before its due steps run (see RealtimeService._take).
 CATCH_UP_S = 0.01
+# A Tick that would move a joined service's clock ahead by more than this (wall seconds) is a
+# leap no network delay explains: the launcher's clock runs at the scale, as ours does, and
+# the least-delayed Tick already set ours. Such a Tick counts only once the next Tick
+# confirms it (then the smaller leap is taken): one forged Tick cannot move the clock.
+MAX_TICK_LEAP_S = 0.5
 # A delivery modelled further ahead than this (mission seconds) is no link's delay but a
 # forged routing: it would hold a queue slot until then.
 MAX_DELIVERY_AHEAD_S = 60.0
@@ -64,7 +69,9 @@ class RealtimeService:
 
     A step that falls behind by whole periods (a long replan, a descheduled process) skips
     the missed periods, as a real-time loop must: commands stamped in the past would only be
-    rejected as stale. The service stops on a stop Tick, or when the clock's liveliness token
+    rejected as stale. A Tick that would leap the clock ahead by more than MAX_TICK_LEAP_S
+    once the clock runs is refused unless the next Tick confirms it (one forged Tick cannot
+    move it). The service stops on a stop Tick, or when the clock's liveliness token
     stays gone for CLOCK_GRACE_S (its launcher is gone, not merely this service's connection).
 
     A flood cannot stall the loop: the inbox sheds its oldest samples once INBOX_MAX_PENDING
@@ -85,6 +92,9 @@ class RealtimeService:
         self.cut_off_at: float | None = None  # wall time this session was seen cut off
         self.rejoin_timeout_s = setup.scenario.runtime.start_timeout_s
         self._catching_up = False  # the last Tick moved the clock by more than CATCH_UP_S
+        # the Tick that started the clock and those queued with it: they set it freely
+        self._joining = False
+        self._leap_t0: float | None = None  # a leap ahead waiting for the next Tick's word
         self._bus: Bus | None = None
         self.times = LoopTimes()
         self.host.runtime_counters = self.times.counters
@@ -189,14 +199,15 @@ class RealtimeService:
             if self._handle(ev):
                 return True
             if not self._catching_up:
-                return False
+                break
             ev = inbox.get(timeout=0.0)
+        self._joining = False  # what was queued when the clock started has been taken
         return False
 
     def _join(self, t_us: int) -> None:
         """Start the clock at mission time t_us (0 at the start; later for a late joiner)."""
         self.t0 = time.monotonic() - t_us / 1e6 / self.scale
-        self._catching_up = True
+        self._catching_up = self._joining = True
         if self.host.join_clock(t_us):
             log.info("%s: joined the mission clock at t=%.3f s", self.name, t_us / 1e6)
             if self._bus is not None:  # a restarted core may take up where its last one was
@@ -208,6 +219,27 @@ class RealtimeService:
         difference between this Tick's delay and the least delay seen so far."""
         assert self.t0 is not None
         t0 = time.monotonic() - t_us / 1e6 / self.scale
+        if self.t0 - t0 > MAX_TICK_LEAP_S and not self._joining:
+            # a leap ahead (MAX_TICK_LEAP_S): taken only when the next Tick leaps too
+            pending, self._leap_t0 = self._leap_t0, t0
+            if pending is None:
+                self.times.ticks_refused += 1
+                n = self.times.ticks_refused
+                if n == 10 ** (len(str(n)) - 1):  # the 1st, 10th, 100th...
+                    log.warning(
+                        "%s: a Tick at t=%.2f s would move the clock %.2f s ahead (mission "
+                        "time now %.2f s): refused unless the next Tick confirms it (%d so far)",
+                        self.name,
+                        t_us / 1e6,
+                        (self.t0 - t0) * self.scale,
+                        self.now_us() / 1e6,
+                        n,
+                    )
+                return
+            t0 = max(t0, pending)  # the smaller of the two leaps
+            leap_s = (self.t0 - t0) * self.scale
+            log.info("%s: the clock leapt %.2f s ahead, confirmed by two Ticks", self.name, leap_s)
+        self._leap_t0 = None
         self._catching_up = t0 < self.t0 - CATCH_UP_S
         self.t0 = min(self.t0, t0)
 

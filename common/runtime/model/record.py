@@ -16,8 +16,8 @@ M = TypeVar("M", bound=Message)
 
 log = logging.getLogger("tidelink.record")
 
-Refusal = Literal["wrong_source", "seq_jump", "conflict"]
-REFUSALS: tuple[Refusal, ...] = ("wrong_source", "seq_jump", "conflict")
+Refusal = Literal["wrong_source", "seq_jump", "conflict", "future"]
+REFUSALS: tuple[Refusal, ...] = ("wrong_source", "seq_jump", "conflict", "future")
 SEQ_LIMIT = 2**63  # the wire's bound on a seq (common/messages)
 
 
@@ -29,7 +29,10 @@ class Record:
     - wrong_source: its envelope `source` is not the service whose key it came on;
     - seq_jump: its seq is outside the stream's plausible window (SeqWindow): 0, or further
       ahead of the highest seq than the stream could publish in the whole mission;
-    - conflict: a different message with a seq already recorded (the first one stays).
+    - conflict: a different message with a seq already recorded (the first one stays);
+    - future: stamped after `latest_s`, the recorder's own mission time when it is given (a
+      realtime run: no service's clock may be ahead of the launcher's, and the run's metrics
+      must not run past its end).
     So one forged message can neither become a stream's `last` from far ahead nor make a
     lockstep run believe it holds a tick's data (`missing` counts the complete prefix).
     """
@@ -42,12 +45,16 @@ class Record:
         self.count = 0
         self.rejected: dict[str, int] = dict.fromkeys(REFUSALS, 0)
 
-    def add(self, service: str, stream: str, msg: Message) -> Refusal | None:
+    def add(
+        self, service: str, stream: str, msg: Message, *, latest_s: float | None = None
+    ) -> Refusal | None:
         """Record `msg`, seen on `service`'s `stream`; returns why it was refused, or None
         (recorded, or an exact repeat of a message already recorded)."""
         key = (service, stream)
         if msg.source != service:
             return self._refuse("wrong_source", key, msg)
+        if latest_s is not None and msg.stamp > latest_s:
+            return self._refuse("future", key, msg)
         window = self._windows.get(key)
         if window is None:
             window = self._windows[key] = SeqWindow(self._max_seq_gap)
@@ -137,14 +144,17 @@ class Renumbering:
             if s == service:
                 self.offset[(s, stream)] = self.record.last_seq(s, stream)
 
-    def add(self, service: str, stream: str, msg: Message) -> Message | None:
-        """Record `msg` with its seq offset; returns it as recorded, or None if refused."""
+    def add(
+        self, service: str, stream: str, msg: Message, *, latest_s: float | None = None
+    ) -> Message | None:
+        """Record `msg` with its seq offset; returns it as recorded, or None if refused
+        (`latest_s`: Record.add's)."""
         offset = self.offset.get((service, stream), 0)
         # a seq the offset would push past the wire's limit is left as it is: far beyond
         # any plausible seq, the record refuses it (as seq_jump)
         if offset and msg.seq < SEQ_LIMIT - offset:
             msg = replace(msg, seq=msg.seq + offset)
-        return None if self.record.add(service, stream, msg) else msg
+        return None if self.record.add(service, stream, msg, latest_s=latest_s) else msg
 
 
 def trajectory_sha256(truth: Iterable[TruthState]) -> str:
