@@ -339,3 +339,40 @@ def test_layout_names_channels_and_types_every_stream() -> None:
     }
     assert layout.frame_topic("sensor", "nav") == "/wire/sensor/nav"
     assert layout.routing_topic("sensor", "nav") == "/wire/sensor/nav/routing"
+
+
+def test_a_full_disk_closes_the_recording_at_its_last_whole_chunk(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """ENOSPC mid-run: the file is cut back to its last whole chunk and closed there (MCAP's
+    end records: it reads as a complete file), the error is kept, later frames are counted
+    lost, and nothing raises (a recorder's disk must not end the run)."""
+    import errno
+
+    from services.recording import writer as writer_module
+
+    path = tmp_path / "run.mcap"
+    clock = FakeClock()
+    w = _writer(path, clock)
+    frames = _written(200)  # 401 frames: nav, truth, ..., the RunEnd
+    for f in frames[:100]:
+        w.frame(*f)
+    clock.t += 1.0
+    w.flush_if_due()  # these 100 are on disk
+
+    def full(fd: int, data: memoryview) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(writer_module, "_os_write", full)
+    for f in frames[100:]:
+        w.frame(*f)
+        clock.t += 0.3
+        w.flush_if_due()
+    w.close()
+    assert w.failed is not None and w.failed.errno == errno.ENOSPC
+    assert (w.frames, w.lost) == (100, len(frames) - 100)
+    rec = read_recording(path)
+    assert rec.truncation is None  # closed: not a file cut short
+    got = [(f.service, f.stream, f.payload, f.attachment) for f in rec.frames]
+    assert got == [f[:4] for f in frames[:100]]
+    assert rec.end is None  # the RunEnd came after the disk was full: not claimed

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Iterator
 from pathlib import Path
@@ -69,15 +70,30 @@ def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) 
     return cleaned
 
 
+class OutputsNotWritten(OSError):
+    """metrics.json could not be written (a full disk, a folder gone): the run's metrics are
+    still here, in `metrics`, for the caller to report."""
+
+    def __init__(self, path: Path, exc: OSError, metrics: dict[str, Any]) -> None:
+        super().__init__(exc.errno, f"could not write {path}: {exc.strerror or exc}")
+        self.metrics = metrics
+
+
 def write_outputs(
     result: RunResult, scenario: Scenario, out: Path, *, wall_s: float
 ) -> dict[str, Any]:
-    """Write out/metrics.json (atomically) and return the metrics with the run's facts added."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Write out/metrics.json (atomically) and return the metrics with the run's facts added;
+    OutputsNotWritten (holding the metrics) when it cannot be written, leaving no partial file."""
     metrics = run_metrics(result, scenario, wall_s=wall_s)
     tmp = out / "metrics.json.tmp"
-    tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
-    tmp.replace(out / "metrics.json")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
+        tmp.replace(out / "metrics.json")
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise OutputsNotWritten(out / "metrics.json", exc, metrics) from exc
     return metrics
 
 

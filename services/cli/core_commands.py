@@ -90,7 +90,7 @@ def cmd_check(a: argparse.Namespace) -> int:
 
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
-    from common.runtime.run import run_scenario, write_outputs
+    from common.runtime.run import OutputsNotWritten, run_scenario, write_outputs
     from services.cli.summary import print_summary
 
     overrides = list(a.overrides) + certs_overrides(a.certs)
@@ -106,17 +106,31 @@ def cmd_run(a: argparse.Namespace) -> int:
     )
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
-    metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    unwritten: list[str] = []  # outputs a full disk (say) kept from being written
+    try:
+        metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    except OutputsNotWritten as exc:
+        metrics = exc.metrics
+        unwritten.append(str(exc))
     plot = None
     if not a.no_plot:
         from services.launcher.plot import plot_result
 
-        plot = plot_result(result, scenario, out / "run.png")
+        try:
+            plot = plot_result(result, scenario, out / "run.png")
+        except OSError as exc:
+            unwritten.append(f"could not write {out / 'run.png'}: {exc}")
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:
-        outputs = [("metrics", out / "metrics.json")] + ([("plot", plot)] if plot else [])
+        written = not any("metrics.json" in w for w in unwritten)
+        outputs = [("metrics", out / "metrics.json")] if written else []
+        outputs += [("plot", plot)] if plot else []
         print_summary(metrics, outputs, all_metrics=a.all_metrics)
+        if not written:
+            print("metrics: not written (see below)")
+    for why in unwritten:  # the outcome is still the run's: reported below, as ever
+        print(f"tidelink: error: {why}", file=sys.stderr)
     return report_outcome(metrics, json_output=a.json)
 
 

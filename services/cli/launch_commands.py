@@ -101,6 +101,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
     recorded = [
         f"recording: {r.path} ({r.writer.frames} frames, {r.path.stat().st_size / 1024:.1f} KiB)"
         + ("" if r.error is None else f"; writing failed: {r.error}")
+        + (f"; {r.writer.lost} frames after that not written" if r.writer.lost else "")
         for r in recorders
     ]
     if a.json:
@@ -110,12 +111,17 @@ def cmd_launch(a: argparse.Namespace) -> int:
     else:
         from services.cli.summary import print_summary
 
-        outputs = [("metrics", out / "metrics.json")]
+        written = not any("metrics.json" in w for w in outcome.unwritten)
+        outputs = [("metrics", out / "metrics.json")] if written else []
         outputs += [("plot", outcome.plot)] if outcome.plot is not None else []
         outputs += [("logs", out / "logs")]
         print_summary(outcome.metrics, outputs, all_metrics=a.all_metrics)
+        if not written:
+            print("metrics: not written (see below)")
         for line in recorded:
             print(line)
+    for why in outcome.unwritten:  # the outcome is still the run's: reported below, as ever
+        print(f"tidelink: error: {why}", file=sys.stderr)
     if outcome.result.failure and outcome.result.reason == "service_failed":
         # the metrics of the run until then are written; the failure is the exit status
         print(f"tidelink: error: {outcome.result.failure}", file=sys.stderr)

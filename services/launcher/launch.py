@@ -42,7 +42,7 @@ from common.runtime.processes.forkserver import warm_up
 from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
-from common.runtime.run import write_outputs
+from common.runtime.run import OutputsNotWritten, write_outputs
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
 from services.launcher.router import ROUTER, Listening, start_router
 
@@ -94,6 +94,7 @@ class LaunchOutcome:
     metrics: dict[str, Any]
     out: Path
     plot: Path | None
+    unwritten: list[str] = field(default_factory=list)  # outputs that could not be written
 
 
 def launch(
@@ -156,13 +157,21 @@ def launch(
             grace = 0.5 if stop.hurry else opts.grace_s
             sup.stop_in_order([n for n in sup.names() if n != ROUTER], [ROUTER], grace_s=grace)
             display.close()
-    metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    unwritten: list[str] = []  # outputs a full disk (say) kept from being written
+    try:
+        metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
+    except OutputsNotWritten as exc:
+        metrics = exc.metrics
+        unwritten.append(str(exc))
     plot = None
     if opts.plot:
         from services.launcher.plot import plot_result  # matplotlib: only when drawing
 
-        plot = plot_result(result, scenario, out / "run.png")
-    return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot)
+        try:
+            plot = plot_result(result, scenario, out / "run.png")
+        except OSError as exc:
+            unwritten.append(f"could not write {out / 'run.png'}: {exc}")
+    return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot, unwritten=unwritten)
 
 
 def _say_where(

@@ -3,11 +3,12 @@ lines otherwise; plus notable events (exits, restarts, vehicle mode changes)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Protocol
+from typing import IO, Protocol, TextIO
 
 from common.config.scenario import Scenario
 from common.messages import Message, PathMsg, TruthState, VehicleStatus
@@ -207,19 +208,35 @@ class LoggedDisplay:
 
     def __init__(self, inner: Display, path: Path) -> None:
         self.inner = inner
+        self.path = path
         path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = path.open("w")
+        self._fh: TextIO | None = path.open("w")
 
     def update(self, view: MissionView, t_sim: float) -> None:
         self.inner.update(view, t_sim)
 
     def event(self, text: str) -> None:
-        self._fh.write(f"{time.strftime('%H:%M:%S')} {text}\n")
-        self._fh.flush()
+        if self._fh is not None:
+            try:
+                self._fh.write(f"{time.strftime('%H:%M:%S')} {text}\n")
+                self._fh.flush()
+            except OSError as exc:  # a full disk ends the log, not the run
+                self._drop(exc)
         self.inner.event(text)
 
+    def _drop(self, exc: OSError) -> None:
+        fh, self._fh = self._fh, None
+        with contextlib.suppress(OSError):
+            if fh is not None:
+                fh.close()
+        self.inner.event(f"{self.path}: could not write it ({exc}); the log goes on here only")
+
     def close(self) -> None:
-        self._fh.close()
+        if self._fh is not None:
+            try:
+                self._fh.close()
+            except OSError as exc:
+                self._drop(exc)
         self.inner.close()
 
 

@@ -90,6 +90,8 @@ class TapRecorder:
             self.writer.close()
         except Exception as exc:  # noqa: BLE001 - see the docstring
             self._failed(exc)
+        if self.writer.failed is not None:  # a full disk: the file ends at its last chunk
+            self._failed(self.writer.failed)
 
     def _failed(self, exc: BaseException) -> None:
         if self.error is None:
