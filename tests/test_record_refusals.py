@@ -38,7 +38,7 @@ def test_forged_messages_are_refused_by_reason_and_the_stream_carries_on() -> No
     assert record.add("vehicle", "truth", _truth(11, source="", **goal)) == "wrong_source"
     assert record.add("vehicle", "truth", _truth(5, **goal)) == "conflict"  # seq 5 is taken
     assert record.add("vehicle", "truth", _truth(5, 5.0 + 0.075 * 5)) is None  # a repeat
-    assert record.rejected == {"wrong_source": 2, "seq_jump": 3, "conflict": 1}
+    assert record.rejected == {"wrong_source": 2, "seq_jump": 3, "conflict": 1, "future": 0}
     # nothing forged was kept, and the publisher's next messages are taken as before
     _cruise(record, 20)
     last = record.last("vehicle", "truth")
@@ -68,6 +68,19 @@ def test_renumbering_a_restarted_service_never_overflows_on_a_forged_seq() -> No
     # 2**63 - 1 + 10 would not fit the wire's seq: left as is, then refused
     assert renumbering.add("vehicle", "truth", _truth(2**63 - 1, 95.0)) is None
     assert record.rejected["seq_jump"] == 1 and record.last_seq("vehicle", "truth") == 11
+
+
+def test_a_service_back_after_its_session_was_cut_keeps_its_numbering() -> None:
+    """The same process rejoining (a router restarted, a host cut off) numbers on: its
+    messages are not offset as a restarted one's are; the message that tells is the first."""
+    record = Record()
+    renumbering = Renumbering(record)
+    _cruise(record, 10)
+    renumbering.rejoined("vehicle")
+    for k in (12, 13, 11):  # one lost in the cut, then one late
+        renumbering.add("vehicle", "truth", _truth(k, 5.0 + 0.075 * k))
+    assert [m.seq for m in record.stream("vehicle", "truth")] == list(range(1, 14))
+    assert record.rejected == dict.fromkeys(record.rejected, 0)
 
 
 def test_seq_window_prefix_and_gap() -> None:

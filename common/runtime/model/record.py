@@ -129,26 +129,39 @@ class Renumbering:
     """Keeps the lives of a restarted service apart in a record.
 
     A restarted service numbers its messages from 1 again, and Record.add dedupes by seq: its
-    new messages would be taken for repeats. From the moment it rejoins, each of its streams
-    is offset by the highest seq recorded there so far. The realtime driver records a run
-    this way, and a recording is replayed into a Record the same way (services/recording).
+    new messages would be taken for repeats. Once it rejoins, each of its streams whose next
+    message starts its numbering over (a seq not above the last one before) is offset by the
+    highest seq recorded there so far; a stream that goes on numbering (the same process,
+    back after its session was cut, e.g. by a router restart) is not. The realtime driver
+    records a run this way, and a recording is replayed into a Record the same way
+    (services/recording).
     """
 
     def __init__(self, record: Record) -> None:
         self.record = record
         self.offset: dict[tuple[str, str], int] = {}
+        self._rejoined: set[tuple[str, str]] = set()  # streams whose next message is judged
 
     def rejoined(self, service: str) -> None:
-        """`service` came back (its liveliness token reappeared): renumber what follows."""
-        for s, stream in self.record.keys():
-            if s == service:
-                self.offset[(s, stream)] = self.record.last_seq(s, stream)
+        """`service` came back (its liveliness token reappeared): a stream of it whose next
+        message numbers from the start again is renumbered from there on."""
+        self._rejoined.update(key for key in self.record.keys() if key[0] == service)
+
+    def _judge(self, key: tuple[str, str], seq: int) -> None:
+        """The first message of a rejoined service's stream: a new process's numbering, or the
+        old one's going on?"""
+        self._rejoined.discard(key)
+        last = self.record.last_seq(*key)
+        if seq <= last - self.offset.get(key, 0):
+            self.offset[key] = last
 
     def add(
         self, service: str, stream: str, msg: Message, *, latest_s: float | None = None
     ) -> Message | None:
         """Record `msg` with its seq offset; returns it as recorded, or None if refused
         (`latest_s`: Record.add's)."""
+        if (service, stream) in self._rejoined:
+            self._judge((service, stream), msg.seq)
         offset = self.offset.get((service, stream), 0)
         # a seq the offset would push past the wire's limit is left as it is: far beyond
         # any plausible seq, the record refuses it (as seq_jump)
