@@ -254,6 +254,40 @@ def test_a_killed_router_fails_the_run_saying_it_is_never_restarted(
     assert m["end_reason"] == "service_failed" and m["failure"], m
 
 
+def test_a_killed_router_under_its_own_policy_is_restarted_and_the_run_goes_on(
+    tmp_path: Path, out: Path
+) -> None:
+    """`--restart router=on-failure`: the router comes back on its endpoint, the same service
+    processes reconnect to it and rejoin the clock, and the run ends with its own outcome."""
+    scenario = _scenario(tmp_path, max_time=16.0)
+    with Tidelink(
+        "launch",
+        str(scenario),
+        "--out",
+        str(out),
+        "--restart",
+        "router=on-failure",
+        "--backoff",
+        "0.2",
+    ) as t:
+        t.wait_for(r"mission clock started", WAIT_S)
+        t.wait_for(r"t=\s*[2-9]\.\d+ s of 16", WAIT_S)  # mid-run, the loop running
+        before = _pids(out)
+        os.kill(before["router"][0], signal.SIGKILL)
+        t.wait_for(r"service 'router' was killed by signal 9", WAIT_S)
+        t.wait_for(r"restarted 'router' \(pid \d+, restart 1\)", WAIT_S)
+        services = sorted(set(before) - {"router"})
+        for name in services:  # each names itself once its session is back
+            t.wait_for(rf"service '{name}' rejoined at t=", WAIT_S)
+        assert t.wait(WAIT_S) == 0, t.stderr
+    after = _pids(out)
+    assert len(after["router"]) == 2
+    # rejoined, not restarted: the same processes carried on
+    assert {s: after[s] for s in services} == {s: before[s] for s in services}
+    m = _metrics(out)
+    assert m["end_reason"] == "max_time" and not m["failure"], m
+
+
 def test_a_frozen_service_raises_an_alarm_and_counts_in_the_metrics(
     tmp_path: Path, out: Path
 ) -> None:

@@ -67,6 +67,10 @@ def test_restart_options_parse_per_service() -> None:
             policies_for(("a",), [bad], default)
     with pytest.raises(ValueError, match="unknown service 'c'"):
         policies_for(("a",), ["c=always"], default)
+    # the router gets a policy only by its name: a bare MODE is the services'
+    got = policies_for(("a",), ["router=on-failure", "always"], default, named_only=("router",))
+    assert (got["a"].mode, got["router"].mode) == ("always", "on-failure")
+    assert "router" not in policies_for(("a",), ["always"], default, named_only=("router",))
     with pytest.raises(ValueError, match="backoff_s"):
         RestartPolicy(backoff_s=5.0, backoff_max_s=1.0)
 

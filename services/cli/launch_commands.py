@@ -36,7 +36,8 @@ if TYPE_CHECKING:
 
 RESTART_HELP = (
     "restart policy [NAME=]MODE[:MAX], MODE one of never, on-failure, always (default never); "
-    "without NAME= for every service; repeatable, e.g. --restart filter=on-failure:5"
+    "without NAME= for every service (never the router: only router=MODE restarts it); "
+    "repeatable, e.g. --restart filter=on-failure:5"
 )
 
 
@@ -90,7 +91,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
         only=only,
         listen=tuple(a.listen),
         plot=not a.no_plot,
-        policies=policies_for(names, a.restart, default),
+        policies=policies_for(names, a.restart, default, named_only=(ROUTER,)),
         attach=(record,) if a.record else (),
     )
     try:

@@ -135,6 +135,7 @@ def launch(
                 cancelled=lambda: stop.requested,
                 certs=bus.certs if bus.secured else None,
                 acl=acl_file,
+                policy=opts.policies.get(ROUTER),
             )
             endpoint = listening.endpoint
             _say_where(display, bus, opts.listen, listening)

@@ -10,11 +10,13 @@ from pathlib import Path
 
 from common.config.bus import DEFAULT_CONNECT
 from common.runtime.processes.children import connectable, free_port, how_it_ended, port_free
+from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted
 from common.runtime.processes.supervisor import Supervisor
 
 ROUTER = "router"
 READY_LINE = "zenoh router listening on"  # printed by `tidelink router` once it listens
+NEVER_RESTARTED = "the router is never restarted without --restart router=on-failure"
 ADDRESS_IN_USE = "Address already in use"  # in Zenoh's error when a listener cannot bind
 
 
@@ -39,14 +41,17 @@ def start_router(
     cancelled: Callable[[], bool] = lambda: False,
     certs: str | None = None,
     acl: Path | None = None,
+    policy: RestartPolicy | None = None,
 ) -> Listening:
     """Start the router listening on `listen` and wait until it says it listens. Without
     `listen`: on DEFAULT_CONNECT, where the watchers (monitor, foxglove, record) look by
     default, when that port is free; else (or when another launch takes it first) on a free
     loopback port, and Listening says why. With `certs` it listens on TLS only, as the router
-    identity, enforcing the access control in the `acl` file."""
+    identity, enforcing the access control in the `acl` file. `policy` (`--restart
+    router=on-failure`): restarted on the same endpoints, the run's sessions reconnect to it
+    (clients retry every second) and declare everything again."""
     go = functools.partial(
-        _start, sup, timeout_s=timeout_s, cancelled=cancelled, certs=certs, acl=acl
+        _start, sup, timeout_s=timeout_s, cancelled=cancelled, certs=certs, acl=acl, policy=policy
     )
     if listen:
         return Listening(go(listen))
@@ -68,6 +73,7 @@ def _start(
     cancelled: Callable[[], bool],
     certs: str | None,
     acl: Path | None,
+    policy: RestartPolicy | None,
 ) -> str:
     """Start `tidelink router` on `listen`, wait for its ready line; the endpoint to dial."""
     args = ["-m", "services.cli", "router"]
@@ -79,12 +85,13 @@ def _start(
             args += ["--acl", str(acl)]
     # the launch checked exposure already (it holds --insecure); do not refuse twice
     args.append("--insecure")
-    # a restarted router would not bring the run back: every session's state (subscriptions,
-    # liveliness tokens, the services' view of the clock) goes with the old one
+    # restarted, only by its own policy: every client reconnects within a second and declares
+    # its subscriptions, queryables and tokens again; what was on its way is lost
     child = sup.start(
         ROUTER,
         args,
-        never_because="the router is never restarted: the run's sessions go with it",
+        policy,
+        never_because="" if policy is not None else NEVER_RESTARTED,
         spawned=True,  # up while the fork server imports what the services need
     )
     deadline = time.monotonic() + timeout_s

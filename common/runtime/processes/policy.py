@@ -75,16 +75,22 @@ def parse_restart(text: str, default: RestartPolicy) -> tuple[str | None, Restar
 
 
 def policies_for(
-    names: tuple[str, ...], specs: list[str], default: RestartPolicy
+    names: tuple[str, ...],
+    specs: list[str],
+    default: RestartPolicy,
+    *,
+    named_only: tuple[str, ...] = (),
 ) -> dict[str, RestartPolicy]:
-    """Each service's policy from repeated --restart options (later ones win)."""
+    """Each service's policy from repeated --restart options (later ones win); the processes
+    `named_only` (the router) get one only from a NAME=... option, never from a bare MODE."""
     out = dict.fromkeys(names, default)
     for text in specs:
         name, policy = parse_restart(text, default)
         if name is None:
-            out = dict.fromkeys(names, policy)
-        elif name not in out:
-            raise _bad(text, f"unknown service {name!r}; this mission has {', '.join(names)}")
+            out.update(dict.fromkeys(names, policy))
+        elif name not in out and name not in named_only:
+            known = ", ".join((*names, *named_only))
+            raise _bad(text, f"unknown service {name!r}; this launch has {known}")
         else:
             out[name] = policy
     return out
