@@ -18,8 +18,9 @@ from typing import Any
 from common.bus import Keys
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.processes.children import free_port
-from services.chaos.faults import ROUTER, Fault
+from services.chaos.faults import OUTSIDE, ROUTER, Fault
 from services.chaos.inject import inject
+from services.chaos.outside import OutsideFault
 
 PROGRESS = re.compile(r"t=\s*([0-9.]+) s of")
 STOPPED = "mission clock started"
@@ -47,6 +48,9 @@ class Outcome:
     wall_s: float = 0.0
     injected: int = 0
     note: str = ""
+    # a fault from outside the loop: what its processes did (services/chaos/outside.py)
+    outside: dict[str, Any] = field(default_factory=dict)
+    alarms: list[str] = field(default_factory=list)  # the launcher's ALARM lines
 
 
 class _Lines:
@@ -111,6 +115,19 @@ def run_case(setup: CaseSetup, fault: Fault, out: Path, keys: Keys, flow: Datafl
         argv += ["--set", s]
     if fault.restart:
         argv += ["--restart", f"{fault.target}=on-failure:3", "--backoff", "0.2"]
+    outside = None
+    if fault.kind in OUTSIDE:
+        outside = OutsideFault(
+            fault.kind,
+            fault.target,
+            fault.hold_s,
+            out,
+            endpoint,
+            setup.scenario,
+            setup.sets,
+            setup.time_scale,
+        )
+        argv += outside.launch_args()
     t0 = time.monotonic()
     proc = subprocess.Popen(
         argv,
@@ -124,8 +141,12 @@ def run_case(setup: CaseSetup, fault: Fault, out: Path, keys: Keys, flow: Datafl
     lines = _Lines(proc)
     outcome = Outcome(fault=fault, exit_code=None)
     try:
+        if outside is not None:
+            outside.start()
         if not lines.wait_for(_at_least(setup.fault_at_s), setup.timeout_s):
             outcome.note = f"the run never reached t={setup.fault_at_s:g} s"
+        elif outside is not None:
+            outcome.injected = outside.strike(keys, flow)
         else:
             outcome.injected = _strike(setup, fault, proc, out, endpoint, keys, flow)
         try:
@@ -139,6 +160,9 @@ def run_case(setup: CaseSetup, fault: Fault, out: Path, keys: Keys, flow: Datafl
         outcome.wall_s = time.monotonic() - t0
         outcome.leftovers = _leftovers(out)
         stdout = proc.stdout.read() if proc.stdout else ""
+        if outside is not None:
+            outcome.outside = outside.finish()
+    outcome.alarms = [x for x in lines.lines if "ALARM" in x]
     outcome.metrics = _metrics(out)
     del stdout  # --json's copy of metrics.json; the file is what a user would read
     if outcome.exit_code is not None and outcome.exit_code != 0 and not outcome.note:

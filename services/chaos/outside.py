@@ -1,0 +1,187 @@
+"""Faults from outside the loop (issue 61): what the tools around a run could do to it.
+
+- watchers: a `tidelink monitor --json` and a `tidelink record`, SIGSTOPped together for
+  hold_s wall seconds (the router closes their sessions after their lease);
+- duplicate: a second `tidelink service NAME` joining the running mission;
+- replay: the run recorded from its start by `tidelink record`, stopped, and replayed with
+  `tidelink replay --connect` into the run's own router, under the run's own name;
+- forge_tick: one Tick put on the tick key of every service, hold_s mission seconds ahead.
+
+Each starts what it needs with the launch (`OutsideFault.start`), strikes at the fault's time
+and, once the launch is over, reports what its processes did (`finish`), for the verdict.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from common.bus import Bus, Keys
+from common.bus.watcher import Watcher
+from common.config.bus import client_config
+from common.messages import Tick, WireError, decode, encode
+from common.runtime.model.dataflow import Dataflow
+
+EXIT_WAIT_S = 60.0  # how long a helper process may take to end once the launch has
+LOOP_STREAM = ("vehicle", "truth")  # the loop's pulse: its gaps are the loop's period held
+
+
+@dataclass
+class Helper:
+    """A CLI process of the case, its output in files (no pipe can fill and stop it)."""
+
+    name: str
+    proc: subprocess.Popen[bytes]
+    out: Path
+    err: Path
+
+    def result(self) -> dict[str, Any]:
+        try:
+            code: int | None = self.proc.wait(EXIT_WAIT_S)
+        except subprocess.TimeoutExpired:
+            code = None  # it hung
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+        return {
+            "exit": code,
+            "stdout": self.out.read_text(errors="replace")[-2000:],
+            "stderr": self.err.read_text(errors="replace")[-2000:],
+        }
+
+
+@dataclass
+class OutsideFault:
+    """The helper processes of one case and what came of them."""
+
+    kind: str
+    target: str
+    hold_s: float
+    out: Path
+    endpoint: str
+    scenario: Path
+    sets: tuple[str, ...]
+    time_scale: float
+    helpers: dict[str, Helper] = field(default_factory=dict)
+    report: dict[str, Any] = field(default_factory=dict)
+
+    def _cli(self, name: str, *args: str) -> Helper:
+        self.out.mkdir(parents=True, exist_ok=True)
+        out, err = self.out / f"{name}.out", self.out / f"{name}.err"
+        with out.open("wb") as o, err.open("wb") as e:
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "services.cli", *args],
+                stdout=o,
+                stderr=e,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+                env=dict(os.environ, PYTHONUNBUFFERED="1"),
+            )
+        self.helpers[name] = Helper(name, proc, out, err)
+        return self.helpers[name]
+
+    def launch_args(self) -> list[str]:
+        """What the launch adds for this fault (watchers: its own lossless recording, whose
+        timing says whether the loop kept its period)."""
+        return ["--record"] if self.kind == "watchers" else []
+
+    def start(self) -> None:
+        """The helpers that must be there from the run's start."""
+        connect = ["--connect", self.endpoint]
+        if self.kind == "watchers":
+            self._cli("monitor", "monitor", *connect, "--json")
+            self._cli("record", "record", *connect, "-o", str(self.out / "watched.mcap"))
+        elif self.kind == "replay":
+            self._cli("record", "record", *connect, "-o", str(self.out / "recorded.mcap"))
+
+    def strike(self, keys: Keys, flow: Dataflow) -> int:
+        """Apply the fault; returns the frames put (a forged Tick: 1)."""
+        if self.kind == "watchers":
+            watchers = [self.helpers["monitor"].proc, self.helpers["record"].proc]
+            for p in watchers:
+                os.killpg(p.pid, signal.SIGSTOP)
+            try:
+                time.sleep(self.hold_s)  # the stop's length, in wall seconds, is the fault
+            finally:
+                for p in watchers:
+                    os.killpg(p.pid, signal.SIGCONT)
+            return 0
+        if self.kind == "duplicate":
+            sets = [x for s in self.sets for x in ("--set", s)]
+            dup = self._cli(
+                "duplicate",
+                "service",
+                self.target,
+                str(self.scenario),
+                "--connect",
+                self.endpoint,
+                "--time-scale",
+                f"{self.time_scale:g}",
+                *sets,
+            )
+            self.report["duplicate"] = dup.result()  # refused within seconds, or it hangs on
+            return 0
+        if self.kind == "replay":
+            rec = self.helpers["record"]
+            os.killpg(rec.proc.pid, signal.SIGTERM)  # its file is closed: a recording so far
+            self.report["record"] = rec.result()
+            replay = self._cli(
+                "replay",
+                "replay",
+                str(self.out / "recorded.mcap"),
+                "--connect",
+                self.endpoint,
+                "--speed",
+                f"{self.time_scale:g}",
+            )
+            self.report["replay"] = replay.result()
+            return 0
+        if self.kind == "forge_tick":
+            return forge_tick(self.endpoint, keys, flow, ahead_s=self.hold_s)
+        raise ValueError(f"not a fault from outside the loop: {self.kind!r}")
+
+    def finish(self) -> dict[str, Any]:
+        """What every helper did (each given EXIT_WAIT_S to end by itself)."""
+        for name, h in self.helpers.items():
+            if name not in self.report:
+                self.report[name] = h.result()
+        if self.kind == "watchers":
+            self.report["loop_gap_s"] = loop_gap_s(self.out / "run.mcap", self.time_scale)
+        return self.report
+
+
+def forge_tick(connect: str, keys: Keys, flow: Dataflow, *, ahead_s: float) -> int:
+    """Put one Tick for every service of the run, `ahead_s` mission seconds ahead of the
+    newest frame the run's tap has: a plain client of the router, as anyone could."""
+    with Bus(client_config(connect, None), keys, identity="monitor") as bus:
+        now = 0.0
+        for f in Watcher(bus, keys.run, keys.vehicle).latest(keys):
+            try:
+                now = max(now, decode(f.payload).stamp)
+            except WireError:
+                continue
+        t = now + ahead_s
+        tick = Tick(stamp=t, tick=10**6, time_us=round(t * 1e6), watermarks={})
+        pub = bus.publisher_on(keys.tick(flow.names))
+        pub.put_bytes(encode(tick))  # as the run's clock puts its Ticks
+        time.sleep(0.5)  # the put on its way before the session closes, not a result
+    return 1
+
+
+def loop_gap_s(mcap: Path, time_scale: float) -> float | None:
+    """The longest gap (mission seconds) between two of the loop's frames (LOOP_STREAM) as the
+    run's tap got them, in the launch's own recording; None without one."""
+    from services.recording.reader import read_recording
+
+    try:
+        rec = read_recording(mcap)
+    except Exception:  # noqa: BLE001 - no recording: no measure, said as None
+        return None
+    walls = sorted(f.wall for f in rec.frames if (f.service, f.stream) == LOOP_STREAM)
+    gaps = [b - a for a, b in zip(walls, walls[1:], strict=False)]
+    return max(gaps, default=0.0) * time_scale
