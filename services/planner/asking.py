@@ -23,9 +23,9 @@ from common.config.world import WorldConfig
 from common.runtime.deferred import Deferred
 from services.control.command.link import CommandLink, Prediction
 from services.control.controllers.base import Controller
-from services.planner.evade import plan_or_step_aside
+from services.planner.evade import plan_or_step_aside, step_aside
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.safety.rollout import RolloutInputs
+from services.planner.safety.rollout import RolloutInputs, rollout_clearance
 from services.planner.shaping.path_arc_reference import PathArcReference
 
 log = logging.getLogger("tidelink.planner")
@@ -72,6 +72,42 @@ def _plan_over_ground(
     if not tighter.ok:
         return result
     return replace(tighter, reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "))
+
+
+def plan_clear_of_contact(
+    req: PlanRequest,
+    r_water_m: float,
+    cfg: PlannerConfig,
+    flight: RolloutInputs,
+    aside: PlanResult | None,
+) -> PlanResult:
+    """_plan_over_ground, but never a plan its own flight (rollout.py) has the hull touch an
+    obstacle on: one made again that "fared no better" was adopted, and flown into contact
+    (a planner frozen 8 s, issue 61). Then a way aside whose flight keeps clear, else the
+    NO_PATH: the vehicle holds, and the next plan starts from there."""
+    result = _plan_over_ground(req, r_water_m, cfg, flight, aside)
+    touch = _flown_clearance(result, req, cfg, flight)
+    if touch >= 0.0:
+        return result
+    why = f"{result.reason}; flown, its hull would touch an obstacle ({touch:.2f} m)"
+    if not result.short_of_goal:
+        way = step_aside(req, cfg, flight, aside)
+        if way is not None and _flown_clearance(way, req, cfg, flight) >= 0.0:
+            return replace(way, reason=f"{why}; {way.reason}")
+    return PlanResult(
+        status="NO_PATH", reason=f"{why}: holds", grid_path=result.grid_path, timing=result.timing
+    )
+
+
+def _flown_clearance(
+    result: PlanResult, req: PlanRequest, cfg: PlannerConfig, flight: RolloutInputs
+) -> float:
+    """The hull's clearance where an OK plan's flight comes nearest what it must keep, at the
+    speed it was made for (inf for a NO_PATH)."""
+    if not result.ok:
+        return math.inf
+    v = req.v_ref_mps if result.v_ref_mps is None else result.v_ref_mps
+    return rollout_clearance(result, replace(req, v_ref_mps=v), flight, cfg).min_clearance_m
 
 
 class PlanAsking:
@@ -209,7 +245,7 @@ class PlanAsking:
             t0=t_plan,
         )
         r_water = self.vehicle.turn_radius_min_m
-        self.plans.start(lambda: _plan_over_ground(req, r_water, cfg, flight, aside))
+        self.plans.start(lambda: plan_clear_of_contact(req, r_water, cfg, flight, aside))
 
     def done(self, t: float) -> Asked:
         """A plan is made (step t): what it was asked for, its lag counted (and told, if
