@@ -15,7 +15,7 @@ from common.config.scenario import load_scenario
 from common.runtime.distributed.bringup import run_keys
 from common.runtime.model.mission import load_mission
 from services.chaos.case import CaseSetup, run_case
-from services.chaos.faults import INJECTIONS, Fault, matrix
+from services.chaos.faults import INJECTIONS, TICK_AHEAD_S, Fault, matrix
 from services.chaos.forge import payloads
 from services.chaos.verdict import problems, table
 
@@ -31,6 +31,11 @@ CASES = [
     Fault("kill", "planner", restart=True),
     Fault("stop", "planner"),
     Fault("inject", "hostile"),
+    # from outside the loop (services/chaos/outside.py), the two that take a run's length: the
+    # router's restart and a forged Tick; the watchers' 20 s freeze, duplicates and a replay
+    # run in `tidelink chaos`
+    Fault("kill", "router", restart=True),
+    Fault("forge_tick", hold_s=TICK_AHEAD_S),
 ]
 
 
