@@ -2,7 +2,11 @@
 
 - watchers: a `tidelink monitor --json` and a `tidelink record`, SIGSTOPped together for
   hold_s wall seconds (the router closes their sessions after their lease);
-- duplicate: a second `tidelink service NAME` joining the running mission;
+- duplicate: a second `tidelink service NAME` joining the running mission; it needs the run
+  to last ~5 wall seconds past the strike (its Python start, then claim.CLAIM_WAIT_S for the
+  holder to go): sooner, the run ends meanwhile, the holder's claim goes with it and the
+  duplicate takes the role as a restart would (short.toml at 6x: not refused, exit 0; at 1x
+  refused);
 - replay: the run recorded from its start by `tidelink record`, stopped, and replayed with
   `tidelink replay --connect` into the run's own router, under the run's own name;
 - forge_tick: one Tick put on the tick key of every service, hold_s mission seconds ahead.
