@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Callable
+from contextlib import closing
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -125,7 +126,11 @@ def cmd_replay(a: argparse.Namespace) -> int:
             f"listening on {cfg.endpoint(listen)}: watch with --connect "
             f"{cfg.endpoint(connectable(listen))}{certs}"
         )
-    with stop_on_signals() as stop, _replay_bus(cfg, rec, a.as_run, a.identity, say) as bus:
+    # _replay_bus hands back an open session (it holds the run's claim): closed, not entered again
+    with (
+        stop_on_signals() as stop,
+        closing(_replay_bus(cfg, rec, a.as_run, a.identity, say)) as bus,
+    ):
         outcome = replay(rec, bus, speed=a.speed, stop=stop, lead_s=a.lead, say=say)
     say(
         f"published {outcome.published} frames to watchers as run {outcome.keys.run}; "
