@@ -28,7 +28,6 @@ import math
 from dataclasses import dataclass, replace
 
 from common.config.vehicle import VehicleConfig
-from common.scalar import clamp
 
 Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (m, m, rad, m/s, rad/s)
 
@@ -79,21 +78,34 @@ class ResponseModel:
         a_max, alpha_max = self.accel_max_mps2, self.yaw_accel_max_rps2
         x, y, th, v, w = pose
         dx, dy = self.current_mps[0] * h, self.current_mps[1] * h  # drift over one step
+        v_max, r_min = self.v_max_mps, self.r_min_m
+        w_lo, w_hi = self.w_min_rps, self.w_max_rps
+        cos, sin = math.cos, math.sin
+        # the clamps are common.scalar.clamp written out (lo if x < lo else hi if x > hi
+        # else x, the same floats): this loop runs ~100k times a mission, and calling clamp
+        # took a fifth of its time
         for _ in range(n):
-            v1 = clamp(v + h * clamp((v_c - v) * gain_v, -a_max, a_max), 0.0, self.v_max_mps)
-            room = v1 / self.r_min_m  # the turn the fins allow at this speed
-            dw = clamp((clamp(w_c, -room, room) - w) * gain_w, -alpha_max, alpha_max)
-            w1 = clamp(w + h * dw, max(self.w_min_rps, -room), min(self.w_max_rps, room))
+            a = (v_c - v) * gain_v
+            a = -a_max if a < -a_max else a_max if a > a_max else a
+            v1 = v + h * a
+            v1 = 0.0 if v1 < 0.0 else v_max if v1 > v_max else v1
+            room = v1 / r_min  # the turn the fins allow at this speed
+            wc = -room if w_c < -room else room if w_c > room else w_c
+            dw = (wc - w) * gain_w
+            dw = -alpha_max if dw < -alpha_max else alpha_max if dw > alpha_max else dw
+            lo, hi = max(w_lo, -room), min(w_hi, room)
+            w1 = w + h * dw
+            w1 = lo if w1 < lo else hi if w1 > hi else w1
             # eq. (7) along the arc of the step's mean twist
             vm, wm = 0.5 * (v + v1), 0.5 * (w + w1)
             dth = wm * h
             if abs(dth) < 1e-9:
-                x += vm * h * math.cos(th)
-                y += vm * h * math.sin(th)
+                x += vm * h * cos(th)
+                y += vm * h * sin(th)
             else:
                 r = vm / wm
-                x += r * (math.sin(th + dth) - math.sin(th))
-                y -= r * (math.cos(th + dth) - math.cos(th))
+                x += r * (sin(th + dth) - sin(th))
+                y -= r * (cos(th + dth) - cos(th))
             th += dth
             x += dx
             y += dy
