@@ -20,13 +20,13 @@ ROUTER_BLOCK_CLOSE_US = 3_000_000
 # A router waits this long (us) for room in a client's queue before dropping a DROP sample for
 # it (Zenoh's default: 1000). The wait is spent on the task that reads the publisher's link:
 # behind a stopped watcher, 1 ms per watch copy was most of a second per second of the run's
-# copies, and the link that carries them fell behind (docs/notes/0044-watchers-off-the-loop.md)
+# copies, and the link that carries them fell behind (docs/notes/0045-watchers-off-the-loop.md)
 ROUTER_WAIT_BEFORE_DROP_US = 50
 # Zenoh's RX runtime: the threads that read every link of a router and route what arrives.
 # Closing the session of a client that stopped reading (its lease expired while its socket
 # was full) holds one of them for up to 10 s; with Zenoh's default of 2, two watchers frozen
 # together (a laptop put to sleep) stalled every stream of the run for 10 s
-# (docs/notes/0044-watchers-off-the-loop.md). ZENOH_RUNTIME set by the user wins.
+# (docs/notes/0045-watchers-off-the-loop.md). ZENOH_RUNTIME set by the user wins.
 ROUTER_RUNTIME = "(rx: (worker_threads: 8))"
 RUNTIME_ENV = "ZENOH_RUNTIME"
 
