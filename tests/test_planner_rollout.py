@@ -308,3 +308,29 @@ def test_just_after_an_escape_the_flight_is_held_to_rho0_without_the_cushion(
         assert "made again with a" in got.reason
     plain = plan_and_verify(req, CFG, _flight(), _Planner())
     assert "flown on the response model" in plain.reason  # without an escape: the cushion
+
+
+def test_a_plan_whose_own_rollout_touches_an_obstacle_is_never_handed_back(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # issue 61: a planner woken from an 8 s SIGSTOP adopted a plan made again that "fared no
+    # better" (its rollout had the hull at -0.38 m) and flew it into contact. Whatever the
+    # planning gives, a plan whose rollout touches an obstacle is replaced by a way aside that
+    # keeps clear, or by NO_PATH (hold)
+    from services.planner import asking
+
+    through = _straight(20.0)  # straight through the circle at (30, 20)
+    monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: through)
+    req = _request(circles=(CircleObstacleConfig(id=1, x_m=30.0, y_m=20.0, radius_m=3.0),))
+    fm = _flight()
+    got = asking.plan_clear_of_contact(req, req.r_min_m, CFG, fm, None)
+    assert got is not through
+    assert "would touch an obstacle" in got.reason, got.reason
+    if got.ok:
+        assert rollout_clearance(got, req, fm, CFG).min_clearance_m >= 0.0
+    else:
+        assert got.status == "NO_PATH" and got.reason.endswith("holds")
+    # a plan clear of contact is handed back as it is
+    clear = _straight(5.0)
+    monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: clear)
+    assert asking.plan_clear_of_contact(req, req.r_min_m, CFG, fm, None) is clear
