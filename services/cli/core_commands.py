@@ -90,8 +90,9 @@ def cmd_check(a: argparse.Namespace) -> int:
 
 def cmd_run(a: argparse.Namespace) -> int:
     from common.config.scenario import load_scenario
-    from common.runtime.run import OutputsNotWritten, run_scenario, write_outputs
+    from common.runtime.run import run_scenario
     from services.cli.summary import print_summary
+    from services.launcher.outputs import save_run
 
     overrides = list(a.overrides) + certs_overrides(a.certs)
     if a.runtime:
@@ -106,20 +107,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     )
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
-    unwritten: list[str] = []  # outputs a full disk (say) kept from being written
-    try:
-        metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
-    except OutputsNotWritten as exc:
-        metrics = exc.metrics
-        unwritten.append(str(exc))
-    plot = None
-    if not a.no_plot:
-        from services.launcher.plot import plot_result
-
-        try:
-            plot = plot_result(result, scenario, out / "run.png")
-        except OSError as exc:
-            unwritten.append(f"could not write {out / 'run.png'}: {exc}")
+    saved = save_run(result, scenario, out, wall_s=time.monotonic() - wall0, plot=not a.no_plot)
+    metrics, plot, unwritten = saved.metrics, saved.plot, saved.unwritten
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
     else:

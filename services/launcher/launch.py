@@ -42,7 +42,7 @@ from common.runtime.processes.forkserver import warm_up
 from common.runtime.processes.policy import RestartPolicy
 from common.runtime.processes.signals import Interrupted, StopRequest, stop_on_signals
 from common.runtime.processes.supervisor import ServiceFailed, Supervisor
-from common.runtime.run import OutputsNotWritten, write_outputs
+from services.launcher.outputs import save_run
 from services.launcher.progress import Display, LoggedDisplay, MissionView, ProgressObserver
 from services.launcher.router import ROUTER, Listening, start_router
 
@@ -158,21 +158,14 @@ def launch(
             grace = 0.5 if stop.hurry else opts.grace_s
             sup.stop_in_order([n for n in sup.names() if n != ROUTER], [ROUTER], grace_s=grace)
             display.close()
-    unwritten: list[str] = []  # outputs a full disk (say) kept from being written
-    try:
-        metrics = write_outputs(result, scenario, out, wall_s=time.monotonic() - wall0)
-    except OutputsNotWritten as exc:
-        metrics = exc.metrics
-        unwritten.append(str(exc))
-    plot = None
-    if opts.plot:
-        from services.launcher.plot import plot_result  # matplotlib: only when drawing
-
-        try:
-            plot = plot_result(result, scenario, out / "run.png")
-        except OSError as exc:
-            unwritten.append(f"could not write {out / 'run.png'}: {exc}")
-    return LaunchOutcome(result=result, metrics=metrics, out=out, plot=plot, unwritten=unwritten)
+    saved = save_run(result, scenario, out, wall_s=time.monotonic() - wall0, plot=opts.plot)
+    return LaunchOutcome(
+        result=result,
+        metrics=saved.metrics,
+        out=out,
+        plot=saved.plot,
+        unwritten=saved.unwritten,
+    )
 
 
 def _say_where(

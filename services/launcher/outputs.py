@@ -1,0 +1,39 @@
+"""What a finished run leaves on disk (metrics.json, run.png), and what it could not write."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from common.config.scenario import Scenario
+from common.runtime.model.result import RunResult
+from common.runtime.run import OutputsNotWritten, write_outputs
+
+
+@dataclass
+class SavedRun:
+    """The run's metrics (written or not), its plot if drawn, and what could not be written."""
+
+    metrics: dict[str, Any]
+    plot: Path | None = None
+    unwritten: list[str] = field(default_factory=list)  # a full disk (say) kept these out
+
+
+def save_run(
+    result: RunResult, scenario: Scenario, out: Path, *, wall_s: float, plot: bool
+) -> SavedRun:
+    """Write out/metrics.json and (with `plot`) out/run.png; a write that fails is told in
+    `unwritten`, never raised: the run's outcome is still the caller's to report."""
+    try:
+        saved = SavedRun(write_outputs(result, scenario, out, wall_s=wall_s))
+    except OutputsNotWritten as exc:
+        saved = SavedRun(exc.metrics, unwritten=[str(exc)])
+    if plot:
+        from services.launcher.plot import plot_result  # matplotlib: only when drawing
+
+        try:
+            saved.plot = plot_result(result, scenario, out / "run.png")
+        except OSError as exc:
+            saved.unwritten.append(f"could not write {out / 'run.png'}: {exc}")
+    return saved
