@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from common.bus import Bus, Keys
+from common.bus.probe import puts_reach_router
 from common.bus.watcher import Watcher
 from common.config.bus import client_config
 from common.messages import Tick, WireError, decode, encode
@@ -173,8 +174,9 @@ def forge_tick(connect: str, keys: Keys, flow: Dataflow, *, ahead_s: float) -> i
         tick = Tick(stamp=t, tick=10**6, time_us=round(t * 1e6), watermarks={})
         pub = bus.publisher_on(keys.tick(flow.names))
         pub.put_bytes(encode(tick))  # as the run's clock puts its Ticks
-        time.sleep(0.5)  # the put on its way before the session closes, not a result
-    return 1
+        # closed at once, the session could drop the put: a probe's round trip through the
+        # router, sent after it on the same link, says it went (else: none was forged)
+        return 1 if puts_reach_router(bus, keys.probe) else 0
 
 
 def loop_gap_s(mcap: Path, time_scale: float) -> float | None:
