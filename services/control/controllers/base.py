@@ -60,11 +60,18 @@ class Limits:
     def saturate(self, v: float, w: float, v_now: float) -> tuple[float, float]:
         """eq. (11): clamp v to [v_min, v_max] and w to [w_min, w_max], and |w| to
         turn_cap(v_now) (R_min at the vehicle's speed v_now); NaN becomes a stop."""
-        if not (math.isfinite(v) and math.isfinite(w)):
+        isfinite = math.isfinite
+        if not (isfinite(v) and isfinite(w)):
             return max(0.0, self.v_min), 0.0
-        cap = self.turn_cap(v_now)
-        return clamp(v, self.v_min, self.v_max), clamp(
-            w, max(self.w_min, -cap), min(self.w_max, cap)
+        # turn_cap and the clamps written out, the same floats (max(a, b) is b if b > a
+        # else a, min(a, b) b if b < a else a): every entry of a command sequence ends here
+        cap = (0.0 if 0.0 > v_now else v_now) / self.r_min if isfinite(v_now) else 0.0
+        v_lo, v_hi = self.v_min, self.v_max
+        w_lo = -cap if -cap > self.w_min else self.w_min
+        w_hi = cap if cap < self.w_max else self.w_max
+        return (
+            v_lo if v < v_lo else v_hi if v > v_hi else v,
+            w_lo if w < w_lo else w_hi if w > w_hi else w,
         )
 
 

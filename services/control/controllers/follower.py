@@ -25,7 +25,7 @@ import math
 from typing import Generic, TypeVar
 
 from common.config.controller import SpeedConfig
-from common.scalar import clamp, wrap_angle
+from common.scalar import wrap_angle
 from services.control.controllers.arc_reference import ArcLengthReference
 from services.control.controllers.base import Limits, Pose, predict_pose
 from services.control.controllers.speed import SpeedProfile
@@ -86,7 +86,7 @@ class PathFollower(Generic[G]):
         sway included (a hull slips sideways in a turn: its course is not its heading); sets
         the gain `finish` turns a course rate into a yaw rate with."""
         x, y, th, v, w = pose
-        ve = max(v, STEERAGE_MPS)
+        ve = STEERAGE_MPS if STEERAGE_MPS > v else v  # max(v, STEERAGE_MPS)
         cx, cy = self.current
         c, sn = math.cos(th), math.sin(th)
         gx, gy = ve * c - self.sway * sn + cx, ve * sn + self.sway * c + cy
@@ -95,7 +95,15 @@ class PathFollower(Generic[G]):
         across = self.sway - cx * sn + cy * c  # g . n_theta
         turned = ve * along + self.sway * across  # chi' = w turned / U^2
         gain = u * u / turned if turned > 0.0 else COURSE_GAIN_MAX
-        self._course_gain = clamp(gain, COURSE_GAIN_MIN, COURSE_GAIN_MAX)
+        # clamp(gain, COURSE_GAIN_MIN, COURSE_GAIN_MAX) written out (a rollout asks this at
+        # every entry)
+        self._course_gain = (
+            COURSE_GAIN_MIN
+            if gain < COURSE_GAIN_MIN
+            else COURSE_GAIN_MAX
+            if gain > COURSE_GAIN_MAX
+            else gain
+        )
         chi = th + wrap_angle(math.atan2(gy, gx) - th)
         return x, y, chi, u, w / self._course_gain
 

@@ -52,9 +52,30 @@ def target_speed(
 ) -> float:
     """v_target(s) of the module docstring (m/s), before the ramp; in a current of
     `current_mps` the stop at the path's end keeps steerage_per_current times it."""
-    v = cruise_speed(ref, limits)
-    horizon = min(ref.length, s + v * cfg.preview_s)
-    w_room = cfg.curvature_budget * min(limits.w_max, -limits.w_min)
+    return _target(ref, s, cfg, limits, curvature_room(cfg, limits), current_mps)
+
+
+def curvature_room(cfg: SpeedConfig, limits: Limits) -> float:
+    """The yaw rate the curvature feed-forward may take (rad/s): budget * min(w_max, -w_min)."""
+    return cfg.curvature_budget * min(limits.w_max, -limits.w_min)
+
+
+def _target(
+    ref: ArcLengthReference,
+    s: float,
+    cfg: SpeedConfig,
+    limits: Limits,
+    w_room: float,
+    current_mps: float,
+) -> float:
+    """target_speed with its yaw-rate room given (SpeedProfile keeps it: a rollout asks this
+    at every entry, so its lookups are each made once)."""
+    v_min, v_max = limits.v_min, limits.v_max
+    v = ref.v_ref
+    v = v_min if v < v_min else v_max if v > v_max else v  # cruise_speed, written out
+    length = ref.length
+    horizon = s + v * cfg.preview_s
+    horizon = horizon if horizon < length else length  # min(length, ...)
     # a reference that bounds its curvature over a stretch (the planner's path) lets the
     # samples be skipped where even the bound leaves v_curv above v: the same v, at a
     # fraction of the cost on straights and gentle curves (the rollout of a command sequence
@@ -69,11 +90,13 @@ def target_speed(
                 k_max = k
         if k_max * v > w_room:
             v = w_room / k_max
-    stop = stop_of(ref)
-    v_stop = math.sqrt(2.0 * cfg.decel_mps2 * max(stop - s, 0.0))
-    if current_mps > 0.0 and stop >= ref.length:  # not a stop short of a conflict
+    stop = float(getattr(ref, "stop_s", length))  # stop_of
+    left = stop - s
+    v_stop = math.sqrt(2.0 * cfg.decel_mps2 * (0.0 if 0.0 > left else left))
+    if current_mps > 0.0 and stop >= length:  # not a stop short of a conflict
         v_stop = max(v_stop, cfg.steerage_per_current * current_mps)
-    return clamp(min(v, v_stop), limits.v_min, limits.v_max)
+    v = v_stop if v_stop < v else v  # min(v, v_stop)
+    return v_min if v < v_min else v_max if v > v_max else v  # clamp, written out
 
 
 class SpeedProfile:
@@ -82,6 +105,7 @@ class SpeedProfile:
     def __init__(self, cfg: SpeedConfig, limits: Limits) -> None:
         self.cfg = cfg
         self.limits = limits
+        self._w_room = curvature_room(cfg, limits)
         self.reset()
 
     def reset(self) -> None:
@@ -93,11 +117,16 @@ class SpeedProfile:
     ) -> float:
         """The speed to command at time t (s) for a vehicle at arc length s moving at v_now,
         in a current of current_mps."""
-        target = target_speed(ref, s, self.cfg, self.limits, current_mps)
+        target = _target(ref, s, self.cfg, self.limits, self._w_room, current_mps)
+        # max, min and clamp written out (the same floats: max(a, b) is b if b > a else a)
         if self._v is None:
-            base = max(v_now, 0.0)  # a path taken under way does not restart from rest
+            # a path taken under way does not restart from rest
+            base = 0.0 if 0.0 > v_now else v_now  # max(v_now, 0.0)
         else:
-            base = self._v + self.cfg.accel_mps2 * max(0.0, t - self._t)
-        v = clamp(min(target, base), self.limits.v_min, self.limits.v_max)
+            dt = t - self._t
+            base = self._v + self.cfg.accel_mps2 * (dt if dt > 0.0 else 0.0)
+        v = base if base < target else target
+        lo, hi = self.limits.v_min, self.limits.v_max
+        v = lo if v < lo else hi if v > hi else v
         self._v, self._t = v, t
         return v

@@ -65,14 +65,20 @@ class PathArcReference:
     def closest_s(self, x: float, y: float, s_hint: float | None) -> float:
         """Arc length of the closest point: nearest table sample, then the exact foot of the
         perpendicular on the neighbouring table segments."""
+        # min(a, b) and max(a, b) are written out below (b if b < a else a, b if b > a else
+        # a: the same floats): a rollout projects at every entry, ~100k times a mission
         sl, xl, yl = self._sl, self._xl, self._yl
-        lo, hi = 0, len(sl)
+        n = len(sl)
+        lo, hi = 0, n
         if s_hint is not None:
             lo = bisect_left(sl, s_hint - self.BEHIND_M)
             hi = bisect_right(sl, s_hint + self.AHEAD_M)
-            lo, hi = min(lo, len(sl) - 1), max(hi, lo + 1)
+            if lo > n - 1:
+                lo = n - 1
+            if hi < lo + 1:
+                hi = lo + 1
         # (x_i - x)^2 + (y_i - y)^2 in place: the same floats as the plain expression, without
-        # its temporaries (the rollout of a command sequence projects at every entry)
+        # its temporaries
         d2 = self._x[lo:hi] - x
         d2 *= d2
         dy = self._y[lo:hi] - y
@@ -81,14 +87,16 @@ class PathArcReference:
         i = lo + int(d2.argmin())
         best_s, best_d2 = sl[i], float(d2[i - lo])
         for j in (i - 1, i):  # the segments before and after the nearest sample
-            if j < 0 or j + 1 >= len(sl):
+            if j < 0 or j + 1 >= n:
                 continue
             ax, ay = xl[j], yl[j]
             bx, by = xl[j + 1] - ax, yl[j + 1] - ay
             seg2 = bx * bx + by * by
             if seg2 <= 0.0:
                 continue
-            f = min(1.0, max(0.0, ((x - ax) * bx + (y - ay) * by) / seg2))
+            f = ((x - ax) * bx + (y - ay) * by) / seg2
+            f = f if f > 0.0 else 0.0  # max(0.0, f)
+            f = f if f < 1.0 else 1.0  # min(1.0, f)
             px, py = ax + f * bx, ay + f * by
             dd = (x - px) ** 2 + (y - py) ** 2
             if dd < best_d2:
