@@ -82,7 +82,13 @@ def command_sequence(
     last = n if last is None else min(last, n)
 
     def tail(t_k: float, v: float) -> float:
-        return v if stop_mps2 <= 0.0 else min(v, stop_mps2 * max(0.0, t_end - t_k))
+        if stop_mps2 <= 0.0:
+            return v
+        # min(v, stop_mps2 * max(0.0, t_end - t_k)), written out (the same floats: max(a, b)
+        # is b if b > a else a, min(a, b) b if b < a else a): asked at every entry
+        left = t_end - t_k
+        cap = stop_mps2 * (left if left > 0.0 else 0.0)
+        return cap if cap < v else v
 
     v, w = controller.command(t, pose, ref)
     vs, ws = [tail(t, v)], [w]

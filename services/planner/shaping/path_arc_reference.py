@@ -127,13 +127,18 @@ class PathArcReference:
         on either side for a query rounded across a node, and a margin over the rounding of
         the interpolation), from a range-maximum table in O(1)."""
         sl, last = self._sl, len(self._sl) - 1
-        lo = max(bisect_right(sl, s0) - 2, 0)
-        hi = min(bisect_right(sl, s1) + 1, last)
+        # max(a, b) and min(a, b) written out (b if b > a else a, b if b < a else a: the same
+        # values): the speed profile asks this at every entry of a command sequence
+        lo = bisect_right(sl, s0) - 2
+        lo = 0 if 0 > lo else lo
+        hi = bisect_right(sl, s1) + 1
+        hi = last if last < hi else hi
         if hi < lo:
             lo, hi = hi, lo
         level = (hi - lo + 1).bit_length() - 1
         row = self._k_max[level]
-        return max(row[lo], row[hi - (1 << level) + 1]) * (1.0 + 1e-9)
+        a, b = row[lo], row[hi - (1 << level) + 1]
+        return (b if b > a else a) * (1.0 + 1e-9)
 
 
 def _range_max_table(values: np.ndarray) -> list[list[float]]:
