@@ -141,6 +141,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--before", type=Path, help="root of another checkout to measure too")
+    ap.add_argument("--label", default="before", help="--before's column heading")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", action="store_true", help="print this checkout's figures as JSON")
     a = ap.parse_args()
@@ -157,7 +158,7 @@ def main() -> None:
             text=True,
             check=True,
         ).stdout
-        runs["before"] = json.loads(out.splitlines()[-1])
+        runs[a.label] = json.loads(out.splitlines()[-1])
     runs["this checkout"] = dict(measure(a.seed), seed=a.seed)
     table(runs)
 
