@@ -107,8 +107,8 @@ def table(runs: dict[str, dict[str, Any]]) -> None:
         key=lambda k: -first["phases"].get(k, 0.0),
     )
     # the command sequences (in the planner's step and prepare) under the planner's phases
-    last_planner = max(i for i, k in enumerate(keys) if k.startswith("planner"))
-    keys.insert(last_planner + 1, "sequences")
+    after = max(i for i, k in enumerate(keys) if k in ("planner step", "planner prepare"))
+    keys.insert(after + 1, "sequences")
 
     def cell(r: dict[str, Any], seconds: float) -> str:
         share = 100 * seconds / r["total_s"]
