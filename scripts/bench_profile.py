@@ -127,6 +127,18 @@ def table(runs: dict[str, dict[str, Any]]) -> None:
         + ", ".join(f"{n} {r['hash'][:12]}" for n, r in runs.items())
         + (" (the same)" if len({r["hash"] for r in runs.values()}) == 1 else " (DIFFERENT)")
     )
+    here = runs[names[-1]]
+    tick_ms = 1e3 * here["total_s"] / here["ticks"]
+    seq_ms = 1e3 * here["phases"].get("sequences", 0.0) / here["ticks"]
+    print(
+        f"result: a tick of the default mission inproc costs {tick_ms:.2f} ms CPU, "
+        f"{seq_ms:.2f} ms of it in the planner's command sequences"
+        + (
+            f" ({1e3 * first['total_s'] / first['ticks']:.2f} ms {names[0]})"
+            if len(runs) > 1
+            else ""
+        )
+    )
     for n, r in runs.items():
         print(
             f"{n}: top functions by own time under cProfile "
