@@ -20,7 +20,7 @@ from common.runtime.model.dataflow import Dataflow
 from common.runtime.processes.children import free_port
 from services.chaos.faults import OUTSIDE, ROUTER, Fault
 from services.chaos.inject import inject
-from services.chaos.outside import OutsideFault
+from services.chaos.outside import OutsideFault, OutsideReport
 from services.mission.records import AuvRun, read_metrics
 
 PROGRESS = re.compile(r"t=\s*([0-9.]+) s of")
@@ -50,7 +50,7 @@ class Outcome:
     injected: int = 0
     note: str = ""
     # a fault from outside the loop: what its processes did (services/chaos/outside.py)
-    outside: dict[str, Any] = field(default_factory=dict)
+    outside: OutsideReport = field(default_factory=OutsideReport)
     alarms: list[str] = field(default_factory=list)  # the launcher's ALARM lines
 
 

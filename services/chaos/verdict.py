@@ -57,7 +57,8 @@ def problems(o: Outcome) -> list[str]:
 def outside_problems(o: Outcome, metrics: AuvRun) -> list[str]:
     """What a fault from outside the loop (services/chaos/outside.py) did that it must not."""
     m, x, kind = metrics.mission, o.outside, o.fault.kind
-    bad = [f"{name} hung" for name, r in x.items() if isinstance(r, dict) and r["exit"] is None]
+    ran = x.helpers
+    bad = [f"{name} hung" for name, r in ran.items() if r.exit is None]
     rejected = (
         given(m.commands_rejected_by_reason, {}) if isinstance(m, AuvMetrics) else dict[str, int]()
     )
@@ -65,26 +66,27 @@ def outside_problems(o: Outcome, metrics: AuvRun) -> list[str]:
         held = given(m.hold_time_s, 0.0) + given(m.failsafe_time_s, 0.0)
         if held > 0:
             bad.append(f"the vehicle held {held:.1f} s (HOLD/FAILSAFE)")
-        gap = x.get("loop_gap_s")
+        gap = x.loop_gap_s
         if gap is None:
             bad.append("no recording of the launch to time its loop by")
         elif gap > LOOP_GAP_LIMIT_S:
             bad.append(f"the loop stalled {gap:.2f} s (limit {LOOP_GAP_LIMIT_S:g} s)")
-        if "lost" not in x.get("record", {}).get("stdout", ""):
+        if "lost" not in (ran["record"].stdout if "record" in ran else ""):
             bad.append("the recorder did not say what it lost")
     elif kind == "duplicate":
-        dup = x.get("duplicate", {})
-        if dup.get("exit") != 1 or "refused" not in dup.get("stderr", ""):
-            bad.append(f"the duplicate was not refused (exit {dup.get('exit')})")
+        dup = ran.get("duplicate")
+        if dup is None or dup.exit != 1 or "refused" not in dup.stderr:
+            bad.append(f"the duplicate was not refused (exit {dup.exit if dup else None})")
         if not any("a second" in a for a in o.alarms):
             bad.append("no alarm in the launch")
         if rejected.get("out_of_order", 0):
             bad.append(f"{rejected['out_of_order']} commands out of order (interleaved)")
     elif kind == "replay":
-        replay = x.get("replay", {})
-        words = replay.get("stderr", "")
-        if replay.get("exit") not in (0, 1) or not ("not replaying" in words or "refused" in words):
-            bad.append(f"the replay was not kept off the run (exit {replay.get('exit')})")
+        replay = ran.get("replay")
+        words = replay.stderr if replay else ""
+        code = replay.exit if replay else None
+        if code not in (0, 1) or not ("not replaying" in words or "refused" in words):
+            bad.append(f"the replay was not kept off the run (exit {code})")
         touched = sum(metrics.facts.record_rejected.values()) + sum(rejected.values())
         if touched:
             bad.append(f"{touched} frames of the replay reached the run (refused by it)")
