@@ -24,7 +24,7 @@ from common.runtime.model.inproc import run_inproc
 from common.runtime.run import write_outputs
 from services.experiments.grid import RunSpec
 from services.experiments.worker import RunOutcome, row_of
-from services.mission.records import AuvMetrics, FleetMetrics, read_metrics
+from services.mission.records import AuvMetrics, FleetMetrics, build, read_metrics
 
 SMALL = Path(__file__).resolve().parents[1] / "configs" / "experiments" / "scenarios" / "small.toml"
 
@@ -100,6 +100,17 @@ def test_a_wrong_value_is_named_by_its_key(tmp_path: Path) -> None:
     path.write_text(json.dumps(bad))
     with pytest.raises(msgspec.ValidationError, match=r"\$\.collisions"):
         read_metrics(path)
+
+
+def test_a_record_is_built_of_its_own_fields_only() -> None:
+    # a misspelt key in the metrics' builder fails, rather than leave its field absent
+    keys = {"trajectory_sha256": "", "controller": "nurbs", "reached_goal": False}
+    fields = keys | {"outcome": "not_reached", "success": False}
+    assert build(AuvMetrics, fields | {"collisions": 0}).collisions == 0
+    with pytest.raises(TypeError, match="AuvMetrics has no field colisions"):
+        build(AuvMetrics, fields | {"colisions": 0})
+    with pytest.raises(msgspec.ValidationError, match=r"\$\.collisions"):
+        build(AuvMetrics, fields | {"collisions": 0.5})
 
 
 def test_to_row_is_every_scalar_of_the_file_and_results_csv_keeps_its_columns(

@@ -6,7 +6,6 @@ import math
 from collections import Counter
 from typing import Any, NotRequired, TypedDict
 
-import msgspec
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -27,7 +26,7 @@ from common.world import ObstacleState, World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import commander
 from services.mission.outcome import classify
-from services.mission.records import AuvMetrics
+from services.mission.records import AuvMetrics, build
 from services.mission.reentry import reentries
 from services.planner.core import PLANS_DECLINED
 from services.planner.shaping.planned_path import curve_of
@@ -52,8 +51,8 @@ NEES_BAND = (0.2158, 9.3484)
 # far ahead against where its obstacle then is: about the look-ahead of a replan's pass
 TRACK_AHEAD_S = 2.0
 
-# some of AuvMetrics' fields by name, as each part of the metrics computes them; msgspec
-# checks every value against the record's field types when mission_metrics builds it
+# some of AuvMetrics' fields by name, as each part of the metrics computes them; every name
+# and value is checked against the record's fields when mission_metrics builds it
 Fields = dict[str, object]
 
 
@@ -96,7 +95,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
     }
     if not truth:
         m |= {"reached_goal": False, "outcome": "not_reached", "success": False}
-        return msgspec.convert(m, AuvMetrics)
+        return build(AuvMetrics, m)
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v) for q in truth])
     t, x, y, theta, v = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], arr[:, 4]
     g, st = s.world.goal, s.world.start
@@ -148,7 +147,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
                 "hold_distance_max_m": _hold_distance_max(statuses, t, x, y),
             }
         )
-    return msgspec.convert(m, AuvMetrics)
+    return build(AuvMetrics, m)
 
 
 def duration_s(t: np.ndarray, when: np.ndarray) -> float:

@@ -9,6 +9,7 @@ non-finite value). `given` reads either as a default.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -19,6 +20,7 @@ from common.runtime.metrics_record import RunMetrics, read_object
 
 T = TypeVar("T")
 D = TypeVar("D")
+S = TypeVar("S", bound=msgspec.Struct)
 
 # how a run ended, strongest first (services/mission/outcome.py says by which rule)
 Outcome = Literal["success", "rho0_breach", "collision", "not_reached"]
@@ -137,6 +139,15 @@ AuvRun = RunMetrics[AuvMetrics] | RunMetrics[FleetMetrics]
 def given(v: T | UnsetType | None, default: D) -> T | D:
     """A metric's value, `default` when it is absent (UNSET) or null (None)."""
     return default if v is None or isinstance(v, UnsetType) else v
+
+
+def build(cls: type[S], fields: Mapping[str, object]) -> S:
+    """A `cls` record of `fields` by name, each value checked against its field's type; a name
+    that is no field of `cls` is an error (msgspec.convert alone would drop it unseen)."""
+    unknown = sorted(set(fields) - set(cls.__struct_fields__))
+    if unknown:
+        raise TypeError(f"{cls.__name__} has no field {', '.join(unknown)}")
+    return msgspec.convert(fields, cls)
 
 
 def auv_metrics(m: RunMetrics[Any]) -> MissionMetrics | None:
