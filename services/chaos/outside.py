@@ -70,6 +70,7 @@ class Helper:
     err: Path
 
     def result(self) -> HelperResult:
+        """How it ended, given EXIT_WAIT_S to end by itself (then killed: it hung)."""
         try:
             code: int | None = self.proc.wait(EXIT_WAIT_S)
         except subprocess.TimeoutExpired:
