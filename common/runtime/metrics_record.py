@@ -1,5 +1,5 @@
 """RunMetrics: a run's metrics.json as one versioned, typed record (the run's facts beside its
-mission's own metrics), written and read here only.
+mission's own metrics), encoded and decoded here only.
 
 On disk the record is one flat JSON object, as users and docs/metrics.md know it: the
 mission's keys, the run's facts (RunFacts) and `schema_version`. A key a run could not measure
