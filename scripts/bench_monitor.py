@@ -46,6 +46,7 @@ import numpy as np
 
 from common.config.scenario import load_scenario
 from common.messages import VehicleStatus
+from common.runtime.metrics_record import RunMetrics
 from common.runtime.processes.children import free_port
 from common.world.check import check_scenario
 from services.cli import build_parser
@@ -178,7 +179,7 @@ class Run:
     """One launch with its monitors: command ages (s), metrics, what the monitors saw."""
 
     ages_s: list[float]
-    metrics: dict[str, Any]
+    metrics: RunMetrics[Any]
     monitor_cpu_s: float
     joined: int  # monitors that printed a joined event
     updates: list[int] = field(default_factory=list)  # update lines per monitor
@@ -406,7 +407,7 @@ def bench_monitors(a: argparse.Namespace) -> None:
     )
     for c in cases:
         for x in missions[c.name]:
-            m = x.metrics
+            m = x.metrics.to_json()
             print(
                 f"  {c.name:<14} {m['end_reason']:<9} {str(m.get('reached_goal')):<5} "
                 f"{m['t_end_s']:7.2f}  {m.get('travel_time_s') or float('nan'):8.2f}  "

@@ -129,7 +129,7 @@ def bench_lockstep(seed: int) -> dict[str, float]:
     got = run_lockstep(s, raw)
     lockstep_s = time.perf_counter() - t0
     logging.getLogger("tidelink.lockstep").removeHandler(timer)
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     return {
         "mission_s": ref.t_end,
         "inproc_s": inproc_s,

@@ -8,9 +8,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from helpers.records import from_json, ran
+from helpers.testloop import LoopMetrics
 
+from common.runtime.metrics_record import RunMetrics
 from services.cli import build_parser, main
 from services.cli.summary import print_summary, verdict_rows
+from services.mission.records import FleetMetrics
 
 ENDPOINT = "tcp/10.0.0.1:7447"
 
@@ -100,11 +104,11 @@ RUN = {
     "estimation_rms_m": 0.157,
     "estimation_max_m": 0.629,
     "commands_applied": 681,
-    "link_stats": {"a": 1},
+    "link_stats": {"a": {"sent": 1}},
 }
 
 
-def _printed(capsys: pytest.CaptureFixture[str], metrics: dict[str, Any], **kw: bool) -> str:
+def _printed(capsys: pytest.CaptureFixture[str], metrics: RunMetrics[Any], **kw: bool) -> str:
     print_summary(metrics, [("metrics", Path("d/metrics.json")), ("plot", Path("d/run.png"))], **kw)
     return capsys.readouterr().out
 
@@ -112,7 +116,7 @@ def _printed(capsys: pytest.CaptureFixture[str], metrics: dict[str, Any], **kw: 
 def test_a_run_ends_with_a_short_verdict_and_where_its_outputs_are(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    assert _printed(capsys, RUN, all_metrics=False).splitlines() == [
+    assert _printed(capsys, from_json(RUN), all_metrics=False).splitlines() == [
         "  outcome          success",
         "  min clearance    1.20 m at t = 59.90 s (rho0 = 1.0 m)",
         "  travel time      68.80 s (92.4 m at 1.34 m/s)",
@@ -126,7 +130,7 @@ def test_a_run_ends_with_a_short_verdict_and_where_its_outputs_are(
 def test_verbose_prints_every_scalar_metric_before_the_verdict(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    lines = _printed(capsys, RUN, all_metrics=True).splitlines()
+    lines = _printed(capsys, from_json(RUN), all_metrics=True).splitlines()
     assert lines[0].split() == ["commands_applied", "681"]  # sorted by name
     assert sum(line.split()[0] == "outcome" for line in lines) == 2  # the table's, the verdict's
     assert lines[-2:] == ["metrics: d/metrics.json", "plot: d/run.png"]
@@ -147,7 +151,7 @@ def test_a_run_cut_short_says_how_far_from_the_goal_it_ended(
         "min_clearance_m": float("nan"),  # an empty world
         "estimation_rms_m": None,  # not measured
     }
-    rows = dict(verdict_rows(short))
+    rows = dict(verdict_rows(from_json(short)))
     assert rows["outcome"] == "not_reached (the run ended on max_time)"
     assert rows["travel time"] == "goal not reached (t = 5.00 s, 89.4 m short)"
     assert rows["min clearance"] == "none measured (no obstacle in this world)"
@@ -168,7 +172,7 @@ def test_a_fleets_verdict_gives_the_worst_vehicles_errors() -> None:
             "auv2": {"xte_planned_rms_m": 0.2, "xte_planned_max_m": 0.4},
         },
     }
-    rows = dict(verdict_rows(fleet))
+    rows = dict(verdict_rows(from_json(fleet, FleetMetrics)))
     assert rows["cross-track RMS"] == "0.2 m to the path in force (max 0.4 m; auv2, the worst of 2)"
     assert rows["min clearance"] == "1.50 m; hull to hull 9.17 m (auv1 and auv2)"
     assert rows["travel time"] == "80.00 s (the last vehicle's arrival)"
@@ -178,9 +182,13 @@ def test_a_fleets_verdict_gives_the_worst_vehicles_errors() -> None:
 def test_a_mission_without_the_verdicts_keys_prints_its_table(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    out = _printed(capsys, {"final_x": 1.5, "ticks": 20}, all_metrics=False).splitlines()
-    assert out[:2] == ["  final_x  1.5", "  ticks    20"]
-    assert out[2] == "metrics: d/metrics.json"
+    loop = LoopMetrics(final_x=1.5, final_error=None, trajectory_sha256="")
+    out = _printed(capsys, ran(loop, ticks=20), all_metrics=False).splitlines()
+    # the loop's own keys among the run's facts, every scalar sorted by name (no verdict)
+    table = [line.split() for line in out[:-2]]
+    assert ["final_x", "1.5"] in table and ["ticks", "20"] in table
+    assert [row[0] for row in table] == sorted(row[0] for row in table)
+    assert out[-2] == "metrics: d/metrics.json"
 
 
 def test_run_and_launch_take_verbose_after_the_command() -> None:

@@ -113,7 +113,7 @@ def test_metrics_the_monitor_and_foxglove_show_the_same_number() -> None:
     for e in est:
         record.add("estimator", "state", e)
     metrics = mission_metrics(record, scenario, World(scenario.world))
-    assert metrics["estimation_rms_m"] == float(np.sqrt(np.mean(shared**2)))
+    assert metrics.estimation_rms_m == float(np.sqrt(np.mean(shared**2)))
     # live, as a watcher gets them: each estimate before the truth samples up to its stamp
     arrivals = sorted(
         [(q.stamp, 1, q) for q in truth] + [(e.stamp, 0, e) for e in est],

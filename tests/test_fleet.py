@@ -30,6 +30,7 @@ from services.launcher.launch import select_services
 from services.launcher.plot import _of_type
 from services.launcher.progress import MissionView
 from services.mission.fleet import fleet_obstacle_ids
+from services.mission.records import FleetMetrics
 from services.planner.plan import PlanRequest, plan_path
 from services.planner.replan import ReplanPolicy
 from services.planner.result import Obstacles, Pose2D
@@ -232,7 +233,7 @@ def test_vehicles_out_of_phase_run_the_same_in_lockstep_as_inproc(tmp_path: Path
     s = _fleet(raw)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     for key in (("auv1.vehicle", "hull"), ("auv2.sensor", "obstacles"), ("auv2.planner", "path")):
         assert got.record.stream(*key) == ref.record.stream(*key), key
     assert ref.record.stream("auv1.vehicle", "hull")  # sent, for auv2's scans
@@ -446,17 +447,17 @@ def _fields(m: PathMsg) -> dict[str, Any]:
 def test_two_vehicles_head_on_both_reach_their_goals_rho0_apart() -> None:
     s, _ = load_scenario(HEADON, ['runtime.kind="inproc"'], check=check_scenario)
     m = run_inproc(s).metrics
-    assert m["reached_goal"] and m["vehicles_reached"] == 2
-    assert m["vehicle_collisions"] == 0
-    assert m["min_separation_m"] >= s.planner.rho0_m  # hull to hull: r1 + r2 + rho0 centres
-    assert m["outcome"] == "success"
-    assert set(m["vehicles"]) == {"auv1", "auv2"}
-    assert all(v["outcome"] == "success" for v in m["vehicles"].values())
+    assert m.reached_goal and m.vehicles_reached == 2
+    assert m.vehicle_collisions == 0
+    assert m.min_separation_m >= s.planner.rho0_m  # hull to hull: r1 + r2 + rho0 centres
+    assert m.outcome == "success"
+    assert set(m.vehicles) == {"auv1", "auv2"}
+    assert all(v.outcome == "success" for v in m.vehicles.values())
     # the intent links have the default 5 % loss: re-sent, the intents are in use all along
     # but for the first plan's wait for them
-    assert m["intent_fraction"] > 0.95
-    assert m["vehicles"]["auv1"]["intent_fraction_by_vehicle"] == {
-        "auv2": m["vehicles"]["auv1"]["intent_fraction"]
+    assert m.intent_fraction > 0.95
+    assert m.vehicles["auv1"].intent_fraction_by_vehicle == {
+        "auv2": m.vehicles["auv1"].intent_fraction
     }
 
 
@@ -484,9 +485,9 @@ goal = {{ x_m = 50.0, y_m = 20.0 }}
     s, _ = load_scenario(parked, ['runtime.kind="inproc"'], check=check_scenario)
     assert s.planner.deconfliction == "priority"
     m = run_inproc(s).metrics
-    assert m["vehicles_reached"] == 2 and m["vehicle_collisions"] == 0, m
-    assert m["vehicles"]["auv2"]["travel_time_s"] < 0.5 * m["vehicles"]["auv1"]["travel_time_s"]
-    assert m["min_separation_m"] >= s.planner.rho0_m and m["outcome"] == "success"
+    assert m.vehicles_reached == 2 and m.vehicle_collisions == 0, m
+    assert m.vehicles["auv2"].travel_time_s < 0.5 * m.vehicles["auv1"].travel_time_s
+    assert m.min_separation_m >= s.planner.rho0_m and m.outcome == "success"
 
 
 @pytest.mark.deterministic
@@ -498,7 +499,7 @@ def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
     s, raw = load_scenario(FLEET4, ["run.seed=3", "run.max_time_s=18.0"], check=check_scenario)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     assert got.metrics == ref.metrics
     for vid in ("auv1", "auv4"):
         for stream in ("path", "intent", "stats"):
@@ -584,10 +585,12 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
         load_mission(s).dataflow,
     )
     m = got.metrics
+    assert m is not None
     assert got.exit_code == 3 and got.leftovers == [], (got.exit_code, got.note, got.leftovers)
-    assert m["end_reason"] == "max_time" and m["failure"].startswith("auv1.planner lost: ")
-    one, two = m["vehicles"]["auv1"], m["vehicles"]["auv2"]
-    assert not one["reached_goal"] and one["hold_time_s"] + one["failsafe_time_s"] > 30.0
-    assert two["reached_goal"] and two["collisions"] == 0 and two["hold_time_s"] == 0.0
-    assert m["vehicle_collisions"] == 0 and m["min_separation_m"] >= s.planner.rho0_m
-    assert two["intent_fraction"] < 0.5  # by auv1's track after its intent went stale
+    assert m.facts.end_reason == "max_time" and m.facts.failure.startswith("auv1.planner lost: ")
+    assert isinstance(m.mission, FleetMetrics)
+    one, two = m.mission.vehicles["auv1"], m.mission.vehicles["auv2"]
+    assert not one.reached_goal and one.hold_time_s + one.failsafe_time_s > 30.0
+    assert two.reached_goal and two.collisions == 0 and two.hold_time_s == 0.0
+    assert m.mission.vehicle_collisions == 0 and m.mission.min_separation_m >= s.planner.rho0_m
+    assert two.intent_fraction < 0.5  # by auv1's track after its intent went stale

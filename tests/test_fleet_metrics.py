@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 from helpers.launch_proc import REPO
+from helpers.records import facts, ran
 
 from common.config.loader import read_scenario_toml
 from common.config.scenario import Scenario, scenario_from_raw
@@ -18,6 +19,7 @@ from common.world.check import check_scenario
 from services.launcher.plot import run_figure
 from services.mission.fleet_metrics import closest_approach, fleet_metrics
 from services.mission.outcome import describe
+from services.mission.records import FleetMetrics
 from services.mission.verdict import mission_failure
 
 SPEED, DT = 1.5, 0.05  # m/s along x; the vehicles' truth period (s)
@@ -56,42 +58,42 @@ def _record(s: Scenario) -> Record:
     return rec
 
 
-def _metrics(s: Scenario) -> dict[str, Any]:
+def _metrics(s: Scenario) -> FleetMetrics:
     return fleet_metrics(_record(s), s)
 
 
 def test_a_pair_between_its_two_rho0_breaches_the_larger_and_is_named() -> None:
     m = _metrics(_fleet(1.2 + HULLS, (1.0, 1.5)))  # hull to hull 1.2 m: inside 1.5, not 1.0
-    assert m["reached_goal"] and m["collisions"] == 0 and m["vehicle_collisions"] == 0
-    assert m["min_separation_m"] == pytest.approx(1.2, abs=1e-3)
-    assert m["outcome"] == "rho0_breach" and not m["success"]
-    assert (m["rho0_breach_by"], m["rho0_m"]) == ("auv1-auv2", 1.5)
-    assert m["rho0_breach_m"] == pytest.approx(0.3, abs=1e-3)
-    assert m["time_below_rho0_s"] > 0.0
-    assert mission_failure(m | {"end_reason": "goal"}) == (
+    assert m.reached_goal and m.collisions == 0 and m.vehicle_collisions == 0
+    assert m.min_separation_m == pytest.approx(1.2, abs=1e-3)
+    assert m.outcome == "rho0_breach" and not m.success
+    assert (m.rho0_breach_by, m.rho0_m) == ("auv1-auv2", 1.5)
+    assert m.rho0_breach_m == pytest.approx(0.3, abs=1e-3)
+    assert m.time_below_rho0_s > 0.0
+    assert mission_failure(ran(m, end_reason="goal")) == (
         "mission failed: goal reached, but auv1 and auv2 came 0.30 m inside the safety "
-        f"distance rho0 = 1.5 m of each other for {m['time_below_rho0_s']:.1f} s "
+        f"distance rho0 = 1.5 m of each other for {m.time_below_rho0_s:.1f} s "
         "(hull to hull 1.20 m)"
     )
 
 
 def test_two_hulls_in_contact_are_named_with_how_deep() -> None:
     m = _metrics(_fleet(HULLS - 0.4, (1.0, 1.0)))  # hulls overlapping by 0.4 m, no obstacle
-    assert m["outcome"] == "collision" and m["vehicle_collisions"] > 0 and m["collisions"] == 0
+    assert m.outcome == "collision" and m.vehicle_collisions > 0 and m.collisions == 0
     # the pair and its depth, not an obstacle clearance an empty world does not have
-    assert mission_failure(m | {"end_reason": "goal"}) == (
+    assert mission_failure(ran(m, end_reason="goal")) == (
         "mission failed: auv1 and auv2 in contact (hull to hull -0.40 m); goal reached"
     )
 
 
 def test_a_pair_outside_both_rho0_is_a_success_that_names_no_one() -> None:
     m = _metrics(_fleet(1.2 + HULLS, (1.0, 1.0)))
-    assert m["outcome"] == "success" and m["success"]
-    assert (m["rho0_breach_m"], m["rho0_breach_by"], m["time_below_rho0_s"]) == (0.0, "", 0.0)
-    assert m["rho0_m"] == 1.0
+    assert m.outcome == "success" and m.success
+    assert (m.rho0_breach_m, m.rho0_breach_by, m.time_below_rho0_s) == (0.0, "", 0.0)
+    assert m.rho0_m == 1.0
     # an empty world has no obstacle clearance to tell, a fleet its separation
-    assert describe(m) == (
-        f"goal reached in {m['travel_time_s']:.2f} s, never inside the safety distance "
+    assert describe(m, facts()) == (
+        f"goal reached in {m.travel_time_s:.2f} s, never inside the safety distance "
         "rho0 = 1.0 m (min separation 1.20 m)"
     )
 
@@ -101,15 +103,15 @@ def test_a_vehicles_breach_is_told_with_its_own_rho0_not_the_fleets_largest() ->
     # it, 0.3 m inside auv1's rho0 of 1.0 m; auv2 passes 15 m away, its rho0 1.5 m
     s = _fleet(15.0, (1.0, 1.5), [{"id": 1, "x_m": 50.0, "y_m": 16.5, "radius_m": 2.0}])
     m = _metrics(s)
-    one = m["vehicles"]["auv1"]
-    assert m["outcome"] == "rho0_breach" and m["vehicles"]["auv2"]["outcome"] == "success"
-    assert (m["rho0_breach_by"], m["rho0_m"]) == ("auv1", 1.0)
-    assert m["rho0_breach_m"] == one["rho0_breach_m"] == pytest.approx(0.3, abs=1e-3)
-    assert m["time_below_rho0_s"] == one["time_below_rho0_s"] > 0.0
-    said = mission_failure(m | {"end_reason": "goal"})
+    one = m.vehicles["auv1"]
+    assert m.outcome == "rho0_breach" and m.vehicles["auv2"].outcome == "success"
+    assert (m.rho0_breach_by, m.rho0_m) == ("auv1", 1.0)
+    assert m.rho0_breach_m == one.rho0_breach_m == pytest.approx(0.3, abs=1e-3)
+    assert m.time_below_rho0_s == one.time_below_rho0_s > 0.0
+    said = mission_failure(ran(m, end_reason="goal"))
     assert said == (
         "mission failed: goal reached, but auv1 came 0.30 m inside the safety distance "
-        f"rho0 = 1.0 m for {one['time_below_rho0_s']:.1f} s (min clearance 0.70 m)"
+        f"rho0 = 1.0 m for {one.time_below_rho0_s:.1f} s (min clearance 0.70 m)"
     )
 
 
@@ -126,7 +128,7 @@ def test_the_closest_approach_is_when_and_where_the_two_hulls_pass() -> None:
     assert near.b_xy[0] == pytest.approx(near.a_xy[0], abs=SPEED * DT)  # abreast
     assert near.b_xy[1] - near.a_xy[1] == pytest.approx(2.0 + HULLS)
     m = fleet_metrics(rec, s)
-    assert m["min_separation_t_s"] == near.t_s and m["min_separation_m"] == near.gap_m
+    assert m.min_separation_t_s == near.t_s and m.min_separation_m == near.gap_m
 
 
 def test_a_fleet_plot_dots_every_track_in_time_and_marks_the_closest_approach() -> None:
@@ -151,7 +153,7 @@ def test_one_vehicle_alone_has_no_closest_approach() -> None:
         for msg in _record(s).stream(key, "truth"):
             rec.add(key, "truth", msg)
     assert closest_approach(rec, s) is None
-    assert fleet_metrics(rec, s)["min_separation_t_s"] is None
+    assert fleet_metrics(rec, s).min_separation_t_s is None
 
 
 def test_the_plot_says_where_a_vehicle_came_inside_its_rho0_of_an_obstacle() -> None:
@@ -159,12 +161,12 @@ def test_the_plot_says_where_a_vehicle_came_inside_its_rho0_of_an_obstacle() -> 
     # 0.30 m inside its rho0, when it has run 40 m; auv2, 15 m north, keeps clear: no label
     s = _fleet(15.0, (1.0, 1.5), [{"id": 1, "x_m": 50.0, "y_m": 16.5, "radius_m": 2.0}])
     rec = _record(s)
-    one = fleet_metrics(rec, s)["vehicles"]["auv1"]
-    assert one["min_clearance_t_s"] == pytest.approx(40.0 / SPEED, abs=DT)
+    one = fleet_metrics(rec, s).vehicles["auv1"]
+    assert one.min_clearance_t_s == pytest.approx(40.0 / SPEED, abs=DT)
     ax = run_figure(rec, s).axes[0]
     said = [t.get_text() for t in ax.texts if "obstacle" in t.get_text()]
     assert said == [
-        f"auv1: 0.70 m from an obstacle, t = {one['min_clearance_t_s']:.1f} s: 0.30 m inside rho0"
+        f"auv1: 0.70 m from an obstacle, t = {one.min_clearance_t_s:.1f} s: 0.30 m inside rho0"
     ]
     crosses = [ln for ln in ax.lines if ln.get_marker() == "X" and len(ln.get_xdata()) > 0]
     assert len(crosses) == 2  # one per vehicle, auv1's rimmed red

@@ -67,7 +67,7 @@ def _pids(out: Path) -> dict[str, list[int]]:
 
 def _inproc_keys(scenario: Path, tmp_path: Path, *overrides: str) -> set[str]:
     s, _ = load_scenario(scenario, list(overrides))
-    return set(write_outputs(run_inproc(s), s, tmp_path / "inproc", wall_s=0.0))
+    return set(write_outputs(run_inproc(s), s, tmp_path / "inproc", wall_s=0.0).to_json())
 
 
 @pytest.fixture
@@ -335,7 +335,7 @@ def test_lockstep_launch_reproduces_inproc(testloop_toml: Path, tmp_path: Path, 
         assert t.wait(WAIT_S) == 0, t.stderr
     m = _metrics(out)
     assert m["runtime"] == "lockstep"
-    assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert m["trajectory_sha256"] == ref.metrics.trajectory_sha256
     assert (m["t_end_s"], m["ticks"]) == (ref.t_end, ref.ticks)
 
 

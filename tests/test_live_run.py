@@ -208,7 +208,7 @@ def test_a_launch_writes_the_metrics_of_tidelink_run_its_plot_and_logs(
 ) -> None:
     # the key set does not depend on how far a run got: a 4 s inproc run names them all
     s, _ = load_scenario(SHORT, ["run.max_time_s=4"])
-    keys = set(write_outputs(run_inproc(s), s, tmp_path / "inproc", wall_s=0.0))
+    keys = set(write_outputs(run_inproc(s), s, tmp_path / "inproc", wall_s=0.0).to_json())
     assert set(metrics_of(live.out / "metrics.json")) == keys
     png = (live.out / "run.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000

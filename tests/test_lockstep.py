@@ -27,7 +27,7 @@ def test_lockstep_equals_inproc_under_a_lossy_network(
     s, raw = load_scenario(testloop_toml, seed=seed)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     assert got.metrics == ref.metrics
     assert (got.reason, got.t_end, got.ticks) == (ref.reason, ref.t_end, ref.ticks)
     # every stream, every message: identical (stats included)
@@ -55,7 +55,7 @@ def test_lockstep_is_deterministic_under_cpu_load(testloop_toml: Path, tmp_path:
         for h in hogs:
             h.terminate()
             h.join()
-    assert second.metrics["trajectory_sha256"] == first.metrics["trajectory_sha256"]
+    assert second.metrics.trajectory_sha256 == first.metrics.trajectory_sha256
 
 
 def test_a_dead_service_fails_lockstep_fast_and_names_it(
@@ -101,7 +101,7 @@ def test_realtime_runs_the_same_cores(testloop_toml: Path, tmp_path: Path) -> No
     s, raw = load_scenario(testloop_toml, overrides=["runtime.time_scale=5"])
     r = run_realtime(s, raw, tmp_path / "logs")
     assert r.reason == "max_time"
-    assert r.metrics["final_error"] < 1.0  # same loop, wall-clock timing: converges as well
+    assert r.metrics.final_error < 1.0  # same loop, wall-clock timing: converges as well
     assert {k for k, _ in r.record.keys()} >= {"ctrl", "filter", "plant", "sensor"}
     logs = {p.stem for p in (tmp_path / "logs").glob("*.log")}
     assert logs == {"ctrl", "filter", "plant", "sensor"}
@@ -122,7 +122,7 @@ def test_lockstep_equals_inproc_with_event_driven_cores(
     s, raw = load_scenario(testloop_toml, overrides=["run.mission_params.event_driven=true"])
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     assert got.ticks == ref.ticks
     periodic = run_inproc(load_scenario(testloop_toml)[0])
     assert ref.ticks > periodic.ticks  # deliveries really were events of their own

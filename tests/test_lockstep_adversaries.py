@@ -107,5 +107,5 @@ def test_forged_acks_forged_truth_and_a_frozen_monitor_change_nothing(tmp_path: 
     }
     assert "refused a message on vehicle/truth (seq_jump)" in run.stderr
     ref = inproc(load_scenario(SHORT)[0])  # the whole run, exactly as if nobody had interfered
-    assert m["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert m["trajectory_sha256"] == ref.metrics.trajectory_sha256
     assert m["t_end_s"] == ref.t_end

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from helpers.runs import inproc
+from msgspec import UNSET
 
 from common.config.scenario import load_scenario
 from common.messages import TruthState, VehicleStatus, VelocityCommand
@@ -25,12 +26,12 @@ def test_every_controller_reaches_the_goal_without_collision(controller: str) ->
     r = inproc(s)
     m = r.metrics
     assert r.reason == "goal"
-    assert m["reached_goal"] is True
-    assert m["collisions"] == 0
-    assert m["min_clearance_m"] > 0.5  # hull to obstacle surface, against truth (eq. 12)
-    assert m["success"] is True and "first_contact_t_s" not in m
-    assert m["hold_time_s"] == 0.0 and m["hold_distance_max_m"] == 0.0  # never blind
-    assert m["travel_time_s"] < 120.0  # 90 m at ~1.5 m/s, with detours
+    assert m.reached_goal is True
+    assert m.collisions == 0
+    assert m.min_clearance_m > 0.5  # hull to obstacle surface, against truth (eq. 12)
+    assert m.success is True and m.first_contact_t_s is UNSET
+    assert m.hold_time_s == 0.0 and m.hold_distance_max_m == 0.0  # never blind
+    assert m.travel_time_s < 120.0  # 90 m at ~1.5 m/s, with detours
     # the turning radius holds in execution (eqs. (19)-(20)): |w| / v <= 1 / R_min from the
     # vehicle's truth after the start-up second, whatever the controller
     truth = [q for q in r.record.stream("vehicle", "truth") if isinstance(q, TruthState)]
@@ -66,9 +67,9 @@ def test_a_one_second_delay_no_longer_stops_the_vehicle() -> None:
     s, _ = load_scenario(SHORT, [ONE_SECOND])
     r = run_inproc(s)
     m = r.metrics
-    assert r.reason == "goal" and m["reached_goal"] is True
-    assert m["collisions"] == 0
-    assert m["hold_time_s"] == 0.0  # the vehicle never ran out of commands
+    assert r.reason == "goal" and m.reached_goal is True
+    assert m.collisions == 0
+    assert m.hold_time_s == 0.0  # the vehicle never ran out of commands
     status = [q for q in r.record.stream("vehicle", "status") if isinstance(q, VehicleStatus)]
     assert status[-1].delay_s == pytest.approx(1.0)  # what the planner compensated
 
@@ -83,7 +84,7 @@ def test_lockstep_equals_inproc_with_command_sequences(tmp_path: Path) -> None:
     assert s.controller.sequence.horizon_s > 0.0
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     assert got.metrics == ref.metrics
     cmds = [c for c in ref.record.stream("planner", "cmd") if isinstance(c, VelocityCommand)]
     assert cmds and all(c.horizon == 100 for c in cmds)
@@ -98,6 +99,6 @@ def test_default_mission_lockstep_equals_inproc(tmp_path: Path) -> None:
     s, raw = load_scenario(DEFAULT)
     ref = inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
-    assert got.metrics["trajectory_sha256"] == ref.metrics["trajectory_sha256"]
+    assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
     assert got.metrics == ref.metrics
     assert got.reason == ref.reason == "goal"

@@ -29,8 +29,8 @@ def test_a_start_in_contact_escapes_instead_of_deadlocking() -> None:
     )
     r = run_inproc(s)
     m = r.metrics
-    assert r.reason == "goal" and m["reached_goal"] is True
-    assert m["no_path_events"] == 0
+    assert r.reason == "goal" and m.reached_goal is True
+    assert m.no_path_events == 0
     paths = r.record.stream("planner", "path")
     # the first plan waits for the first obstacle tracks: it plans from an estimate that has
     # fused noisy fixes by then (and cannot yet tell their noise from a current's or a sway's
@@ -45,8 +45,8 @@ def test_a_start_in_contact_escapes_instead_of_deadlocking() -> None:
     # it drives out within seconds, never deeper, and never touches anything again
     assert max(in_contact) < 10.0
     assert len(in_contact) == round(max(in_contact) / s.vehicle.period_s) + 1
-    assert m["min_clearance_m"] >= -0.3 - 1e-6
-    assert m["max_executed_curvature"] <= 1.0 / s.vehicle.turn_radius_min_m + 1e-9
+    assert m.min_clearance_m >= -0.3 - 1e-6
+    assert m.max_executed_curvature <= 1.0 / s.vehicle.turn_radius_min_m + 1e-9
 
 
 def test_a_start_in_contact_heading_into_the_obstacle_stays_put() -> None:
@@ -56,7 +56,7 @@ def test_a_start_in_contact_heading_into_the_obstacle_stays_put() -> None:
     s, _ = load_scenario(DEFAULT, ["world.start.x_m=15.5", "run.max_time_s=5"])
     r = run_inproc(s)
     m = r.metrics
-    assert r.reason == "max_time" and m["reached_goal"] is False
+    assert r.reason == "max_time" and m.reached_goal is False
     paths = r.record.stream("planner", "path")
     assert paths and all(p.status == "NO_PATH" for p in paths)  # type: ignore[attr-defined]
     # the hull clearance of the estimate the plan starts from (a noisy fix of the -0.30 m)
@@ -64,4 +64,4 @@ def test_a_start_in_contact_heading_into_the_obstacle_stays_put() -> None:
     assert re.search(r"in contact with an obstacle \(hull clearance -0\.[2-4]\d m\)", why), why
     truth = r.record.stream("vehicle", "truth")
     assert max(q.v for q in truth) == 0.0  # type: ignore[attr-defined]
-    assert m["min_clearance_m"] == pytest.approx(-0.3)
+    assert m.min_clearance_m == pytest.approx(-0.3)

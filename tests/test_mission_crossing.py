@@ -55,7 +55,7 @@ def test_each_obstacle_crosses_the_way_when_the_vehicle_gets_there() -> None:
 def test_the_nurbs_method_replans_around_them_and_keeps_rho0(seed: int) -> None:
     s, _ = load_scenario(CROSSING, ['controller.kind="nurbs"'], seed=seed)
     r = inproc(s)
-    assert r.reason == "goal" and r.metrics["success"] is True
+    assert r.reason == "goal" and r.metrics.success is True
     # never closer than rho0, hull surface to obstacle surface, against the true obstacles
     assert _clearance(s, r.record).min() >= s.planner.rho0_m
     paths = [m for m in r.record.stream("planner", "path") if isinstance(m, PathMsg)]

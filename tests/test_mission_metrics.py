@@ -6,17 +6,20 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
+from helpers.records import auv, facts, ran
+from helpers.testloop import LoopMetrics
 
 from common.config.scenario import Scenario, load_scenario
 from common.messages import LinkStats, ObstacleTracks, Track, TruthState
 from common.runtime.model.record import Record
 from common.world import World
 from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_metrics
-from services.mission.outcome import OUTCOMES, classify, describe, outcome_of
+from services.mission.outcome import OUTCOMES, classify, describe
+from services.mission.records import AuvMetrics
 from services.mission.verdict import mission_failure
 from services.planner.core import PLANS_DECLINED
 
@@ -71,7 +74,7 @@ def _metrics(
     x_end: float = 95.0,
     v: np.ndarray | None = None,
     w: np.ndarray | None = None,
-) -> dict[str, Any]:
+) -> AuvMetrics:
     s = _scenario(circle_y_m)
     return mission_metrics(_record(x_end, v, w), s, World(s.world))
 
@@ -85,47 +88,47 @@ def _crossing_s(hull_to_surface_m: float, offset_m: float) -> float:
 
 def test_a_pass_outside_rho0_is_a_success() -> None:
     m = _metrics(24.0)  # clearance 4 - 2 - 0.8 = 1.2 m > rho0 = 1.0 m
-    assert m["outcome"] == "success" and m["success"] is True
-    assert m["min_clearance_m"] == pytest.approx(1.2)
-    assert m["rho0_m"] == 1.0
-    assert m["rho0_breach_m"] == 0.0 and m["time_below_rho0_s"] == 0.0
-    assert m["time_in_contact_s"] == 0.0 and m["collisions"] == 0
-    assert mission_failure(m | {"end_reason": "goal"}) is None
+    assert m.outcome == "success" and m.success is True
+    assert m.min_clearance_m == pytest.approx(1.2)
+    assert m.rho0_m == 1.0
+    assert m.rho0_breach_m == 0.0 and m.time_below_rho0_s == 0.0
+    assert m.time_in_contact_s == 0.0 and m.collisions == 0
+    assert mission_failure(ran(m, end_reason="goal")) is None
 
 
 def test_a_pass_inside_rho0_reaches_the_goal_but_is_no_success() -> None:
     m = _metrics(23.5)  # clearance 0.7 m: 0.3 m inside rho0
-    assert m["reached_goal"] is True and m["collisions"] == 0
-    assert m["outcome"] == "rho0_breach" and m["success"] is False
-    assert m["rho0_breach_m"] == pytest.approx(0.3)
+    assert m.reached_goal is True and m.collisions == 0
+    assert m.outcome == "rho0_breach" and m.success is False
+    assert m.rho0_breach_m == pytest.approx(0.3)
     # each 0.05 s state counts until the next: the sampled time is the exact one +- a period
-    assert m["time_below_rho0_s"] == pytest.approx(_crossing_s(1.0, 3.5), abs=DT)
-    assert m["time_in_contact_s"] == 0.0
-    said = mission_failure(m | {"end_reason": "goal"})
+    assert m.time_below_rho0_s == pytest.approx(_crossing_s(1.0, 3.5), abs=DT)
+    assert m.time_in_contact_s == 0.0
+    said = mission_failure(ran(m, end_reason="goal"))
     assert said == (
         "mission failed: goal reached, but 0.30 m inside the safety distance rho0 = 1.0 m "
-        f"for {m['time_below_rho0_s']:.1f} s (min clearance 0.70 m)"
+        f"for {m.time_below_rho0_s:.1f} s (min clearance 0.70 m)"
     )
 
 
 def test_contact_is_a_collision_whatever_else_happened() -> None:
     m = _metrics(22.5)  # clearance -0.3 m
-    assert m["outcome"] == "collision" and m["success"] is False and m["collisions"] == 1
-    assert m["time_in_contact_s"] == pytest.approx(_crossing_s(0.0, 2.5), abs=DT)
-    assert m["time_below_rho0_s"] == pytest.approx(_crossing_s(1.0, 2.5), abs=DT)
-    assert m["rho0_breach_m"] == pytest.approx(1.3)  # deeper than rho0: into the obstacle
-    said = mission_failure(m | {"end_reason": "goal"})
+    assert m.outcome == "collision" and m.success is False and m.collisions == 1
+    assert m.time_in_contact_s == pytest.approx(_crossing_s(0.0, 2.5), abs=DT)
+    assert m.time_below_rho0_s == pytest.approx(_crossing_s(1.0, 2.5), abs=DT)
+    assert m.rho0_breach_m == pytest.approx(1.3)  # deeper than rho0: into the obstacle
+    said = mission_failure(ran(m, end_reason="goal"))
     assert said is not None and said.startswith(
-        f"mission failed: contact at t={m['first_contact_t_s']:.2f} s (min clearance -0.3 m), "
-        f"in contact for {m['time_in_contact_s']:.2f} s; goal reached"
+        f"mission failed: contact at t={m.first_contact_t_s:.2f} s (min clearance -0.3 m), "
+        f"in contact for {m.time_in_contact_s:.2f} s; goal reached"
     )
 
 
 def test_a_run_short_of_the_goal_is_not_reached_even_inside_rho0() -> None:
     m = _metrics(23.5, x_end=60.0)
-    assert m["reached_goal"] is False and m["outcome"] == "not_reached"
-    assert m["rho0_breach_m"] == pytest.approx(0.3)  # still measured and said
-    said = mission_failure(m | {"end_reason": "max_time", "t_end_s": 36.6})
+    assert m.reached_goal is False and m.outcome == "not_reached"
+    assert m.rho0_breach_m == pytest.approx(0.3)  # still measured and said
+    said = mission_failure(ran(m, end_reason="max_time", t_end_s=36.6))
     assert said is not None and said.startswith(
         "mission failed: goal not reached (max_time at t=36.60 s, 35.0 m from the goal); "
         "0.30 m inside the safety distance rho0 = 1.0 m"
@@ -148,11 +151,10 @@ def test_outcome_precedence_collision_then_not_reached_then_rho0_breach() -> Non
     assert set(table.values()) == set(OUTCOMES)
 
 
-def test_metrics_older_than_outcome_are_judged_by_their_success() -> None:
-    assert outcome_of({"success": True}) == "success"
-    assert outcome_of({"success": False, "reached_goal": True, "collisions": 1}) == "collision"
-    assert outcome_of({"success": False, "reached_goal": False}) == "not_reached"
-    assert outcome_of({"end_reason": "max_time"}) is None and describe({}) == ""
+def test_a_mission_that_does_not_judge_runs_gets_no_verdict() -> None:
+    # (the runtime's test loop; an older metrics file is refused: tests/test_run_records.py)
+    loop = LoopMetrics(final_x=1.0, final_error=None, trajectory_sha256="")
+    assert mission_failure(ran(loop, end_reason="max_time")) is None
 
 
 def test_time_above_the_turning_bound_and_curvature_after_the_start() -> None:
@@ -167,10 +169,10 @@ def test_time_above_the_turning_bound_and_curvature_after_the_start() -> None:
     w[(i >= 600) & (i < 800)] = SPEED / 5.0 + YAW_RATE_TOL_RPS / 2.0
     m = _metrics(24.0, v=v, w=w)
     # the start: |w| > |v| / 5 + tol while v < 5 (0.3 - tol) = 1.475 m/s, i.e. all of t < 2 s
-    assert m["time_above_curvature_limit_s"] == pytest.approx(2.0 + 3.0, abs=1e-9)
+    assert m.time_above_curvature_limit_s == pytest.approx(2.0 + 3.0, abs=1e-9)
     # v > 0.3 m/s from t = 1.05 s: curvature 0.3 / 0.315 there; 1 s later it is 0.4 / 1.5
-    assert m["max_executed_curvature"] == pytest.approx(0.3 / 0.315)
-    assert m["max_executed_curvature_after_start"] == pytest.approx(0.4 / SPEED)
+    assert m.max_executed_curvature == pytest.approx(0.3 / 0.315)
+    assert m.max_executed_curvature_after_start == pytest.approx(0.4 / SPEED)
 
 
 def test_a_turn_on_the_spot_is_above_the_bound_and_rest_is_not() -> None:
@@ -178,19 +180,19 @@ def test_a_turn_on_the_spot_is_above_the_bound_and_rest_is_not() -> None:
     v = np.where(i < 80, 0.0, SPEED)
     w = np.where(i < 20, 0.2, 0.0)  # turning on the spot for 1 s, then 3 s at rest
     m = _metrics(24.0, v=v, w=w)
-    assert m["time_above_curvature_limit_s"] == pytest.approx(1.0, abs=1e-9)
+    assert m.time_above_curvature_limit_s == pytest.approx(1.0, abs=1e-9)
 
 
 def test_the_words_survive_null_metrics() -> None:
     # a field without obstacles writes min_clearance_m as null (infinite): the summary line
     # of a launch must still be printed (it once raised and turned a success into exit 1)
-    m = {"outcome": "success", "reached_goal": True, "travel_time_s": None, "min_clearance_m": None}
-    assert describe(m).startswith("goal reached in 0.00 s")
-    m = {"outcome": "rho0_breach", "reached_goal": True, "rho0_breach_m": None, "rho0_m": 1.0}
-    assert "inside the safety distance rho0 = 1.0 m" in describe(m)
+    m = auv("success", reached_goal=True, min_clearance_m=None)
+    assert describe(m, facts()).startswith("goal reached in 0.00 s")
+    m = auv("rho0_breach", reached_goal=True, rho0_m=1.0)
+    assert "inside the safety distance rho0 = 1.0 m" in describe(m, facts())
 
 
-def _tracked(offset_m: float, dv_mps: float, until_s: float = 60.0) -> dict[str, Any]:
+def _tracked(offset_m: float, dv_mps: float, until_s: float = 60.0) -> AuvMetrics:
     """The pass of `_record` with one moving obstacle (id 7: a line at 0.5 m/s east along
     y = 35) and an estimator tracking it every 0.5 s up to until_s, offset_m off in x and
     dv_mps off in vx; and one static circle, tracked too, which the tracking metrics leave
@@ -218,18 +220,17 @@ def _tracked(offset_m: float, dv_mps: float, until_s: float = 60.0) -> dict[str,
 
 def test_tracking_metrics_set_moving_tracks_and_their_extrapolation_against_truth() -> None:
     exact = _tracked(0.0, 0.0)
-    assert exact["tracking_rms_m"] == exact["tracking_max_m"] == 0.0  # the 3 m static is out
-    assert exact["tracking_ahead_max_m"] == pytest.approx(0.0, abs=1e-12)
+    assert exact.tracking_rms_m == exact.tracking_max_m == 0.0  # the 3 m static is out
+    assert exact.tracking_ahead_max_m == pytest.approx(0.0, abs=1e-12)
     off = _tracked(0.3, 0.1)  # 0.3 m off now; 0.3 + 0.1 TRACK_AHEAD_S m off when extrapolated
-    assert off["tracking_rms_m"] == pytest.approx(0.3) and off["tracking_max_m"] == pytest.approx(
-        0.3
-    )
-    assert off["tracking_ahead_rms_m"] == pytest.approx(0.3 + 0.1 * TRACK_AHEAD_S)
+    assert off.tracking_rms_m == pytest.approx(0.3) and off.tracking_max_m == pytest.approx(0.3)
+    assert off.tracking_ahead_rms_m == pytest.approx(0.3 + 0.1 * TRACK_AHEAD_S)
 
 
 def test_tracking_metrics_are_named_and_null_when_nothing_was_measured() -> None:
     # a run's key set does not depend on how far it got: no track yet, or none 2 s old
-    assert {k: v for k, v in _tracked(0.0, 0.0, until_s=-1.0).items() if "tracking" in k} == {
+    early = msgspec.to_builtins(_tracked(0.0, 0.0, until_s=-1.0))  # as metrics.json has it
+    assert {k: v for k, v in early.items() if "tracking" in k} == {
         "tracking_rms_m": None,
         "tracking_max_m": None,
         "tracking_ahead_rms_m": None,
@@ -239,31 +240,31 @@ def test_tracking_metrics_are_named_and_null_when_nothing_was_measured() -> None
 
 def test_a_run_without_moving_obstacles_has_no_tracking_metrics() -> None:
     m = _metrics(20.0)  # one static circle, no moving obstacle
-    assert not any(k.startswith("tracking") for k in m)
+    assert not any(k.startswith("tracking") for k in msgspec.to_builtins(m))  # absent keys
 
 
 def test_plans_declined_come_from_the_planners_last_statistics() -> None:
     # a declined plan publishes no path (services/planner/core.py): the planner counts them
     s = _scenario(24.0)
     rec = _record(95.0, None, None)
-    assert mission_metrics(rec, s, World(s.world))["plans_declined"] == 0  # no statistics
+    assert mission_metrics(rec, s, World(s.world)).plans_declined == 0  # no statistics
     for seq, n in ((1, 1), (2, 3)):
         stats = LinkStats(
             stamp=float(seq), source="planner", seq=seq, links=(), counters={PLANS_DECLINED: n}
         )
         rec.add("planner", "stats", stats)
-    assert mission_metrics(rec, s, World(s.world))["plans_declined"] == 3
+    assert mission_metrics(rec, s, World(s.world)).plans_declined == 3
 
 
 def test_plans_declined_by_reason_come_from_the_planners_counters_by_code() -> None:
     # decline.py names the rule that declined a plan; the planner counts each code apart
     s = _scenario(24.0)
     rec = _record(95.0, None, None)
-    assert mission_metrics(rec, s, World(s.world))["plans_declined_by_reason"] == {}
+    assert mission_metrics(rec, s, World(s.world)).plans_declined_by_reason == {}
     counters = {PLANS_DECLINED: 3, f"{PLANS_DECLINED}.overtaken": 1}
     counters[f"{PLANS_DECLINED}.kept_path_in_force"] = 2
     stats = LinkStats(stamp=1.0, source="planner", seq=1, links=(), counters=counters)
     rec.add("planner", "stats", stats)
     m = mission_metrics(rec, s, World(s.world))
-    assert m["plans_declined"] == 3
-    assert m["plans_declined_by_reason"] == {"kept_path_in_force": 2, "overtaken": 1}
+    assert m.plans_declined == 3
+    assert m.plans_declined_by_reason == {"kept_path_in_force": 2, "overtaken": 1}

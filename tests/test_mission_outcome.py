@@ -12,6 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers.records import auv, ran
+from helpers.testloop import LoopMetrics
 
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
@@ -34,12 +36,12 @@ def test_a_run_that_touched_an_obstacle_is_no_success_even_at_the_goal() -> None
     s, _ = load_scenario(DEFAULT, [RAMMED, 'runtime.kind="inproc"'])
     r = run_inproc(s)
     m = r.metrics
-    assert r.reason == "goal" and m["reached_goal"] is True
-    assert m["collisions"] >= 1 and m["min_clearance_m"] < 0.0
+    assert r.reason == "goal" and m.reached_goal is True
+    assert m.collisions >= 1 and m.min_clearance_m < 0.0
     # the obstacle's front (x = 3 t + 1) meets the hull's back (x = 5 - 0.8) by t = 1.1 s,
     # sooner if the vehicle has not moved yet; truth is published every 0.05 s
-    assert 0.0 < m["first_contact_t_s"] <= 1.15
-    assert m["success"] is False
+    assert 0.0 < m.first_contact_t_s <= 1.15
+    assert m.success is False
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
@@ -123,20 +125,23 @@ def test_a_default_run_has_every_metric_and_its_summary_says_the_outcome(tmp_pat
 
 
 def test_only_a_judged_completed_run_is_a_failure() -> None:
-    assert mission_failure({"success": True, "end_reason": "goal"}) is None
+    assert mission_failure(ran(auv("success"), end_reason="goal")) is None
     # interrupted: no judgment; a mission that does not judge success: none either
-    assert mission_failure({"success": False, "end_reason": "interrupted"}) is None
-    assert mission_failure({"end_reason": "max_time", "final_x": 1.0}) is None
+    assert mission_failure(ran(auv("not_reached"), end_reason="interrupted")) is None
+    loop = LoopMetrics(final_x=1.0, final_error=None, trajectory_sha256="")
+    assert mission_failure(ran(loop, end_reason="max_time")) is None
     both = mission_failure(
-        {
-            "success": False,
-            "end_reason": "max_time",
-            "t_end_s": 200.0,
-            "reached_goal": False,
-            "final_distance_to_goal_m": 12.34,
-            "first_contact_t_s": 31.25,
-            "min_clearance_m": -0.123456,
-        }
+        ran(
+            auv(
+                "collision",
+                reached_goal=False,
+                final_distance_to_goal_m=12.34,
+                first_contact_t_s=31.25,
+                min_clearance_m=-0.123456,
+            ),
+            end_reason="max_time",
+            t_end_s=200.0,
+        )
     )
     assert both == (
         "mission failed: contact at t=31.25 s (min clearance -0.123 m); "
@@ -163,15 +168,15 @@ def test_losing_the_planner_for_8_s_without_sequences_is_a_short_reported_blind_
     # return; the metrics say how far it went
     s, _ = load_scenario(DEFAULT, [PLANNER_OUT_8_S, SEQUENCES_OFF, 'runtime.kind="inproc"'])
     m = run_inproc(s).metrics
-    assert m["hold_time_s"] == pytest.approx(3.0) and m["failsafe_time_s"] > 0.0
-    assert 4.0 < m["hold_distance_max_m"] <= 5.42 + 0.1
+    assert m.hold_time_s == pytest.approx(3.0) and m.failsafe_time_s > 0.0
+    assert 4.0 < m.hold_distance_max_m <= 5.42 + 0.1
     # it still reaches the goal without contact; whether the blind stretch comes inside
     # rho0 depends on where the outage finds it (once 0.04 m from circle 2, now 1.3 m clear
     # with the shared speed profile), and the outcome says which, consistently
-    assert m["reached_goal"] is True and m["collisions"] == 0
-    inside = m["min_clearance_m"] < s.planner.rho0_m
-    assert m["outcome"] == ("rho0_breach" if inside else "success")
-    assert m["success"] is (not inside) and (m["time_below_rho0_s"] > 0.0) is inside
+    assert m.reached_goal is True and m.collisions == 0
+    inside = m.min_clearance_m < s.planner.rho0_m
+    assert m.outcome == ("rho0_breach" if inside else "success")
+    assert m.success is (not inside) and (m.time_below_rho0_s > 0.0) is inside
 
 
 @pytest.mark.heavy
@@ -181,8 +186,8 @@ def test_an_8_s_planner_outage_is_bridged_by_the_command_sequence() -> None:
     s, _ = load_scenario(DEFAULT, [PLANNER_OUT_8_S, 'runtime.kind="inproc"'])
     assert s.controller.sequence.horizon_s > 8.0
     m = run_inproc(s).metrics
-    assert m["hold_time_s"] == 0.0 and m["failsafe_time_s"] == 0.0
-    assert m["reached_goal"] is True and m["collisions"] == 0 and m["success"] is True
+    assert m.hold_time_s == 0.0 and m.failsafe_time_s == 0.0
+    assert m.reached_goal is True and m.collisions == 0 and m.success is True
 
 
 def test_a_realtime_run_whose_services_fell_behind_says_so_beside_its_outcome(
@@ -191,12 +196,14 @@ def test_a_realtime_run_whose_services_fell_behind_says_so_beside_its_outcome(
     from services.cli.core_commands import report_outcome
 
     late = {"a.estimator": 11.5, "b.vehicle": 3.0, "a.sensor": 0.0}
-    m = {"runtime": "realtime", "unresponsive_s": late, "outcome": "success", "success": True}
+    m = ran(auv("success"), runtime="realtime", unresponsive_s=late)
     assert report_outcome(m, json_output=False) == 0
     err = capsys.readouterr().err
     assert err.startswith("tidelink: note: 2 services fell silent for 14.5 s of mission time")
     assert "(the most: a.estimator, 11.5 s)" in err and "--time-scale" in err
     # one frozen service is the alarms' business; lockstep has no wall clock to fall behind
-    assert fell_behind(m | {"unresponsive_s": {"a.planner": 9.0}}) is None
-    assert fell_behind(m | {"runtime": "lockstep"}) is None
-    assert fell_behind(m | {"unresponsive_s": {"a.planner": 0.5, "b.planner": 0.5}}) is None
+    realtime = {"runtime": "realtime"}
+    assert fell_behind(ran(auv("success"), **realtime, unresponsive_s={"a.planner": 9.0})) is None
+    assert fell_behind(ran(auv("success"), runtime="lockstep", unresponsive_s=late)) is None
+    halves = {"a.planner": 0.5, "b.planner": 0.5}
+    assert fell_behind(ran(auv("success"), **realtime, unresponsive_s=halves)) is None

@@ -36,5 +36,5 @@ def test_bench_monitor_measures_the_loop_with_a_monitor(tmp_path: Path) -> None:
     run = bench.run_case(bench.loop_scenario(4.0, tmp_path), [], case, "plant/status")
     # a smoke test of the script: it measures; how fast is for the benchmark to say
     assert len(run.ages_s) >= 20 and all(a >= 0.0 for a in run.ages_s)
-    assert run.metrics["end_reason"] == "max_time"
+    assert run.metrics.facts.end_reason == "max_time"
     assert run.joined == 1 and run.codes == [None]  # it joined, and was still stopped

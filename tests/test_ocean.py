@@ -8,6 +8,7 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -218,8 +219,8 @@ def test_a_vehicle_carried_out_of_the_area_comes_back_to_its_goal() -> None:
     area: AreaConfig = s.world.area
     outside = [q for q in truth if not area.contains(q.x, q.y)]
     assert outside, "the vehicle never left the area: the case is not what it claims"
-    assert r.reason == "goal" and r.metrics["success"] is True
-    assert r.metrics["collisions"] == 0
+    assert r.reason == "goal" and r.metrics.success is True
+    assert r.metrics.collisions == 0
     reasons = [p.reason for p in r.record.stream("planner", "path")]  # type: ignore[attr-defined]
     assert any("come about" in why or "outside the area" in why for why in reasons), reasons
 
@@ -234,7 +235,7 @@ def test_the_ocean_scenario_runs_its_models_and_reports_consistency() -> None:
     truth = [q for q in r.record.stream("vehicle", "truth") if isinstance(q, TruthState)]
     assert max(abs(q.sway) for q in truth) > 0.01  # the hull slips in its turns
     assert min(math.hypot(q.current_x, q.current_y) for q in truth) > 0.1
-    assert m["estimation_rms_m"] < 1.0 and m["current_error_rms_mps"] < 0.1
-    assert 0.0 < m["nees_mean"] < 10.0 and 0.5 < m["nees_in_band"] <= 1.0
+    assert m.estimation_rms_m < 1.0 and m.current_error_rms_mps < 0.1
+    assert 0.0 < m.nees_mean < 10.0 and 0.5 < m.nees_in_band <= 1.0
     for key in ("max_executed_curvature", "time_above_curvature_limit_s", "max_ground_curvature"):
-        assert key in m
+        assert key in msgspec.to_builtins(m)  # in metrics.json

@@ -79,7 +79,7 @@ def _load(*sets: str) -> Scenario:
 def test_the_default_mission_is_unchanged_without_a_placement() -> None:
     s, _ = load_scenario(DEFAULT, ['runtime.kind="inproc"'])
     assert not s.placement.declared and not s.vehicles
-    sha = inproc(s).metrics["trajectory_sha256"]
+    sha = inproc(s).metrics.trajectory_sha256
     pinned = DEFAULT_SHA256.get(_float_code())
     if pinned is not None:  # the floating-point code it was measured with: the very trajectory
         assert sha == pinned
@@ -94,7 +94,7 @@ def test_the_default_mission_is_unchanged_without_a_placement() -> None:
         'placement.services={estimator="a", planner="b"}',
     )
     assert generic.placement.link_medium("planner", "vehicle") == "generic"
-    assert sha == run_inproc(generic).metrics["trajectory_sha256"]
+    assert sha == run_inproc(generic).metrics.trajectory_sha256
 
 
 def test_media_follow_the_nodes() -> None:
@@ -153,7 +153,7 @@ def test_topside_commands_over_1_kbit_s_at_1_km_degrade_the_mission() -> None:
     # take ~5 s each at 1 kbit/s, the modem queue overflows and the vehicle runs on stale
     # commands or holds: measurably worse than the same mission on a generic link
     s = _load(*ONE_KBIT)
-    m = run_metrics(inproc(s), s, wall_s=None)
+    m = run_metrics(inproc(s), s, wall_s=None).to_json()
     cmd = m["link_stats"]["planner/cmd->vehicle"]
     assert cmd["dropped_queue"] > 0 and cmd["bytes_per_message"] > 100
     assert m["bytes_per_message"]["planner/cmd"] == cmd["bytes_per_message"]
@@ -229,7 +229,7 @@ def test_the_onboard_tracker_follows_the_planners_path_to_the_goal() -> None:
     assert flow.names == ("estimator", "planner", "sensor", "tracker", "vehicle")
     assert [o.stream for o in flow.service("planner").outputs] == ["path"]
     assert [i.source for i in flow.service("vehicle").inputs] == ["tracker"]
-    m = run_metrics(run_inproc(s), s, wall_s=None)
+    m = run_metrics(run_inproc(s), s, wall_s=None).to_json()
     assert m["success"] is True and m["collisions"] == 0
     assert m["control_actions"] > 500  # counted on tracker/cmd
 
@@ -241,8 +241,8 @@ def test_over_1_kbit_s_at_1_km_paths_get_through_where_commands_do_not() -> None
     # tracker onboard one ~1.5 kB path (12 s) is all the vehicle needs to reach the goal
     topside = _load(*ONE_KBIT)
     onboard = _load(*ONE_KBIT, 'controller.placement="onboard"')
-    mt = run_metrics(inproc(topside), topside, wall_s=None)
-    mo = run_metrics(inproc(onboard), onboard, wall_s=None)
+    mt = run_metrics(inproc(topside), topside, wall_s=None).to_json()
+    mo = run_metrics(inproc(onboard), onboard, wall_s=None).to_json()
     assert mt["reached_goal"] is False and mt["hold_time_s"] + mt["failsafe_time_s"] > 30.0
     assert mo["success"] is True and mo["hold_time_s"] == 0.0
     assert mo["link_stats"]["planner/path->tracker"]["delivered"] >= 1

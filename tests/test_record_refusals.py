@@ -113,7 +113,7 @@ def test_the_end_is_judged_on_credible_truth_only() -> None:
     # the vehicle's name and the next seq, but 88 m away from its predecessor in 0.05 s
     assert record.add("vehicle", "truth", _truth(21, 95.0)) is None
     assert mission.observe(record) is None
-    assert mission.metrics(record)["reached_goal"] is False
+    assert mission.metrics(record).reached_goal is False
     # a state at the goal with no predecessor recorded (seq 23 after the forged 21)
     assert record.add("vehicle", "truth", _truth(23, 95.0)) is None
     assert mission.observe(record) is None
@@ -122,4 +122,4 @@ def test_the_end_is_judged_on_credible_truth_only() -> None:
     _cruise(record, 20, x0=93.0)
     assert mission.observe(record) == "goal"
     m = mission.metrics(record)
-    assert m["reached_goal"] is True and m["travel_time_s"] > 0.0
+    assert m.reached_goal is True and m.travel_time_s > 0.0

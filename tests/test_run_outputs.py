@@ -20,7 +20,8 @@ def test_a_run_that_cannot_write_its_outputs_keeps_its_metrics_and_says_what_is_
     blocked = tmp_path / "a-file"
     blocked.write_text("not a folder")  # out/ cannot be made: as a full disk, every write fails
     saved = save_run(result, s, blocked, wall_s=1.0, plot=True)
-    assert saved.metrics["outcome"] == result.metrics["outcome"] and "t_end_s" in saved.metrics
+    written = saved.metrics.to_json()
+    assert written["outcome"] == result.metrics.outcome and "t_end_s" in written
     assert saved.plot is None
     metrics_why, plot_why = saved.unwritten
     assert f"could not write {blocked / 'metrics.json'}" in metrics_why

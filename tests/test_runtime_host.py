@@ -166,9 +166,9 @@ def test_inproc_testloop_converges_and_is_repeatable(testloop_toml: Path) -> Non
     s, _ = load_scenario(testloop_toml)
     a, b = run_inproc(s), run_inproc(s)
     assert a.metrics == b.metrics
-    assert a.metrics["final_error"] < 0.5  # the P loop reaches its set-point despite the network
+    assert a.metrics.final_error < 0.5  # the P loop reaches its set-point despite the network
     s2, _ = load_scenario(testloop_toml, seed=2)
-    assert run_inproc(s2).metrics["trajectory_sha256"] != a.metrics["trajectory_sha256"]
+    assert run_inproc(s2).metrics.trajectory_sha256 != a.metrics.trajectory_sha256
 
 
 def test_inproc_counts_link_drops(testloop_toml: Path) -> None:

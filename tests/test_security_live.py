@@ -71,8 +71,8 @@ def test_a_rogue_with_a_monitor_certificate_changes_nothing(certs: Path, tmp_pat
     secured = json.loads((out / "metrics.json").read_text())
     assert "mutual TLS" in launch.stderr
     assert secured["end_reason"] == "goal" and secured["reached_goal"] is True
-    assert secured["trajectory_sha256"] == plain["trajectory_sha256"]
-    assert secured["commands_applied"] == plain["commands_applied"]
+    assert secured["trajectory_sha256"] == plain.trajectory_sha256
+    assert secured["commands_applied"] == plain.commands_applied
     assert secured["commands_rejected"] == 0  # nothing of the rogue's even reached the vehicle
     report = json.loads(rogue.stdout.splitlines()[-1])
     assert rogue.stdout.splitlines()[0] == "connected"

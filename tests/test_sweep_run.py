@@ -122,7 +122,7 @@ def test_a_sweep_run_equals_a_plain_run_of_the_same_scenario(
         if (r["network"], r["controller"], r["seed"]) == ("ideal", "fuzzy_pid", "2")
     ]
     s, _ = load_scenario(SMALL, ["network.default={}", 'controller.kind="fuzzy_pid"'], seed=2)
-    assert run_inproc(s).metrics["trajectory_sha256"] == row["trajectory_sha256"]
+    assert run_inproc(s).metrics.trajectory_sha256 == row["trajectory_sha256"]
 
 
 def test_rerunning_a_finished_sweep_runs_nothing(smoke: tuple[Experiment, SweepReport]) -> None:

@@ -6,11 +6,13 @@ import contextlib
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
+
+import msgspec
 
 from common.config.scenario import Scenario
-from common.jsonsafe import json_safe
 from common.link_table import LinkTable
+from common.runtime.metrics_record import RunFacts, RunMetrics
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
@@ -39,56 +41,55 @@ def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunR
     return run_realtime(scenario, raw, log_dir)
 
 
-def run_metrics(result: RunResult, scenario: Scenario, *, wall_s: float | None) -> dict[str, Any]:
-    """The mission's metrics with the run's facts added (JSON-safe); `wall_s` None leaves the
-    wall-clock duration out (a recording's metrics: it is not in the recording)."""
-    metrics = dict(result.metrics)
-    metrics.update(
-        {
-            "end_reason": result.reason,
-            "failure": result.failure.split("\n", 1)[0],  # the first line; logs have the rest
-            "t_end_s": result.t_end,
-            "ticks": result.ticks,
-            "runtime": scenario.runtime.kind,
-            "seed": scenario.run.seed,
-            "link_stats": (links := link_stats(result.record)),
-            # encoded size of a message per stream (what a thin link carries), in bytes
-            "bytes_per_message": stream_bytes(links),
-            "unresponsive_s": unresponsive_s(
-                result.record,
-                thresholds(load_mission(scenario).dataflow, scenario.runtime.stats_period_s),
-                result.t_end,
-            ),
-            # messages the run's record refused, by reason (common/runtime/model/record.py)
-            "record_rejected": dict(result.record.rejected),
-        }
+def run_metrics(
+    result: RunResult, scenario: Scenario, *, wall_s: float | None
+) -> RunMetrics[msgspec.Struct]:
+    """The mission's metrics with the run's facts added, as metrics.json gives them back;
+    `wall_s` None leaves the wall-clock duration out (a recording's metrics: it is not in the
+    recording)."""
+    links = link_stats(result.record)
+    facts = RunFacts(
+        end_reason=result.reason,
+        failure=result.failure.split("\n", 1)[0],  # the first line; logs have the rest
+        t_end_s=result.t_end,
+        ticks=result.ticks,
+        runtime=scenario.runtime.kind,
+        seed=scenario.run.seed,
+        link_stats=links,
+        # encoded size of a message per stream (what a thin link carries), in bytes
+        bytes_per_message=stream_bytes(links),
+        unresponsive_s=unresponsive_s(
+            result.record,
+            thresholds(load_mission(scenario).dataflow, scenario.runtime.stats_period_s),
+            result.t_end,
+        ),
+        # messages the run's record refused, by reason (common/runtime/model/record.py)
+        record_rejected=dict(result.record.rejected),
+        **input_health(result.record),
+        wall_s=msgspec.UNSET if wall_s is None else round(wall_s, 3),
     )
-    metrics.update(input_health(result.record))
-    if wall_s is not None:
-        metrics["wall_s"] = round(wall_s, 3)
-    cleaned: dict[str, Any] = json_safe(metrics)
-    return cleaned
+    return RunMetrics(mission=result.metrics, facts=facts).normalised()
 
 
 class OutputsNotWritten(OSError):
     """metrics.json could not be written (a full disk, a folder gone): the run's metrics are
     still here, in `metrics`, for the caller to report."""
 
-    def __init__(self, path: Path, exc: OSError, metrics: dict[str, Any]) -> None:
+    def __init__(self, path: Path, exc: OSError, metrics: RunMetrics[msgspec.Struct]) -> None:
         super().__init__(exc.errno, f"could not write {path}: {exc.strerror or exc}")
         self.metrics = metrics
 
 
 def write_outputs(
     result: RunResult, scenario: Scenario, out: Path, *, wall_s: float
-) -> dict[str, Any]:
+) -> RunMetrics[msgspec.Struct]:
     """Write out/metrics.json (atomically) and return the metrics with the run's facts added;
     OutputsNotWritten (holding the metrics) when it cannot be written, leaving no partial file."""
     metrics = run_metrics(result, scenario, wall_s=wall_s)
     tmp = out / "metrics.json.tmp"
     try:
         out.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True))
+        tmp.write_text(json.dumps(metrics.to_json(), indent=2, sort_keys=True))
         tmp.replace(out / "metrics.json")
     except OSError as exc:
         with contextlib.suppress(OSError):
@@ -154,7 +155,18 @@ def stream_bytes(links: dict[str, dict[str, int | float]]) -> dict[str, float]:
     return {k: round(b / n, 1) for k, (n, b) in sorted(out.items())}
 
 
-def input_health(record: Record) -> dict[str, Any]:
+class InputHealth(TypedDict):
+    """How the services' inputs fared (RunFacts' keys of the same names)."""
+
+    inputs_rejected: int
+    inputs_rejected_by_reason: dict[str, dict[str, int]]
+    inputs_dropped: int
+    inputs_dropped_by_link: dict[str, int]
+    filter_resets: int
+    filter_resets_by_service: dict[str, dict[str, int]]
+
+
+def input_health(record: Record) -> InputHealth:
     """How the services' inputs fared, from each service's last LinkStats: inputs its core
     rejected as implausible (by service, then '<stream>.<reason>'), deliveries dropped because
     an input's queue was full (by link), filters restarted (by service, then filter); with
@@ -176,11 +188,11 @@ def input_health(record: Record) -> dict[str, Any]:
         dropped.update(last.inputs_dropped)
         if last.resets:
             resets[service] = dict(sorted(last.resets.items()))
-    return {
-        "inputs_rejected": sum(n for by in rejected.values() for n in by.values()),
-        "inputs_rejected_by_reason": rejected,
-        "inputs_dropped": sum(dropped.values()),
-        "inputs_dropped_by_link": dict(sorted(dropped.items())),
-        "filter_resets": sum(n for by in resets.values() for n in by.values()),
-        "filter_resets_by_service": resets,
-    }
+    return InputHealth(
+        inputs_rejected=sum(n for by in rejected.values() for n in by.values()),
+        inputs_rejected_by_reason=rejected,
+        inputs_dropped=sum(dropped.values()),
+        inputs_dropped_by_link=dict(sorted(dropped.items())),
+        filter_resets=sum(n for by in resets.values() for n in by.values()),
+        filter_resets_by_service=resets,
+    )

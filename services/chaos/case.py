@@ -20,7 +20,8 @@ from common.runtime.model.dataflow import Dataflow
 from common.runtime.processes.children import free_port
 from services.chaos.faults import OUTSIDE, ROUTER, Fault
 from services.chaos.inject import inject
-from services.chaos.outside import OutsideFault
+from services.chaos.outside import OutsideFault, OutsideReport
+from services.mission.records import AuvRun, read_metrics
 
 PROGRESS = re.compile(r"t=\s*([0-9.]+) s of")
 STOPPED = "mission clock started"
@@ -43,13 +44,13 @@ class Outcome:
 
     fault: Fault
     exit_code: int | None  # None: it hung (killed after the timeout)
-    metrics: dict[str, Any] = field(default_factory=dict)
+    metrics: AuvRun | None = None  # None: no metrics.json (or none this version reads)
     leftovers: list[str] = field(default_factory=list)  # "name pid" of each left running
     wall_s: float = 0.0
     injected: int = 0
     note: str = ""
     # a fault from outside the loop: what its processes did (services/chaos/outside.py)
-    outside: dict[str, Any] = field(default_factory=dict)
+    outside: OutsideReport = field(default_factory=OutsideReport)
     alarms: list[str] = field(default_factory=list)  # the launcher's ALARM lines
 
 
@@ -223,8 +224,8 @@ def _leftovers(out: Path) -> list[str]:
     return [f"{n} {p}" for n, p in left]
 
 
-def _metrics(out: Path) -> dict[str, Any]:
+def _metrics(out: Path) -> AuvRun | None:
     try:
-        return dict(json.loads((out / "metrics.json").read_text()))
-    except (OSError, ValueError):
-        return {}
+        return read_metrics(out / "metrics.json")
+    except (OSError, ValueError):  # msgspec.ValidationError and MetricsSchemaError too
+        return None

@@ -22,9 +22,8 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 from common.bus import Bus, Keys
 from common.bus.probe import puts_reach_router
@@ -37,6 +36,30 @@ EXIT_WAIT_S = 60.0  # how long a helper process may take to end once the launch 
 LOOP_STREAM = ("vehicle", "truth")  # the loop's pulse: its gaps are the loop's period held
 
 
+@dataclass(frozen=True)
+class HelperResult:
+    """How a helper process ended: its exit code (None: it hung, and was killed) and the
+    last 2000 characters of its stdout and stderr."""
+
+    exit: int | None
+    stdout: str
+    stderr: str
+
+
+@dataclass
+class OutsideReport:
+    """What a fault from outside the loop came to: each helper's result by name, and (the
+    watchers) the longest gap of the loop in the launch's own recording."""
+
+    helpers: dict[str, HelperResult] = field(default_factory=dict)
+    loop_gap_s: float | None = None
+
+    def to_json(self) -> dict[str, object]:
+        """As chaos.json has it: each helper's result under its name, and loop_gap_s."""
+        flat: dict[str, object] = {name: asdict(r) for name, r in self.helpers.items()}
+        return flat if self.loop_gap_s is None else flat | {"loop_gap_s": self.loop_gap_s}
+
+
 @dataclass
 class Helper:
     """A CLI process of the case, its output in files (no pipe can fill and stop it)."""
@@ -46,18 +69,19 @@ class Helper:
     out: Path
     err: Path
 
-    def result(self) -> dict[str, Any]:
+    def result(self) -> HelperResult:
+        """How it ended, given EXIT_WAIT_S to end by itself (then killed: it hung)."""
         try:
             code: int | None = self.proc.wait(EXIT_WAIT_S)
         except subprocess.TimeoutExpired:
             code = None  # it hung
             os.killpg(self.proc.pid, signal.SIGKILL)
             self.proc.wait()
-        return {
-            "exit": code,
-            "stdout": self.out.read_text(errors="replace")[-2000:],
-            "stderr": self.err.read_text(errors="replace")[-2000:],
-        }
+        return HelperResult(
+            exit=code,
+            stdout=self.out.read_text(errors="replace")[-2000:],
+            stderr=self.err.read_text(errors="replace")[-2000:],
+        )
 
 
 @dataclass
@@ -73,7 +97,7 @@ class OutsideFault:
     sets: tuple[str, ...]
     time_scale: float
     helpers: dict[str, Helper] = field(default_factory=dict)
-    report: dict[str, Any] = field(default_factory=dict)
+    report: OutsideReport = field(default_factory=OutsideReport)
 
     def _cli(self, name: str, *args: str) -> Helper:
         self.out.mkdir(parents=True, exist_ok=True)
@@ -129,12 +153,13 @@ class OutsideFault:
                 f"{self.time_scale:g}",
                 *sets,
             )
-            self.report["duplicate"] = dup.result()  # refused within seconds, or it hangs on
+            # refused within seconds, or it hangs on
+            self.report.helpers["duplicate"] = dup.result()
             return 0
         if self.kind == "replay":
             rec = self.helpers["record"]
             os.killpg(rec.proc.pid, signal.SIGTERM)  # its file is closed: a recording so far
-            self.report["record"] = rec.result()
+            self.report.helpers["record"] = rec.result()
             replay = self._cli(
                 "replay",
                 "replay",
@@ -144,19 +169,19 @@ class OutsideFault:
                 "--speed",
                 f"{self.time_scale:g}",
             )
-            self.report["replay"] = replay.result()
+            self.report.helpers["replay"] = replay.result()
             return 0
         if self.kind == "forge_tick":
             return forge_tick(self.endpoint, keys, flow, ahead_s=self.hold_s)
         raise ValueError(f"not a fault from outside the loop: {self.kind!r}")
 
-    def finish(self) -> dict[str, Any]:
+    def finish(self) -> OutsideReport:
         """What every helper did (each given EXIT_WAIT_S to end by itself)."""
         for name, h in self.helpers.items():
-            if name not in self.report:
-                self.report[name] = h.result()
+            if name not in self.report.helpers:
+                self.report.helpers[name] = h.result()
         if self.kind == "watchers":
-            self.report["loop_gap_s"] = loop_gap_s(self.out / "run.mcap", self.time_scale)
+            self.report.loop_gap_s = loop_gap_s(self.out / "run.mcap", self.time_scale)
         return self.report
 
 

@@ -42,8 +42,18 @@ def run_matrix(
         outcomes.append(o)
         bad = problems(o)
         say(f"[{i}/{len(faults)}] {fault.name}: {'PASS' if not bad else 'FAIL: ' + '; '.join(bad)}")
-        rows = [asdict(x) | {"name": x.fault.name, "problems": problems(x)} for x in outcomes]
+        rows = [_row(x) for x in outcomes]
         tmp = out / "chaos.json.tmp"
         tmp.write_text(json.dumps(rows, indent=1, default=str))
         tmp.replace(out / "chaos.json")
     return outcomes
+
+
+def _row(x: Outcome) -> dict[str, object]:
+    """A case as chaos.json has it, its metrics as metrics.json has them ({}: none)."""
+    return asdict(x) | {
+        "metrics": x.metrics.to_json() if x.metrics is not None else {},
+        "outside": x.outside.to_json(),
+        "name": x.fault.name,
+        "problems": problems(x),
+    }

@@ -26,6 +26,7 @@ from services.cli.flags import (
 
 if TYPE_CHECKING:
     from common.config.scenario import ScenarioCheck
+    from common.runtime.metrics_record import RunMetrics
 
 log = logging.getLogger("tidelink")
 
@@ -110,7 +111,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     saved = save_run(result, scenario, out, wall_s=time.monotonic() - wall0, plot=not a.no_plot)
     metrics, plot, unwritten = saved.metrics, saved.plot, saved.unwritten
     if a.json:
-        print(json.dumps(metrics, sort_keys=True, allow_nan=False, default=_json_default))
+        print(json.dumps(metrics.to_json(), sort_keys=True, allow_nan=False))
     else:
         written = not any("metrics.json" in w for w in unwritten)
         outputs = [("metrics", out / "metrics.json")] if written else []
@@ -123,7 +124,7 @@ def cmd_run(a: argparse.Namespace) -> int:
     return report_outcome(metrics, json_output=a.json)
 
 
-def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
+def report_outcome(metrics: RunMetrics[Any], *, json_output: bool) -> int:
     """Say the run's outcome in words (a failure in the summary on stdout, on stderr when
     stdout is JSON; a success in the summary only) and return the exit code:
     EXIT_MISSION_FAILED for a failure, else 0."""
@@ -142,10 +143,6 @@ def report_outcome(metrics: dict[str, Any], *, json_output: bool) -> int:
         return 0
     print(f"mission failed: {words}", file=sys.stderr if json_output else sys.stdout, flush=True)
     return EXIT_MISSION_FAILED
-
-
-def _json_default(v: Any) -> Any:
-    raise TypeError(f"not JSON: {v!r}")
 
 
 def cmd_router(a: argparse.Namespace) -> int:

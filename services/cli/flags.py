@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from common.config.bus import DEFAULT_CONNECT
 
@@ -81,15 +81,21 @@ def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str
     certs_args(p, identity="monitor")
 
 
-def watch_fields(a: argparse.Namespace) -> dict[str, Any]:
+class WatchFields(TypedDict):
+    """The fields of a WatchTarget (common/config/bus.py) that watcher_args read."""
+
+    connect: str
+    certs: str | None
+    identity: str
+    run: str | None
+    vehicle: str | None
+
+
+def watch_fields(a: argparse.Namespace) -> WatchFields:
     """What watcher_args read, as the fields of a WatchTarget (common/config/bus.py)."""
-    return {
-        "connect": a.connect,
-        "certs": a.certs,
-        "identity": a.identity,
-        "run": a.run,
-        "vehicle": a.vehicle,
-    }
+    return WatchFields(
+        connect=a.connect, certs=a.certs, identity=a.identity, run=a.run, vehicle=a.vehicle
+    )
 
 
 def certs_args(p: argparse.ArgumentParser, *, identity: str | None) -> None:

@@ -106,7 +106,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
         for r in recorders
     ]
     if a.json:
-        print(json.dumps(outcome.metrics, sort_keys=True, allow_nan=False))
+        print(json.dumps(outcome.metrics.to_json(), sort_keys=True, allow_nan=False))
         for line in recorded:
             print(line, file=sys.stderr)
     else:

@@ -179,7 +179,7 @@ def cmd_metrics(a: argparse.Namespace) -> int:
     from services.cli.summary import print_metrics_table
     from services.recording.metrics import NOT_RECOMPUTED, recording_metrics
 
-    metrics = recording_metrics(_read(a.file))
+    metrics = recording_metrics(_read(a.file)).to_json()
     if a.json:
         print(json.dumps(metrics, sort_keys=True, allow_nan=False))
     else:

@@ -8,7 +8,7 @@ import os
 import shlex
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from services.cli.flags import budget_arg
 
@@ -45,20 +45,36 @@ def _common(p: argparse.ArgumentParser, runtime: str = "lockstep") -> None:
     )
 
 
-def _run_options(a: argparse.Namespace) -> dict[str, Any]:
-    """What _common's arguments say, as the experiment options' fields."""
-    return {"runtime": a.runtime, "jobs": a.jobs, "scheduler": a.scheduler}
+class RunOptions(TypedDict):
+    """The experiment options' fields _common's arguments give."""
+
+    runtime: str
+    jobs: int
+    scheduler: str
 
 
-def _report_options(a: argparse.Namespace) -> dict[str, Any]:
+class ReportOptions(RunOptions):
     """The options every report command shares: _report_dirs' and _common's arguments, and
     the command line that regenerates the report."""
-    return {
-        "out": a.out,
-        "report_dir": a.report_dir,
+
+    out: Path
+    report_dir: Path
+    command: str
+
+
+def _run_options(a: argparse.Namespace) -> RunOptions:
+    """What _common's arguments say, as the experiment options' fields."""
+    return RunOptions(runtime=a.runtime, jobs=a.jobs, scheduler=a.scheduler)
+
+
+def _report_options(a: argparse.Namespace) -> ReportOptions:
+    """The options every report command shares (ReportOptions)."""
+    return ReportOptions(
+        out=a.out,
+        report_dir=a.report_dir,
         **_run_options(a),
-        "command": _regenerate_command(sys.argv[1:]),
-    }
+        command=_regenerate_command(sys.argv[1:]),
+    )
 
 
 def _report_dirs(p: argparse.ArgumentParser, runs: str, docs: str) -> None:

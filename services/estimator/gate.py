@@ -19,4 +19,5 @@ class ChiSquareGate:
         self.threshold = float(chdtri(dof, 1.0 - probability))
 
     def accepts(self, y: FloatArray, S: FloatArray) -> bool:
+        """Is y' S^-1 y within the threshold? y: (k,) innovation, S: (k, k) its covariance."""
         return float(y @ np.linalg.solve(S, y)) <= self.threshold

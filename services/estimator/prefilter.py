@@ -52,10 +52,12 @@ class MeanFilter:
         self._window: deque[FloatArray] = deque(maxlen=m)
 
     def update(self, x: ArrayLike) -> FloatArray:
+        """eq. (2): the mean of the last m samples, this one x: (d,) among them; (d,)."""
         self._window.append(np.asarray(x, dtype=np.float64))
         return np.asarray(np.mean(np.stack(tuple(self._window)), axis=0), dtype=np.float64)
 
     def copy(self) -> MeanFilter:
+        """An independent filter in this state (a belief keeps its own, estimator/core.py)."""
         other = MeanFilter(self.m)
         other._window.extend(self._window)  # the stored arrays are never mutated
         return other
@@ -69,6 +71,7 @@ class LagFilter:
         self._u: FloatArray | None = None
 
     def update(self, e: ArrayLike, dt: float) -> FloatArray:
+        """eq. (3): u: (d,) after sample e: (d,), dt seconds after the last one."""
         if self._u is None:
             self._u = np.array(e, dtype=np.float64)
         else:
@@ -76,6 +79,7 @@ class LagFilter:
         return self._u.copy()
 
     def copy(self) -> LagFilter:
+        """An independent filter in this state."""
         other = LagFilter(self.T)
         other._u = None if self._u is None else self._u.copy()
         return other
@@ -95,6 +99,8 @@ class NavPrefilter:
         self._last_stamp: float | None = None
 
     def apply(self, stamp: float, z: FloatArray) -> FloatArray:
+        """The stages' output for the fix z: (4,) = (x m, y m, heading rad, speed m/s) stamped
+        `stamp` (s), later than the last; (4,), its heading from atan2 (within [-pi, pi])."""
         if self._mean is None and self._lag is None:
             return z
         v = np.array([z[0], z[1], math.cos(z[2]), math.sin(z[2]), z[3]])
@@ -107,6 +113,7 @@ class NavPrefilter:
         return np.array([v[0], v[1], math.atan2(v[3], v[2]), v[4]])
 
     def copy(self) -> NavPrefilter:
+        """An independent prefilter in this state (a belief keeps its own, estimator/core.py)."""
         other = NavPrefilter.__new__(NavPrefilter)
         other.kind = self.kind
         other._mean = None if self._mean is None else self._mean.copy()

@@ -14,14 +14,15 @@ import io
 import math
 import os
 from pathlib import Path
-from typing import Any
+
+from common.runtime.metrics_record import Row, Scalar
 
 # first columns, in this order; grid parameters follow, then every metric sorted by name
 LEAD = ("run_id", "status", "seed")
 TAIL_FACTS = ("runtime", "wall_s", "finished_at", "error")
 
 
-def _cell(v: Any) -> str:
+def _cell(v: Scalar | None) -> str:
     if v is None:
         return ""
     if isinstance(v, float):
@@ -56,7 +57,7 @@ class ResultsFile:
         """Run ids already recorded (optionally only those with this status)."""
         return {r["run_id"] for r in self.rows if status is None or r.get("status") == status}
 
-    def _columns(self, row: dict[str, Any]) -> list[str]:
+    def _columns(self, row: Row) -> list[str]:
         have = set(self.header)
         new = [k for k in row if k not in have]
         if not new:
@@ -66,7 +67,7 @@ class ResultsFile:
         rest = sorted((have | set(new)) - known)
         return [c for c in lead if c in have or c in row] + rest
 
-    def append(self, row: dict[str, Any]) -> None:
+    def append(self, row: Row) -> None:
         """Add one row durably (write + flush + fsync); widen the header if needed."""
         text = {k: _cell(v) for k, v in row.items()}
         columns = self._columns(row)

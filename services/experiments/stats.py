@@ -58,7 +58,8 @@ def bootstrap_ci(values: Sequence[float], level: float = 0.95) -> Estimate:
     n = len(xs)
     if n == 0:
         return Estimate(mean=math.nan, low=math.nan, high=math.nan, n=0)
-    mean = math.fsum(xs) / n
+    # the division can round the mean of equal values one ulp beyond them: keep it in range
+    mean = min(max(math.fsum(xs) / n, float(xs.min())), float(xs.max()))
     if n < 2:
         return Estimate(mean=mean, low=math.nan, high=math.nan, n=1)
     rng = np.random.default_rng(BOOTSTRAP_SEED)

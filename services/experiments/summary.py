@@ -15,7 +15,7 @@ from services.experiments.stats import (
     proportion_ci,
     wilson,
 )
-from services.mission.outcome import OUTCOMES, outcome_of
+from services.mission.outcome import OUTCOMES, classify
 
 # the columns summary.md shows for every cell (all metrics are in summary.csv)
 KEY_METRICS = (
@@ -132,11 +132,23 @@ def few_seeds(cells: list[CellStats]) -> list[CellStats]:
 
 
 def row_outcome(r: dict[str, str]) -> str | None:
-    """A results.csv row's outcome; derived from `success` for rows of an older sweep that
-    lack the column; None if its mission does not judge runs."""
-    num = {k: as_number(r.get(k)) for k in ("success", "reached_goal", "collisions")}
-    typed = {k: bool(v) for k, v in num.items() if math.isfinite(v)}
-    return outcome_of({"outcome": r.get("outcome"), **typed})
+    """A results.csv row's outcome; None if its mission does not judge runs. A row of a sweep
+    older than the `outcome` column (a sweep resumed) is judged here, the one place that
+    reads such rows: by its `success`, and without it by what success was made of (no
+    contact and at the goal, yet no success: only the safety distance is left)."""
+    stated = r.get("outcome")
+    if stated in OUTCOMES:
+        return stated
+    if not math.isfinite(as_number(r.get("success"))):
+        return None
+
+    def said(key: str) -> bool:  # a True (or non-zero) cell
+        v = as_number(r.get(key))
+        return math.isfinite(v) and v != 0.0
+
+    if said("success"):
+        return "success"
+    return classify(reached_goal=said("reached_goal"), contact=said("collisions"), below_rho0=True)
 
 
 def success_text(e: Estimate) -> str:

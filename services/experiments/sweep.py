@@ -145,10 +145,10 @@ def _atomic_write(path: Path, text: str) -> None:
 def _save_run(folder: Path, outcome: RunOutcome) -> None:
     """metrics.json, error.txt and trajectory.npz of one run (written before its CSV row)."""
     folder.mkdir(parents=True, exist_ok=True)
-    if outcome.status == "ok":
+    if outcome.metrics is not None:
         _atomic_write(
             folder / "metrics.json",
-            json.dumps(json_safe(outcome.metrics), indent=2, sort_keys=True),
+            json.dumps(outcome.metrics.to_json(), indent=2, sort_keys=True),
         )
     else:
         _atomic_write(folder / "error.txt", outcome.error)

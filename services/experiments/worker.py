@@ -11,16 +11,19 @@ import math
 import tempfile
 import time
 import traceback
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
+import msgspec
 import numpy as np
 
 from common.config.scenario import scenario_from_raw
+from common.runtime.metrics_record import Row, RunMetrics
 from common.runtime.model.inproc import RunResult
 from common.runtime.run import run_scenario, write_outputs
 from services.experiments.grid import RunSpec
+from services.mission.records import AuvMetrics, auv_metrics
 
 log = logging.getLogger("tidelink.sweep")
 
@@ -32,7 +35,7 @@ class RunOutcome:
     run_id: str
     status: str  # "ok" or "error"
     error: str = ""  # the exception, with its traceback, when status == "error"
-    metrics: dict[str, Any] = field(default_factory=dict)
+    metrics: RunMetrics[msgspec.Struct] | None = None  # None: an error
     wall_s: float = 0.0
     trajectory: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -106,9 +109,9 @@ def trajectory_of(result: RunResult) -> dict[str, np.ndarray]:
     return out
 
 
-def row_of(spec: RunSpec, outcome: RunOutcome, runtime: str, finished_at: str) -> dict[str, Any]:
+def row_of(spec: RunSpec, outcome: RunOutcome, runtime: str, finished_at: str) -> Row:
     """The results.csv row of a run: ids, grid parameters, status, then every scalar metric."""
-    row: dict[str, Any] = {"run_id": spec.run_id, "status": outcome.status, "seed": spec.seed}
+    row: Row = {"run_id": spec.run_id, "status": outcome.status, "seed": spec.seed}
     row.update(spec.labels)
     row.update(
         {
@@ -119,29 +122,27 @@ def row_of(spec: RunSpec, outcome: RunOutcome, runtime: str, finished_at: str) -
         }
     )
     m = outcome.metrics
-    if outcome.status == "ok":
-        # paper §4 success: reached the goal without touching an obstacle, and (the mission's
-        # own judgment when it makes one, services/mission/outcome.py) never inside the
-        # safety distance rho0; its `outcome` column says which failure otherwise. A run
-        # that failed is still data (status "ok")
-        if "success" in m:
-            row["success"] = bool(m["success"])
-        else:
-            row["success"] = bool(m.get("reached_goal")) and m.get("collisions", 1) == 0
-        acts, on = m.get("control_actions"), m.get("control_actions_on_path")
+    if m is None:
+        return row
+    mission = auv_metrics(m)
+    # paper §4 success: reached the goal without touching an obstacle, and never inside the
+    # safety distance rho0 (the AUV mission's judgment, services/mission/outcome.py); its
+    # `outcome` column says which failure otherwise. A run that failed is still data
+    # (status "ok"); a mission that does not judge runs never succeeds
+    row["success"] = mission is not None and mission.success
+    if isinstance(mission, AuvMetrics):
+        acts, on = mission.control_actions, mission.control_actions_on_path
         if isinstance(acts, int) and isinstance(on, int) and acts > 0:
             row["on_path_fraction"] = on / acts
-        row.update(_link_totals(m.get("link_stats", {})))
-    for k, v in m.items():
-        if k not in row and isinstance(v, bool | int | float | str) and k != "link_stats":
-            row[k] = v
+    row.update(_link_totals(m.facts.link_stats))
+    row.update({k: v for k, v in m.to_row().items() if k not in row})
     return row
 
 
-def _link_totals(stats: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def _link_totals(stats: Mapping[str, Mapping[str, int | float | None]]) -> dict[str, int | float]:
     """Network totals over every link (the per-link numbers are in the run's metrics.json)."""
     keys = ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue")
-    tot: dict[str, float] = {
+    tot: dict[str, int | float] = {
         f"net_{k}": sum(int(s.get(k) or 0) for s in stats.values()) for k in keys
     }
     sent = tot["net_sent"]

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import msgspec
+
 from common.config.bus import DEFAULT_CONNECT, BusConfig
 from common.config.scenario import Scenario
 from common.runtime.distributed import lockstep, realtime_driver
@@ -34,6 +36,7 @@ from common.runtime.distributed.bringup import (
 from common.runtime.distributed.lockstep import Coordinator
 from common.runtime.distributed.observer import Driver, RunContext
 from common.runtime.distributed.realtime_driver import RealtimeDriver
+from common.runtime.metrics_record import RunMetrics
 from common.runtime.model.dataflow import FLEET_SEP
 from common.runtime.model.mission import Mission, load_mission, preload
 from common.runtime.model.result import RunResult
@@ -91,7 +94,7 @@ class LaunchOutcome:
     """What a launch produced: its result, the metrics written and where everything is."""
 
     result: RunResult
-    metrics: dict[str, Any]
+    metrics: RunMetrics[msgspec.Struct]
     out: Path
     plot: Path | None
     unwritten: list[str] = field(default_factory=list)  # outputs that could not be written

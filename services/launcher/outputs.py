@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+
+import msgspec
 
 from common.config.scenario import Scenario
+from common.runtime.metrics_record import RunMetrics
 from common.runtime.model.result import RunResult
 from common.runtime.run import OutputsNotWritten, write_outputs
 
@@ -15,7 +17,7 @@ from common.runtime.run import OutputsNotWritten, write_outputs
 class SavedRun:
     """The run's metrics (written or not), its plot if drawn, and what could not be written."""
 
-    metrics: dict[str, Any]
+    metrics: RunMetrics[msgspec.Struct]
     plot: Path | None = None
     unwritten: list[str] = field(default_factory=list)  # a full disk (say) kept these out
 

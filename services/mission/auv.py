@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 from common.config.scenario import Scenario
 from common.messages import TruthState
@@ -14,6 +14,9 @@ from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import auv_dataflow
 from services.mission.fleet import fleet_dataflow
 from services.mission.placed import placed
+
+if TYPE_CHECKING:
+    from services.mission.records import MissionMetrics
 
 
 class AuvMission:
@@ -44,7 +47,8 @@ class AuvMission:
         """The end is judged on the vehicles' truth streams alone."""
         return stream == "truth" and service in self._vehicles
 
-    def metrics(self, record: Record) -> dict[str, Any]:
+    def metrics(self, record: Record) -> MissionMetrics:
+        """One vehicle's metrics (AuvMetrics), or a fleet's (FleetMetrics)."""
         # imported here: only a run's driver computes metrics, and they need the planner's
         # curves and scipy.spatial, which a service process would otherwise load for nothing
         from services.mission.fleet_metrics import fleet_metrics

@@ -178,6 +178,7 @@ def make_sensor(
 
 
 def make_estimator(ctx: CoreContext) -> EstimatorCore:
+    """The estimator, its belief started at the world's start pose and speed."""
     from services.estimator.core import EstimatorCore
 
     s = ctx.scenario
@@ -231,6 +232,7 @@ def make_planner(
 
 
 def make_tracker(ctx: CoreContext) -> TrackerCore:
+    """The onboard path follower (controller.placement = "onboard")."""
     from services.tracker.core import TrackerCore
 
     s = ctx.scenario

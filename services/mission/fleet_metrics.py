@@ -7,8 +7,9 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple, TypedDict
 
+import msgspec
 import numpy as np
 
 from common.config.scenario import Scenario
@@ -18,55 +19,61 @@ from common.runtime.model.record import Record
 from common.world import World
 from services.mission.metrics import duration_s, last_counters, mission_metrics
 from services.mission.outcome import classify
+from services.mission.records import AuvMetrics, FleetMetrics, given
 
 
-def fleet_metrics(record: Record, s: Scenario) -> dict[str, Any]:
+def fleet_metrics(record: Record, s: Scenario) -> FleetMetrics:
     """The fleet's metrics; `vehicles` holds each vehicle's (services/mission/metrics.py)."""
     per = {vid: mission_metrics(record, m, World(m.world), vehicle=vid) for vid, m in s.members}
     tallies = {vid: _intent_tallies(record, vid) for vid in per}
     for vid, (by_intent, by_track) in tallies.items():
-        per[vid].update(_intent_metrics(by_intent, by_track))
+        per[vid] = msgspec.structs.replace(per[vid], **_intent_metrics(by_intent, by_track))
     rho0 = _rho0s(s)
     sep = _separation(fleet_truths(record, s), _radii(s), rho0)
-    reached = all(m.get("reached_goal", False) for m in per.values())
-    arrivals = [m["travel_time_s"] for m in per.values() if m.get("reached_goal")]
-    out: dict[str, Any] = {
-        "trajectory_sha256": hashlib.sha256(
-            "".join(per[v]["trajectory_sha256"] for v in sorted(per)).encode()
+    reached = all(m.reached_goal for m in per.values())
+    arrivals = [given(m.travel_time_s, 0.0) for m in per.values() if m.reached_goal]
+    collisions = sum(given(m.collisions, 0) for m in per.values())
+    breach = _deepest_breach(per, sep, min(rho0.values()))
+    outcome = classify(
+        reached_goal=reached,
+        contact=collisions > 0 or sep.collisions > 0,
+        below_rho0=breach.depth_m > 0.0,
+    )
+    return FleetMetrics(
+        trajectory_sha256=hashlib.sha256(
+            "".join(per[v].trajectory_sha256 for v in sorted(per)).encode()
         ).hexdigest(),
-        "controller": ",".join(sorted({str(m.get("controller")) for m in per.values()})),
-        "fleet_size": len(per),
-        "reached_goal": reached,
-        "vehicles_reached": len(arrivals),
-        "makespan_s": max(arrivals) if reached and arrivals else None,
+        controller=",".join(sorted({m.controller for m in per.values()})),
+        fleet_size=len(per),
+        reached_goal=reached,
+        vehicles_reached=len(arrivals),
+        makespan_s=max(arrivals) if reached and arrivals else None,
         # what a run's outcome is told in (services/mission/outcome.py): the last arrival
-        "travel_time_s": max(arrivals, default=0.0),
-        "min_separation_m": sep["min_separation_m"],
-        "min_separation_pair": sep["pair"],
-        "min_separation_t_s": sep["closest"].t_s if sep["closest"] is not None else None,
-        "vehicle_collisions": sep["collisions"],
-        "collisions": sum(int(m.get("collisions", 0)) for m in per.values()),
-        "min_clearance_m": min(
-            (m["min_clearance_m"] for m in per.values() if "min_clearance_m" in m),
+        travel_time_s=max(arrivals, default=0.0),
+        min_separation_m=sep.min_separation_m,
+        min_separation_pair=sep.pair,
+        min_separation_t_s=sep.closest.t_s if sep.closest is not None else None,
+        vehicle_collisions=sep.collisions,
+        collisions=collisions,
+        min_clearance_m=min(
+            (v for m in per.values() if isinstance(v := m.min_clearance_m, float)),
             default=math.nan,
         ),
-        **_deepest_breach(per, sep, min(rho0.values())),
-        "hold_time_s": sum(float(m.get("hold_time_s", 0.0)) for m in per.values()),
-        "failsafe_time_s": sum(float(m.get("failsafe_time_s", 0.0)) for m in per.values()),
+        rho0_m=breach.rho0_m,
+        rho0_breach_m=breach.depth_m,
+        time_below_rho0_s=breach.below_s,
+        rho0_breach_by=breach.by,
+        hold_time_s=sum(given(m.hold_time_s, 0.0) for m in per.values()),
+        failsafe_time_s=sum(given(m.failsafe_time_s, 0.0) for m in per.values()),
         # of every planner step x other vehicle, the share handled by a fresh intent
-        "intent_fraction": _share(
+        intent_fraction=_share(
             sum(sum(i.values()) for i, _ in tallies.values()),
             sum(sum(k.values()) for _, k in tallies.values()),
         ),
-    }
-    out["outcome"] = classify(
-        reached_goal=reached,
-        contact=out["collisions"] > 0 or out["vehicle_collisions"] > 0,
-        below_rho0=out["rho0_breach_m"] > 0.0,
+        outcome=outcome,
+        success=outcome == "success",
+        vehicles=per,
     )
-    out["success"] = out["outcome"] == "success"
-    out["vehicles"] = per
-    return out
 
 
 class Approach(NamedTuple):
@@ -106,8 +113,7 @@ def _rho0s(s: Scenario) -> dict[str, float]:
 def closest_approach(record: Record, s: Scenario) -> Approach | None:
     """The two hulls of a fleet run that came closest, and where (None: fewer than two
     vehicles with a track); the same comparison as the min_separation_m metric."""
-    closest: Approach | None = _separation(fleet_truths(record, s), _radii(s), _rho0s(s))["closest"]
-    return closest
+    return _separation(fleet_truths(record, s), _radii(s), _rho0s(s)).closest
 
 
 def _intent_tallies(record: Record, vid: str) -> tuple[dict[str, int], dict[str, int]]:
@@ -125,48 +131,68 @@ def _share(by_intent: int, by_track: int) -> float | None:
     return round(by_intent / total, 4) if total else None
 
 
-def _intent_metrics(by_intent: dict[str, int], by_track: dict[str, int]) -> dict[str, Any]:
+class Intents(TypedDict):
+    """A fleet vehicle's AuvMetrics fields of the others' intents."""
+
+    intent_fraction: float | None
+    intent_fraction_by_vehicle: dict[str, float | None]
+
+
+def _intent_metrics(by_intent: dict[str, int], by_track: dict[str, int]) -> Intents:
     """intent_fraction (all others together) and, per other vehicle,
     intent_fraction_by_vehicle."""
     others = sorted(set(by_intent) | set(by_track))
-    return {
-        "intent_fraction": _share(sum(by_intent.values()), sum(by_track.values())),
-        "intent_fraction_by_vehicle": {
+    return Intents(
+        intent_fraction=_share(sum(by_intent.values()), sum(by_track.values())),
+        intent_fraction_by_vehicle={
             o: _share(by_intent.get(o, 0), by_track.get(o, 0)) for o in others
         },
-    }
+    )
 
 
-def _deepest_breach(
-    per: dict[str, dict[str, Any]], sep: dict[str, Any], least_rho0: float
-) -> dict[str, Any]:
+class Breach(NamedTuple):
+    """The deepest way inside a safety distance: how deep (m), of which rho0 (m), for how
+    long (s), by whom (a vehicle, a pair "a-b", or "")."""
+
+    depth_m: float
+    rho0_m: float
+    below_s: float
+    by: str
+
+
+def _deepest_breach(per: dict[str, AuvMetrics], sep: Separation, least_rho0: float) -> Breach:
     """The deepest way inside a safety distance anyone came, in its own terms: a vehicle
     inside its own rho0 of an obstacle, or two hulls inside the larger of their two rho0
     (each vehicle keeps its own from everything around it); rho0_breach_by names the vehicle
     or the pair ("" without a breach, rho0_m then the least rho0: what every vehicle kept)."""
-    depth, rho0_m, below_s, by = 0.0, least_rho0, 0.0, ""
+    deepest = Breach(0.0, least_rho0, 0.0, "")
     for vid, m in sorted(per.items()):
-        if float(m.get("rho0_breach_m") or 0.0) > depth:
-            depth, rho0_m = float(m["rho0_breach_m"]), float(m["rho0_m"])
-            below_s, by = float(m.get("time_below_rho0_s") or 0.0), vid
-    if sep["breach_m"] > depth:
-        depth, rho0_m, below_s, by = (
-            sep["breach_m"],
-            sep["breach_rho0_m"],
-            sep["breach_s"],
-            sep["breach_pair"],
-        )
-    return {
-        "rho0_m": rho0_m,
-        "rho0_breach_m": depth,
-        "time_below_rho0_s": below_s,
-        "rho0_breach_by": by,
-    }
+        if given(m.rho0_breach_m, 0.0) > deepest.depth_m:
+            deepest = Breach(
+                float(given(m.rho0_breach_m, 0.0)),
+                float(given(m.rho0_m, math.nan)),
+                float(given(m.time_below_rho0_s, 0.0)),
+                vid,
+            )
+    if sep.breach.depth_m > deepest.depth_m:
+        return sep.breach
+    return deepest
+
+
+class Separation(NamedTuple):
+    """How close the fleet's hulls came: the least gap (m, inf: fewer than two tracks), its
+    pair and where, contacts between hulls, and the pair deepest inside its rho0."""
+
+    min_separation_m: float
+    pair: str
+    closest: Approach | None
+    collisions: int
+    breach: Breach
 
 
 def _separation(
     truths: dict[str, np.ndarray], radius: dict[str, float], rho0: dict[str, float]
-) -> dict[str, Any]:
+) -> Separation:
     """Smallest hull-to-hull distance between any two vehicles (and where: `closest`), how
     often two came into contact, and the pair that came deepest inside the larger of their
     two rho0 (how deep, that rho0, for how long); truths[id]: (n, 3) rows (t, x, y); the
@@ -174,12 +200,7 @@ def _separation(
     published."""
     best, pair, collisions = math.inf, "", 0
     closest: Approach | None = None
-    breach: dict[str, Any] = {
-        "breach_m": 0.0,
-        "breach_rho0_m": 0.0,
-        "breach_s": 0.0,
-        "breach_pair": "",
-    }
+    breach = Breach(0.0, 0.0, 0.0, "")
     for a, b in itertools.combinations(sorted(truths), 2):
         ta, tb = truths[a], truths[b]
         if len(ta) < 2 or len(tb) < 2:
@@ -199,17 +220,6 @@ def _separation(
             a_xy = (float(ta[both, 1][i]), float(ta[both, 2][i]))
             closest = Approach(a, b, float(t[i]), least, a_xy, (float(bx[i]), float(by[i])))
         keep = max(rho0[a], rho0[b])
-        if keep - least > breach["breach_m"]:
-            breach.update(
-                breach_m=keep - least,
-                breach_rho0_m=keep,
-                breach_s=duration_s(t, gap < keep),
-                breach_pair=f"{a}-{b}",
-            )
-    return {
-        "min_separation_m": best,
-        "pair": pair,
-        "closest": closest,
-        "collisions": collisions,
-        **breach,
-    }
+        if keep - least > breach.depth_m:
+            breach = Breach(keep - least, keep, duration_s(t, gap < keep), f"{a}-{b}")
+    return Separation(best, pair, closest, collisions, breach)

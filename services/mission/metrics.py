@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import Any
+from typing import Any, NotRequired, TypedDict
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -26,6 +26,7 @@ from common.world import ObstacleState, World
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import commander
 from services.mission.outcome import classify
+from services.mission.records import AuvMetrics, build
 from services.mission.reentry import reentries
 from services.planner.core import PLANS_DECLINED
 from services.planner.shaping.planned_path import curve_of
@@ -49,6 +50,10 @@ NEES_BAND = (0.2158, 9.3484)
 # `tracking_ahead_*` set a track, extrapolated as the planner extrapolates it (eq. (12)), this
 # far ahead against where its obstacle then is: about the look-ahead of a replan's pass
 TRACK_AHEAD_S = 2.0
+
+# some of AuvMetrics' fields by name, as each part of the metrics computes them; every name
+# and value is checked against the record's fields when mission_metrics builds it
+Fields = dict[str, object]
 
 
 def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
@@ -75,8 +80,8 @@ def last_counters(record: Record, service: str) -> dict[str, int]:
     return dict(last.counters) if last is not None else {}
 
 
-def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = "") -> dict[str, Any]:
-    """Every scalar metric of the run (the runtime adds end reason, link stats, timing); of
+def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = "") -> AuvMetrics:
+    """Every metric of the run (the runtime adds end reason, link stats, timing); of
     one fleet vehicle's services ("<vehicle>.<service>") when `vehicle` is given, with `s`
     that vehicle's scenario (Scenario.member)."""
 
@@ -84,12 +89,13 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
         return qualified(vehicle, service) if vehicle else service
 
     truth: list[TruthState] = _typed(record, at("vehicle"), "truth", TruthState)
-    m: dict[str, Any] = {
+    m: Fields = {
         "trajectory_sha256": trajectory_sha256(truth),
         "controller": s.controller.kind,
     }
     if not truth:
-        return m | {"reached_goal": False, "outcome": "not_reached", "success": False}
+        m |= {"reached_goal": False, "outcome": "not_reached", "success": False}
+        return build(AuvMetrics, m)
     arr = np.array([(q.stamp, q.x, q.y, q.theta, q.v) for q in truth])
     t, x, y, theta, v = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], arr[:, 4]
     g, st = s.world.goal, s.world.start
@@ -111,14 +117,15 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
         }
     )
     clear = world.clearance_many(x, y, s.vehicle.radius_m, t)
-    m.update(_safety_metrics(t, clear, s.planner.rho0_m))
-    m["outcome"] = classify(
+    safety = _safety_metrics(t, clear, s.planner.rho0_m)
+    m.update(safety)
+    m["outcome"] = outcome = classify(
         reached_goal=arrival is not None,
-        contact=m["collisions"] > 0,
-        below_rho0=m["rho0_breach_m"] > 0.0,
+        contact=safety["collisions"] > 0,
+        below_rho0=safety["rho0_breach_m"] > 0.0,
     )
     # paper §4 success, with eq. (6)'s safety distance as part of it
-    m["success"] = m["outcome"] == "success"
+    m["success"] = outcome == "success"
     m.update(_curvature_metrics(t, x, y, theta, v, s.vehicle.turn_radius_min_m))
     m.update(_path_metrics(record, at("planner"), at(commander(s)), t, x, y, end))
     m.update(_estimation_metrics(record, at("estimator"), truth))
@@ -140,7 +147,7 @@ def mission_metrics(record: Record, s: Scenario, world: World, vehicle: str = ""
                 "hold_distance_max_m": _hold_distance_max(statuses, t, x, y),
             }
         )
-    return m
+    return build(AuvMetrics, m)
 
 
 def duration_s(t: np.ndarray, when: np.ndarray) -> float:
@@ -148,12 +155,25 @@ def duration_s(t: np.ndarray, when: np.ndarray) -> float:
     return float(np.sum(np.diff(t)[when[:-1]]))
 
 
-def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> dict[str, Any]:
+class Safety(TypedDict):
+    """AuvMetrics' contact and safety-distance fields."""
+
+    min_clearance_m: float
+    min_clearance_t_s: float
+    collisions: int
+    time_in_contact_s: float
+    rho0_m: float
+    rho0_breach_m: float
+    time_below_rho0_s: float
+    first_contact_t_s: NotRequired[float]
+
+
+def _safety_metrics(t: np.ndarray, clear: np.ndarray, rho0_m: float) -> Safety:
     """Contact and eq. (6)'s safety distance, from the hull-to-obstacle-surface clearance
     clear: (n,) of every truth state (eq. 12, the same geometry the planner keeps rho0 in)."""
     collided = clear < 0.0
     below = clear < rho0_m
-    out: dict[str, Any] = {
+    out: Safety = {
         "min_clearance_m": float(clear.min()),
         "min_clearance_t_s": float(t[int(np.argmin(clear))]),  # where to look in a recording
         "collisions": int(np.count_nonzero(collided[1:] & ~collided[:-1]) + int(collided[0])),
@@ -175,7 +195,7 @@ def _curvature_metrics(
     theta: np.ndarray,
     v: np.ndarray,
     turn_radius_min_m: float,
-) -> dict[str, Any]:
+) -> Fields:
     """The turns the vehicle made, measured from its true trajectory t, x, y, theta, v: (n,).
 
     The hull's turn: its heading's rate over each truth period (from the headings, not the
@@ -193,7 +213,7 @@ def _curvature_metrics(
     after = curv[t[moving] >= started]
     # no speed gate here: at v = 0 a turn is one on the spot, the tightest turn of all
     above = np.abs(rate) - np.abs(v) / turn_radius_min_m > YAW_RATE_TOL_RPS
-    out: dict[str, Any] = {
+    out: Fields = {
         "max_executed_curvature": float(curv.max()) if len(curv) else 0.0,
         "max_executed_curvature_after_start": float(after.max()) if len(after) else 0.0,
         "time_above_curvature_limit_s": duration_s(t, above),
@@ -239,11 +259,11 @@ def _path_metrics(
     x: np.ndarray,
     y: np.ndarray,
     end: int,
-) -> dict[str, Any]:
+) -> Fields:
     paths: list[PathMsg] = _typed(record, planner, "path", PathMsg)
     cmds: list[VelocityCommand] = _typed(record, cmd_source, "cmd", VelocityCommand)
     ok = [p for p in paths if p.status == "OK"]
-    out: dict[str, Any] = {
+    out: Fields = {
         "replans": len(paths),
         "no_path_events": sum(1 for p in paths if p.status == "NO_PATH"),
         # precautionary replans whose result was declined, the path in force kept (no path
@@ -292,7 +312,7 @@ def _path_metrics(
     return out
 
 
-def _estimation_metrics(record: Record, estimator: str, truth: list[TruthState]) -> dict[str, Any]:
+def _estimation_metrics(record: Record, estimator: str, truth: list[TruthState]) -> Fields:
     """Estimate against truth at each estimate's stamp (common/estimate_error.py, which the
     monitor and Foxglove share): position error, heading error, the current's error, and the
     filter's consistency, NEES of (x, y, theta) against its own covariance (3 dof: the
@@ -325,7 +345,7 @@ def _estimation_metrics(record: Record, estimator: str, truth: list[TruthState])
 
 def _tracking_metrics(
     record: Record, estimator: str, world: World, accel_horizon_s: float, t: np.ndarray
-) -> dict[str, Any]:
+) -> Fields:
     """How well the published tracks follow the world's moving obstacles (not other hulls):
     position error at each track's stamp, and of the position it extrapolates TRACK_AHEAD_S on
     against where the obstacle then is (what replans pass by). Coasting tracks count: they
@@ -348,7 +368,7 @@ def _tracking_metrics(
             if later:
                 p = ObstacleState.of_track(k).centre_at(TRACK_AHEAD_S, accel_horizon_s)
                 ahead.append(math.hypot(float(p[0]) - later[k.id].x, float(p[1]) - later[k.id].y))
-    out: dict[str, Any] = {}
+    out: Fields = {}
     for name, errs in (("tracking", now), ("tracking_ahead", ahead)):
         e = np.asarray(errs)
         out[f"{name}_rms_m"] = float(np.sqrt(np.mean(e**2))) if errs else None

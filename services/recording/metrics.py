@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection
-from typing import Any
+
+import msgspec
 
 from common.bus import CLOCK
 from common.config.scenario import scenario_from_raw
 from common.messages import Tick, TickAck, WireError, decode
+from common.runtime.metrics_record import RunMetrics
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record, Renumbering
 from common.runtime.model.result import RunResult
@@ -57,7 +59,7 @@ def rebuild_record(
     return record
 
 
-def recording_metrics(rec: Recording) -> dict[str, Any]:
+def recording_metrics(rec: Recording) -> RunMetrics[msgspec.Struct]:
     """metrics.json as the run wrote it, minus NOT_RECOMPUTED; with no RunEnd in the
     recording (cut short), end_reason is "unknown" and t_end_s and ticks are None."""
     scenario = scenario_from_raw(rec.scenario_raw, f"{rec.path} (its scenario)")
@@ -75,5 +77,6 @@ def recording_metrics(rec: Recording) -> dict[str, Any]:
     )
     metrics = run_metrics(result, scenario, wall_s=None)
     if end is None:
-        metrics["ticks"] = None
+        facts = msgspec.structs.replace(metrics.facts, ticks=None)
+        metrics = msgspec.structs.replace(metrics, facts=facts)
     return metrics

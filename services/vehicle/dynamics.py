@@ -52,6 +52,7 @@ class PlantParams:
 
     @staticmethod
     def from_config(cfg: VehicleConfig) -> PlantParams:
+        """The parameters of a `[vehicle]` section, eq. (14)'s 0.5 rho S folded into half_rho_s."""
         return PlantParams(
             half_rho_s=0.5 * cfg.rho_kgpm3 * cfg.wetted_area_m2,
             length_m=cfg.length_m,

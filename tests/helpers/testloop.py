@@ -13,8 +13,8 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass
-from typing import Any
 
+import msgspec
 import numpy as np
 
 from common.config.errors import ConfigValueError
@@ -27,6 +27,15 @@ from common.runtime.model.dataflow import CoreContext, Dataflow, Input, Output, 
 from common.runtime.model.record import Record, trajectory_sha256
 
 _COV = tuple(0.0 for _ in range(25))
+
+
+class LoopMetrics(msgspec.Struct, kw_only=True, frozen=True):
+    """The test loop's metrics: where the plant ended, how far from its set-point."""
+
+    final_x: float | None
+    final_error: float | None
+    trajectory_sha256: str
+
 
 # the mission's registered name and import target (common/config/missions.py)
 NAME, TARGET = "testloop", "tests.helpers.testloop:TestLoop"
@@ -310,11 +319,11 @@ class TestLoop:
     def ends_on(self, service: str, stream: str) -> bool:
         return False  # observe looks at nothing
 
-    def metrics(self, record: Record) -> dict[str, Any]:
+    def metrics(self, record: Record) -> LoopMetrics:
         truth = [m for m in record.stream("plant", "truth") if isinstance(m, TruthState)]
         sp = self.params.setpoint
-        return {
-            "final_x": truth[-1].x if truth else None,
-            "final_error": abs(sp - truth[-1].x) if truth else None,
-            "trajectory_sha256": trajectory_sha256(truth),
-        }
+        return LoopMetrics(
+            final_x=truth[-1].x if truth else None,
+            final_error=abs(sp - truth[-1].x) if truth else None,
+            trajectory_sha256=trajectory_sha256(truth),
+        )

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import importlib
-from typing import Any, Protocol
+from typing import Protocol
+
+import msgspec
 
 from common.config.errors import ConfigError
 from common.config.missions import resolve_mission, unknown_mission
@@ -27,7 +29,9 @@ class Mission(Protocol):
         tick's end before the services publishing none of those streams have finished it,
         common/runtime/distributed/lookahead.py.) When in doubt, True."""
 
-    def metrics(self, record: Record) -> dict[str, Any]: ...
+    def metrics(self, record: Record) -> msgspec.Struct:
+        """The mission's metrics of a run's record: a struct whose fields are metrics.json's
+        keys beside the run's facts (common/runtime/metrics_record.py)."""
 
 
 def preload(mission: Mission) -> tuple[str, ...]:

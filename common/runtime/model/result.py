@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+
+import msgspec
 
 from common.runtime.model.record import Record
 
@@ -18,5 +19,5 @@ class RunResult:
     t_end: float
     ticks: int
     record: Record
-    metrics: dict[str, Any]
+    metrics: msgspec.Struct  # the mission's (Mission.metrics)
     failure: str = ""
