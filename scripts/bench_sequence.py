@@ -3,7 +3,7 @@
 For each controller and horizon (0 = single commands, the baseline measured in the same run):
 the planner's control step on the default mission's first plan, timed on this thread's CPU
 clock, then its preparing the next step (the rest of the rollout, computed once the command
-is out), and its command's wire bytes (services/experiments/sequence_cost.py, which the
+is out), and its command's wire bytes (services/experiments/netreport/sequence_cost.py, which the
 networked-control report quotes too). Ratios are against the first horizon.
 
 --model adds the accuracy of the planner's vehicle model (services/control/command/response.py)
@@ -28,7 +28,7 @@ from common.messages import TruthState, VelocityCommand
 from common.runtime.model.inproc import run_inproc
 from services.control.command.response import ResponseModel
 from services.control.controllers import predict_pose
-from services.experiments.sequence_cost import CONTROLLERS, DEFAULT_SCENARIO, cost_table
+from services.experiments.netreport.sequence_cost import CONTROLLERS, DEFAULT_SCENARIO, cost_table
 
 
 def main_steps(steps: int, horizons: list[float]) -> None:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
-from services.experiments.schema import Experiment
-from services.experiments.sweep import SweepOptions, run_sweep
+from services.experiments.sweep.run import SweepOptions, run_sweep
+from services.experiments.sweep.schema import Experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 # issue 63's goals for this sweep on the 2-core machine (simulated s per wall s, all jobs)

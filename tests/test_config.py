@@ -15,8 +15,8 @@ from common.config.loader import ConfigError
 from common.config.network import LinkProfile
 from common.config.scenario import load_scenario
 from common.world.check import check_scenario
-from services.experiments.grid import expand
-from services.experiments.schema import load_experiment
+from services.experiments.sweep.grid import expand
+from services.experiments.sweep.schema import load_experiment
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -24,8 +24,8 @@ from common.messages import decode, encode
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.record import Record
 from common.world.check import check_scenario
-from services.experiments.grid import expand
-from services.experiments.schema import load_experiment
+from services.experiments.sweep.grid import expand
+from services.experiments.sweep.schema import load_experiment
 from services.planner.geometry.clearance import StaticField
 from services.planner.plan import PlanRequest, plan_path
 from services.planner.search.costmap import build_costmap

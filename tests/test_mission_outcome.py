@@ -18,8 +18,8 @@ from helpers.testloop import LoopMetrics
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
 from services.cli.core_commands import EXIT_MISSION_FAILED
-from services.experiments.grid import RunSpec
-from services.experiments.worker import execute_run, row_of
+from services.experiments.sweep.grid import RunSpec
+from services.experiments.sweep.worker import execute_run, row_of
 from services.mission.verdict import fell_behind, mission_failure
 
 REPO = Path(__file__).resolve().parents[1]

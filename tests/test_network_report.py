@@ -7,11 +7,11 @@ from pathlib import Path
 import pytest
 
 from services.cli.sweep_commands import _regenerate_command
-from services.experiments.netreport import SweepCells, cliff, write_report
-from services.experiments.networked import NetworkOptions, in_world, network_report
-from services.experiments.schema import Axis, AxisValue, load_experiment
-from services.experiments.stats import wilson
-from services.experiments.summary import CellStats
+from services.experiments.netreport.networked import NetworkOptions, in_world, network_report
+from services.experiments.netreport.report import SweepCells, cliff, write_report
+from services.experiments.sweep.schema import Axis, AxisValue, load_experiment
+from services.experiments.sweep.stats import wilson
+from services.experiments.sweep.summary import CellStats
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"

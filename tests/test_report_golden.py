@@ -8,15 +8,15 @@ from pathlib import Path
 
 import pytest
 
-from services.experiments.cases import CASES
-from services.experiments.netreport import SweepCells
-from services.experiments.netreport import write_report as write_network_report
-from services.experiments.report import ReportInputs
-from services.experiments.report import write_report as write_reproduce_report
-from services.experiments.schema import Axis, AxisValue
-from services.experiments.sequence_cost import CostRow
-from services.experiments.summary import aggregate, write_summary
-from services.experiments.tuning import Box, Candidate, Tuning
+from services.experiments.netreport.report import SweepCells
+from services.experiments.netreport.report import write_report as write_network_report
+from services.experiments.netreport.sequence_cost import CostRow
+from services.experiments.reproduction.cases import CASES
+from services.experiments.reproduction.report import ReportInputs
+from services.experiments.reproduction.report import write_report as write_reproduce_report
+from services.experiments.reproduction.tuning import Box, Candidate, Tuning
+from services.experiments.sweep.schema import Axis, AxisValue
+from services.experiments.sweep.summary import aggregate, write_summary
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / "reports"
 CONTROLLERS = ("nurbs", "backstepping", "fuzzy_pid")

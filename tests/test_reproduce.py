@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from common.config.scenario import load_scenario
-from services.experiments.cases import CASES
-from services.experiments.reproduce import ReproduceOptions, reproduce
-from services.experiments.tuning import (
+from services.experiments.reproduction.cases import CASES
+from services.experiments.reproduction.reproduce import ReproduceOptions, reproduce
+from services.experiments.reproduction.tuning import (
     TUNED_GAINS,
     Box,
     Candidate,

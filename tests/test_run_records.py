@@ -22,8 +22,8 @@ from common.runtime.metrics_record import (
 )
 from common.runtime.model.inproc import run_inproc
 from common.runtime.run import write_outputs
-from services.experiments.grid import RunSpec
-from services.experiments.worker import RunOutcome, row_of
+from services.experiments.sweep.grid import RunSpec
+from services.experiments.sweep.worker import RunOutcome, row_of
 from services.mission.records import AuvMetrics, FleetMetrics, build, read_metrics
 
 SMALL = Path(__file__).resolve().parents[1] / "configs" / "experiments" / "scenarios" / "small.toml"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from services.experiments.sequence_cost import bench_steps
+from services.experiments.netreport.sequence_cost import bench_steps
 
 ROOT = Path(__file__).resolve().parents[1]
 

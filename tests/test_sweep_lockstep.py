@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from services.experiments.schema import load_experiment
-from services.experiments.sweep import SweepOptions, run_sweep
+from services.experiments.sweep.run import SweepOptions, run_sweep
+from services.experiments.sweep.schema import load_experiment
 
 pytestmark = [pytest.mark.slow, pytest.mark.deterministic, pytest.mark.background]
 

@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from services.experiments.claims import compare
-from services.experiments.results import ResultsFile, as_number
-from services.experiments.stats import Estimate, bootstrap_ci, proportion_ci, wilson
-from services.experiments.summary import FAILURES, aggregate, write_summary
+from services.experiments.reproduction.claims import compare
+from services.experiments.sweep.results import ResultsFile, as_number
+from services.experiments.sweep.stats import Estimate, bootstrap_ci, proportion_ci, wilson
+from services.experiments.sweep.summary import FAILURES, aggregate, write_summary
 
 
 def _row(i: int, **extra: object) -> dict[str, object]:
@@ -214,7 +214,7 @@ def test_compare_says_which_side_and_whether_intervals_separate() -> None:
 def test_progress_prints_plain_lines_or_a_rich_bar() -> None:
     import io
 
-    from services.experiments.progress import SweepProgress
+    from services.experiments.sweep.progress import SweepProgress
 
     plain = io.StringIO()
     with SweepProgress(2, stream=plain, rich=False) as p:

@@ -13,9 +13,9 @@ import pytest
 from common.config.scenario import load_scenario
 from common.runtime.model.inproc import run_inproc
 from services.cli import main
-from services.experiments.schema import Experiment, load_experiment
-from services.experiments.stats import bootstrap_ci
-from services.experiments.sweep import SweepOptions, SweepReport, run_sweep
+from services.experiments.sweep.run import SweepOptions, SweepReport, run_sweep
+from services.experiments.sweep.schema import Experiment, load_experiment
+from services.experiments.sweep.stats import bootstrap_ci
 
 ROOT = Path(__file__).resolve().parents[1]
 # the smoke sweep (a module fixture) and the cluster: whole sweeps, CPU-bound

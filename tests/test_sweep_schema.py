@@ -8,9 +8,9 @@ import pytest
 
 from common.config.loader import ConfigError
 from common.config.scenario import scenario_from_raw
-from services.experiments.grid import expand
-from services.experiments.schema import load_experiment
-from services.experiments.sweep import SweepOptions, run_sweep
+from services.experiments.sweep.grid import expand
+from services.experiments.sweep.run import SweepOptions, run_sweep
+from services.experiments.sweep.schema import load_experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 EXP = ROOT / "configs" / "experiments"

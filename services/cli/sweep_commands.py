@@ -12,7 +12,8 @@ from typing import TypedDict
 
 from services.cli.flags import budget_arg
 
-# the same as services.experiments.reproduce.CROSSING (imported lazily: the CLI starts fast)
+# the same as services.experiments.reproduction.reproduce.CROSSING (imported lazily: the CLI
+# starts fast)
 CROSSING = Path("configs/experiments/scenarios/crossing.toml")
 
 
@@ -94,8 +95,8 @@ def _report_dirs(p: argparse.ArgumentParser, runs: str, docs: str) -> None:
 
 
 def cmd_sweep(a: argparse.Namespace) -> int:
-    from services.experiments.schema import load_experiment
-    from services.experiments.sweep import SweepOptions, run_sweep
+    from services.experiments.sweep.run import SweepOptions, run_sweep
+    from services.experiments.sweep.schema import load_experiment
 
     exp = load_experiment(a.experiment)
     out = a.out or Path("runs") / f"sweep-{exp.name}"
@@ -116,7 +117,7 @@ def cmd_sweep(a: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(a: argparse.Namespace) -> int:
-    from services.experiments.reproduce import ReproduceOptions, reproduce
+    from services.experiments.reproduction.reproduce import ReproduceOptions, reproduce
 
     opts = ReproduceOptions(
         **_report_options(a),
@@ -152,7 +153,7 @@ def _regenerate_command(argv: list[str]) -> str:
 
 
 def _sweep_names(text: str) -> tuple[str, ...]:
-    from services.experiments.networked import SWEEPS
+    from services.experiments.netreport.networked import SWEEPS
 
     names = tuple(n.strip() for n in text.split(",") if n.strip())
     bad = [n for n in names if n not in SWEEPS]
@@ -171,7 +172,7 @@ def _seeds(text: str) -> int:
 
 
 def cmd_network_report(a: argparse.Namespace) -> int:
-    from services.experiments.networked import NetworkOptions, network_report
+    from services.experiments.netreport.networked import NetworkOptions, network_report
 
     res = network_report(
         NetworkOptions(

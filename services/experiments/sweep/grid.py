@@ -15,7 +15,7 @@ from common.config.budget import DEFAULT_BUDGET, Budget
 from common.config.loader import ConfigError, apply_override, read_scenario_toml
 from common.config.scenario import scenario_from_raw
 from common.world.check import check_scenario
-from services.experiments.schema import Experiment, SetValue
+from services.experiments.sweep.schema import Experiment, SetValue
 
 
 @dataclass(frozen=True, kw_only=True)

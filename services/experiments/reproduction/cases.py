@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from services.experiments.schema import SetValue
-from services.experiments.tuning import PERFECT_NETWORK
+from services.experiments.reproduction.tuning import PERFECT_NETWORK
+from services.experiments.sweep.schema import SetValue
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -13,14 +13,14 @@ import numpy as np
 
 from common.config.budget import DEFAULT_BUDGET
 from common.jsonsafe import json_safe
-from services.experiments.execute import run_all
-from services.experiments.grid import Plan, RunSpec, expand
-from services.experiments.plots import plot_sweep
-from services.experiments.progress import SweepProgress
-from services.experiments.results import ResultsFile
-from services.experiments.schema import Experiment
-from services.experiments.summary import aggregate, write_summary
-from services.experiments.worker import RunOutcome, row_of
+from services.experiments.sweep.execute import run_all
+from services.experiments.sweep.grid import Plan, RunSpec, expand
+from services.experiments.sweep.plots import plot_sweep
+from services.experiments.sweep.progress import SweepProgress
+from services.experiments.sweep.results import ResultsFile
+from services.experiments.sweep.schema import Experiment
+from services.experiments.sweep.summary import aggregate, write_summary
+from services.experiments.sweep.worker import RunOutcome, row_of
 
 
 @dataclass(frozen=True, kw_only=True)

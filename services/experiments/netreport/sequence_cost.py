@@ -24,7 +24,7 @@ from common.messages import StateEstimate, VelocityCommand, encode
 from common.runtime.model.core import Delivery
 from services.planner.core import PlannerCore
 
-DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "configs" / "default.toml"
+DEFAULT_SCENARIO = Path(__file__).resolve().parents[3] / "configs" / "default.toml"
 CONTROLLERS = ("nurbs", "backstepping", "fuzzy_pid")
 HORIZONS_S = (0.0, 1.0, 2.0, 5.0, 10.0)
 _COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))

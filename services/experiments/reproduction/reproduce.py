@@ -8,14 +8,10 @@ from pathlib import Path
 from common.config.network import NetworkConfig
 from common.config.scenario import load_scenario
 from common.config.world import WorldConfig
-from services.experiments import figures
-from services.experiments.cases import CASES
-from services.experiments.report import ReportInputs, write_report
-from services.experiments.results import as_number
-from services.experiments.schema import Axis, AxisValue, Experiment, SetValue
-from services.experiments.summary import aggregate
-from services.experiments.sweep import SweepOptions, SweepReport, run_sweep
-from services.experiments.tuning import (
+from services.experiments.reproduction import figures
+from services.experiments.reproduction.cases import CASES
+from services.experiments.reproduction.report import ReportInputs, write_report
+from services.experiments.reproduction.tuning import (
     CONTROLLERS,
     Box,
     Candidate,
@@ -26,6 +22,10 @@ from services.experiments.tuning import (
     score,
     tuning_experiment,
 )
+from services.experiments.sweep.results import as_number
+from services.experiments.sweep.run import SweepOptions, SweepReport, run_sweep
+from services.experiments.sweep.schema import Axis, AxisValue, Experiment, SetValue
+from services.experiments.sweep.summary import aggregate
 
 # The paper's three controllers each follow the one shortest path: keep the first plan for the
 # whole run (no replan is ever due), unless --replan lets the planner react as in a mission.

@@ -7,8 +7,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from services.experiments.results import LEAD, TAIL_FACTS, as_number
-from services.experiments.stats import (
+from services.experiments.sweep.results import LEAD, TAIL_FACTS, as_number
+from services.experiments.sweep.stats import (
     FEW_SEEDS,
     Estimate,
     bootstrap_ci,

@@ -22,7 +22,7 @@ from common.config.scenario import scenario_from_raw
 from common.runtime.metrics_record import Row, RunMetrics
 from common.runtime.model.inproc import RunResult
 from common.runtime.run import run_scenario, write_outputs
-from services.experiments.grid import RunSpec
+from services.experiments.sweep.grid import RunSpec
 from services.mission.records import AuvMetrics, auv_metrics
 
 log = logging.getLogger("tidelink.sweep")

@@ -5,9 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from services.experiments.cases import Case
-from services.experiments.claims import (
-    NAMES,
+from services.experiments.reproduction.cases import Case
+from services.experiments.reproduction.claims import (
     Cells,
     claims,
     estimate,
@@ -17,8 +16,9 @@ from services.experiments.claims import (
     verdict_summary,
     verdict_table,
 )
-from services.experiments.summary import CellStats, success_text
-from services.experiments.tuning import TUNED_GAINS, Box, Tuning
+from services.experiments.reproduction.tuning import TUNED_GAINS, Box, Tuning
+from services.experiments.sweep.labels import CONTROLLER_NAMES
+from services.experiments.sweep.summary import CellStats, success_text
 from services.mission.outcome import OUTCOMES
 
 # the columns of a results table, after controller, success and outcomes
@@ -85,10 +85,10 @@ def _results_table(inp: ReportInputs, cells: Cells, case: str) -> list[str]:
         *(t for _, t in TABLE),
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for ctrl in NAMES:
+    for ctrl in CONTROLLER_NAMES:
         c = cells.get((case, ctrl))
         vals = [
-            NAMES[ctrl],
+            CONTROLLER_NAMES[ctrl],
             success_text(c.success) if c else "–",
             _outcome_text(c),
         ]
@@ -110,7 +110,8 @@ def _gains_section(inp: ReportInputs) -> list[str]:
         ]
     step = inp.tune_step
     lines = [
-        "Chosen by the same search for every controller (services/experiments/tuning.py): its "
+        "Chosen by the same search for every controller "
+        "(services/experiments/reproduction/tuning.py): its "
         f"two principal path-following gains, each scaled by powers of {step:g} around the "
         f"scenario's values, on a perfect network, tuning seeds {inp.tune_seeds} (disjoint "
         "from the evaluation seeds), with the comparison's pipeline and speed profile. Rule: "
@@ -138,7 +139,8 @@ def _gains_section(inp: ReportInputs) -> list[str]:
         edges = box.edges(best)
         interior = "yes" if not edges else f"no: {', '.join(edges)} at the search limit"
         lines.append(
-            f"| {NAMES[ctrl]} | {searched} | {t.rounds[ctrl]} | {grid} | {n} | {best.label}: "
+            f"| {CONTROLLER_NAMES[ctrl]} | {searched} | {t.rounds[ctrl]} | {grid} | {n} | "
+            f"{best.label}: "
             f"{gains} | {interior} | {100 * best.success_rate:.0f} % | {best.xte_rms_m:.3f} |"
         )
     return lines
@@ -202,7 +204,7 @@ def _planning_text(inp: ReportInputs) -> str:
 
 def _corridor_note(inp: ReportInputs, case: str) -> list[str]:
     """How many runs went round an obstacle on the other side of the optimal path."""
-    counts = [(NAMES[c], inp.left_corridor.get((case, c))) for c in NAMES]
+    counts = [(CONTROLLER_NAMES[c], inp.left_corridor.get((case, c))) for c in CONTROLLER_NAMES]
     known = [(name, kn) for name, kn in counts if kn is not None]
     if not known:
         return []
@@ -229,7 +231,7 @@ def _case_title(inp: ReportInputs, case: Case) -> str:
 def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
     """Facts about R_min and rho0 in execution, per controller over the equal-terms cases."""
     lines = []
-    for ctrl in NAMES:
+    for ctrl in CONTROLLER_NAMES:
         judged = [cell for c in EQUAL_TERMS if (cell := cells.get((c, ctrl))) is not None]
         breaches = sum(cell.outcomes.get("rho0_breach", 0) for cell in judged)
         contacts = sum(cell.outcomes.get("collision", 0) for cell in judged)
@@ -251,8 +253,8 @@ def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
             default=float("nan"),
         )
         lines.append(
-            f"- {NAMES[ctrl]}: {breaches} rho0 breaches and {contacts} collisions in {runs} "
-            f"runs; highest mean executed curvature after the start {curv:.3g} 1/m "
+            f"- {CONTROLLER_NAMES[ctrl]}: {breaches} rho0 breaches and {contacts} collisions in "
+            f"{runs} runs; highest mean executed curvature after the start {curv:.3g} 1/m "
             f"(1/R_min = {1 / inp.r_min_m:.3g} 1/m), at most {above:.3g} s above it on "
             "average (from rest included)."
         )

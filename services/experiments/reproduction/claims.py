@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from services.experiments.stats import Estimate
-from services.experiments.summary import CellStats
+from services.experiments.sweep.labels import CONTROLLER_NAMES
+from services.experiments.sweep.stats import Estimate
+from services.experiments.sweep.summary import CellStats
 
-NAMES = {"nurbs": "NURBS method", "backstepping": "Backstepping", "fuzzy_pid": "immune fuzzy PID"}
 BASELINES = ("backstepping", "fuzzy_pid")
 
 
@@ -129,9 +129,10 @@ def claim(cells: Cells, case: str, c: Claim) -> str:
     """One bullet: the claim, the verdict against both baselines, and the numbers."""
     head, verdicts = judge(cells, case, c)
     nums = ", ".join(
-        f"{NAMES[k]} {fmt(estimate(cells, case, k, c.metric))}" for k in ("nurbs", *BASELINES)
+        f"{CONTROLLER_NAMES[k]} {fmt(estimate(cells, case, k, c.metric))}"
+        for k in ("nurbs", *BASELINES)
     )
-    detail = "; ".join(f"vs {NAMES[b]}: {v}" for b, v in verdicts.items())
+    detail = "; ".join(f"vs {CONTROLLER_NAMES[b]}: {v}" for b, v in verdicts.items())
     return f"- {c.text}: **{head}** in case `{case}`. `{c.metric}`: {nums} ({detail})."
 
 
@@ -176,9 +177,9 @@ def claims(cells: Cells, case: str) -> list[str]:
         c = cells.get((case, ctrl))
         if c is not None and c.success.n and c.success.mean < 1.0:
             out.append(
-                f"- Caution: {NAMES[ctrl]} succeeded (goal reached, no contact, never inside "
-                f"rho0) in only {100 * c.success.mean:.0f} % of the runs in case `{case}`, so "
-                "its travel time and errors include runs that failed the mission."
+                f"- Caution: {CONTROLLER_NAMES[ctrl]} succeeded (goal reached, no contact, never "
+                f"inside rho0) in only {100 * c.success.mean:.0f} % of the runs in case "
+                f"`{case}`, so its travel time and errors include runs that failed the mission."
             )
     return out
 
@@ -199,7 +200,7 @@ def _faster_baselines(cells: Cells, case: str) -> list[str]:
                 )
             )
             out.append(
-                f"  - {NAMES[b]} is faster than the NURBS method in case `{case}` "
+                f"  - {CONTROLLER_NAMES[b]} is faster than the NURBS method in case `{case}` "
                 f"({b} vs NURBS): {diffs}."
             )
     return out
@@ -222,7 +223,7 @@ def paper_table(cells: Cells, case: str) -> list[str]:
         on = "not stated" if p.on_path is None else str(p.on_path)
         back = "not stated" if p.returns is None else str(p.returns)
         lines.append(
-            f"| {NAMES[ctrl]} | {p.controls} | {ours('control_actions')} | {on} | "
+            f"| {CONTROLLER_NAMES[ctrl]} | {p.controls} | {ours('control_actions')} | {on} | "
             f"{ours('control_actions_on_path')} | {back} | {ours('path_reentries')} | "
             f"{p.time_min} min | {ours('travel_time_s')} s ({t / 60:.2f} min) |"
         )
@@ -236,5 +237,5 @@ def time_ratios(cells: Cells, case: str) -> str:
     for b in BASELINES:
         ours = mean(cells, case, b, "travel_time_s") / tn
         paper = PAPER[b].time_min / PAPER["nurbs"].time_min
-        parts.append(f"{NAMES[b]} / NURBS = {ours:.2f} (paper {paper:.2f})")
+        parts.append(f"{CONTROLLER_NAMES[b]} / NURBS = {ours:.2f} (paper {paper:.2f})")
     return "; ".join(parts)

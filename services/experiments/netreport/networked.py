@@ -2,10 +2,10 @@
 
 Four experiment files (configs/experiments/networked/{delay,loss,burst,outage}.toml), each a
 fault axis x command sequences on / off x the three controllers x seeds, run by the one sweep
-engine (sweep.run_sweep: resumable, DIR/<sweep>/results.csv), aggregated per cell, drawn
-(plots.plot_sweep: success, cross-track error, minimum clearance, time in HOLD or FAILSAFE
+engine (sweep.run.run_sweep: resumable, DIR/<sweep>/results.csv), aggregated per cell, drawn
+(sweep.plots.plot_sweep: success, cross-track error, minimum clearance, time in HOLD or FAILSAFE
 against the fault, a colour per controller, dashed without sequences) and written up with
-the cost of the sequences (sequence_cost.py) in REPORT_DIR/REPORT.md (netreport.py).
+the cost of the sequences (sequence_cost.py) in REPORT_DIR/REPORT.md (report.py).
 """
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.experiments.netreport import SweepCells, write_report
-from services.experiments.plots import plot_sweep
-from services.experiments.results import as_number
-from services.experiments.schema import Experiment, load_experiment
-from services.experiments.sequence_cost import HORIZONS_S, CostRow, cost_table
-from services.experiments.summary import aggregate
-from services.experiments.sweep import SweepOptions, run_sweep
+from services.experiments.netreport.report import SweepCells, write_report
+from services.experiments.netreport.sequence_cost import HORIZONS_S, CostRow, cost_table
+from services.experiments.sweep.plots import plot_sweep
+from services.experiments.sweep.results import as_number
+from services.experiments.sweep.run import SweepOptions, run_sweep
+from services.experiments.sweep.schema import Experiment, load_experiment
+from services.experiments.sweep.summary import aggregate
 
 SWEEPS = ("delay", "loss", "burst", "outage")
 EXPERIMENTS = Path("configs/experiments/networked")

@@ -12,8 +12,8 @@ import uuid
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 
-from services.experiments.grid import RunSpec
-from services.experiments.worker import RunOutcome, execute_run
+from services.experiments.sweep.grid import RunSpec
+from services.experiments.sweep.worker import RunOutcome, execute_run
 
 log = logging.getLogger("tidelink.sweep")
 

@@ -7,11 +7,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from services.experiments.claims import NAMES
-from services.experiments.schema import Axis, AxisValue
-from services.experiments.sequence_cost import CostRow
-from services.experiments.stats import Estimate
-from services.experiments.summary import FAILURES, CellStats
+from services.experiments.netreport.sequence_cost import CostRow
+from services.experiments.sweep.labels import CONTROLLER_NAMES
+from services.experiments.sweep.schema import Axis, AxisValue
+from services.experiments.sweep.stats import Estimate
+from services.experiments.sweep.summary import FAILURES, CellStats
 
 GOAL = 0.95  # the issue's success target
 CONTROLLERS = ("nurbs", "backstepping", "fuzzy_pid")
@@ -159,7 +159,9 @@ def _sweep_section(sw: SweepCells) -> list[str]:
         "|---|---|---|",
     ]
     for ctrl in CONTROLLERS:
-        lines.append(f"| {NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | {cliff(sw, ctrl, 'off')} |")
+        lines.append(
+            f"| {CONTROLLER_NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | {cliff(sw, ctrl, 'off')} |"
+        )
     lines += ["", *(f"![{f}]({f})" for f in sw.figures), ""]
     lines += [
         "Per cell, sequences on / off: success (goal, no contact, never inside rho0); the "
@@ -175,7 +177,7 @@ def _sweep_section(sw: SweepCells) -> list[str]:
         for ctrl in CONTROLLERS:
             on, off = sw.cell(v.label, "on", ctrl), sw.cell(v.label, "off", ctrl)
             lines.append(
-                f"| {v.label} | {NAMES[ctrl]} | {_pair(on, off, _rate)} | "
+                f"| {v.label} | {CONTROLLER_NAMES[ctrl]} | {_pair(on, off, _rate)} | "
                 + " | ".join(_pair(on, off, _count(o)) for o in FAILURES)
                 + f" | {_pair(on, off, lambda c: _m(c, 'min_clearance_m'))} | "
                 f"{_pair(on, off, lambda c: _m(c, 'xte_planned_rms_m'))} | "
@@ -193,8 +195,8 @@ def _cost_section(cost: list[CostRow]) -> list[str]:
         "rest of the rollout over the horizon, `controller.sequence.fresh_s`), timed on this "
         "machine's CPU clock along the default mission's first plan, and the command's size "
         "on the wire (envelope included); ratios to single commands measured in the same run "
-        "(`scripts/bench_sequence.py`, `services/experiments/sequence_cost.py`). The control "
-        "period is 100 ms.",
+        "(`scripts/bench_sequence.py`, `services/experiments/netreport/sequence_cost.py`). The "
+        "control period is 100 ms.",
         "",
         "| controller | horizon (s) | entries | bytes | × | step p50 (ms) | p95 (ms) | × "
         "| then preparing p50 (ms) |",
@@ -202,7 +204,7 @@ def _cost_section(cost: list[CostRow]) -> list[str]:
     ]
     for r in cost:
         lines.append(
-            f"| {NAMES[r.controller]} | {r.horizon_s:g} | {r.entries} | {r.bytes:.0f} | "
+            f"| {CONTROLLER_NAMES[r.controller]} | {r.horizon_s:g} | {r.entries} | {r.bytes:.0f} | "
             f"{r.bytes_ratio:.1f} | {r.step_p50_ms:.2f} | {r.step_p95_ms:.2f} | "
             f"{r.time_ratio:.0f} | {r.prepare_p50_ms:.2f} |"
         )
@@ -270,7 +272,7 @@ def write_report(
     for sw in sweeps:
         for ctrl in CONTROLLERS:
             lines.append(
-                f"| {sw.name} | {NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | "
+                f"| {sw.name} | {CONTROLLER_NAMES[ctrl]} | {cliff(sw, ctrl, 'on')} | "
                 f"{cliff(sw, ctrl, 'off')} | {pooled(sw, ctrl, 'on')} / "
                 f"{pooled(sw, ctrl, 'off')} |"
             )

@@ -7,9 +7,9 @@ from pathlib import Path
 
 from matplotlib.figure import Figure  # no pyplot: no global state, PNG through Agg
 
-from services.experiments.schema import Axis
-from services.experiments.stats import Estimate
-from services.experiments.summary import CellStats
+from services.experiments.sweep.schema import Axis
+from services.experiments.sweep.stats import Estimate
+from services.experiments.sweep.summary import CellStats
 
 # what is worth a figure (the others are in summary.csv)
 PLOT_METRICS = {

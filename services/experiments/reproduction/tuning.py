@@ -27,8 +27,8 @@ from typing import Any
 
 from common.config.controller import ControllerKind
 from common.config.scenario import Scenario
-from services.experiments.results import as_number
-from services.experiments.schema import Axis, AxisValue, Experiment, SetValue
+from services.experiments.sweep.results import as_number
+from services.experiments.sweep.schema import Axis, AxisValue, Experiment, SetValue
 
 # the two gains of each controller that set how hard it steers back onto the path
 TUNED_GAINS: dict[str, tuple[str, str]] = {
