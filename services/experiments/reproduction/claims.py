@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from services.experiments.sweep.labels import CONTROLLER_NAMES
+from services.experiments.sweep.markdown import table
 from services.experiments.sweep.stats import Estimate
 from services.experiments.sweep.summary import CellStats
 
@@ -138,13 +139,8 @@ def claim(cells: Cells, case: str, c: Claim) -> str:
 
 def verdict_table(cells: Cells, cases: list[str]) -> list[str]:
     """Claims x equal-terms cases: which of the paper's claims hold where."""
-    lines = ["| claim | " + " | ".join(f"`{c}`" for c in cases) + " |"]
-    lines.append("|---|" + "---|" * len(cases))
-    for c in CLAIMS:
-        lines.append(
-            f"| {c.key} | " + " | ".join(judge(cells, case, c)[0] for case in cases) + " |"
-        )
-    return lines
+    rows = [[c.key, *(judge(cells, case, c)[0] for case in cases)] for c in CLAIMS]
+    return table(["claim", *(f"`{c}`" for c in cases)], rows)
 
 
 def verdict_summary(cells: Cells, cases: list[str]) -> list[str]:
@@ -206,13 +202,22 @@ def _faster_baselines(cells: Cells, case: str) -> list[str]:
     return out
 
 
+PAPER_HEAD = (
+    "controller",
+    "control actions: paper",
+    "ours",
+    "on optimal path: paper",
+    "ours",
+    "returns to the path: paper",
+    "ours",
+    "travel time: paper",
+    "ours",
+)
+
+
 def paper_table(cells: Cells, case: str) -> list[str]:
     """Our numbers beside the paper's (control actions, on path, returns, travel time)."""
-    lines = [
-        "| controller | control actions: paper | ours | on optimal path: paper | ours | "
-        "returns to the path: paper | ours | travel time: paper | ours |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for ctrl in ("backstepping", "fuzzy_pid", "nurbs"):
         p = PAPER[ctrl]
 
@@ -220,14 +225,20 @@ def paper_table(cells: Cells, case: str) -> list[str]:
             return fmt(estimate(cells, case, ctrl, metric))
 
         t = mean(cells, case, ctrl, "travel_time_s")
-        on = "not stated" if p.on_path is None else str(p.on_path)
-        back = "not stated" if p.returns is None else str(p.returns)
-        lines.append(
-            f"| {CONTROLLER_NAMES[ctrl]} | {p.controls} | {ours('control_actions')} | {on} | "
-            f"{ours('control_actions_on_path')} | {back} | {ours('path_reentries')} | "
-            f"{p.time_min} min | {ours('travel_time_s')} s ({t / 60:.2f} min) |"
+        rows.append(
+            [
+                CONTROLLER_NAMES[ctrl],
+                str(p.controls),
+                ours("control_actions"),
+                "not stated" if p.on_path is None else str(p.on_path),
+                ours("control_actions_on_path"),
+                "not stated" if p.returns is None else str(p.returns),
+                ours("path_reentries"),
+                f"{p.time_min} min",
+                f"{ours('travel_time_s')} s ({t / 60:.2f} min)",
+            ]
         )
-    return lines
+    return table(PAPER_HEAD, rows)
 
 
 def time_ratios(cells: Cells, case: str) -> str:

@@ -1,10 +1,14 @@
-"""REPORT.md of `tidelink reproduce`: terms, gains, results per case, verdicts, figures."""
+"""REPORT.md of `tidelink reproduce`: terms, gains, verdicts, results per case, figures.
+
+Each section is a small builder over ReportInputs; write_report composes them (the fixed
+wording is in wording.py, the Markdown blocks in the sweep engine's markdown.py)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.experiments.reproduction import wording
 from services.experiments.reproduction.cases import Case
 from services.experiments.reproduction.claims import (
     Cells,
@@ -16,8 +20,9 @@ from services.experiments.reproduction.claims import (
     verdict_summary,
     verdict_table,
 )
-from services.experiments.reproduction.tuning import TUNED_GAINS, Box, Tuning
+from services.experiments.reproduction.tuning import TUNED_GAINS, Tuning
 from services.experiments.sweep.labels import CONTROLLER_NAMES
+from services.experiments.sweep.markdown import Block, document, section, table
 from services.experiments.sweep.summary import CellStats, success_text
 from services.mission.outcome import OUTCOMES
 
@@ -37,6 +42,20 @@ TABLE = (
     ("replans", "replans"),
 )
 EQUAL_TERMS = ("perfect", "perfect-uncompensated", "lossy", "lossy-uncompensated")
+GAINS_HEAD = (
+    "controller",
+    "gains searched",
+    "rounds",
+    "final grid (factors a; b)",
+    "candidates run",
+    "chosen",
+    "interior?",
+    "success",
+    "XTE to path in force, RMS (m)",
+)
+CROSSING_TITLE = (
+    "`crossing`: moving obstacles across the planned path (compensation on, replanning on)"
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -77,295 +96,202 @@ def _outcome_text(c: CellStats | None) -> str:
     return " / ".join(str(c.outcomes.get(o, 0)) for o in OUTCOMES)
 
 
-def _results_table(inp: ReportInputs, cells: Cells, case: str) -> list[str]:
-    head = [
-        "controller",
-        "success",
-        "success / rho0 breach / collision / not reached",
-        *(t for _, t in TABLE),
-    ]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for ctrl in CONTROLLER_NAMES:
-        c = cells.get((case, ctrl))
-        vals = [
-            CONTROLLER_NAMES[ctrl],
-            success_text(c.success) if c else "–",
+def _results_table(cells: Cells, case: str) -> list[str]:
+    """Per controller: success, the runs by outcome and the mean [95 %] of every TABLE metric."""
+    head = ["controller", "success", "success / rho0 breach / collision / not reached"]
+    rows = [
+        [
+            name,
+            success_text(c.success) if (c := cells.get((case, ctrl))) else "–",
             _outcome_text(c),
+            *(fmt(estimate(cells, case, ctrl, m)) for m, _ in TABLE),
         ]
-        vals += [fmt(estimate(cells, case, ctrl, m)) for m, _ in TABLE]
-        lines.append("| " + " | ".join(vals) + " |")
-    return lines
+        for ctrl, name in CONTROLLER_NAMES.items()
+    ]
+    return table([*head, *(t for _, t in TABLE)], rows)
 
 
 def _factor(i: int, step: float) -> str:
     return f"{step**i:g}"
 
 
-def _gains_section(inp: ReportInputs) -> list[str]:
-    t = inp.tuning
-    if t is None:
-        return [
-            "The scenario's gains for all three controllers (no search was run: "
-            "`--no-tune`; by default `tidelink reproduce` runs the same search for each)."
-        ]
-    step = inp.tune_step
-    lines = [
-        "Chosen by the same search for every controller "
-        "(services/experiments/reproduction/tuning.py): its "
-        f"two principal path-following gains, each scaled by powers of {step:g} around the "
-        f"scenario's values, on a perfect network, tuning seeds {inp.tune_seeds} (disjoint "
-        "from the evaluation seeds), with the comparison's pipeline and speed profile. Rule: "
-        "highest success rate (goal, no contact, never inside rho0), then lowest RMS "
-        "cross-track error to the path in force (the controller's own tracking error), then "
-        "shortest travel time. Each grid starts at factors "
-        f"{_factor(-1, step)}..{_factor(1, step)} and grows in any direction where the "
-        "choice lies on its edge, up to "
-        f"{_factor(-inp.tune_limit, step)}..{_factor(inp.tune_limit, step)}; a point the "
-        "configuration refuses (e.g. a gain below its validated minimum) counts as no run.",
-        "",
-        "| controller | gains searched | rounds | final grid (factors a; b) | candidates run | "
-        "chosen | interior? | success | XTE to path in force, RMS (m) |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
+def _span(lo: int, hi: int, step: float) -> str:
+    """The factors step**lo .. step**hi, e.g. '0.5..2'."""
+    return f"{_factor(lo, step)}..{_factor(hi, step)}"
+
+
+def _gains(inp: ReportInputs, t: Tuning) -> list[str]:
+    """The search's result per controller: its final grid, its choice, how that choice did."""
+    step, rows = inp.tune_step, []
     for ctrl, best in t.best.items():
-        box: Box = t.boxes[ctrl]
-        n = sum(1 for c in t.candidates if c.controller == ctrl and c.runs)
+        box = t.boxes[ctrl]
         gains = ", ".join(f"`{k.rsplit('.', 1)[-1]}` = {v:.4g}" for k, v in best.gains.items())
-        searched = ", ".join(k.rsplit(".", 1)[-1] for k in TUNED_GAINS[ctrl])
-        grid = (
-            f"{_factor(box.a_lo, step)}..{_factor(box.a_hi, step)}; "
-            f"{_factor(box.b_lo, step)}..{_factor(box.b_hi, step)}"
-        )
         edges = box.edges(best)
-        interior = "yes" if not edges else f"no: {', '.join(edges)} at the search limit"
-        lines.append(
-            f"| {CONTROLLER_NAMES[ctrl]} | {searched} | {t.rounds[ctrl]} | {grid} | {n} | "
-            f"{best.label}: "
-            f"{gains} | {interior} | {100 * best.success_rate:.0f} % | {best.xte_rms_m:.3f} |"
+        rows.append(
+            [
+                CONTROLLER_NAMES[ctrl],
+                ", ".join(k.rsplit(".", 1)[-1] for k in TUNED_GAINS[ctrl]),
+                str(t.rounds[ctrl]),
+                f"{_span(box.a_lo, box.a_hi, step)}; {_span(box.b_lo, box.b_hi, step)}",
+                str(sum(1 for c in t.candidates if c.controller == ctrl and c.runs)),
+                f"{best.label}: {gains}",
+                "yes" if not edges else f"no: {', '.join(edges)} at the search limit",
+                f"{100 * best.success_rate:.0f} %",
+                f"{best.xte_rms_m:.3f}",
+            ]
         )
-    return lines
+    return table(GAINS_HEAD, rows)
 
 
-def _terms(inp: ReportInputs) -> list[str]:
-    """What is compared, plainly, and the rules every controller shares."""
-    return [
-        "## What is compared, and on which terms",
-        "",
-        "- **The paper's contribution is the planner**: potential-field costs (eq. 6), a "
-        "shortest path on the weighted graph, smoothing, and a NURBS path within the minimum "
-        "turning radius (eqs. 9, 19-20). All three controllers here follow that same planned "
-        'path. What the paper calls the "NURBS method" on the control side is, in tidelink, '
-        "a path-following law of our own design (curvature feed-forward with line-of-sight "
-        "feedback, services/control/controllers/nurbs_tracker.py): the paper does not publish "
-        "its tracking law. The baselines are the published laws (Kanayama backstepping; an "
-        "immune fuzzy PID). A verdict below therefore compares tracking laws behind one "
-        "planner, not planners.",
-        "- **Same delay compensation**: every case runs either with the pose predicted "
-        "forward by the estimate's age and the expected downlink delay for all three "
-        "controllers (`controller.delay_compensation = true`), or for none (the "
-        "`-uncompensated` cases).",
-        "- **Same speed profile** (services/control/controllers/speed.py): one cruise cap, one "
-        "acceleration ramp and one slow-down rule (curvature preview and the end of the path) "
-        "for all three; Backstepping's k_x e_x term may slow it below the profile, never push "
-        "it past the cruise cap. Travel-time differences come from steering.",
-        f"- **Same plant**: the vehicle cannot turn tighter than R_min = {inp.r_min_m:g} m "
-        "(|w| <= |v| / R_min, the bound of eq. 11 made physical), whatever the controller "
-        "asks; each controller also caps its own yaw-rate command by the speed the vehicle has.",
-        "- **Same gains search** (below), and the same planned path in every seed (the first "
-        "plan is made once the first obstacle tracks are in).",
-        "- **The paper's pipeline**: eq. (2) mean filter and eq. (3) lag are on in every case "
-        "but the ablation `lossy-no-prefilter`.",
-        f"- **Safety**: a run succeeds when it reaches the goal without contact and never "
-        f"comes inside the safety distance rho0 = {inp.rho0_m:g} m (surface to surface, eq. 6); "
-        "a run inside rho0 without contact is a *rho0 breach*, counted apart from a "
-        "collision.",
-        "- **Control actions** are velocity commands at the planner's fixed rate (10 Hz), so "
-        'their count is 10 x the travel time in seconds: "more control actions" (the paper\'s '
-        'conclusion (i)) and "faster" are one measurement, not two claims. It is reported, '
-        "not graded.",
-        "",
-    ]
+def _gains_section(inp: ReportInputs) -> list[str]:
+    if inp.tuning is None:
+        return section("Gains", wording.NO_SEARCH)
+    step = inp.tune_step
+    search = wording.SEARCH.substitute(
+        step=f"{step:g}",
+        seeds=inp.tune_seeds,
+        first=_span(-1, 1, step),
+        limit=_span(-inp.tune_limit, inp.tune_limit, step),
+    )
+    return section("Gains", search, _gains(inp, inp.tuning))
 
 
-def _planning_text(inp: ReportInputs) -> str:
-    if inp.replan:
-        return (
-            "Planning: the planner replans as in a normal mission (deviation, moving "
-            "obstacles); the optimal path is its first plan, identical for the three "
-            "controllers, but later plans may differ between them."
-        )
-    return (
-        "Planning: the first plan is kept for the whole run (`planner.min_replan_interval_s"
-        " = 1e9`), so the three controllers follow one and the same planned path, as in "
-        "the paper; `--replan` lets the planner replan as in a normal mission. The "
-        "crossing scenario always replans: that is what it exercises."
+def _terms_section(inp: ReportInputs) -> list[str]:
+    """What is compared, plainly, the rules every controller shares, and how to read it."""
+    terms = [t.substitute(r_min=f"{inp.r_min_m:g}", rho0=f"{inp.rho0_m:g}") for t in wording.TERMS]
+    return section(
+        "What is compared, and on which terms",
+        terms,
+        wording.READING.substitute(on_path_tol=inp.on_path_tol_m),
+        wording.REPLANNING if inp.replan else wording.ONE_PLAN,
     )
 
 
-def _corridor_note(inp: ReportInputs, case: str) -> list[str]:
+def _corridor_note(inp: ReportInputs, case: str) -> str:
     """How many runs went round an obstacle on the other side of the optimal path."""
-    counts = [(CONTROLLER_NAMES[c], inp.left_corridor.get((case, c))) for c in CONTROLLER_NAMES]
+    counts = [(name, inp.left_corridor.get((case, c))) for c, name in CONTROLLER_NAMES.items()]
     known = [(name, kn) for name, kn in counts if kn is not None]
     if not known:
-        return []
+        return ""
     text = ", ".join(f"{name} {k}/{n}" for name, (k, n) in known)
-    head = (
-        f"Runs that left the optimal path's corridor (max XTE to it > {inp.corridor_m:g} m, "
-        "the planner's corridor half-width"
-    )
-    if not any(k for _, (k, _) in known):
-        return [f"{head}): none ({text}).", ""]
-    return [
-        f"{head}): {text}. Such runs dominate the XTE-to-optimal-path means and "
-        "their wide intervals.",
-        "",
-    ]
+    left = any(k for _, (k, _) in known)
+    what = f"{text}. {wording.CORRIDOR_LEFT}" if left else f"none ({text})."
+    return wording.CORRIDOR.substitute(corridor=f"{inp.corridor_m:g}", what=what)
 
 
-def _case_title(inp: ReportInputs, case: Case) -> str:
+def _case_section(inp: ReportInputs, cells: Cells, case: Case) -> list[str]:
+    """One case's results table, whether the first plans agreed, who left the corridor."""
     comp = "compensation on for all" if case.compensation else "compensation off for all"
     pre = "" if case.prefilter else ", eqs. (2)-(3) off"
-    return f"### `{case.label}`: {case.network} network, {comp}{pre}"
+    same = inp.same_first_plan.get(case.label)
+    same_text = "unknown" if same is None else ("yes" if same else "no")
+    return section(
+        f"`{case.label}`: {case.network} network, {comp}{pre}",
+        _results_table(cells, case.label),
+        f"Same first (optimal) plan for the three controllers in every seed: {same_text}.",
+        _corridor_note(inp, case.label),
+        level=3,
+    )
+
+
+def _results_section(inp: ReportInputs, cells: Cells) -> list[str]:
+    crossing: Block = []
+    if inp.crossing:
+        crossing = section(CROSSING_TITLE, _results_table(cells, "crossing"), level=3)
+    return section("Results", *(_case_section(inp, cells, case) for case in inp.cases), crossing)
+
+
+def _worst(cells: Cells, ctrl: str, metric: str) -> float:
+    """The highest mean of a metric over the equal-terms cases (nan without data)."""
+    means = (e.mean for c in EQUAL_TERMS if (e := estimate(cells, c, ctrl, metric)))
+    return max(means, default=float("nan"))
 
 
 def _constraints(inp: ReportInputs, cells: Cells) -> list[str]:
     """Facts about R_min and rho0 in execution, per controller over the equal-terms cases."""
     lines = []
-    for ctrl in CONTROLLER_NAMES:
+    for ctrl, name in CONTROLLER_NAMES.items():
         judged = [cell for c in EQUAL_TERMS if (cell := cells.get((c, ctrl))) is not None]
-        breaches = sum(cell.outcomes.get("rho0_breach", 0) for cell in judged)
-        contacts = sum(cell.outcomes.get("collision", 0) for cell in judged)
-        runs = sum(cell.n_judged for cell in judged)
-        above = max(
-            (
-                e.mean
-                for c in EQUAL_TERMS
-                if (e := estimate(cells, c, ctrl, "time_above_curvature_limit_s"))
-            ),
-            default=float("nan"),
-        )
-        curv = max(
-            (
-                e.mean
-                for c in EQUAL_TERMS
-                if (e := estimate(cells, c, ctrl, "max_executed_curvature_after_start"))
-            ),
-            default=float("nan"),
-        )
+        curvature = _worst(cells, ctrl, "max_executed_curvature_after_start")
         lines.append(
-            f"- {CONTROLLER_NAMES[ctrl]}: {breaches} rho0 breaches and {contacts} collisions in "
-            f"{runs} runs; highest mean executed curvature after the start {curv:.3g} 1/m "
-            f"(1/R_min = {1 / inp.r_min_m:.3g} 1/m), at most {above:.3g} s above it on "
-            "average (from rest included)."
+            wording.CONSTRAINT.substitute(
+                name=name,
+                breaches=sum(cell.outcomes.get("rho0_breach", 0) for cell in judged),
+                contacts=sum(cell.outcomes.get("collision", 0) for cell in judged),
+                runs=sum(cell.n_judged for cell in judged),
+                curvature=f"{curvature:.3g}",
+                limit=f"{1 / inp.r_min_m:.3g}",
+                above=f"{_worst(cells, ctrl, 'time_above_curvature_limit_s'):.3g}",
+            )
         )
     return lines
 
 
-def write_report(path: Path, inp: ReportInputs) -> None:
-    cells = _by_cell(inp)
+def _verdicts_section(inp: ReportInputs, cells: Cells) -> list[str]:
+    """Which claims hold in which equal-terms case, in plain words, and the hard limits."""
     judged = [c for c in EQUAL_TERMS if any(k[0] == c for k in cells)]
-    nets_text = "; ".join(f"**{k}**: {v}" for k, v in inp.networks.items())
-    crossing = f", and `{inp.crossing}` (moving obstacles across the path)" if inp.crossing else ""
-    lines = [
-        "# Reproducing She & Tian, section 4, on equal terms",
-        "",
-        f"Scenario `{inp.scenario}` ({inp.area} area with an obstacle field){crossing}, the "
-        f"three controllers behind the same planner, seeds {inp.seeds}, runtime "
-        f"`{inp.runtime}`. Networks: {nets_text}.",
-        "",
-    ]
-    if inp.command:
-        lines += [f"Regenerate with `{inp.command}`.", ""]
-    if inp.errors:
-        lines += [f"**{inp.errors} runs failed to execute** (see the sweeps' summary.md).", ""]
-    lines += _terms(inp)
-    lines += [
-        "A control action is *on the optimal path* when the true vehicle is within "
-        f"{inp.on_path_tol_m} m of the first planned path as it is issued; a *return to the "
-        "path* is a re-entry into that band after leaving it (services/mission/metrics.py). "
-        "Values are the mean [95 % interval] over the seeds, the bootstrap percentile "
-        "interval of the mean (within the values' range); success is a Wilson 95 % "
-        "interval; travel time only over runs that reached the goal.",
-        "",
-        _planning_text(inp),
-        "",
-        "## Gains",
-        "",
-        *_gains_section(inp),
-        "",
-        "## Which of the paper's claims hold on equal terms",
-        "",
-        "Verdicts of the NURBS method against both baselines (holds: on the claimed side of "
-        "both with 95 % intervals apart; in the means: on the claimed side, intervals "
-        "overlap; in part: against one baseline only):",
-        "",
-        *verdict_table(cells, judged),
-        "",
+    return section(
+        "Which of the paper's claims hold on equal terms",
+        wording.VERDICTS,
+        verdict_table(cells, judged),
         "In plain words:",
-        "",
-        *verdict_summary(cells, judged),
-        "",
+        verdict_summary(cells, judged),
         "Hard constraints in execution (all equal-terms cases):",
-        "",
-        *_constraints(inp, cells),
-        "",
-        "## Results",
-        "",
-    ]
-    for case in inp.cases:
-        same = inp.same_first_plan.get(case.label)
-        same_text = "unknown" if same is None else ("yes" if same else "no")
-        lines += [
-            _case_title(inp, case),
-            "",
-            *_results_table(inp, cells, case.label),
-            "",
-            f"Same first (optimal) plan for the three controllers in every seed: {same_text}.",
-            "",
-            *_corridor_note(inp, case.label),
-        ]
-    if inp.crossing:
-        lines += [
-            "### `crossing`: moving obstacles across the planned path (compensation on, "
-            "replanning on)",
-            "",
-            *_results_table(inp, cells, "crossing"),
-            "",
-        ]
-    lines += [
-        "## The paper's claims, case by case",
-        "",
-    ]
-    for case in inp.cases:
-        if case.label in EQUAL_TERMS:
-            lines += claims(cells, case.label)
-    lines += [
-        "",
-        "## Beside the paper",
-        "",
+        _constraints(inp, cells),
+    )
+
+
+def _opening(inp: ReportInputs) -> list[str]:
+    """The title, what ran where, how to regenerate it, and how many runs failed."""
+    nets = "; ".join(f"**{k}**: {v}" for k, v in inp.networks.items())
+    crossing = f", and `{inp.crossing}` (moving obstacles across the path)" if inp.crossing else ""
+    scene = wording.SCENE.substitute(
+        scenario=inp.scenario,
+        area=inp.area,
+        crossing=crossing,
+        seeds=inp.seeds,
+        runtime=inp.runtime,
+        networks=nets,
+    )
+    return section(
+        wording.TITLE,
+        scene,
+        f"Regenerate with `{inp.command}`." if inp.command else "",
+        f"**{inp.errors} runs failed to execute** (see the sweeps' summary.md)."
+        if inp.errors
+        else "",
+        level=1,
+    )
+
+
+def _figures_section(inp: ReportInputs) -> list[str]:
+    return section(
+        "Figures",
+        *(
+            section(f"`{label}`, seed {inp.seeds[0]}", [f"![{f}]({f})" for f in figs], level=3)
+            for label, figs in inp.figures.items()
+        ),
+    )
+
+
+def write_report(path: Path, inp: ReportInputs) -> None:
+    """REPORT.md: the terms, the gains, the verdicts, each case's results, the figures."""
+    cells = _by_cell(inp)
+    by_case = [line for c in inp.cases if c.label in EQUAL_TERMS for line in claims(cells, c.label)]
+    beside = (
         "Ours in case `perfect` (the paper's simulation has no network in the loop):",
-        "",
-        *paper_table(cells, "perfect"),
-        "",
+        paper_table(cells, "perfect"),
         f"Travel-time ratios: {time_ratios(cells, 'perfect')}.",
-        "",
-        "## Figures",
-        "",
-    ]
-    for label, figs in inp.figures.items():
-        lines += [f"### `{label}`, seed {inp.seeds[0]}", ""]
-        lines += [f"![{f}]({f})" for f in figs]
-        lines.append("")
-    lines += [
-        "## What cannot be compared",
-        "",
-        '- The paper counts "control points" of a MATLAB simulation whose control rate is '
-        "not stated; our planner commands at 10 Hz, so our counts are about 10 x the travel "
-        "time in seconds.",
-        "- The paper's travel times (4.98 to 32.5 min for about 100 m) imply mean speeds of "
-        "0.05 to 0.33 m/s; our vehicle cruises at the scenario's cruise speed, so absolute "
-        "times differ by design: the ratios between controllers are the comparable quantity.",
-        "- The paper gives no gains for its baselines; ours are stated above.",
-        "",
-    ]
-    path.write_text("\n".join(lines) + "\n")
+    )
+    text = document(
+        _opening(inp),
+        _terms_section(inp),
+        _gains_section(inp),
+        _verdicts_section(inp, cells),
+        _results_section(inp, cells),
+        section("The paper's claims, case by case", by_case),
+        section("Beside the paper", *beside),
+        _figures_section(inp),
+        section("What cannot be compared", wording.CANNOT_COMPARE),
+    )
+    path.write_text(text)
