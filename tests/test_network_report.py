@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from services.cli.sweep_commands import _regenerate_command
+from services.experiments.netreport.goals import SweepCells, cliff
 from services.experiments.netreport.networked import NetworkOptions, in_world, network_report
-from services.experiments.netreport.report import SweepCells, cliff, write_report
+from services.experiments.netreport.report import write_report
 from services.experiments.sweep.schema import Axis, AxisValue, load_experiment
 from services.experiments.sweep.stats import wilson
 from services.experiments.sweep.summary import CellStats

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from services.experiments.netreport.report import SweepCells
+from services.experiments.netreport.goals import SweepCells
 from services.experiments.netreport.report import write_report as write_network_report
 from services.experiments.netreport.sequence_cost import CostRow
 from services.experiments.reproduction.cases import CASES

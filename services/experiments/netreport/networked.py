@@ -14,7 +14,8 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from services.experiments.netreport.report import SweepCells, write_report
+from services.experiments.netreport.goals import SweepCells
+from services.experiments.netreport.report import write_report
 from services.experiments.netreport.sequence_cost import HORIZONS_S, CostRow, cost_table
 from services.experiments.sweep.plots import plot_sweep
 from services.experiments.sweep.results import as_number
