@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from services.experiments.sweep.markdown import blocks, document, section, table
 from services.experiments.sweep.results import LEAD, TAIL_FACTS, as_number
 from services.experiments.sweep.stats import (
     FEW_SEEDS,
@@ -162,87 +163,89 @@ def outcome_text(c: CellStats, outcome: str) -> str:
     return f"{c.outcomes.get(outcome, 0)}/{c.n_judged}" if c.n_judged else "–"
 
 
-def _few_seeds_warning(cells: list[CellStats], grid: tuple[str, ...]) -> list[str]:
-    """summary.md's warning (markdown lines) about cells of fewer than FEW_SEEDS runs."""
+def _few_seeds_warning(cells: list[CellStats], grid: tuple[str, ...]) -> str:
+    """summary.md's warning about cells of fewer than FEW_SEEDS runs ("" if none)."""
     few = few_seeds(cells)
     if not few:
-        return []
+        return ""
     names = [", ".join(f"{g}={c.labels[g]}" for g in grid) or "all runs" for c in few]
     counts = sorted({c.n_runs - c.n_errors for c in few})
     shown = "; ".join(names[:6]) + (f"; and {len(names) - 6} more" if len(names) > 6 else "")
-    return [
+    return (
         f"> **Warning: {len(few)} of {len(cells)} cells rest on fewer than {FEW_SEEDS} runs** "
         f"({' or '.join(map(str, counts))}; marked ⚠): {shown}. Their intervals are rough: "
         "from so few seeds a bootstrap interval misses the true mean more often than 5 % of "
         "the time, and a rate of 0 % or 100 % says little. Run more seeds (the experiment "
-        "file's `seeds`) before reading differences between them.",
-        "",
-    ]
+        "file's `seeds`) before reading differences between them."
+    )
 
 
-def write_summary(
-    out: Path,
-    title: str,
-    intro: str,
-    cells: list[CellStats],
-    grid: tuple[str, ...],
-    errors: list[dict[str, str]],
-) -> None:
-    """summary.md (key metrics per cell, errors, every metric per cell) and summary.csv."""
+READING = (
+    "Success = reached the goal without contact and never inside the safety distance "
+    "rho0 (Wilson 95 % interval). The failures are counted by outcome (of the runs "
+    "judged): rho0_breach = goal reached without contact but inside rho0, collision = "
+    "any contact, not_reached = no contact, goal not reached. Other columns: mean "
+    "[95 % interval] over the seeds, the bootstrap percentile interval of the mean "
+    "(within the values' range: never below 0 for a quantity that cannot be; Wilson's "
+    "for a True/False column); travel_time_s only over runs that reached the goal."
+)
+
+
+def _cell_name(labels: dict[str, str], grid: tuple[str, ...]) -> str:
+    return ", ".join(f"{g}={labels.get(g, '')}" for g in grid)
+
+
+def _key_metrics(cells: list[CellStats], grid: tuple[str, ...]) -> list[str]:
+    """One row per cell: runs (⚠ when few), errors, success, failures, the key metrics."""
     keys = [m for m in KEY_METRICS if any(m in c.metrics for c in cells)]
-    lines = [
-        f"# {title}",
-        "",
-        intro,
-        "",
-        "Success = reached the goal without contact and never inside the safety distance "
-        "rho0 (Wilson 95 % interval). The failures are counted by outcome (of the runs "
-        "judged): rho0_breach = goal reached without contact but inside rho0, collision = "
-        "any contact, not_reached = no contact, goal not reached. Other columns: mean "
-        "[95 % interval] over the seeds, the bootstrap percentile interval of the mean "
-        "(within the values' range: never below 0 for a quantity that cannot be; Wilson's "
-        "for a True/False column); travel_time_s only over runs that reached the goal.",
-        "",
-        *_few_seeds_warning(cells, grid),
-        "## Key metrics",
-        "",
-    ]
-    head = [*grid, "runs", "errors", "success", *FAILURES, *keys]
-    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     rough = {id(c) for c in few_seeds(cells)}
-    for c in cells:
-        few = " ⚠" if id(c) in rough else ""
-        vals = [c.labels[g] for g in grid] + [
-            f"{c.n_runs}{few}",
+    rows = [
+        [
+            *(c.labels[g] for g in grid),
+            f"{c.n_runs}{' ⚠' if id(c) in rough else ''}",
             str(c.n_errors),
             success_text(c.success),
+            *(outcome_text(c, o) for o in FAILURES),
+            *(c.metrics[m].text() if m in c.metrics else "–" for m in keys),
         ]
-        vals += [outcome_text(c, o) for o in FAILURES]
-        vals += [c.metrics[m].text() if m in c.metrics else "–" for m in keys]
-        lines.append("| " + " | ".join(vals) + " |")
-    if errors:
-        lines += ["", "## Failed runs", "", "| run_id | cell | seed | error |", "|---|---|---|---|"]
-        for r in errors:
-            cell = ", ".join(f"{g}={r.get(g, '')}" for g in grid)
-            lines.append(
-                f"| {r['run_id']} | {cell} | {r.get('seed', '')} | "
-                f"{r.get('error', '').replace('|', '/')[:200]} |"
-            )
-    lines += ["", "## Every metric", ""]
-    for c in cells:
-        name = ", ".join(f"{g}={c.labels[g]}" for g in grid) or "all runs"
-        lines += [
-            f"<details><summary>{name}</summary>",
-            "",
-            "| metric | mean | 95 % CI | n |",
-            "|---|---|---|---|",
+        for c in cells
+    ]
+    return table([*grid, "runs", "errors", "success", *FAILURES, *keys], rows)
+
+
+def _failed_runs(errors: list[dict[str, str]], grid: tuple[str, ...]) -> list[str]:
+    """The runs that failed to execute, with their error ("|" made "/", 200 characters)."""
+    if not errors:
+        return []
+    rows = [
+        [
+            r["run_id"],
+            _cell_name(r, grid),
+            r.get("seed", ""),
+            r.get("error", "").replace("|", "/")[:200],
         ]
-        for m, e in c.metrics.items():
-            ci = f"[{e.low:.4g}, {e.high:.4g}]" if e.n >= 2 else "–"
-            lines.append(f"| {m} | {e.mean:.4g} | {ci} | {e.n} |")
-        lines += ["", "</details>", ""]
-    (out / "summary.md").write_text("\n".join(lines) + "\n")
-    with (out / "summary.csv").open("w", newline="") as fh:
+        for r in errors
+    ]
+    return section("Failed runs", table(["run_id", "cell", "seed", "error"], rows))
+
+
+def _every_metric(c: CellStats, grid: tuple[str, ...]) -> list[str]:
+    """One cell's every metric, folded away in a <details> block."""
+    rows = [
+        [m, f"{e.mean:.4g}", f"[{e.low:.4g}, {e.high:.4g}]" if e.n >= 2 else "–", str(e.n)]
+        for m, e in c.metrics.items()
+    ]
+    name = _cell_name(c.labels, grid) or "all runs"
+    return blocks(
+        f"<details><summary>{name}</summary>",
+        table(["metric", "mean", "95 % CI", "n"], rows),
+        "</details>",
+    )
+
+
+def _write_csv(path: Path, cells: list[CellStats], grid: tuple[str, ...]) -> None:
+    """summary.csv: per cell, the success rate, each outcome's rate and every metric."""
+    with path.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow([*grid, "metric", "mean", "ci_low", "ci_high", "n"])
         for c in cells:
@@ -256,3 +259,22 @@ def write_summary(
                     w.writerow([*lab, f"outcome_{o}_rate", e.mean, e.low, e.high, e.n])
             for m, e in c.metrics.items():
                 w.writerow([*lab, m, e.mean, e.low, e.high, e.n])
+
+
+def write_summary(
+    out: Path,
+    title: str,
+    intro: str,
+    cells: list[CellStats],
+    grid: tuple[str, ...],
+    errors: list[dict[str, str]],
+) -> None:
+    """summary.md (key metrics per cell, errors, every metric per cell) and summary.csv."""
+    text = document(
+        section(title, intro, READING, _few_seeds_warning(cells, grid), level=1),
+        section("Key metrics", _key_metrics(cells, grid)),
+        _failed_runs(errors, grid),
+        section("Every metric", *(_every_metric(c, grid) for c in cells)),
+    )
+    (out / "summary.md").write_text(text)
+    _write_csv(out / "summary.csv", cells, grid)
