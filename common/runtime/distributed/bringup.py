@@ -93,9 +93,11 @@ def clock_bus(
         claim(bus, keys, CLOCK)  # RoleTaken: another clock (a launch, a replay) runs it
         bus.watch_alive(inbox, keys.all_claims)  # a second claimant of a role: an alarm
         # the tap is fed from the recording subscription's own callback (Bus.subscribe's
-        # tee), not from a second subscription to every stream: one wake-up less per message
+        # tee), not from a second subscription to every stream: one wake-up less per message.
+        # A lockstep coordinator's data are quiet: it waits for acks, and takes the data
+        # queued meanwhile when one comes (Inbox), not each on arrival
         tap = serve_watchers(bus, keys, flow, scenario_raw, listen=False)
-        bus.subscribe(keys.all_streams, inbox, tee=tap.take)
+        bus.subscribe(keys.all_streams, inbox, quiet=lockstep, tee=tap.take)
         ticks = TickSender(bus, flow.names, express=not lockstep)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks, tap)
