@@ -82,7 +82,7 @@ def measure(seed: int, scenario: Path = ROOT / "configs" / "default.toml") -> di
         "total_s": total,
         "ticks": result.ticks,
         "sim_s": result.t_end,
-        "hash": result.metrics["trajectory_sha256"],
+        "hash": result.metrics.trajectory_sha256,
         "phases": {k: v[0] for k, v in acc.items()},
         "top": top,
         "profiled_s": stats.total_tt,  # type: ignore[attr-defined]
