@@ -81,22 +81,6 @@ def _plain(sample: zenoh.Sample) -> RawFrame:
 _Item = zenoh.Sample | RawFrame | Liveliness
 
 
-def _teed(
-    tee: Callable[[RawFrame], None], put: Callable[[_Item], None]
-) -> Callable[[zenoh.Sample], None]:
-    """A sample callback that hands the plain frame to `tee`, then queues it with `put`."""
-
-    def on_sample(sample: zenoh.Sample) -> None:
-        frame = _plain(sample)
-        try:
-            tee(frame)
-        except Exception:  # noqa: BLE001 - a failing tee must not lose the loop its sample
-            log.exception("tee of %s failed", frame.key)
-        put(frame)
-
-    return on_sample
-
-
 class _Nudge:
     """Queued to wake a `get` waiting for data when a quiet sample arrives (never returned)."""
 
@@ -402,23 +386,10 @@ class Bus:
         )
         return Publisher(self._keep(pub), key)
 
-    def subscribe(
-        self,
-        key_expr: str,
-        inbox: Inbox,
-        *,
-        quiet: bool = False,
-        tee: Callable[[RawFrame], None] | None = None,
-    ) -> None:
+    def subscribe(self, key_expr: str, inbox: Inbox, *, quiet: bool = False) -> None:
         """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it);
-        `quiet`: without waking a loop that waits for something else (Inbox). `tee`: each
-        sample is first handed, as a RawFrame, to this function on Zenoh's thread (the watch
-        tap: one callback per sample instead of a second subscription's, whose thread
-        hand-off cost the clock's process a wake-up per message); an exception from it is
-        logged and the sample still goes to the inbox."""
-        on_sample: Callable[[Any], None] = inbox.on_quiet_sample if quiet else inbox._on_sample
-        if tee is not None:
-            on_sample = _teed(tee, on_sample)
+        `quiet`: without waking a loop that waits for something else (Inbox)."""
+        on_sample = inbox.on_quiet_sample if quiet else inbox._on_sample
         handler = zenoh.handlers.Callback(on_sample, indirect=not self.low_latency)
         self._keep(self.session.declare_subscriber(key_expr, handler))
         with self._lock:

@@ -64,7 +64,7 @@ class WatchTap:
         bus.serve(keys.scenario, lambda: scenario, encoding=SCENARIO_ENCODING)
         bus.serve_frames(keys.all_latest, self._answer)
         if listen:
-            bus.subscribe_raw(keys.all_streams, self.take)
+            bus.subscribe_raw(keys.all_streams, self._take)
 
     def add_sink(self, sink: Callable[[WatchedFrame], None]) -> None:
         """Also hand every tapped frame to `sink`, on Zenoh's thread (an in-process recorder:
@@ -87,8 +87,7 @@ class WatchTap:
         with self._taken:
             return self._taken.wait_for(lambda: self._n >= count, timeout_s)
 
-    def take(self, f: RawFrame) -> None:
-        """Copy a frame the run's bus carried on one of its stream keys (Keys.all_streams)."""
+    def _take(self, f: RawFrame) -> None:
         service, stream = self.keys.split(f.key)
         if service == CLOCK:
             return  # the clock's own protocol (acks), not a stream of the mission

@@ -88,16 +88,12 @@ def clock_bus(
     `lockstep`: the driver ticks every step (ticks.py: batched); else it tells the time."""
     with Bus(cfg, keys, identity=LAUNCHER, access_control=access_control) as bus:
         inbox = Inbox()
+        bus.subscribe(keys.all_streams, inbox)
         bus.subscribe(keys.all_acks, inbox)  # a lockstep run's; a realtime run has none
         bus.watch_alive(inbox)
         claim(bus, keys, CLOCK)  # RoleTaken: another clock (a launch, a replay) runs it
         bus.watch_alive(inbox, keys.all_claims)  # a second claimant of a role: an alarm
-        # the tap is fed from the recording subscription's own callback (Bus.subscribe's
-        # tee), not from a second subscription to every stream: one wake-up less per message.
-        # A lockstep coordinator's data are quiet: it waits for acks, and takes the data
-        # queued meanwhile when one comes (Inbox), not each on arrival
-        tap = serve_watchers(bus, keys, flow, scenario_raw, listen=False)
-        bus.subscribe(keys.all_streams, inbox, quiet=lockstep, tee=tap.take)
+        tap = serve_watchers(bus, keys, flow, scenario_raw)
         ticks = TickSender(bus, flow.names, express=not lockstep)
         bus.declare_alive(CLOCK)
         yield ClockSide(bus, inbox, ticks, tap)
@@ -108,9 +104,7 @@ def serve_watchers(
 ) -> WatchTap:
     """What tools joining a run ask it for: its declared dataflow (a queryable) and the watch
     tap (copies, latest frames, scenario). A run's clock serves them, and so does a replay
-    (`listen=False`: the tap subscribes to nothing; a replay feeds it its recorded frames,
-    never the run's control keys, and a clock hands it what its recording subscription
-    takes)."""
+    (`listen=False`: it feeds the tap its recorded frames, never the run's control keys)."""
     described = json.dumps(flow.describe(), sort_keys=True).encode()
     bus.serve(keys.dataflow, lambda: described, encoding=DATAFLOW_ENCODING)
     return WatchTap(bus, keys, scenario_raw, listen=listen)

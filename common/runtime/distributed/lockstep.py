@@ -92,10 +92,8 @@ class Coordinator:
             f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
         )
 
-    def _pump(self, inbox: Inbox, deadline: float, what: str, *, data: bool = True) -> None:
-        """Take one event; fail fast on a dead child or a timeout, naming the service.
-        `data` False: the stream data (quiet, bringup.clock_bus) queued meanwhile do not end
-        the wait, an ack or a liveliness event does, and they are taken first."""
+    def _pump(self, inbox: Inbox, deadline: float, what: str) -> None:
+        """Take one event; fail fast on a dead child or a timeout, naming the service."""
         self.stop.check()
         now = time.monotonic()
         # a dead service's liveliness token vanishes at once (TCP closes); polling the
@@ -118,7 +116,7 @@ class Coordinator:
                 missing = []
             who = f"{', '.join(missing)} " if missing else ""
             raise ServiceFailed(f"timed out after {self.timeout_s} s waiting for {who}{what}")
-        ev = inbox.get(timeout=min(left, 0.2), data=data)
+        ev = inbox.get(timeout=min(left, 0.2))
         if ev is None:
             return
         if isinstance(ev, Liveliness):
@@ -202,9 +200,7 @@ class Coordinator:
                 if end is None:
                     ahead = self._start_next(pub, k, t_us, partial, need, got, running)
                 continue
-            # a service publishes its data before its ack: waking for the ack alone, the
-            # loop finds them queued (one wake-up per ack, not per message)
-            self._pump(inbox, deadline, f"acknowledging tick {k}", data=False)
+            self._pump(inbox, deadline, f"acknowledging tick {k}")
         acks = self.acks.pop(k)
         for old in [t for t in self.acks if t < k]:
             del self.acks[old]
