@@ -79,19 +79,21 @@ def keeps_path_in_force(
 ) -> Declined | None:
     """Decline a plan asked `why` as a precaution (PRECAUTIONS: the path in force was still
     feasible when it was asked) that can only turn about or leave by a recovery, which may
-    enter the safety margin, or found none: the path in force is kept, and the replan check
-    goes on judging it (such a turn about can pass inside rho0 of a static obstacle the path
-    in force keeps clear of). And while the vehicle steps aside (evade.py), a NO_PATH: it
-    judged going on along the way aside as good as any; a way aside is kept until a plan
-    reaches the goal or a better way aside is found."""
+    enter the safety margin, or only go partway (partway.py), or found none: the path in
+    force is kept, and the replan check goes on judging it (such a turn about can pass
+    inside rho0 of a static obstacle the path in force keeps clear of). And while the
+    vehicle steps aside (evade.py), a NO_PATH: it judged going on along the way aside as
+    good as any; a way aside is kept until a plan reaches the goal or a better way aside
+    is found."""
     if not has_path:
         return None
     if stepping_aside:
         if result.ok:
             return None
-    elif why not in PRECAUTIONS or (result.ok and result.escape_m <= 0.0):
+    elif why not in PRECAUTIONS or (result.ok and result.escape_m <= 0.0 and not result.partway):
         return None
-    found = "no path" if not result.ok else f"only a recovery ({result.reason})"
+    what = "a partway plan" if result.partway else "a recovery"
+    found = "no path" if not result.ok else f"only {what} ({result.reason})"
     return Declined(code="kept_path_in_force", detail=f"the {why} replan found {found}")
 
 

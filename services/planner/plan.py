@@ -9,7 +9,8 @@ when that walls the start off (the vehicle near an obstacle's track) the search 
 static field and the refinement and check, exact in time, judge eq. (12)-(13) alone.
 Near an obstacle, where no curve leaves the vehicle's pose, the plan recovers (recover.py):
 a start in contact first drives out (straight or on an arc within R_min, never deeper); a
-heading no curve can leave along first turns away on an arc that keeps the hull free.
+heading no curve can leave along first turns away on an arc that keeps the hull free; a
+route no curve follows to the goal is followed part of the way (partway.py).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from services.planner.result import (
     PlanTiming,
     Pose2D,
 )
+from services.planner.safety.partway import plan_partway
 from services.planner.safety.recover import (
     come_about_then_plan,
     leave_then_plan,
@@ -339,7 +341,8 @@ def _fallbacks(
     """After no feasible curve, the recoveries in order, the first plan that is ok kept.
     Near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
     turn away on an arc within R_min first; inside the margin, failing that, drive out
-    first; the area's edge may be what is in the way: come about across it."""
+    first; a route no curve follows to the goal: follow one part of the way (partway.py);
+    the area's edge may be what is in the way: come about across it."""
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok:
         return turned
@@ -347,6 +350,9 @@ def _fallbacks(
         escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest)
         if escaped is not None and escaped.ok:
             return escaped
+    part = plan_partway(req, failed, rest)
+    if part is not None:
+        return part
     about = come_about_then_plan(req, rest)
     if about is not None and about.ok:
         return about

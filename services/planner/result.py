@@ -113,6 +113,8 @@ class PlanResult:
     # a way aside that stops short of the goal (evade.py: no plan reaches it, and holding is
     # in a moving obstacle's way); the replan policy tries the goal again at every interval
     short_of_goal: bool = False
+    # a plan to a point along the searched route, no curve reaching the goal (partway.py)
+    partway: bool = False
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property

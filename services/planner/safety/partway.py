@@ -1,0 +1,60 @@
+"""Planning partway: a plan to a point along the searched route when no curve reaches the goal.
+
+The search can find a route that no curve within R_min follows all the way (most often near
+the goal, where a moving obstacle's predicted track bends the route into a hook the fixed
+goal heading cannot join). Holding then, in a current, means drifting. A receding-horizon
+step instead: a plan to a point part of the way along that route, its heading free, marked
+short of the goal so the replan policy tries the goal again at every interval (replan.py
+`aside`), by when the vehicle is nearer and the obstacle has moved on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from common.world.geometry import FloatArray
+from services.planner.result import PlanRequest, PlanResult, Pose2D
+
+Plan = Callable[[PlanRequest], PlanResult]  # the pipeline, with no further recovery
+
+# the shares of the route's length tried as the partway goal, in order: half way first
+PARTWAY_SHARES = (0.5, 0.75, 0.25)
+
+
+def route_point(route: FloatArray, s_m: float) -> tuple[float, float]:
+    """The point s_m (m) along a polyline route (n, 2), clamped to its ends."""
+    seg = np.hypot(*np.diff(route, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = min(max(s_m, 0.0), float(cum[-1]))
+    i = min(int(np.searchsorted(cum, s, side="right")) - 1, len(seg) - 1)
+    u = 0.0 if seg[i] == 0.0 else (s - cum[i]) / seg[i]
+    p = route[i] + u * (route[i + 1] - route[i])
+    return float(p[0]), float(p[1])
+
+
+def plan_partway(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResult | None:
+    """A plan to a point PARTWAY_SHARES of the way along failed's route (its grid path), at
+    least R_min from the start along it, short of the goal; None if none is feasible."""
+    route = failed.grid_path
+    if len(route) < 2:
+        return None
+    total = float(np.hypot(*np.diff(route, axis=0).T).sum())
+    for share in PARTWAY_SHARES:
+        s = share * total
+        if s < req.r_min_m:
+            continue
+        x, y = route_point(route, s)
+        goal = Pose2D(x=x, y=y, theta=0.0)
+        part = plan(dataclasses.replace(req, goal=goal, fix_goal_heading=False))
+        if part.ok:
+            why = f"partway to ({x:.1f}, {y:.1f}), {s:.0f} of the route's {total:.0f} m"
+            return dataclasses.replace(
+                part,
+                reason=f"{failed.reason}; {why}" + (f": {part.reason}" if part.reason else ""),
+                short_of_goal=True,
+                partway=True,
+            )
+    return None
