@@ -334,3 +334,31 @@ def test_a_plan_whose_own_rollout_touches_an_obstacle_is_never_handed_back(
     clear = _straight(5.0)
     monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: clear)
     assert asking.plan_clear_of_contact(req, req.r_min_m, CFG, fm, None) is clear
+
+
+def test_contact_beyond_the_horizon_does_not_hold_the_vehicle_at_its_start(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # issue 60: in a current, a first plan's rollout guessed contact ~60 s on, near the goal;
+    # refused at every replan, the vehicle kept station at its start for the whole run. Only
+    # contact within contact_horizon_s refuses a plan: the replans on the way judge the rest
+    from services.planner import asking
+
+    through = _straight(20.0)  # reaches the circle at x = 30 - 3 - R, ~15 s on at cruise
+    monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: through)
+    req = _request(circles=(CircleObstacleConfig(id=1, x_m=30.0, y_m=20.0, radius_m=3.0),))
+    fm = _flight()
+    reach_s = rollout_clearance(through, req, fm, CFG).t_s
+    assert 5.0 < reach_s < 25.0
+    near = dataclasses.replace(CFG.tuning, contact_horizon_s=reach_s + 5.0)
+    far = dataclasses.replace(CFG.tuning, contact_horizon_s=reach_s - 5.0)
+    held = asking.plan_clear_of_contact(
+        req, req.r_min_m, dataclasses.replace(CFG, tuning=near), fm, None
+    )
+    assert held is not through
+    kept = asking.plan_clear_of_contact(
+        req, req.r_min_m, dataclasses.replace(CFG, tuning=far), fm, None
+    )
+    assert kept is through
+    within = rollout_clearance(through, req, fm, CFG, within_s=reach_s - 5.0)
+    assert within.min_clearance_m > 0.0 and within.t_s <= reach_s - 5.0

@@ -26,6 +26,9 @@ class PlannerTuning:
     # moving obstacles count over a rollout's first seconds only (their prediction a minute
     # ahead is a guess); a fleet vehicle's broadcast route counts throughout
     rollout_moving_s: float = 10.0
+    # a plan whose rollout touches an obstacle within this long (s) is never adopted
+    # (services/planner/asking.py); farther on, the replans on the way judge it
+    contact_horizon_s: float = 30.0
     rollout_curvature_factor: float = 0.9  # the second plan aims its curvature this much lower
     rollout_detour_m: float = 0.5  # the third avoids a disc this wide where it came nearest
     rollout_slow_factor: float = 0.5  # the fourth is made and rolled out at this share of speed
@@ -38,18 +41,23 @@ class PlannerTuning:
     evade_gain_m: float = 0.1  # a way aside is taken if it clears this much more than holding
     # a recovery into rho0 waits while the vehicle, holding, is faster than this share of cruise
     hold_first_factor: float = 0.25
+    # --- without a plan, in a current (services/planner/core.py)
+    # a vehicle gives way (drifts back) from an obstacle upstream nearer than its margins and
+    # this many turning radii: kept nearer, it faces an obstacle it has no room to turn from
+    give_way_room_r: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
             "rollout_max_s",
             "rollout_moving_s",
+            "contact_horizon_s",
             "arrived_m",
             "arrived_mps",
             "evade_s",
             "evade_length_step_m",
         ):
             positive(name, getattr(self, name))
-        for name in ("rollout_cushion_m", "rollout_detour_m", "evade_gain_m"):
+        for name in ("rollout_cushion_m", "rollout_detour_m", "evade_gain_m", "give_way_room_r"):
             nonneg(name, getattr(self, name))
         for name in ("rollout_curvature_factor", "rollout_slow_factor", "hold_first_factor"):
             fraction(name, getattr(self, name))

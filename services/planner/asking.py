@@ -89,7 +89,7 @@ def plan_clear_of_contact(
     touch = _flown_clearance(result, req, cfg, flight)
     if touch >= 0.0:
         return result
-    why = f"{result.reason}; flown, its hull would touch an obstacle ({touch:.2f} m)"
+    why = f"{result.reason}; flown, its hull would touch an obstacle ({touch:.2f} m) soon"
     if not result.short_of_goal:
         way = step_aside(req, cfg, flight, aside)
         if way is not None and _flown_clearance(way, req, cfg, flight) >= 0.0:
@@ -103,11 +103,16 @@ def _flown_clearance(
     result: PlanResult, req: PlanRequest, cfg: PlannerConfig, flight: RolloutInputs
 ) -> float:
     """The hull's clearance where an OK plan's flight comes nearest what it must keep, at the
-    speed it was made for (inf for a NO_PATH)."""
+    speed it was made for, within the first tuning.contact_horizon_s of it (inf for a
+    NO_PATH, or beyond): a flight's guess a minute ahead in a current is no reason to hold
+    at the start (the plan is checked again on the way), contact soon after adoption is."""
     if not result.ok:
         return math.inf
     v = req.v_ref_mps if result.v_ref_mps is None else result.v_ref_mps
-    return rollout_clearance(result, replace(req, v_ref_mps=v), flight, cfg).min_clearance_m
+    horizon = cfg.tuning.contact_horizon_s
+    return rollout_clearance(
+        result, replace(req, v_ref_mps=v), flight, cfg, horizon
+    ).min_clearance_m
 
 
 class PlanAsking:
@@ -236,9 +241,13 @@ class PlanAsking:
             current=self.link.model.current_mps,
             pace=req.pace,
         )
+        # a copy now: the plan may be made beside the steps, which go on using it; it flies
+        # in the current believed now (the live controller learns it only when it follows a
+        # path: before the first one, or after a NO_PATH, its own is stale)
+        flown = copy.deepcopy(controller)
+        flown.current = self.link.model.current_mps
         flight = RolloutInputs(
-            # a copy now: the plan may be made beside the steps, which go on using it
-            controller=copy.deepcopy(controller),
+            controller=flown,
             model=self.link.model,
             step_s=self.cfg.period_s,
             start=(here.x, here.y, here.theta, *twist),

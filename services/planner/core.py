@@ -225,16 +225,29 @@ class PlannerCore:
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
-            give_way = self.loop.ref is None and self._gives_way(pred)
-            commands = self.loop.follow(t, s, pred, self.loop.ref, give_way=give_way)
+            ref = None if self._aside_run_out(pred) else self.loop.ref
+            give_way = ref is None and self._gives_way(pred)
+            commands = self.loop.follow(t, s, pred, ref, give_way=give_way)
             out.append(self.loop.send(t, pred.effect_t, commands))
         return out
+
+    def _aside_run_out(self, pred: Prediction) -> bool:
+        """Has the vehicle reached the end of a path short of the goal (a way aside, or
+        partway)? Then it stops (keeps station) there until a plan is made: its speed
+        profile keeps steerage in a current, which past the end would go on straight."""
+        ref, last = self.loop.ref, self.last_result
+        if ref is None or last is None or not last.short_of_goal:
+            return False
+        s_here = ref.closest_s(pred.at_effect[0], pred.at_effect[1], None)
+        return ref.length - s_here <= self.cfg.tuning.arrived_m
 
     def _gives_way(self, pred: Prediction) -> bool:
         """Should a stop let the current carry the vehicle back, rather than keep station at
         an obstacle close upstream (within rho0 and the margin of its hull)?"""
         x, y = pred.at_effect[0], pred.at_effect[1]
         keep_m = self.vehicle.radius_m + self.cfg.rho0_m + self.clearance_margin_m
+        # and room to turn away within R_min: held nearer, no plan can leave (a dead end)
+        keep_m += self.cfg.tuning.give_way_room_r * self.vehicle.turn_radius_min_m
         moving = self.seen.at(pred.effect_t).moving
         current = self.link.model.current_mps
         return current_pushes_clear(x, y, self.static_field, moving, current, keep_m)

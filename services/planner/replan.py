@@ -169,6 +169,7 @@ class ReplanPolicy:
         if self.pts is None:
             return ReplanDecision(replan=True, reason="no_path", detail="no usable path")
         if self.short_of_goal:
+            self._progress(t, pose)  # remaining_m: whether the way aside has run out
             return ReplanDecision(
                 replan=True,
                 reason="aside",

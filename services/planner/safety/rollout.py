@@ -124,10 +124,14 @@ def roll_out(
 
 
 def rollout_clearance(
-    result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig
+    result: PlanResult,
+    req: PlanRequest,
+    fm: RolloutInputs,
+    cfg: PlannerConfig,
+    within_s: float = math.inf,
 ) -> RolloutClearance:
     """Fly an OK plan (see the module docstring) and measure its clearance against what it
-    must keep."""
+    must keep, over its first within_s seconds."""
     accel_horizon_s = cfg.accel_horizon_s
     f = roll_out(result, req, fm, cfg.tuning)
     ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
@@ -142,6 +146,7 @@ def rollout_clearance(
     d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
     d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
     d[gone < result.escape_m] = math.inf  # the plan itself may pass nearer there
+    d[t > within_s] = math.inf
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
     # turning radius on, rho0 alone is kept; beyond, the cushion too (held to rho0 alone for
     # the whole flight, a plan flown off its path well past its escape was adopted as made)
