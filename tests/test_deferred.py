@@ -153,7 +153,7 @@ def test_a_plan_the_vehicle_has_left_behind_while_it_was_made_is_declined_and_as
     core.deliver(_estimate(t + 0.95, 5.0, y=32.0))  # a second later, 6 m on, off the plan
     out = core.step(t + 1.0)
     assert not [e for e in out if e.stream == "path"], "a plan from where it was is adopted"
-    assert core.path_id == path.path_id and core.declined == 1
+    assert core.path_id == path.path_id and core.adoption.declined == 1
     cmds = [e.msg for e in out if e.stream == "cmd"]
     assert len(cmds) == 1 and isinstance(cmds[0], VelocityCommand)
     assert cmds[0].path_id == path.path_id  # still commanding on the path in force

@@ -21,7 +21,7 @@ from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_me
 from services.mission.outcome import OUTCOMES, classify, describe
 from services.mission.records import AuvMetrics
 from services.mission.verdict import mission_failure
-from services.planner.core import PLANS_DECLINED
+from services.planner.adoption import PLANS_DECLINED
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 SPEED = 1.5  # m/s along y = 20
@@ -244,7 +244,7 @@ def test_a_run_without_moving_obstacles_has_no_tracking_metrics() -> None:
 
 
 def test_plans_declined_come_from_the_planners_last_statistics() -> None:
-    # a declined plan publishes no path (services/planner/core.py): the planner counts them
+    # a declined plan publishes no path (services/planner/adoption.py): the planner counts them
     s = _scenario(24.0)
     rec = _record(95.0, None, None)
     assert mission_metrics(rec, s, World(s.world)).plans_declined == 0  # no statistics

@@ -17,7 +17,8 @@ from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, Veloc
 from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
 from services.planner import plan as plan_module
-from services.planner.core import PLANS_DECLINED, PlannerCore
+from services.planner.adoption import PLANS_DECLINED
+from services.planner.core import PlannerCore
 from services.planner.decline import PRECAUTIONS
 from services.planner.replan import ReplanDecision, ReplanReason
 from services.planner.result import PlanResult, Pose2D
@@ -369,14 +370,14 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
         paths = [e.msg for e in out if e.stream == "path"]
         assert [e for e in out if e.stream == "cmd"]  # commanding on, either way
         if why in PRECAUTIONS:
-            assert paths == [] and core.ref is in_force and core.declined == k + 1
+            assert paths == [] and core.ref is in_force and core.adoption.declined == k + 1
             assert core.stats_counters[PLANS_DECLINED] == k + 1  # the metric's source
             # the interval before the next replan runs from this one (no re-asking each step)
             assert core.policy.last_replan_t is not None and core.policy.last_replan_t >= t
         else:
             (made,) = paths
             assert isinstance(made, PathMsg) and made.reason.startswith("infeasible")
-            assert core.declined == 0
+            assert core.adoption.declined == 0
 
 
 def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None:

@@ -41,7 +41,7 @@ class PlannerTuning:
     evade_gain_m: float = 0.1  # a way aside is taken if it clears this much more than holding
     # a recovery into rho0 waits while the vehicle, holding, is faster than this share of cruise
     hold_first_factor: float = 0.25
-    # --- without a plan, in a current (services/planner/core.py)
+    # --- without a plan, in a current (services/planner/stopping.py)
     # a vehicle gives way (drifts back) from an obstacle upstream nearer than its margins and
     # this many turning radii: kept nearer, it faces an obstacle it has no room to turn from
     give_way_room_r: float = 1.0

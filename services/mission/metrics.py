@@ -28,7 +28,7 @@ from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.records import AuvMetrics, build
 from services.mission.reentry import reentries
-from services.planner.core import PLANS_DECLINED
+from services.planner.adoption import PLANS_DECLINED
 from services.planner.shaping.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -267,7 +267,7 @@ def _path_metrics(
         "replans": len(paths),
         "no_path_events": sum(1 for p in paths if p.status == "NO_PATH"),
         # precautionary replans whose result was declined, the path in force kept (no path
-        # message: the planner counts them, services/planner/core.py)
+        # message: the planner counts them, services/planner/adoption.py)
         "plans_declined": last_counters(record, planner).get(PLANS_DECLINED, 0),
         # ... by the rule that declined them (services/planner/decline.py), and the paths
         # published by why they were asked (the replan policy's reason, replan.py)

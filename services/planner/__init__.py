@@ -27,7 +27,9 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
     recover.py and escape.py, ways out near or in contact; rollout.py, a plan flown on the
     response model before it is adopted; intent.py, the other vehicles of a fleet as
     obstacles with known trajectories. evade.py, stepping aside or holding first, plans again.
-    core.py is the service core; replan.py decides when to plan again.
+    core.py is the service core, a thin host: it decides (replan.py), asks (asking.py),
+    adopts (adoption.py: decline.py's rules, path_message.py) and sends; stopping.py says
+    where a stopping vehicle stays; fleet.py exchanges intents with a fleet's other vehicles.
 
 Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
 

@@ -16,30 +16,22 @@ from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from common.messages import ObstacleTracks, PathMsg, StateEstimate
+from common.messages import ObstacleTracks
 from common.runtime.deferred import AtOnce, Deferred
 from common.runtime.model.core import Delivery, Emit
-from common.runtime.model.dataflow import vehicle_of
-from services.control.command.inputs import judge_state
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
-from services.planner.asking import Asked, PlanAsking
-from services.planner.broadcast import FleetBroadcast
-from services.planner.decline import decline
-from services.planner.geometry.clearance import StaticField, current_pushes_clear
+from services.planner.adoption import Adoption
+from services.planner.asking import PlanAsking
+from services.planner.fleet import FleetExchange
 from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
-from services.planner.path_message import path_message
 from services.planner.plan import Obstacles, PlanResult, Pose2D
 from services.planner.replan import ReplanDecision, ReplanPolicy
-from services.planner.result import PlanStatus
 from services.planner.safety.intent import FleetIntents
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
+from services.planner.stopping import Stopping
 
 log = logging.getLogger("tidelink.planner")
-
-
-PLANS_DECLINED = "plans_declined"  # its statistics counter of them (the metric of that name)
 
 
 class PlannerCore:
@@ -65,9 +57,10 @@ class PlannerCore:
         # beside the steps, which go on tracking the path in force until it is there (the
         # wall clock: a replan of seconds must not stop the commands; common/runtime/deferred.py)
         self.plans: Deferred[PlanResult] = AtOnce() if plans is None else plans
-        # in a fleet, the other vehicles' broadcast estimates and paths (safety/intent.py)
-        self.intents = intents
-        self.broadcast = FleetBroadcast(pose_every_s=pose_every_s, intent_every_s=intent_every_s)
+        # in a fleet, the other vehicles' estimates and paths in, this planner's out (fleet.py)
+        self.fleet = FleetExchange(
+            intents, pose_every_s=pose_every_s, intent_every_s=intent_every_s
+        )
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
         self.vehicle = vehicle
@@ -76,36 +69,23 @@ class PlannerCore:
         self.loop: CommandLoop[PathArcReference] = CommandLoop(
             planner, controller, vehicle, world, log, expected_downlink_s=expected_downlink_s
         )
-        self.link, self.controller, self.inputs = (
-            self.loop.link,
-            self.loop.controller,
-            self.loop.inputs,
-        )
+        loop = self.loop
+        self.link, self.controller, self.inputs = loop.link, loop.controller, loop.inputs
         g = world.goal
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
         self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
-        self.fix_goal_heading = g.theta_rad is not None
+        self.fix_goal_heading = fixed = g.theta_rad is not None
         self.asking = PlanAsking(
-            planner,
-            vehicle,
-            world,
-            self.link,
-            self.plans,
-            self.goal,
-            fix_goal_heading=self.fix_goal_heading,
+            planner, vehicle, world, self.link, self.plans, self.goal, fix_goal_heading=fixed
         )
         self.policy = ReplanPolicy(
             planner, vehicle_radius_m=vehicle.radius_m, v_ref_mps=vehicle.cruise_speed_mps
         )
         self.seen = ObstaclePicture(world, intents, planner.first_plan_wait_s)
-        self.static_field = StaticField.build(world.circles, world.polygons)
-        self.last_result: PlanResult | None = None
-        # the status of the last path published and since when it has held without a break:
-        # every PathMsg carries it, so a NO_PATH that persists is visible from any one message
-        self.path_status: PlanStatus | None = None
-        self.status_since = 0.0
-        self.declined = 0  # precautionary plans (or NO_PATHs stepping aside) declined
-        self.declined_by: dict[str, int] = {}  # ... by reason code (decline.py)
+        self.adoption = Adoption(
+            planner, self.loop, self.policy, self.goal, cruise_speed_mps=vehicle.cruise_speed_mps
+        )
+        self.stopping = Stopping(planner, vehicle, world, self.seen, self.asking)
         # a longer silence than this makes the vehicle hold (and the estimate stale): it runs
         # its last command's entries (the sequence's horizon), then hold_after_s on the last
         self.resume_after_s = max(
@@ -133,11 +113,7 @@ class PlannerCore:
         a pose outside the world, more tracks than a message may carry (planning work grows
         with them) are rejected, counted and logged (command/inputs.py)."""
         msg = d.msg
-        other = vehicle_of(d.source)
-        if self.intents is not None and other in self.intents.vehicles:
-            j = self.inputs.judge
-            if not isinstance(msg, StateEstimate) or judge_state(j, msg, d.t) is None:
-                self.intents.offer(other, msg)
+        if self.fleet.take(d, self.inputs.judge):  # another vehicle's estimate or path
             return []
         if isinstance(msg, ObstacleTracks):
             why = judge_tracks(self.inputs.judge, msg, d.t)
@@ -160,18 +136,20 @@ class PlannerCore:
         return self.seen.tracks
 
     @property
+    def last_result(self) -> PlanResult | None:
+        """The plan adopted last (adoption.py)."""
+        return self.adoption.last_result
+
+    @property
     def stats_counters(self) -> dict[str, int]:
-        """The precautionary plans this planner declined (PLANS_DECLINED), and, in a fleet,
-        its steps by each other vehicle's intent or track."""
-        fleet = self.intents.counters if self.intents is not None else {}
-        by = {f"{PLANS_DECLINED}.{code}": n for code, n in self.declined_by.items()}
-        return {PLANS_DECLINED: self.declined, **by, **fleet}
+        """The plans this planner declined (adoption.py), and, in a fleet, its steps by each
+        other vehicle's intent or track."""
+        return {**self.adoption.counters, **self.fleet.counters}
 
     def step(self, t: float) -> list[Emit]:
-        if self.intents is not None and self.inputs.state is not None:
-            self.intents.tally(t)
+        self.fleet.tally(t, self.inputs.state)
         out = self._step(t)
-        out.extend(self.broadcast.emits(t, self.inputs.state, out))
+        out.extend(self.fleet.emits(t, self.inputs.state, out))
         return out
 
     def prepare(self, t_next: float) -> None:
@@ -186,7 +164,7 @@ class PlannerCore:
         s, pred = begun
         out: list[Emit] = []
         if self.loop.arrival.arrived:
-            stop = self.link.stop(t, pred, give_way=self._gives_way(pred))
+            stop = self.link.stop(t, pred, give_way=self.stopping.gives_way(pred))
             return [self.loop.send(t, pred.effect_t, stop)] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
@@ -200,57 +178,21 @@ class PlannerCore:
                 # in realtime; at once in virtual time), stop short of the first conflict
                 self.ref.stop_at(decision.conflict_s - self.cfg.clearance_margin_m)
             self._ask(t, t_plan, here, pred, obstacles, decision.reason)
-        made, adopted = self.plans.result(), False
-        if made is not None:
-            asked = self.asking.done(t)
-            declined = decline(
-                t,
-                pred,
-                asked,
-                made,
-                v_ref=self._speed_of(made),
-                policy=self.policy,
-                last=self.last_result,
-                has_path=self.ref is not None,
-                arrived_m=self.cfg.tuning.arrived_m,
-            )
-            if declined is not None:
-                self.declined += 1
-                self.declined_by[declined.code] = self.declined_by.get(declined.code, 0) + 1
-            else:
-                out.append(Emit(stream="path", msg=self._adopt(t, asked, made)))
-                adopted = True
-        if not adopted and not decision.replan and self.loop.skipped(t):
+        made = self.plans.result()
+        path = None if made is None else self.adoption.settle(t, pred, self.asking.done(t), made)
+        if path is not None:
+            out.append(Emit(stream="path", msg=path))
+        if path is None and not decision.replan and self.loop.skipped(t):
             # steps were skipped (a stale estimate): the plan holds, but the controller's state
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
             self.link.restart(self.controller)
         if self.commands:
-            ref = None if self._aside_run_out(pred) else self.loop.ref
-            give_way = ref is None and self._gives_way(pred)
+            run_out = self.stopping.run_out(pred, self.loop.ref, self.last_result)
+            ref = None if run_out else self.loop.ref
+            give_way = ref is None and self.stopping.gives_way(pred)
             commands = self.loop.follow(t, s, pred, ref, give_way=give_way)
             out.append(self.loop.send(t, pred.effect_t, commands))
         return out
-
-    def _aside_run_out(self, pred: Prediction) -> bool:
-        """Has the vehicle reached the end of a path short of the goal (a way aside, or
-        partway)? Then it stops (keeps station) there until a plan is made: its speed
-        profile keeps steerage in a current, which past the end would go on straight."""
-        ref, last = self.loop.ref, self.last_result
-        if ref is None or last is None or not last.short_of_goal:
-            return False
-        s_here = ref.closest_s(pred.at_effect[0], pred.at_effect[1], None)
-        return ref.length - s_here <= self.cfg.tuning.arrived_m
-
-    def _gives_way(self, pred: Prediction) -> bool:
-        """Should a stop let the current carry the vehicle back, rather than keep station at
-        an obstacle close upstream (within rho0 and the margin of its hull)?"""
-        x, y = pred.at_effect[0], pred.at_effect[1]
-        keep_m = self.vehicle.radius_m + self.cfg.rho0_m + self.clearance_margin_m
-        # and room to turn away within R_min: held nearer, no plan can leave (a dead end)
-        keep_m += self.cfg.tuning.give_way_room_r * self.vehicle.turn_radius_min_m
-        moving = self.seen.at(pred.effect_t).moving
-        current = self.link.model.current_mps
-        return current_pushes_clear(x, y, self.static_field, moving, current, keep_m)
 
     def _decide(
         self, t: float, t_plan: float, here: Pose2D, obstacles: Obstacles
@@ -300,27 +242,3 @@ class PlannerCore:
     def clearance_margin_m(self) -> float:
         """The margin a plan made now aims beyond the required clearance (m; asking.py)."""
         return self.asking.clearance_margin_m
-
-    def _speed_of(self, result: PlanResult) -> float:
-        """The speed a plan is followed at: the one it was made for (rollout.py), else cruise."""
-        return self.vehicle.cruise_speed_mps if result.v_ref_mps is None else result.v_ref_mps
-
-    def _adopt(self, t: float, asked: Asked, result: PlanResult) -> PathMsg:
-        """Put the plan made in force; the path message is stamped t, when it is sent."""
-        self.policy.on_planned(
-            asked.t_plan, result, self.goal, asked.obstacles, asked.current, asked.pace
-        )
-        self.last_result = result
-        self.loop.path_id += 1
-        if result.status != self.path_status:
-            self.path_status, self.status_since = result.status, t
-        v_ref = self._speed_of(result)
-        self.loop.take(PathArcReference(PlannedPath(result.curve()), v_ref) if result.ok else None)
-        return path_message(
-            result,
-            stamp=t,
-            path_id=self.path_id,
-            status_since=self.status_since,
-            why=asked.why,
-            v_ref=v_ref,
-        )

@@ -101,7 +101,7 @@ def roll_out(
     """An OK plan flown (see the module docstring)."""
     ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
     ctrl = copy.deepcopy(fm.controller)
-    ctrl.reset()  # as PlannerCore._adopt resets it for a new path
+    ctrl.reset()  # as the loop resets it when a new path is put in force (adoption.py)
     pose = fm.start
     end = ref.point_at_s(ref.length)
     n = max(1, math.ceil(min(tuning.rollout_max_s, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
