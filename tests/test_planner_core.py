@@ -360,7 +360,7 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
     core.policy.check = lambda *a, **k: asked  # type: ignore[method-assign]
     recoveries = [
         lambda r: dataclasses.replace(r, escape_m=6.3, reason="no curve leaves along the heading"),
-        lambda r: PlanResult(status="NO_PATH", reason="walled off"),
+        lambda r: PlanResult(status="NO_PATH", reason="walled off", strategy="no_route"),
     ]
     for k, recovery in enumerate(recoveries):
         plans.edit = recovery
@@ -423,7 +423,7 @@ def test_a_way_aside_is_kept_until_a_plan_reaches_the_goal() -> None:
     (aside,) = _paths(core.step(0.05))
     assert aside.status == "OK" and core.last_result is not None
     in_force = core.ref
-    plans.edit = lambda r: PlanResult(status="NO_PATH", reason="walled off")
+    plans.edit = lambda r: PlanResult(status="NO_PATH", reason="walled off", strategy="no_route")
     t = 1.15
     core.deliver(_estimate(t - 0.05, x=5.0 + t))
     out = core.step(t)

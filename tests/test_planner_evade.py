@@ -76,6 +76,7 @@ def test_held_in_a_moving_obstacles_way_it_steps_aside() -> None:
     assert way is not None and way.ok and way.short_of_goal
     assert way.min_clearance_m >= held + CFG.tuning.evade_gain_m and way.min_clearance_m > 0.0
     assert abs(way.turn_rad) > 0.0 and "steps aside" in way.reason
+    assert way.strategy == "stepped_aside"
     # the way is an exact drivable arc (no tighter than R_min), swept clear of contact
     assert way.max_curvature <= 1.0 / SCENARIO.vehicle.turn_radius_min_m + 1e-9
     assert way.escape_m == way.length_m
@@ -190,5 +191,6 @@ def test_a_recovery_into_rho0_waits_while_holding_keeps_out_of_it(
     if holds:
         assert got.status == "NO_PATH" and "0.30 m into rho0" in got.reason
         assert "holds first" in got.reason
+        assert (got.strategy, got.rejected) == ("held_first", made.tried)
     else:
         assert got is made

@@ -29,7 +29,9 @@ def _request(r_min_m: float = 6.5) -> PlanRequest:
     )
 
 
-FAILED = PlanResult(status="NO_PATH", reason="no feasible curve", grid_path=ROUTE)
+FAILED = PlanResult(
+    status="NO_PATH", reason="no feasible curve", strategy="no_curve", grid_path=ROUTE
+)
 
 
 def test_a_route_point_lies_on_the_route_at_its_arc_length() -> None:
@@ -46,7 +48,7 @@ def test_partway_plans_to_a_point_along_the_route_heading_free_and_short_of_the_
 
     def pipeline(q: PlanRequest) -> PlanResult:
         asked.append(q)
-        return PlanResult(status="OK", reason="", grid_path=ROUTE[:2])
+        return PlanResult(status="OK", reason="", strategy="searched", grid_path=ROUTE[:2])
 
     got = plan_partway(_request(), FAILED, pipeline)
     assert got is not None and got.ok and got.short_of_goal and got.partway
@@ -62,7 +64,7 @@ def test_partway_tries_each_share_then_gives_up() -> None:
 
     def nothing(q: PlanRequest) -> PlanResult:
         asked.append(q.goal)
-        return PlanResult(status="NO_PATH", reason="no")
+        return PlanResult(status="NO_PATH", reason="no", strategy="no_curve")
 
     assert plan_partway(_request(), FAILED, nothing) is None
     assert len(asked) == len(PARTWAY_SHARES)
@@ -77,7 +79,9 @@ def test_partway_tries_each_share_then_gives_up() -> None:
 
 @pytest.mark.parametrize("why", ["corridor", "cruise"])
 def test_a_precaution_that_finds_only_a_partway_plan_keeps_the_path_in_force(why: str) -> None:
-    partway = PlanResult(status="OK", reason="partway", short_of_goal=True, partway=True)
+    partway = PlanResult(
+        status="OK", reason="partway", strategy="partway", short_of_goal=True, partway=True
+    )
     declined = keeps_path_in_force(why, partway, has_path=True, stepping_aside=False)
     assert declined is not None and "partway" in declined.detail
     # a path in force that has failed (or none) takes it: a receding-horizon step on

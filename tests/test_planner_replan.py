@@ -49,7 +49,8 @@ def test_no_path_yet_and_after_a_failed_attempt() -> None:
     pol = ReplanPolicy(CFG, vehicle_radius_m=R_VEH, v_ref_mps=V)
     d = pol.check(0.0, START, GOAL, NONE)
     assert d.replan and d.reason == "no_path"
-    pol.on_planned(0.0, PlanResult(status="NO_PATH", reason="walled off"), GOAL, NONE)
+    walled_off = PlanResult(status="NO_PATH", reason="walled off", strategy="no_route")
+    pol.on_planned(0.0, walled_off, GOAL, NONE)
     assert not pol.check(0.5, START, GOAL, NONE).replan  # minimum interval 1 s
     d = pol.check(1.0, START, GOAL, NONE)
     assert d.replan and d.reason == "no_path"

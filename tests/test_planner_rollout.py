@@ -39,6 +39,7 @@ def _straight(y: float, x0: float = 5.0, x1: float = 60.0) -> PlanResult:
     return PlanResult(
         status="OK",
         reason="",
+        strategy="searched",
         degree=3,
         control_points=ctrl,
         weights=np.ones(8),
@@ -172,7 +173,7 @@ class _Planner:
         if self.slow_ok and req.v_ref_mps < self.requests[0].v_ref_mps:
             return _straight(20.0)
         if self.fail_again and len(self.asked) > 1:
-            return PlanResult(status="NO_PATH", reason="no feasible curve")
+            return PlanResult(status="NO_PATH", reason="no feasible curve", strategy="no_curve")
         return _straight(20.0 - 4.0 * (cfg.clearance_margin_m - CFG.clearance_margin_m))
 
 
@@ -204,6 +205,7 @@ def test_a_plan_flown_inside_rho0_is_made_again_wider_and_says_so() -> None:
     )
     assert got.ok and got.control_points[0, 1] < 20.0  # the wider one
     assert "made again with a" in got.reason and "off the path" in got.reason
+    assert (got.strategy, got.rejected) == ("remade_wider", ("searched",))
     again = rollout_clearance(got, req, _flight(w0=W_MAX), CFG)
     assert again.min_clearance_m >= CFG.rho0_m + CFG.tuning.rollout_cushion_m
 
@@ -215,6 +217,8 @@ def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -
     assert len(planner.asked) == 4  # wider, around a disc where it came nearest, slower
     assert got.ok and got.control_points[0, 1] == 20.0
     assert "fared no better" in got.reason
+    assert got.strategy == "searched"  # the first, after each way it was made again
+    assert got.rejected == ("remade_wider", "remade_around", "remade_slower")
 
 
 def test_a_bend_flown_wide_at_any_margin_is_made_again_slower_and_flown_at_that_speed() -> None:
@@ -272,7 +276,7 @@ def test_neither_a_detour_nor_slower_round_a_moving_obstacle_it_will_be_elsewher
 
 def test_no_path_is_not_flown() -> None:
     def nothing(req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
-        return PlanResult(status="NO_PATH", reason="walled off")
+        return PlanResult(status="NO_PATH", reason="walled off", strategy="no_route")
 
     got = plan_and_verify(_request(), CFG, _flight(), nothing)
     assert not got.ok and got.reason == "walled off"
@@ -328,8 +332,10 @@ def test_a_plan_whose_own_rollout_touches_an_obstacle_is_never_handed_back(
     assert "would touch an obstacle" in got.reason, got.reason
     if got.ok:
         assert rollout_clearance(got, req, fm, CFG).min_clearance_m >= 0.0
+        assert (got.strategy, got.rejected) == ("stepped_aside", through.tried)
     else:
         assert got.status == "NO_PATH" and got.reason.endswith("holds")
+        assert got.strategy == "declined_contact" and got.rejected[0] == "searched"
     # a plan clear of contact is handed back as it is
     clear = _straight(5.0)
     monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: clear)

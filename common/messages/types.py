@@ -156,8 +156,13 @@ class ObstacleTracks(Message, frozen=True, kw_only=True):
     tracks: tuple[Track, ...]
 
 
-class PathMsg(Message, frozen=True, kw_only=True):
-    """A planned path as a NURBS curve, or a NO_PATH status with its reason."""
+class PathMsg(Message, frozen=True, kw_only=True, omit_defaults=True):
+    """A planned path as a NURBS curve, or a NO_PATH status with its reason.
+
+    `strategy` and `rejected` are the plan's reason codes (services/planner/reasons.py), added
+    within wire version 9 with defaults: a frame without them decodes as before, and a path
+    without them (the defaults "" and ()) is that frame byte for byte (omit_defaults; see
+    VelocityCommand for how msgspec tells a default)."""
 
     path_id: int
     status: PathStatus
@@ -174,6 +179,8 @@ class PathMsg(Message, frozen=True, kw_only=True):
     f_l: float
     max_curvature: float
     v_ref: float
+    strategy: str = ""  # the strategy that made the plan; a NO_PATH's: why none
+    rejected: tuple[str, ...] = ()  # the strategies that ran before it and did not give it
 
     def validate(self) -> None:
         check_range("path_id", self.path_id, 0)

@@ -30,6 +30,7 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
     core.py is the service core, a thin host: it decides (replan.py), asks (asking.py),
     adopts (adoption.py: decline.py's rules, path_message.py) and sends; stopping.py says
     where a stopping vehicle stays; fleet.py exchanges intents with a fleet's other vehicles.
+    reasons.py: the codes each result carries, the strategy that made it and those rejected.
 
 Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
 

@@ -64,14 +64,19 @@ def _plan_over_ground(
     """The plan for req, whose R_min is the one over ground in the current (wider than the
     hull's: `PlanAsking.ground_turn_radius_m`); failing that, one within the hull's own R_min
     r_water_m: its bends with the current may be flown wide (its flight says so), but a path
-    is better than none, which in a current leaves the vehicle to drift."""
+    is better than none, which in a current leaves the vehicle to drift (coded hull_turns)."""
     result = plan_or_step_aside(req, cfg, flight, aside)
     if result.ok or req.r_min_m <= r_water_m:
         return result
     tighter = plan_or_step_aside(replace(req, r_min_m=r_water_m), cfg, flight, aside)
     if not tighter.ok:
-        return result
-    return replace(tighter, reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "))
+        return result.coded(result.strategy, (*result.rejected, "hull_turns"))
+    return replace(
+        tighter,
+        reason=f"within the hull's own R_min: {tighter.reason}".rstrip(": "),
+        strategy="hull_turns",
+        rejected=(*result.rejected, *tighter.rejected),
+    )
 
 
 def plan_clear_of_contact(
@@ -84,18 +89,25 @@ def plan_clear_of_contact(
     """_plan_over_ground, but never a plan its own flight (rollout.py) has the hull touch an
     obstacle on: one made again that "fared no better" was adopted, and flown into contact
     (a planner frozen 8 s, issue 61). Then a way aside whose flight keeps clear, else the
-    NO_PATH: the vehicle holds, and the next plan starts from there."""
+    NO_PATH: the vehicle holds, and the next plan starts from there (declined_contact)."""
     result = _plan_over_ground(req, r_water_m, cfg, flight, aside)
     touch = _flown_clearance(result, req, cfg, flight)
     if touch >= 0.0:
         return result
     why = f"{result.reason}; flown, its hull would touch an obstacle ({touch:.2f} m) soon"
+    tried = result.tried
     if not result.short_of_goal:
         way = step_aside(req, cfg, flight, aside)
         if way is not None and _flown_clearance(way, req, cfg, flight) >= 0.0:
-            return replace(way, reason=f"{why}; {way.reason}")
+            return replace(way, reason=f"{why}; {way.reason}", rejected=tried)
+        tried = (*tried, "stepped_aside")
     return PlanResult(
-        status="NO_PATH", reason=f"{why}: holds", grid_path=result.grid_path, timing=result.timing
+        status="NO_PATH",
+        reason=f"{why}: holds",
+        strategy="declined_contact",
+        rejected=tried,
+        grid_path=result.grid_path,
+        timing=result.timing,
     )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 from services.control.command.link import Prediction
 from services.planner.asking import Asked
@@ -28,12 +29,15 @@ STALE_HEADING_RAD = math.radians(45.0)
 # it only if it is an ordinary plan (`keeps_path_in_force`)
 PRECAUTIONS = ("corridor", "cruise")
 
+# the rules' reason codes (metrics.json plans_declined_by_reason)
+DeclineCode = Literal["overtaken", "kept_path_in_force"]
+
 
 @dataclass(frozen=True, kw_only=True)
 class Declined:
     """Why a plan made was declined: a reason code and the sentence the log says."""
 
-    code: str  # "overtaken" or "kept_path_in_force"
+    code: DeclineCode
     detail: str
 
 

@@ -72,7 +72,8 @@ def plan_or_step_aside(
     """The plan to the goal, flown (rollout.py), unless it enters the safety margin where
     holding keeps out of it (module docstring: holds first); without one, a way aside when
     holding (or going on along `aside`, the way aside in force) is in a moving obstacle's way
-    or traps the vehicle, else the NO_PATH."""
+    or traps the vehicle, else the NO_PATH; coded (reasons.py) held_first, stepped_aside or
+    as the plan was made, after the strategies that ran before."""
     result = plan_and_verify(req, cfg, fm, plan_path)
     if result.ok:
         moving_on = fm.start[3] >= cfg.tuning.hold_first_factor * req.v_ref_mps
@@ -85,13 +86,15 @@ def plan_or_step_aside(
             status="NO_PATH",
             reason=f"{result.reason}, {result.margin_entered_m:.2f} m into rho0, where "
             f"{held.how} keeps {held.clear_m:.2f} m: holds first",
+            strategy="held_first",
+            rejected=result.tried,
             grid_path=result.grid_path,
             timing=result.timing,
         )
     way = step_aside(req, cfg, fm, aside)
     if way is None:
-        return result
-    return replace(way, reason=f"{result.reason}; {way.reason}")
+        return result.coded(result.strategy, (*result.rejected, "stepped_aside"))
+    return replace(way, reason=f"{result.reason}; {way.reason}", rejected=result.tried)
 
 
 @dataclass(frozen=True)
@@ -361,6 +364,7 @@ def _as_plan(esc: Escape, req: PlanRequest, cfg: PlannerConfig) -> PlanResult:
     return PlanResult.of_curve(
         esc.curve(cfg.nurbs_degree),
         reason="",
+        strategy="stepped_aside",
         grid_path=np.vstack([a, np.array(esc.point_at(esc.length_m))]),
         length_m=esc.length_m,
         f_l=0.0,

@@ -16,7 +16,7 @@ def path_message(
     result: PlanResult, *, stamp: float, path_id: int, status_since: float, why: str, v_ref: float
 ) -> PathMsg:
     """`result` as path `path_id`, asked for `why` and followed at v_ref (m/s), stamped when
-    it is sent; a NO_PATH carries its reason and no curve."""
+    it is sent, with its reason codes (reasons.py); a NO_PATH carries its reason and no curve."""
     if result.ok:
         return PathMsg(
             stamp=stamp,
@@ -24,6 +24,8 @@ def path_message(
             status="OK",
             status_since=status_since,
             reason=f"{why}: {result.reason}" if result.reason else why,
+            strategy=result.strategy,
+            rejected=result.rejected,
             degree=result.degree,
             control_points=_flat(result.control_points),
             weights=_flat(result.weights),
@@ -40,6 +42,8 @@ def path_message(
         status="NO_PATH",
         status_since=status_since,
         reason=f"{why}: {result.reason}",
+        strategy=result.strategy,
+        rejected=result.rejected,
         degree=0,
         control_points=(),
         weights=(),

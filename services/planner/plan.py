@@ -25,6 +25,7 @@ from common.config.world import AreaConfig
 from common.world.geometry import FloatArray
 from services.planner.geometry.clearance import StaticField, moving_distance
 from services.planner.geometry.nurbs_curve import NurbsCurve
+from services.planner.reasons import Strategy
 from services.planner.result import (
     Obstacles,
     PlanRequest,
@@ -76,10 +77,20 @@ class _Clock:
         return PlanTiming(total_s=self.now() - self.begin, **self.spent)
 
 
-def _no_path(reason: str, clock: _Clock, grid: FloatArray | None = None) -> PlanResult:
+def _no_path(
+    reason: str,
+    clock: _Clock,
+    grid: FloatArray | None = None,
+    *,
+    code: Strategy,
+    rejected: tuple[Strategy, ...] = (),
+) -> PlanResult:
+    """A NO_PATH for `reason`, coded `code` after the strategies `rejected` (reasons.py)."""
     return PlanResult(
         status="NO_PATH",
         reason=reason,
+        strategy=code,
+        rejected=rejected,
         grid_path=np.zeros((0, 2)) if grid is None else grid,
         timing=clock.timing(),
     )
@@ -199,10 +210,10 @@ def _check_request(req: PlanRequest, cfg: PlannerConfig, clk: _Clock) -> _Setup 
     s_xy = np.array([req.start.x, req.start.y])
     g_xy = np.array([req.goal.x, req.goal.y])
     if not _inside(req.area, req.goal, r):
-        return _no_path("goal is outside the area", clk)
+        return _no_path("goal is outside the area", clk, code="goal_refused")
     d_min = float(np.hypot(*(g_xy - s_xy)))
     if d_min < 1e-6:
-        return _no_path("start is at the goal: nothing to plan", clk)
+        return _no_path("start is at the goal: nothing to plan", clk, code="goal_refused")
     static = StaticField.build(obs.circles, obs.polygons)
     d_goal = float(static.distance(g_xy)[0][0])
     if d_goal < d_req:
@@ -210,6 +221,7 @@ def _check_request(req: PlanRequest, cfg: PlannerConfig, clk: _Clock) -> _Setup 
             f"goal lies within the safety distance of a static obstacle "
             f"(hull clearance {d_goal - r:.2f} m < rho0 = {cfg.rho0_m:.2f} m)",
             clk,
+            code="goal_refused",
         )
     d_start = min(
         float(static.distance(s_xy)[0][0]),
@@ -233,17 +245,27 @@ def _start_stuck(
     outside = not _inside(req.area, req.start, r)
     if not outside and setup.d_start > r:
         return None
-    escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest) if may_escape else None
-    if outside and may_escape and (escaped is None or not escaped.ok):
-        escaped = come_about_then_plan(req, rest) or escaped
+    escaped: PlanResult | None = None
+    tried: tuple[Strategy, ...] = ()
+    if may_escape:
+        escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest)
+        if escaped is not None and escaped.ok:
+            return escaped.coded("escaped_first")
+        tried = ("escaped_first",)
+        if outside:
+            about = come_about_then_plan(req, rest)
+            if about is not None and about.ok:
+                return about.coded("came_about_first", tried)
+            tried, escaped = (*tried, "came_about_first"), about or escaped
     if escaped is None:  # no way out (or, after one, contact again: a moving obstacle)
         where = (
             "outside the area"
             if outside
             else f"in contact with an obstacle (hull clearance {setup.d_start - r:.2f} m)"
         )
-        return _no_path(f"start is {where} and no way out within R_min is clear", clk)
-    return escaped
+        text = f"start is {where} and no way out within R_min is clear"
+        return _no_path(text, clk, code="stuck", rejected=tried)
+    return escaped.coded(escaped.strategy, tried)  # the NO_PATH after a way out
 
 
 def _search_and_shape(
@@ -269,6 +291,8 @@ def _search_and_shape(
     waypoints = np.zeros((0, 2))
     chk: CurveCheck | None = None
     unswept = passed = False  # each retry below is made at most once (3 searches at most)
+    search: Strategy = "searched"  # the search being made, after those `searched`
+    searched: tuple[Strategy, ...] = ()
     for _ in range(3):
         cmap = build_costmap(area, setup.static, discs, r, cfg)
         cmap = _unblock_start_goal(cmap, req.start, req.goal, r, escape)
@@ -284,12 +308,15 @@ def _search_and_shape(
                 # near an obstacle's track: search the static field, and let the refinement
                 # and the check judge eq. (12)-(13) at the times the curve passes
                 discs, unswept = np.zeros((0, 3)), True
+                searched, search = (*searched, search), "searched_static"
                 continue
             moving = " and moving ones where predicted" if len(discs) else ""
             return _no_path(
                 f"goal unreachable: static obstacles{moving}, inflated by r + rho0, wall it off "
                 f"from the start on the {cfg.resolution_m:g} m grid",
                 clk,
+                code="no_route",
+                rejected=(*searched, search),
             ), True
         waypoints = prune_path(cmap, path, s_xy, g_xy)
         clk.lap("search_s")
@@ -297,16 +324,24 @@ def _search_and_shape(
         curve, chk, n, met_moving = _fit_and_check(prob, waypoints, cfg, clk)
         rounds += n
         if chk.ok:
-            return _planned(curve, chk, waypoints, rounds, setup, cfg, clk), True
+            planned = _planned(curve, chk, waypoints, rounds, setup, cfg, clk)
+            return planned.coded(search, searched), True
         if passed or met_moving is None:
             break
         passed = True
+        searched, search = (*searched, search), "searched_passing"
         # a curve met a moving obstacle at a time the grid did not predict: block each
         # obstacle around the time that curve passes it, and search again
         discs = np.concatenate([discs, passing_discs(met_moving, obs.moving, req.pace_mps, cfg)])
         clk.lap("fit_s")
     why = chk.reason if chk is not None else "no refinement round ran"
-    failed = _no_path(f"no feasible curve after {rounds} refinement rounds: {why}", clk, waypoints)
+    failed = _no_path(
+        f"no feasible curve after {rounds} refinement rounds: {why}",
+        clk,
+        waypoints,
+        code="no_curve",
+        rejected=(*searched, search),
+    )
     return failed, False
 
 
@@ -323,6 +358,7 @@ def _planned(
     return PlanResult.of_curve(
         curve,
         reason="",
+        strategy="searched",
         grid_path=waypoints,
         length_m=chk.length_m,
         f_l=chk.length_m / setup.d_min,
@@ -342,21 +378,27 @@ def _fallbacks(
     Near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
     turn away on an arc within R_min first; inside the margin, failing that, drive out
     first; a route no curve follows to the goal: follow one part of the way (partway.py);
-    the area's edge may be what is in the way: come about across it."""
+    the area's edge may be what is in the way: come about across it. Each is coded after
+    the searches and the recoveries that ran before it (reasons.py)."""
+    tried = failed.rejected
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok:
-        return turned
+        return turned.coded("turned_first", tried)
+    tried = (*tried, "turned_first")
     if setup.start_inside:
         escaped = leave_then_plan(req, cfg, setup.static, setup.d_start, rest)
         if escaped is not None and escaped.ok:
-            return escaped
+            return escaped.coded("escaped_first", tried)
+        tried = (*tried, "escaped_first")
     part = plan_partway(req, failed, rest)
     if part is not None:
-        return part
+        return part.coded("partway", tried)
+    tried = (*tried, "partway")
     about = come_about_then_plan(req, rest)
     if about is not None and about.ok:
-        return about
-    return failed if setup.start_inside else turned
+        return about.coded("came_about_first", tried)
+    last = failed if setup.start_inside else turned
+    return last.coded(last.strategy, (*tried, "came_about_first"))
 
 
 def _fit_and_check(

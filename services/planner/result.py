@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -12,6 +12,7 @@ from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacl
 from common.world import ObstacleState
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve
+from services.planner.reasons import Strategy
 
 PlanStatus = Literal["OK", "NO_PATH"]
 
@@ -80,10 +81,13 @@ class PlanTiming:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class PlanResult:
-    """A planned NURBS path (status OK) or NO_PATH with its reason."""
+    """A planned NURBS path (status OK) or NO_PATH with its reason, and its reason codes: the
+    strategy that made it (for a NO_PATH, why none) and those rejected before (reasons.py)."""
 
     status: PlanStatus
     reason: str
+    strategy: Strategy
+    rejected: tuple[Strategy, ...] = ()
     degree: int = 0
     control_points: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # (n, 2)
     weights: FloatArray = field(default_factory=lambda: np.zeros(0))
@@ -120,6 +124,16 @@ class PlanResult:
     @property
     def ok(self) -> bool:
         return self.status == "OK"
+
+    @property
+    def tried(self) -> tuple[Strategy, ...]:
+        """The strategies run up to this result: those rejected, then the one that made it
+        (a NO_PATH's code says why none, and names no strategy)."""
+        return (*self.rejected, self.strategy) if self.ok else self.rejected
+
+    def coded(self, strategy: Strategy, rejected: tuple[Strategy, ...] = ()) -> PlanResult:
+        """This result as made by `strategy`, after the strategies `rejected`."""
+        return replace(self, strategy=strategy, rejected=rejected)
 
     def curve(self) -> NurbsCurve:
         if not self.ok:

@@ -237,8 +237,19 @@ def one_of_each() -> list[Message]:
 
 
 def variants() -> dict[str, Message]:
-    """Further pinned forms of some types, by name: a command carrying future entries."""
+    """Further pinned forms of some types, by name: a command carrying future entries, a
+    NO_PATH carrying its reason codes."""
+    (path,) = (m for m in one_of_each() if isinstance(m, PathMsg))
     return {
+        "PathMsg+codes": replace(
+            path,
+            seq=6,
+            path_id=3,
+            status="NO_PATH",
+            reason="infeasible: no feasible curve",
+            strategy="no_curve",
+            rejected=("searched", "turned_first", "partway"),
+        ),
         "VelocityCommand+sequence": replace(
             VelocityCommand.predictive(
                 stamp=12.5,
@@ -253,5 +264,5 @@ def variants() -> dict[str, Message]:
             seq=12,
             source=SOURCE,
             sent=SENT,
-        )
+        ),
     }

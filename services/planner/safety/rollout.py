@@ -40,6 +40,7 @@ from common.world.geometry import FloatArray
 from services.control.command.response import Pose, ResponseModel
 from services.control.controllers.base import Controller
 from services.planner.geometry.clearance import StaticField, moving_distance
+from services.planner.reasons import Strategy
 from services.planner.result import PlanRequest, PlanResult
 from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
@@ -175,7 +176,8 @@ Plan = Callable[[PlanRequest, PlannerConfig], PlanResult]
 def plan_and_verify(
     req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, plan: Plan
 ) -> PlanResult:
-    """`plan(req, cfg)`, flown; made again wider if its flight breaks rho0 (module docstring)."""
+    """`plan(req, cfg)`, flown; made again wider if its flight breaks rho0 (module docstring),
+    coded by how it was made again (reasons.py: remade_*), after the plans made before."""
     first = plan(req, cfg)
     if not first.ok:
         return first
@@ -194,16 +196,20 @@ def plan_and_verify(
         ),
         curvature_margin=cfg.curvature_margin * cfg.tuning.rollout_curvature_factor,
     )
-    tried = [(f"made again with a {wider.clearance_margin_m:.2f} m margin", req, wider)]
+    tried: list[tuple[str, Strategy, PlanRequest, PlannerConfig]] = [
+        (f"made again with a {wider.clearance_margin_m:.2f} m margin", "remade_wider", req, wider)
+    ]
     around = _detour(req, cfg, f1)
     if around is not None:
-        tried.append(("made again around where it came nearest", around, cfg))
+        tried.append(("made again around where it came nearest", "remade_around", around, cfg))
     if f1.static:  # (near a moving obstacle slower would only pass it at another time)
         slower = replace(req, v_ref_mps=req.v_ref_mps * cfg.tuning.rollout_slow_factor)
-        tried.append((f"made again for {slower.v_ref_mps:.2f} m/s", slower, cfg))
-    best, best_f, how = first, f1, ""
-    for what, q, c in tried:
+        tried.append((f"made again for {slower.v_ref_mps:.2f} m/s", "remade_slower", slower, cfg))
+    best, best_f, how, code = first, f1, "", first.strategy
+    remade: list[Strategy] = []  # the ways it was made again, in order
+    for what, way, q, c in tried:
         again = plan(q, c)
+        remade.append(way)
         if not again.ok:
             continue
         # judged among the real obstacles, at the speed it was made for
@@ -213,12 +219,14 @@ def plan_and_verify(
             until = f.path_s_m + req.r_min_m
             again = replace(again, v_ref_mps=q.v_ref_mps, slow_until_m=until)
         if f.short_m < best_f.short_m:
-            best, best_f, how = again, f, what
+            best, best_f, how, code = again, f, what, way
         if best_f.short_m <= 0.0:
             break
     if best is first:
+        first = first.coded(first.strategy, (*first.rejected, *remade))
         return _with_reason(first, f"{found}; made again, it fared no better")
     kept = "clears" if best_f.short_m <= 0.0 else "comes nearer clearing"
+    best = best.coded(code, (*first.tried, *(w for w in remade if w != code)))
     return _with_reason(
         best,
         f"{found}; {how}, whose flight {kept} {best_f.keep_m:.2f} m (clearance there "
