@@ -4,6 +4,7 @@ known in closed form), and yaw-rate profiles against eq. (11)'s turning bound.""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -14,7 +15,7 @@ from helpers.records import auv, facts, ran
 from helpers.testloop import LoopMetrics
 
 from common.config.scenario import Scenario, load_scenario
-from common.messages import LinkStats, ObstacleTracks, Track, TruthState
+from common.messages import LinkStats, ObstacleTracks, PathMsg, Track, TruthState
 from common.runtime.model.record import Record
 from common.world import World
 from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_metrics
@@ -268,3 +269,36 @@ def test_plans_declined_by_reason_come_from_the_planners_counters_by_code() -> N
     m = mission_metrics(rec, s, World(s.world))
     assert m.plans_declined == 3
     assert m.plans_declined_by_reason == {"kept_path_in_force": 2, "overtaken": 1}
+
+
+def _path(seq: int, strategy: str, rejected: tuple[str, ...] = ()) -> PathMsg:
+    """A NO_PATH (no curve to measure against) asked for no_path, with reason codes."""
+    return PathMsg(
+        stamp=float(seq), source="planner", seq=seq, path_id=seq, status="NO_PATH",
+        reason="no_path: walled off", degree=0, control_points=(), weights=(), knots=(),
+        waypoints=(), length=0.0, f_l=0.0, max_curvature=0.0, v_ref=0.0,
+        strategy=strategy, rejected=rejected,
+    )  # fmt: skip
+
+
+def test_plan_strategies_count_the_paths_codes_into_metrics_json() -> None:
+    # each path message names the strategy that made it and those rejected on the way
+    # (services/planner/reasons.py): metrics.json counts both by code
+    s = _scenario(24.0)
+    rec = _record(95.0, None, None)
+    plain = msgspec.to_builtins(mission_metrics(rec, s, World(s.world)))
+    assert "plan_strategies" not in plain  # no path: nothing to count
+    rec.add("planner", "path", _path(1, "no_route", ("searched",)))
+    rec.add("planner", "path", _path(2, "no_curve", ("searched", "turned_first")))
+    rec.add("planner", "path", _path(3, "no_route", ("searched_static",)))
+    written = json.loads(json.dumps(ran(mission_metrics(rec, s, World(s.world))).to_json()))
+    assert written["plan_strategies"] == {"no_curve": 1, "no_route": 2}
+    assert written["plan_strategies_rejected"] == {
+        "searched": 2,
+        "searched_static": 1,
+        "turned_first": 1,
+    }
+    # a recording of paths from before the codes counts none (absent, not empty)
+    old = _record(95.0, None, None)
+    old.add("planner", "path", _path(1, ""))
+    assert "plan_strategies" not in msgspec.to_builtins(mission_metrics(old, s, World(s.world)))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterable
 from typing import Any, NotRequired, TypedDict
 
 import numpy as np
@@ -71,6 +72,11 @@ def _by_reason(counters: dict[str, int]) -> dict[str, int]:
     """The planner's declined plans by reason code ("plans_declined.<code>" counters)."""
     head = PLANS_DECLINED + "."
     return {k[len(head) :]: n for k, n in sorted(counters.items()) if k.startswith(head)}
+
+
+def _counts(codes: Iterable[str]) -> dict[str, int]:
+    """How often each code occurs, by code."""
+    return dict(sorted(Counter(codes).items()))
 
 
 def last_counters(record: Record, service: str) -> dict[str, int]:
@@ -272,9 +278,14 @@ def _path_metrics(
         # ... by the rule that declined them (services/planner/decline.py), and the paths
         # published by why they were asked (the replan policy's reason, replan.py)
         "plans_declined_by_reason": _by_reason(last_counters(record, planner)),
-        "replans_by_reason": dict(sorted(Counter(p.reason.split(":")[0] for p in paths).items())),
+        "replans_by_reason": _counts(p.reason.split(":")[0] for p in paths),
         "control_actions": len(cmds),
     }
+    if any(p.strategy for p in paths):  # (a recording from before the codes has none)
+        # the plans by the strategy that made them (services/planner/reasons.py), and the
+        # strategies that ran before and did not give them
+        out["plan_strategies"] = _counts(p.strategy for p in paths if p.strategy)
+        out["plan_strategies_rejected"] = _counts(c for p in paths for c in p.rejected)
     if not ok:
         return out
     first = ok[0]  # the "optimal path": planned at the start with the whole chart

@@ -66,6 +66,10 @@ class AuvMetrics(msgspec.Struct, kw_only=True, frozen=True):
     plans_declined: int | Opt = UNSET
     plans_declined_by_reason: dict[str, int] | Opt = UNSET
     replans_by_reason: dict[str, int] | Opt = UNSET
+    # the paths published by the strategy that made them, and the strategies rejected on the
+    # way to them (services/planner/reasons.py); absent in a record of paths without codes
+    plan_strategies: dict[str, int] | Opt = UNSET
+    plan_strategies_rejected: dict[str, int] | Opt = UNSET
     control_actions: int | Opt = UNSET
     # against the first planned path (absent without one)
     planned_length_m: Num | Opt = UNSET
