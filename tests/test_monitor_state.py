@@ -71,6 +71,30 @@ def test_the_path_in_force_is_the_newest_id_and_replans_are_counted_once() -> No
     assert "NO_PATH: blocked" in s.alarms(now=11.0)
 
 
+def test_the_dashboard_shows_the_last_plans_strategy_and_the_plans_by_strategy() -> None:
+    from rich.console import Console
+
+    from services.monitor.views import _panel
+
+    s = _state()
+    p = SAMPLES["PathMsg"]
+    assert isinstance(p, PathMsg)
+    s.see("planner", "path", replace(p, path_id=1, strategy="searched"), wall=10.0)
+    partway = replace(p, path_id=2, strategy="partway", rejected=("searched", "turned_first"))
+    s.see("planner", "path", partway, wall=10.1)
+    s.see("planner", "path", partway, wall=10.2)  # the same one again: counted once
+    path = s.snapshot(now=10.3)["path"]
+    assert (path["strategy"], path["rejected"]) == ("partway", ["searched", "turned_first"])
+    assert path["strategies"] == {"partway": 1, "searched": 1}
+    events = s.take_events()
+    assert events[-1].text.endswith("[partway]") and events[-1].data["strategy"] == "partway"
+    out = io.StringIO()
+    Console(file=out, width=160).print(_panel(s.snapshot(now=10.3)))
+    shown = out.getvalue()
+    assert "by partway after searched, turned_first" in shown
+    assert "plans by" in shown and "partway 1  searched 1" in shown
+
+
 def test_estimate_error_compares_samples_close_in_time_only() -> None:
     s = _state()
     est = SAMPLES["StateEstimate"]

@@ -101,6 +101,7 @@ class VehicleView:
         self.command: VelocityCommand | None = None
         self.path: PathMsg | None = None
         self.paths_seen: set[int] = set()
+        self.strategies: dict[str, int] = {}  # the paths seen by the strategy that made them
         self.est_error_m: float | None = None
         self._truths: deque[TruthState] = deque(maxlen=TRUTH_KEEP)
 
@@ -157,13 +158,17 @@ class VehicleView:
         if msg.path_id in self.paths_seen:
             return []
         self.paths_seen.add(msg.path_id)
+        if msg.strategy:  # (services/planner/reasons.py; none from an older planner)
+            self.strategies[msg.strategy] = self.strategies.get(msg.strategy, 0) + 1
         old = self.path
         if old is not None and msg.path_id < old.path_id:
             return []  # an older path arriving late: the one in force stays
         self.path = msg
         text = f"path {msg.path_id} {msg.status}"
         text += f" ({msg.length:.1f} m)" if msg.status == "OK" else f" ({msg.reason})"
-        data = {"path_id": msg.path_id, "status": msg.status, "reason": msg.reason}
+        text += f" [{msg.strategy}]" if msg.strategy else ""
+        data: dict[str, Any] = {"path_id": msg.path_id, "status": msg.status, "reason": msg.reason}
+        data |= {"strategy": msg.strategy, "rejected": list(msg.rejected)}
         return [("path", text, data)]
 
     def snapshot(self, to_goal_m: float | None) -> dict[str, Any]:
@@ -180,6 +185,9 @@ class VehicleView:
                 "reason": p.reason,
                 "length_m": p.length,
                 "replans": max(0, len(self.paths_seen) - 1),
+                "strategy": p.strategy,
+                "rejected": list(p.rejected),
+                "strategies": dict(sorted(self.strategies.items())),
             }
         status, cmd = self.status, self.command
         return {

@@ -100,11 +100,20 @@ def _mode(mode: str | None) -> str:
 
 
 def _path(path: dict[str, Any] | None) -> str:
-    """The path in force: status, id, replans and why (a NO_PATH's reason)."""
+    """The path in force: status, id, replans, the strategy that made it (after those
+    rejected) and why (a NO_PATH's reason)."""
     if path is None:
         return "-"
     why = f"  ({path['reason']})" if path["reason"] else ""
-    return f"{path['status']} #{path['path_id']}  {path['replans']} replans{why}"
+    made = f"  by {path['strategy']}" if path["strategy"] else ""
+    made += f" after {', '.join(path['rejected'])}" if path["rejected"] else ""
+    return f"{path['status']} #{path['path_id']}  {path['replans']} replans{made}{why}"
+
+
+def _plans(path: dict[str, Any] | None) -> str:
+    """The paths seen by the strategy that made them, most first."""
+    by = sorted((path or {}).get("strategies", {}).items(), key=lambda kv: (-kv[1], kv[0]))
+    return "  ".join(f"{code} {n}" for code, n in by) or "-"
 
 
 def _panel(snap: dict[str, Any]) -> Any:
@@ -129,6 +138,7 @@ def _panel(snap: dict[str, Any]) -> Any:
         head.add_row("speed", _num(snap["speed_mps"], ".2f", " m/s"))
         head.add_row("to goal", _num(snap["to_goal_m"], ".1f", " m"))
         head.add_row("path", _path(snap["path"]))
+        head.add_row("plans by", _plans(snap["path"]))
         head.add_row("estimate error", _num(snap["est_error_m"], ".2f", " m"))
     head.add_row("mission time", _num(snap["t_mission"], ".1f", " s"))
     if snap.get("copies_lost"):
