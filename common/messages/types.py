@@ -159,10 +159,9 @@ class ObstacleTracks(Message, frozen=True, kw_only=True):
 class PathMsg(Message, frozen=True, kw_only=True, omit_defaults=True):
     """A planned path as a NURBS curve, or a NO_PATH status with its reason.
 
-    `strategy` and `rejected` are the plan's reason codes (services/planner/reasons.py), added
-    within wire version 9 with defaults: a frame without them decodes as before, and a path
-    without them (the defaults "" and ()) is that frame byte for byte (omit_defaults; see
-    VelocityCommand for how msgspec tells a default)."""
+    `strategy` and `rejected` are the plan's reason codes (services/planner/reasons.py, wire
+    version 10); a path without them (the defaults "" and ()) leaves them out of the frame
+    (omit_defaults; see VelocityCommand for how msgspec tells a default)."""
 
     path_id: int
     status: PathStatus
