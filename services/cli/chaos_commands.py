@@ -6,10 +6,17 @@ import argparse
 import sys
 from pathlib import Path
 
-from services.cli.flags import scenario_args
+from services.cli.flags import Subparsers, command, scenario_args
 
 
 def cmd_chaos(a: argparse.Namespace) -> int:
+    """run the fault matrix on real launches and print fault x outcome
+
+    Each case launches the scenario (realtime), applies one fault at --fault-at mission seconds
+    — a service or the router SIGKILLed (services also with a restart) or SIGSTOPped, hostile
+    frames on every data key, the launcher SIGKILLed — and judges the outcome: no hang, no
+    process left, metrics written, exit 0 only on success, and success where the fault is
+    survivable. Exit 1 if any case failed."""
     from services.chaos.case import CaseSetup
     from services.chaos.run import run_matrix, select
     from services.chaos.verdict import problems, table
@@ -34,17 +41,9 @@ def cmd_chaos(a: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add chaos to the tidelink parser."""
-    c = sub.add_parser(
-        "chaos",
-        help="run the fault matrix on real launches and print fault x outcome",
-        description="Each case launches the scenario (realtime), applies one fault at "
-        "--fault-at mission seconds — a service or the router SIGKILLed (services also with "
-        "a restart) or SIGSTOPped, hostile frames on every data key, the launcher SIGKILLed — "
-        "and judges the outcome: no hang, no process left, metrics written, exit 0 only on "
-        "success, and success where the fault is survivable. Exit 1 if any case failed.",
-    )
+    c = command(sub, "chaos", cmd_chaos)
     scenario_args(c)
     c.add_argument("--only", default=None, metavar="REGEX", help="the faults whose name matches")
     c.add_argument("--list", action="store_true", help="list the faults and exit")
@@ -53,4 +52,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--fault-at", type=float, default=15.0, help="mission second the fault strikes (15)"
     )
     c.add_argument("--out", type=Path, default=Path("runs/chaos"), help="case folders (runs/chaos)")
-    c.set_defaults(func=cmd_chaos)

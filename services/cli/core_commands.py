@@ -14,13 +14,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from services.cli.flags import (
+    Subparsers,
     budget_arg,
     certs_args,
+    command,
     connect_arg,
-    details_arg,
+    host_args,
     insecure_arg,
     listen_arg,
     no_plot_arg,
+    report_args,
     scenario_args,
 )
 
@@ -43,6 +46,17 @@ def certs_overrides(certs: str | None) -> list[str]:
     if certs is None:
         return []
     return ['bus.security="mtls"', f"bus.certs={json.dumps(certs)}"]
+
+
+def runtime_overrides(a: argparse.Namespace) -> list[str]:
+    """The scenario overrides of a command that runs one: its --set, and what --certs,
+    --runtime (unless None: the scenario's) and --time-scale stand for."""
+    overrides = list(a.overrides) + certs_overrides(a.certs)
+    if a.runtime:
+        overrides.append(f'runtime.kind="{a.runtime}"')
+    if a.time_scale is not None:
+        overrides.append(f"runtime.time_scale={a.time_scale}")
+    return overrides
 
 
 def check_exposure(listen: list[str] | tuple[str, ...], secured: bool, insecure: bool) -> None:
@@ -78,6 +92,7 @@ def scenario_check(a: argparse.Namespace) -> ScenarioCheck:
 
 
 def cmd_check(a: argparse.Namespace) -> int:
+    """validate a scenario file and exit non-zero on any problem"""
     from common.config.scenario import load_scenario
     from common.config.work import estimate
     from common.runtime.model.mission import load_mission
@@ -90,17 +105,13 @@ def cmd_check(a: argparse.Namespace) -> int:
 
 
 def cmd_run(a: argparse.Namespace) -> int:
+    """run one mission and write DIR/metrics.json and DIR/run.png"""
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario
-    from services.cli.summary import print_summary
+    from services.cli.summary import print_run_end
     from services.launcher.outputs import save_run
 
-    overrides = list(a.overrides) + certs_overrides(a.certs)
-    if a.runtime:
-        overrides.append(f'runtime.kind="{a.runtime}"')
-    if a.time_scale is not None:
-        overrides.append(f"runtime.time_scale={a.time_scale}")
-    scenario, raw = load_scenario(a.scenario, overrides, a.seed, check=scenario_check(a))
+    scenario, raw = load_scenario(a.scenario, runtime_overrides(a), a.seed, check=scenario_check(a))
     if scenario.runtime.kind != "inproc":  # the process is the run's router
         check_exposure(scenario.bus.listen, scenario.bus.secured, a.insecure)
     out = (
@@ -109,19 +120,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
     saved = save_run(result, scenario, out, wall_s=time.monotonic() - wall0, plot=not a.no_plot)
-    metrics, plot, unwritten = saved.metrics, saved.plot, saved.unwritten
-    if a.json:
-        print(json.dumps(metrics.to_json(), sort_keys=True, allow_nan=False))
-    else:
-        written = not any("metrics.json" in w for w in unwritten)
-        outputs = [("metrics", out / "metrics.json")] if written else []
-        outputs += [("plot", plot)] if plot else []
-        print_summary(metrics, outputs, all_metrics=a.all_metrics)
-        if not written:
-            print("metrics: not written (see below)")
-    for why in unwritten:  # the outcome is still the run's: reported below, as ever
-        print(f"tidelink: error: {why}", file=sys.stderr)
-    return report_outcome(metrics, json_output=a.json)
+    print_run_end(saved, out, json_output=a.json, all_metrics=a.all_metrics)
+    return report_outcome(saved.metrics, json_output=a.json)
 
 
 def report_outcome(metrics: RunMetrics[Any], *, json_output: bool) -> int:
@@ -146,6 +146,7 @@ def report_outcome(metrics: RunMetrics[Any], *, json_output: bool) -> int:
 
 
 def cmd_router(a: argparse.Namespace) -> int:
+    """run a Zenoh router (no zenohd is installable here)"""
     from common.bus import Bus, Keys
     from common.config.bus import BusConfig
     from common.config.errors import ConfigError
@@ -203,14 +204,13 @@ def _read_acl(path: Path) -> dict[str, Any]:
     return acl
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add check, run and router to the tidelink parser."""
-    c = sub.add_parser("check", help="validate a scenario file and exit non-zero on any problem")
+    c = command(sub, "check", cmd_check)
     scenario_args(c)
     budget_arg(c)
-    c.set_defaults(func=cmd_check)
 
-    r = sub.add_parser("run", help="run one mission and write DIR/metrics.json and DIR/run.png")
+    r = command(sub, "run", cmd_run)
     scenario_args(r)
     r.add_argument(
         "--runtime",
@@ -220,15 +220,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     r.add_argument("--time-scale", type=float, default=None, help="realtime speed-up, e.g. 5")
     r.add_argument("--out", type=Path, default=None, help="output folder (default runs/<name>-...)")
-    r.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
-    details_arg(r)
+    report_args(r)
     no_plot_arg(r)
-    budget_arg(r)
-    certs_args(r, identity=None)
-    insecure_arg(r)
-    r.set_defaults(func=cmd_run)
+    host_args(r)
 
-    z = sub.add_parser("router", help="run a Zenoh router (no zenohd is installable here)")
+    z = command(sub, "router", cmd_router)
     listen_arg(z, required=True, repeat=True, help="e.g. tcp/127.0.0.1:7447 (repeatable)")
     connect_arg(
         z,
@@ -245,4 +241,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="with --certs: enforce this access control (`tidelink acl SCENARIO --json`)",
     )
     insecure_arg(z)
-    z.set_defaults(func=cmd_router)

@@ -4,67 +4,75 @@ As zenoh-python's examples add the Zenoh flags every program shares with one hel
 endpoints are `-e/--connect` and `-l/--listen` wherever a command has them (the short flags
 of Zenoh's own tools); what differs between commands (one endpoint or repeatable, required
 or defaulted) is a keyword, the flag itself is not re-declared. The other shared groups:
-a scenario and its overrides, the certificates, --insecure, --no-plot, --budget, and the
-watchers' run selection.
+a scenario and its overrides, the certificates, --insecure, --no-plot, --budget, how a run
+is reported (--json, --verbose), and the watchers' run selection. Every sub-command is added
+by `command`, and its function's docstring is what its --help says.
 """
 
 from __future__ import annotations
 
 import argparse
+import inspect
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import TypedDict
+from typing import TypeAlias, TypedDict
 
 from common.config.bus import DEFAULT_CONNECT
 
 # argparse's containers: a parser, or a group of mutually exclusive flags inside one
 Flags = argparse._ActionsContainer
+# what a command module's register() adds its sub-commands to (not subscriptable at run time)
+Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
-def connect_arg(
-    p: Flags,
-    *,
-    help: str,
-    default: str | list[str] | None = None,
-    required: bool = False,
-    repeat: bool = False,
-) -> None:
-    """-e/--connect ENDPOINT: a router to join (`repeat`: given any number of times)."""
-    _endpoint(p, ("-e", "--connect"), help=help, default=default, required=required, repeat=repeat)
+def command(
+    sub: Subparsers, name: str, func: Callable[[argparse.Namespace], int]
+) -> argparse.ArgumentParser:
+    """Sub-command `name`, which runs `func` on its arguments. The docstring of `func` is
+    what --help says of it: its first paragraph the command's line in `tidelink --help`, the
+    rest (if any) the description its own --help gives above its flags."""
+    first, _, rest = inspect.cleandoc(func.__doc__ or "").partition("\n\n")
+    p = sub.add_parser(name, help=" ".join(first.split()) or None, description=rest or None)
+    p.set_defaults(func=func)
+    return p
 
 
-def listen_arg(
-    p: Flags,
-    *,
-    help: str,
-    default: str | list[str] | None = None,
-    required: bool = False,
-    repeat: bool = False,
-) -> None:
-    """-l/--listen ENDPOINT: where a router listens (`repeat`: given any number of times)."""
-    _endpoint(p, ("-l", "--listen"), help=help, default=default, required=required, repeat=repeat)
+class EndpointFlag:
+    """An endpoint flag: `names` (short and long) with metavar ENDPOINT; how a command takes
+    it (`repeat`: given any number of times; a default; required) is said where it adds it."""
+
+    def __init__(self, *names: str) -> None:
+        self.names = names
+
+    def __call__(
+        self,
+        p: Flags,
+        *,
+        help: str,
+        default: str | list[str] | None = None,
+        required: bool = False,
+        repeat: bool = False,
+    ) -> None:
+        if repeat:
+            p.add_argument(
+                *self.names,
+                action="append",
+                default=[] if default is None else default,
+                required=required,
+                metavar="ENDPOINT",
+                help=help,
+            )
+        else:
+            p.add_argument(
+                *self.names, default=default, required=required, metavar="ENDPOINT", help=help
+            )
 
 
-def _endpoint(
-    p: Flags,
-    names: tuple[str, str],
-    *,
-    help: str,
-    default: str | list[str] | None,
-    required: bool,
-    repeat: bool,
-) -> None:
-    if repeat:
-        p.add_argument(
-            *names,
-            action="append",
-            default=[] if default is None else default,
-            required=required,
-            metavar="ENDPOINT",
-            help=help,
-        )
-    else:
-        p.add_argument(*names, default=default, required=required, metavar="ENDPOINT", help=help)
+# -e/--connect ENDPOINT: a router to join
+connect_arg = EndpointFlag("-e", "--connect")
+# -l/--listen ENDPOINT: where a router listens
+listen_arg = EndpointFlag("-l", "--listen")
 
 
 def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
@@ -166,6 +174,20 @@ def details_arg(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="print every scalar metric after the verdict (DIR/metrics.json has them all)",
     )
+
+
+def report_args(p: argparse.ArgumentParser) -> None:
+    """--json and --verbose: how a command that runs a mission reports it at the end."""
+    p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    details_arg(p)
+
+
+def host_args(p: argparse.ArgumentParser) -> None:
+    """--budget, --certs and --insecure: what a command that runs a mission on this host (its
+    router among its processes) is allowed, and how its bus is secured."""
+    budget_arg(p)
+    certs_args(p, identity=None)
+    insecure_arg(p)
 
 
 def budget_arg(p: argparse.ArgumentParser) -> None:

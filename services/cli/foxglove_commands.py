@@ -8,10 +8,15 @@ import logging
 import sys
 from pathlib import Path
 
-from services.cli.flags import watch_fields, watcher_args
+from services.cli.flags import Subparsers, command, watch_fields, watcher_args
 
 
 def cmd_foxglove(a: argparse.Namespace) -> int:
+    """serve the runs on a router to the Foxglove app (WebSocket)
+
+    Serve the runs on a router to the Foxglove app over WebSocket, to clients of the subprotocol
+    foxglove.websocket.v1 (ws-protocol's) or foxglove.sdk.v1 (the SDK's, or its revision
+    foxglove.sdk.v1.1)."""
     if a.layout_for is not None:
         return _print_layout(a.layout_for)
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
@@ -42,15 +47,9 @@ def _print_layout(scenario_path: Path) -> int:
     return 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add foxglove to the tidelink parser."""
-    f = sub.add_parser(
-        "foxglove",
-        help="serve the runs on a router to the Foxglove app (WebSocket)",
-        description="Serve the runs on a router to the Foxglove app over WebSocket, to clients "
-        "of the subprotocol foxglove.websocket.v1 (ws-protocol's) or foxglove.sdk.v1 (the "
-        "SDK's, or its revision foxglove.sdk.v1.1).",
-    )
+    f = command(sub, "foxglove", cmd_foxglove)
     watcher_args(
         f,
         run_help="show only this run (default: any, one at a time)",
@@ -65,4 +64,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="print the Foxglove layout for this scenario's vehicles (a fleet: every vehicle "
         "in each panel) and exit; import it in the app with Layouts > Import from file",
     )
-    f.set_defaults(func=cmd_foxglove)

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from services.cli.flags import certs_args, connect_arg, scenario_args
+from services.cli.flags import Subparsers, certs_args, command, connect_arg, scenario_args
 from services.cli.graph_render import to_dot, to_png, to_text
 
 
@@ -35,6 +35,7 @@ def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
 
 
 def cmd_graph(a: argparse.Namespace) -> int:
+    """print a mission's dataflow (services, streams, types, links)"""
     if (a.scenario is None) == (a.connect is None):
         raise ValueError("graph: give a SCENARIO file, or --connect ENDPOINT for a live run")
     graphs = _from_scenario(a) if a.scenario is not None else _from_live_run(a)
@@ -54,9 +55,9 @@ def cmd_graph(a: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add graph to the tidelink parser."""
-    g = sub.add_parser("graph", help="print a mission's dataflow (services, streams, types, links)")
+    g = command(sub, "graph", cmd_graph)
     scenario_args(g, required=False)  # no SCENARIO when --connect asks a live run
     connect_arg(g, help="ask the live run on this router instead")
     g.add_argument("--run", default=None, help="with --connect: the run id (default: any)")
@@ -66,4 +67,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     g.add_argument("--dot", type=Path, default=None, help="also write Graphviz DOT to this file")
     g.add_argument("--png", type=Path, default=None, help="also draw the graph to this PNG")
     g.add_argument("--json", action="store_true", help="print the declaration as JSON")
-    g.set_defaults(func=cmd_graph)

@@ -4,27 +4,28 @@ service joining a run from any host)."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from common.config.bus import DEFAULT_CONNECT
 from services.cli.core_commands import (
-    certs_overrides,
     check_exposure,
     report_outcome,
+    runtime_overrides,
     scenario_check,
 )
 from services.cli.flags import (
-    budget_arg,
+    Subparsers,
     certs_args,
+    command,
     connect_arg,
-    details_arg,
-    insecure_arg,
+    host_args,
     listen_arg,
     no_plot_arg,
+    report_args,
     scenario_args,
 )
 
@@ -32,6 +33,8 @@ if TYPE_CHECKING:
     from common.config.bus import BusConfig
     from common.config.scenario import Scenario
     from common.runtime.distributed.bringup import ClockSide
+    from common.runtime.processes.policy import RestartPolicy
+    from services.launcher.launch import LaunchOutcome
     from services.recording.tap_recorder import TapRecorder
 
 RESTART_HELP = (
@@ -41,30 +44,54 @@ RESTART_HELP = (
 )
 
 
-def _runtime_overrides(a: argparse.Namespace) -> list[str]:
-    overrides = list(a.overrides) + certs_overrides(a.certs)
-    overrides.append(f'runtime.kind="{a.runtime}"')
-    if a.time_scale is not None:
-        overrides.append(f"runtime.time_scale={a.time_scale}")
-    return overrides
-
-
 def cmd_launch(a: argparse.Namespace) -> int:
-    from common.config.errors import ConfigValueError
+    """start a router and every service as supervised processes"""
     from common.config.scenario import load_scenario
-    from common.runtime.distributed.acl import LAUNCHER, ROUTER
     from common.runtime.model.mission import load_mission
-    from common.runtime.processes.policy import RestartPolicy, policies_for
     from common.runtime.processes.signals import Interrupted
+    from services.cli.summary import print_run_end
     from services.launcher import LaunchOptions, launch
-    from services.launcher.launch import select_services
     from services.launcher.progress import make_display
 
-    scenario, raw = load_scenario(
-        a.scenario, _runtime_overrides(a), a.seed, check=scenario_check(a)
-    )
+    scenario, raw = load_scenario(a.scenario, runtime_overrides(a), a.seed, check=scenario_check(a))
     names = load_mission(scenario).dataflow.names
     only = None if a.only is None else tuple(n for n in a.only.split(",") if n.strip())
+    _check_launch(a, scenario, names, only)
+    out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
+    recorders: list[TapRecorder] = []
+    opts = LaunchOptions(
+        only=only,
+        listen=tuple(a.listen),
+        plot=not a.no_plot,
+        policies=_restart_policies(a, names),
+        attach=(_recorder(scenario, raw, out, recorders),) if a.record else (),
+    )
+    try:
+        outcome = launch(scenario, raw, out, opts, make_display(sys.stderr))
+    except Interrupted:
+        print("tidelink: interrupted before the mission started", file=sys.stderr)
+        return 130
+    print_run_end(
+        outcome,
+        out,
+        json_output=a.json,
+        all_metrics=a.all_metrics,
+        more=[("logs", out / "logs")],
+        notes=[_recorded(r) for r in recorders],
+    )
+    return _launch_exit(outcome, json_output=a.json)
+
+
+def _check_launch(
+    a: argparse.Namespace, scenario: Scenario, names: tuple[str, ...], only: tuple[str, ...] | None
+) -> None:
+    """What a launch is refused for before any process starts: a listener beyond this
+    machine without --certs or --insecure, an endpoint the bus cannot serve, an identity
+    without its certificate, --restart in lockstep."""
+    from common.config.errors import ConfigValueError
+    from common.runtime.distributed.acl import LAUNCHER, ROUTER
+    from services.launcher.launch import select_services
+
     check_exposure(a.listen, scenario.bus.secured, a.insecure)
     scenario.bus.router_on(tuple(a.listen))  # e.g. a tls/ endpoint without --certs: say so now
     if scenario.bus.secured:  # every identity this host presents, before any process starts
@@ -76,9 +103,22 @@ def cmd_launch(a: argparse.Namespace) -> int:
             "lockstep runs cannot restart a service (it would lose its state and the run "
             "its determinism); use --runtime realtime",
         )
+
+
+def _restart_policies(a: argparse.Namespace, names: tuple[str, ...]) -> dict[str, RestartPolicy]:
+    """Each service's restart policy: --restart's, else never with --backoff's delays."""
+    from common.runtime.distributed.acl import ROUTER
+    from common.runtime.processes.policy import RestartPolicy, policies_for
+
     default = RestartPolicy(backoff_s=a.backoff, backoff_max_s=max(a.backoff, 30.0))
-    out = a.out or Path("runs") / f"{scenario.run.name}-launch-s{scenario.run.seed}"
-    recorders: list[TapRecorder] = []
+    return policies_for(names, a.restart, default, named_only=(ROUTER,))
+
+
+def _recorder(
+    scenario: Scenario, raw: dict[str, Any], out: Path, recorders: list[TapRecorder]
+) -> Callable[[ClockSide], TapRecorder]:
+    """--record: what the launch attaches to its clock side, a recorder of every frame to
+    out/run.mcap, kept in `recorders` to report on at the end."""
 
     def record(side: ClockSide) -> TapRecorder:
         from services.cli.record_commands import foxglove_view
@@ -87,42 +127,21 @@ def cmd_launch(a: argparse.Namespace) -> int:
         recorders.append(TapRecorder(side, out / "run.mcap", raw, view=foxglove_view(scenario)))
         return recorders[-1]
 
-    opts = LaunchOptions(
-        only=only,
-        listen=tuple(a.listen),
-        plot=not a.no_plot,
-        policies=policies_for(names, a.restart, default, named_only=(ROUTER,)),
-        attach=(record,) if a.record else (),
-    )
-    try:
-        outcome = launch(scenario, raw, out, opts, make_display(sys.stderr))
-    except Interrupted:
-        print("tidelink: interrupted before the mission started", file=sys.stderr)
-        return 130
-    recorded = [
+    return record
+
+
+def _recorded(r: TapRecorder) -> str:
+    """The line that says what a --record recorder wrote."""
+    return (
         f"recording: {r.path} ({r.writer.frames} frames, {r.path.stat().st_size / 1024:.1f} KiB)"
         + ("" if r.error is None else f"; writing failed: {r.error}")
         + (f"; {r.writer.lost} frames after that not written" if r.writer.lost else "")
-        for r in recorders
-    ]
-    if a.json:
-        print(json.dumps(outcome.metrics.to_json(), sort_keys=True, allow_nan=False))
-        for line in recorded:
-            print(line, file=sys.stderr)
-    else:
-        from services.cli.summary import print_summary
+    )
 
-        written = not any("metrics.json" in w for w in outcome.unwritten)
-        outputs = [("metrics", out / "metrics.json")] if written else []
-        outputs += [("plot", outcome.plot)] if outcome.plot is not None else []
-        outputs += [("logs", out / "logs")]
-        print_summary(outcome.metrics, outputs, all_metrics=a.all_metrics)
-        if not written:
-            print("metrics: not written (see below)")
-        for line in recorded:
-            print(line)
-    for why in outcome.unwritten:  # the outcome is still the run's: reported below, as ever
-        print(f"tidelink: error: {why}", file=sys.stderr)
+
+def _launch_exit(outcome: LaunchOutcome, *, json_output: bool) -> int:
+    """A launch's exit status: 1 when a service failed for good, 130 interrupted, else the
+    mission's (report_outcome); a failure the run went on without is said on stderr."""
     if outcome.result.failure and outcome.result.reason == "service_failed":
         # the metrics of the run until then are written; the failure is the exit status
         print(f"tidelink: error: {outcome.result.failure}", file=sys.stderr)
@@ -131,10 +150,11 @@ def cmd_launch(a: argparse.Namespace) -> int:
         print(f"tidelink: {outcome.result.failure}", file=sys.stderr)
     if outcome.result.reason == "interrupted":
         return 130
-    return report_outcome(outcome.metrics, json_output=a.json)
+    return report_outcome(outcome.metrics, json_output=json_output)
 
 
 def cmd_service(a: argparse.Namespace) -> int:
+    """run one service of a launched mission (any host)"""
     from common.config.scenario import load_scenario
     from common.runtime.distributed.lockstep_service import LockstepService
     from common.runtime.distributed.realtime_service import RealtimeService
@@ -142,7 +162,7 @@ def cmd_service(a: argparse.Namespace) -> int:
     from common.runtime.processes.children import wait_for_endpoint
     from common.runtime.processes.signals import Shutdown, install_shutdown_handlers
 
-    scenario, raw = load_scenario(a.scenario, _runtime_overrides(a), a.seed)
+    scenario, raw = load_scenario(a.scenario, runtime_overrides(a), a.seed)
     name = service_name(a.name, a.vehicle, scenario)
     if scenario.bus.secured:
         check_credentials(scenario.bus, [name])
@@ -196,9 +216,9 @@ def check_credentials(bus: BusConfig, identities: list[str]) -> None:
         load_credentials(Path(bus.certs), name)
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add launch and service to the tidelink parser."""
-    la = sub.add_parser("launch", help="start a router and every service as supervised processes")
+    la = command(sub, "launch", cmd_launch)
     scenario_args(la)
     _runtime_args(
         la,
@@ -239,14 +259,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="record the run, every frame, to DIR/run.mcap (MCAP; `tidelink replay`, "
         "`tidelink metrics`, Foxglove)",
     )
-    la.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
-    details_arg(la)
-    budget_arg(la)
-    certs_args(la, identity=None)
-    insecure_arg(la)
-    la.set_defaults(func=cmd_launch)
+    report_args(la)
+    host_args(la)
 
-    sv = sub.add_parser("service", help="run one service of a launched mission (any host)")
+    sv = command(sub, "service", cmd_service)
     sv.add_argument("name", help="the service, e.g. planner (in a fleet: auv2.planner)")
     scenario_args(sv)
     sv.add_argument(
@@ -263,7 +279,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         time_scale_help="as the launch was started (default: the scenario's)",
     )
     certs_args(sv, identity=None)
-    sv.set_defaults(func=cmd_service)
 
 
 def _runtime_args(p: argparse.ArgumentParser, *, runtime_help: str, time_scale_help: str) -> None:

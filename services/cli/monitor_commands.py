@@ -5,10 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from services.cli.flags import watch_fields, watcher_args
+from services.cli.flags import Subparsers, command, watch_fields, watcher_args
 
 
 def cmd_monitor(a: argparse.Namespace) -> int:
+    """watch live runs on a router: vehicle, services, streams, links, alarms
+
+    Find the runs on a router by their liveliness tokens and watch them (all runs unless --run
+    is given, side by side). Exits 0 when the watched runs end, unless --follow."""
     from common.runtime.processes.signals import stop_on_signals
     from services.monitor.monitor import Monitor, MonitorOptions, MonitorView
     from services.monitor.views import DashboardView, JsonLinesView
@@ -27,15 +31,9 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         return Monitor(opts, view, stop).run()
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add monitor to the tidelink parser."""
-    m = sub.add_parser(
-        "monitor",
-        help="watch live runs on a router: vehicle, services, streams, links, alarms",
-        description="Find the runs on a router by their liveliness tokens and watch them "
-        "(all runs unless --run is given, side by side). Exits 0 when the watched runs end, "
-        "unless --follow.",
-    )
+    m = command(sub, "monitor", cmd_monitor)
     watcher_args(
         m,
         run_help="watch only this run id (default: every run)",
@@ -69,4 +67,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     m.add_argument(
         "--no-wait", action="store_true", help="exit 2 at once if there is no run to watch"
     )
-    m.set_defaults(func=cmd_monitor)

@@ -11,7 +11,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from services.cli.core_commands import check_exposure
-from services.cli.flags import certs_args, connect_arg, insecure_arg, listen_arg, watcher_args
+from services.cli.flags import (
+    Subparsers,
+    certs_args,
+    command,
+    connect_arg,
+    insecure_arg,
+    listen_arg,
+    watcher_args,
+)
 
 if TYPE_CHECKING:
     from common.bus import Bus
@@ -45,6 +53,7 @@ def _read(path: Path) -> Recording:
 
 
 def cmd_record(a: argparse.Namespace) -> int:
+    """record a run on a router to an MCAP file (remotely)"""
     from common.bus import Bus, Keys
     from common.config.bus import client_config
     from common.runtime.processes.children import wait_for_endpoint
@@ -106,6 +115,7 @@ def _report(o: RecordOutcome) -> None:
 
 
 def cmd_replay(a: argparse.Namespace) -> int:
+    """publish a recorded run again, as a live run"""
     from common.config.bus import client_config
     from common.runtime.processes.children import connectable, free_port, wait_for_endpoint
     from common.runtime.processes.signals import stop_on_signals
@@ -176,6 +186,7 @@ def _replay_bus(
 
 
 def cmd_metrics(a: argparse.Namespace) -> int:
+    """recompute a run's metrics from its MCAP recording"""
     from services.cli.summary import print_metrics_table
     from services.recording.metrics import NOT_RECOMPUTED, recording_metrics
 
@@ -191,18 +202,17 @@ def cmd_metrics(a: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add record, replay and metrics to the tidelink parser."""
-    r = sub.add_parser("record", help="record a run on a router to an MCAP file (remotely)")
+    r = command(sub, "record", cmd_record)
     watcher_args(
         r,
         run_help="the run id (default: the first run seen)",
         vehicle_help="the vehicle id (default: any)",
     )
     r.add_argument("-o", "--out", type=Path, required=True, help="the MCAP file to write")
-    r.set_defaults(func=cmd_record)
 
-    p = sub.add_parser("replay", help="publish a recorded run again, as a live run")
+    p = command(sub, "replay", cmd_replay)
     p.add_argument("file", type=Path, help="an MCAP recording (launch --record, record)")
     p.add_argument("--speed", type=float, default=1.0, help="time scale (default 1: as recorded)")
     where = p.add_mutually_exclusive_group()
@@ -219,9 +229,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     certs_args(p, identity="launcher")
     insecure_arg(p)
-    p.set_defaults(func=cmd_replay)
 
-    m = sub.add_parser("metrics", help="recompute a run's metrics from its MCAP recording")
+    m = command(sub, "metrics", cmd_metrics)
     m.add_argument("file", type=Path, help="an MCAP recording (launch --record, record)")
     m.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
-    m.set_defaults(func=cmd_metrics)

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from services.cli.flags import scenario_args
+from services.cli.flags import Subparsers, command, scenario_args
 
 
 def _csv(text: str) -> list[str]:
@@ -15,6 +15,11 @@ def _csv(text: str) -> list[str]:
 
 
 def cmd_certs(a: argparse.Namespace) -> int:
+    """create a CA and a key + certificate per identity for mutual TLS
+
+    Create (or reuse) a certificate authority in DIR and a key + certificate per identity, for
+    Zenoh's mutual TLS. An existing CA is never overwritten; existing identities are kept unless
+    --renew. Files are mode 0600, DIR 0700 when created."""
     # imported here: cryptography is slow to import, which the other commands need not pay
     from common.bus.certs import DEFAULT_IDENTITIES, create_certs
 
@@ -30,6 +35,7 @@ def cmd_certs(a: argparse.Namespace) -> int:
 
 
 def cmd_acl(a: argparse.Namespace) -> int:
+    """print the access control a secured run enforces (generated from its dataflow)"""
     from common.config.scenario import load_scenario
     from common.runtime.distributed.acl import access_control, describe, run_grants
     from common.runtime.distributed.bringup import run_keys
@@ -48,15 +54,9 @@ def cmd_acl(a: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add certs and acl to the tidelink parser."""
-    c = sub.add_parser(
-        "certs",
-        help="create a CA and a key + certificate per identity for mutual TLS",
-        description="Create (or reuse) a certificate authority in DIR and a key + certificate "
-        "per identity, for Zenoh's mutual TLS. An existing CA is never overwritten; existing "
-        "identities are kept unless --renew. Files are mode 0600, DIR 0700 when created.",
-    )
+    c = command(sub, "certs", cmd_certs)
     c.add_argument("dir", type=Path, metavar="DIR", help="the certificate directory")
     c.add_argument(
         "--names",
@@ -78,14 +78,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     c.add_argument(
         "--renew", action="store_true", help="re-issue existing identities from the same CA"
     )
-    c.set_defaults(func=cmd_certs)
 
-    acl = sub.add_parser(
-        "acl",
-        help="print the access control a secured run enforces (generated from its dataflow)",
-    )
+    acl = command(sub, "acl", cmd_acl)
     scenario_args(acl)
     acl.add_argument(
         "--json", action="store_true", help="the Zenoh access_control object, for --acl FILE"
     )
-    acl.set_defaults(func=cmd_acl)

@@ -10,10 +10,12 @@ loop) gets the full table instead: the verdict would be empty.
 
 from __future__ import annotations
 
+import json
 import math
-from collections.abc import Callable
+import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from msgspec import UnsetType
 
@@ -42,6 +44,49 @@ def print_summary(
             " (every metric: --verbose)" if what == "metrics" and rows and not all_metrics else ""
         )
         print(f"{what}: {where}{hint}")
+
+
+class Saved(Protocol):
+    """What a run left in its folder: its metrics (written or not), its plot if drawn, and
+    the outputs that could not be written (services/launcher/outputs.py SavedRun, a launch's
+    LaunchOutcome)."""
+
+    @property
+    def metrics(self) -> RunMetrics[Any]: ...
+
+    @property
+    def plot(self) -> Path | None: ...
+
+    @property
+    def unwritten(self) -> list[str]: ...
+
+
+def print_run_end(
+    saved: Saved,
+    out: Path,
+    *,
+    json_output: bool,
+    all_metrics: bool,
+    more: Sequence[tuple[str, Path]] = (),
+    notes: Sequence[str] = (),
+) -> None:
+    """What a command that ran a mission into folder `out` prints at its end: the metrics as
+    one JSON object (`json_output`), or the summary and where the outputs are (metrics.json
+    unless it could not be written, the plot if drawn, then `more`); then each of `notes`
+    (on stderr beside JSON) and each output that could not be written, on stderr."""
+    if json_output:
+        print(json.dumps(saved.metrics.to_json(), sort_keys=True, allow_nan=False))
+    else:
+        written = not any("metrics.json" in w for w in saved.unwritten)
+        outputs = [("metrics", out / "metrics.json")] if written else []
+        outputs += [("plot", saved.plot)] if saved.plot is not None else []
+        print_summary(saved.metrics, [*outputs, *more], all_metrics=all_metrics)
+        if not written:
+            print("metrics: not written (see below)")
+    for line in notes:
+        print(line, file=sys.stderr if json_output else sys.stdout)
+    for why in saved.unwritten:  # the outcome is still the run's: reported below, as ever
+        print(f"tidelink: error: {why}", file=sys.stderr)
 
 
 def print_metrics_table(metrics: dict[str, object]) -> None:

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import TypedDict
 
-from services.cli.flags import budget_arg
+from services.cli.flags import Subparsers, budget_arg, command
 
 # the same as services.experiments.reproduction.reproduce.CROSSING (imported lazily: the CLI
 # starts fast)
@@ -95,6 +95,7 @@ def _report_dirs(p: argparse.ArgumentParser, runs: str, docs: str) -> None:
 
 
 def cmd_sweep(a: argparse.Namespace) -> int:
+    """run an experiment grid (profiles x controllers x seeds)"""
     from services.experiments.sweep.run import SweepOptions, run_sweep
     from services.experiments.sweep.schema import load_experiment
 
@@ -117,6 +118,7 @@ def cmd_sweep(a: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(a: argparse.Namespace) -> int:
+    """the paper's section-4 comparison and DIR/REPORT.md"""
     from services.experiments.reproduction.reproduce import ReproduceOptions, reproduce
 
     opts = ReproduceOptions(
@@ -172,6 +174,8 @@ def _seeds(text: str) -> int:
 
 
 def cmd_network_report(a: argparse.Namespace) -> int:
+    """the networked-control sweeps (delay, loss, bursts, outages x command sequences on/off x
+    controllers) and DIR/REPORT.md"""
     from services.experiments.netreport.networked import NetworkOptions, network_report
 
     res = network_report(
@@ -187,9 +191,15 @@ def cmd_network_report(a: argparse.Namespace) -> int:
     return 1 if res.errors else 0
 
 
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def register(sub: Subparsers) -> None:
     """Add sweep, reproduce and network-report to the tidelink parser."""
-    s = sub.add_parser("sweep", help="run an experiment grid (profiles x controllers x seeds)")
+    _add_sweep(sub)
+    _add_reproduce(sub)
+    _add_network_report(sub)
+
+
+def _add_sweep(sub: Subparsers) -> None:
+    s = command(sub, "sweep", cmd_sweep)
     s.add_argument(
         "experiment", type=Path, help="experiment TOML, e.g. configs/experiments/delay.toml"
     )
@@ -210,9 +220,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     s.add_argument("--no-plots", action="store_true", help="skip DIR/plots/")
     budget_arg(s)
-    s.set_defaults(func=cmd_sweep)
 
-    r = sub.add_parser("reproduce", help="the paper's section-4 comparison and DIR/REPORT.md")
+
+def _add_reproduce(sub: Subparsers) -> None:
+    r = command(sub, "reproduce", cmd_reproduce)
     r.add_argument(
         "--scenario",
         type=Path,
@@ -241,13 +252,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="let the planner replan as in a mission (default: every controller follows the "
         "first plan, as in the paper)",
     )
-    r.set_defaults(func=cmd_reproduce)
 
-    n = sub.add_parser(
-        "network-report",
-        help="the networked-control sweeps (delay, loss, bursts, outages x command sequences "
-        "on/off x controllers) and DIR/REPORT.md",
-    )
+
+def _add_network_report(sub: Subparsers) -> None:
+    n = command(sub, "network-report", cmd_network_report)
     _report_dirs(n, "networked-control", "networked-control")  # runs: a folder per sweep
     n.add_argument(
         "--sweeps",
@@ -275,4 +283,3 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=200,
         help="planner steps timed per controller and horizon for the cost table (default 200)",
     )
-    n.set_defaults(func=cmd_network_report)
