@@ -35,8 +35,22 @@ class MetricsSchemaError(ValueError):
     """A metrics file of another schema than this tidelink's (or none at all)."""
 
 
-class RunFacts(msgspec.Struct, kw_only=True, frozen=True):
-    """What every runtime adds to its mission's metrics (docs/metrics.md "Always present")."""
+class InputHealth(msgspec.Struct, kw_only=True, frozen=True):
+    """How the services' inputs fared (common/runtime/run.py input_health): inputs rejected
+    as implausible, deliveries dropped from a full queue, filters restarted; the totals, and
+    by service or link. Facts of every run (RunFacts has these keys)."""
+
+    inputs_rejected: int
+    inputs_rejected_by_reason: dict[str, dict[str, int]]
+    inputs_dropped: int
+    inputs_dropped_by_link: dict[str, int]
+    filter_resets: int
+    filter_resets_by_service: dict[str, dict[str, int]]
+
+
+class RunFacts(InputHealth, kw_only=True, frozen=True):
+    """What every runtime adds to its mission's metrics (docs/metrics.md "Always present"):
+    InputHealth's keys and these."""
 
     end_reason: str  # goal, max_time, interrupted, service_failed, ...; "unknown": cut short
     failure: str  # what failed, its first line; "" otherwise
@@ -50,12 +64,6 @@ class RunFacts(msgspec.Struct, kw_only=True, frozen=True):
     # per periodic service, mission s it was overdue (null: a run of unknown end)
     unresponsive_s: Mapping[str, float | None]
     record_rejected: dict[str, int]
-    inputs_rejected: int
-    inputs_rejected_by_reason: dict[str, dict[str, int]]
-    inputs_dropped: int
-    inputs_dropped_by_link: dict[str, int]
-    filter_resets: int
-    filter_resets_by_service: dict[str, dict[str, int]]
     wall_s: float | msgspec.UnsetType = msgspec.UNSET  # absent: a recording's metrics
 
 

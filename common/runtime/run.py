@@ -6,13 +6,13 @@ import contextlib
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, Any
 
 import msgspec
 
 from common.config.scenario import Scenario
 from common.link_table import LinkTable
-from common.runtime.metrics_record import RunFacts, RunMetrics
+from common.runtime.metrics_record import InputHealth, RunFacts, RunMetrics
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
 from common.runtime.model.record import Record
@@ -65,7 +65,7 @@ def run_metrics(
         ),
         # messages the run's record refused, by reason (common/runtime/model/record.py)
         record_rejected=dict(result.record.rejected),
-        **input_health(result.record),
+        **msgspec.structs.asdict(input_health(result.record)),
         wall_s=msgspec.UNSET if wall_s is None else round(wall_s, 3),
     )
     return RunMetrics(mission=result.metrics, facts=facts).normalised()
@@ -153,17 +153,6 @@ def stream_bytes(links: dict[str, dict[str, int | float]]) -> dict[str, float]:
         if "sent" in c and c["sent"] > out.get(stream, (0, 0))[0]:
             out[stream] = (c["sent"], c["bytes_sent"])
     return {k: round(b / n, 1) for k, (n, b) in sorted(out.items())}
-
-
-class InputHealth(TypedDict):
-    """How the services' inputs fared (RunFacts' keys of the same names)."""
-
-    inputs_rejected: int
-    inputs_rejected_by_reason: dict[str, dict[str, int]]
-    inputs_dropped: int
-    inputs_dropped_by_link: dict[str, int]
-    filter_resets: int
-    filter_resets_by_service: dict[str, dict[str, int]]
 
 
 def input_health(record: Record) -> InputHealth:
