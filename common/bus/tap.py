@@ -27,13 +27,13 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
 
 import zenoh
 
 from common.bus.bus import Bus, Publisher, RawFrame
 from common.bus.keys import CLOCK, END, Keys
 from common.bus.watcher import WatchedFrame
+from common.jsonsafe import JsonObject
 from common.messages import RunEnd, encode, encode_watch
 
 log = logging.getLogger("tidelink.tap")
@@ -45,7 +45,7 @@ class WatchTap:
     """Copies a run's streams for watchers and answers their late-join queries."""
 
     def __init__(
-        self, bus: Bus, keys: Keys, scenario_raw: dict[str, Any], *, listen: bool = True
+        self, bus: Bus, keys: Keys, scenario_raw: JsonObject, *, listen: bool = True
     ) -> None:
         """`listen`: copy every stream the run's bus carries; else only what is `feed`-ed (a
         replay, which puts nothing on the run's control keys)."""

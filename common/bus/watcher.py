@@ -11,10 +11,11 @@ import json
 import logging
 import queue
 from collections.abc import Iterable
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 from common.bus.bus import Bus, Liveliness, RawFrame
 from common.bus.keys import CLOCK, PROBE, WATCH, Keys
+from common.jsonsafe import JsonObject
 from common.messages import WireError, decode_watch
 
 log = logging.getLogger("tidelink.watch")
@@ -120,7 +121,7 @@ class Watcher:
                 log.warning("ignoring a reply that is not a tapped frame: %s", exc)
         return sorted(out, key=lambda w: w.n)
 
-    def scenario(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
+    def scenario(self, keys: Keys, *, timeout_s: float = 1.0) -> JsonObject | None:
         """The run's scenario (the raw dict it was launched with), or None if none answered."""
         return self._json(keys.scenario, timeout_s)
 
@@ -134,11 +135,12 @@ class Watcher:
                 continue
         return out
 
-    def dataflow(self, keys: Keys, *, timeout_s: float = 1.0) -> dict[str, Any] | None:
-        """The run's declared dataflow (Dataflow.describe()), or None if none answered."""
+    def dataflow(self, keys: Keys, *, timeout_s: float = 1.0) -> JsonObject | None:
+        """The run's declared dataflow as it answered (Dataflow.describe(), unchecked: read it
+        with dataflow.read_description), or None if none answered."""
         return self._json(keys.dataflow, timeout_s)
 
-    def _json(self, key: str, timeout_s: float) -> dict[str, Any] | None:
+    def _json(self, key: str, timeout_s: float) -> JsonObject | None:
         for f in self.bus.query(key, timeout_s=timeout_s):
             try:
                 data = json.loads(f.payload)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeGuard
 
 from common.config.controller import ControllerConfig
 from common.config.errors import ConfigError
@@ -26,6 +26,7 @@ from common.config.planner import PlannerConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import GoalConfig, PoseConfig
+from common.jsonsafe import JsonObject, JsonValue
 
 MAX_VEHICLES = 16
 # a vehicle id qualifies its services' names ("auv2.planner") and is a key chunk: no '.'
@@ -56,11 +57,16 @@ class FleetVehicle:
     phase_s: float = 0.0  # its services step this much later in their periods
 
 
-def fleet_from_raw(raw: dict[str, Any], file: str = "") -> tuple[FleetVehicle, ...]:
+def _is_tables(v: JsonValue) -> TypeGuard[list[JsonObject]]:
+    """An array of tables (`[[vehicles]]`)."""
+    return isinstance(v, list) and all(isinstance(e, dict) for e in v)
+
+
+def fleet_from_raw(raw: JsonObject, file: str = "") -> tuple[FleetVehicle, ...]:
     """The `[[vehicles]]` of a raw scenario mapping, each section merged over the scenario's;
     () when there are none. ConfigError names the entry and key of the first problem."""
     entries = raw.get("vehicles", [])
-    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+    if not _is_tables(entries):
         raise ConfigError(file, ("vehicles",), "expected an array of tables ([[vehicles]])")
     if len(entries) > MAX_VEHICLES:
         raise ConfigError(

@@ -12,11 +12,12 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from common.config.errors import ConfigError, ConfigValueError, KeyPath, format_key
+from common.jsonsafe import JsonObject, JsonValue
 
 T = TypeVar("T")
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
+def read_toml(path: str | Path) -> JsonObject:
     """Read a TOML file; anything that keeps it from being read (missing, a directory, not
     UTF-8 text, a syntax error, nesting deeper than the parser's recursion) is a ConfigError
     naming the file."""
@@ -52,7 +53,7 @@ def _not_utf8(data: bytes, exc: UnicodeDecodeError) -> str:
     return f"is not UTF-8 text, as a TOML file must be (byte {exc.start}: {exc.reason})"
 
 
-def read_scenario_toml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+def read_scenario_toml(path: str | Path, _seen: tuple[Path, ...] = ()) -> JsonObject:
     """A scenario file's tables; with a top-level `extends = "other.toml"` (relative to the
     file) the other scenario's tables with this file's merged over them, table by table (an
     array, such as world.circles, is replaced whole)."""
@@ -66,7 +67,7 @@ def read_scenario_toml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[s
         return raw
     if not isinstance(base, str):
         raise ConfigError(str(path), ("extends",), f"expected a file name, got {_kind(base)}")
-    parent: dict[str, Any] = read_scenario_toml(p.parent / base, (*_seen, p))
+    parent: JsonObject = read_scenario_toml(p.parent / base, (*_seen, p))
     return dict(merge_tables(parent, raw))
 
 
@@ -189,7 +190,7 @@ def _convert(hint: Any, v: Any, file: str, path: KeyPath) -> Any:
     raise TypeError(f"config field {format_key(path)}: unsupported type {hint!r}")
 
 
-def parse_override(text: str) -> tuple[list[str], Any]:
+def parse_override(text: str) -> tuple[list[str], JsonValue]:
     """Parse a `--set a.b.c=value` override; the value is read as TOML (bare words as strings)."""
     path, sep, raw = text.partition("=")
     if not sep or not path.strip():
@@ -201,7 +202,7 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     return path.strip().split("."), value
 
 
-def apply_override(data: dict[str, Any], parts: list[str], value: Any) -> None:
+def apply_override(data: JsonObject, parts: list[str], value: JsonValue) -> None:
     """Set a nested key in a raw TOML mapping, creating tables on the way."""
     node = data
     for p in parts[:-1]:

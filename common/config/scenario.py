@@ -33,6 +33,7 @@ from common.config.run import RunConfig, RuntimeConfig
 from common.config.sensor import SensorConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
+from common.jsonsafe import JsonObject
 from common.messages import SEQUENCE_STEP_MAX_MS, SEQUENCE_STEP_MIN_MS
 
 # A check run after a scenario is built: (scenario, file) -> None, raising ConfigError.
@@ -129,7 +130,7 @@ def load_scenario(
     seed: int | None = None,
     *,
     check: ScenarioCheck | None = None,
-) -> tuple[Scenario, dict[str, Any]]:
+) -> tuple[Scenario, JsonObject]:
     """Read, override (`--set key=value`) and validate a scenario; returns it and its raw data.
 
     The raw mapping is returned so it can be handed to child processes unchanged. Whoever
@@ -154,7 +155,7 @@ def load_scenario(
         raise ConfigError(flag, exc.key_path, exc.problem) from None
 
 
-def _flag_of(key: KeyPath, given: list[tuple[KeyPath, str]], in_file: dict[str, Any]) -> str | None:
+def _flag_of(key: KeyPath, given: list[tuple[KeyPath, str]], in_file: JsonObject) -> str | None:
     """The flag (--set, --seed) an error at `key` comes from, or None (the file's): the last
     one that set this key or a table above it, or that named this key when the file has no
     such key (an unknown table or key only the flag made up). An error at a key of the file
@@ -169,7 +170,7 @@ def _flag_of(key: KeyPath, given: list[tuple[KeyPath, str]], in_file: dict[str, 
     return None
 
 
-def _has(tables: dict[str, Any], key: tuple[str, ...]) -> bool:
+def _has(tables: JsonObject, key: tuple[str, ...]) -> bool:
     """Whether the file's own tables hold `key` (tables only: an array's elements are not
     followed)."""
     node: Any = tables
@@ -181,7 +182,7 @@ def _has(tables: dict[str, Any], key: tuple[str, ...]) -> bool:
 
 
 def scenario_from_raw(
-    raw: dict[str, Any], file: str = "", *, check: ScenarioCheck | None = None
+    raw: JsonObject, file: str = "", *, check: ScenarioCheck | None = None
 ) -> Scenario:
     """Validate a raw mapping (from TOML or a parent process) into a Scenario, then `check` it."""
     try:

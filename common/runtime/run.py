@@ -6,11 +6,12 @@ import contextlib
 import json
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import msgspec
 
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject
 from common.link_table import LinkTable
 from common.runtime.metrics_record import InputHealth, RunFacts, RunMetrics
 from common.runtime.model.inproc import run_inproc
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
     from common.messages import LinkStats
 
 
-def run_scenario(scenario: Scenario, raw: dict[str, Any], log_dir: Path) -> RunResult:
+def run_scenario(scenario: Scenario, raw: JsonObject, log_dir: Path) -> RunResult:
     """Dispatch to the inproc, lockstep or realtime runtime."""
     kind = scenario.runtime.kind
     if kind == "inproc":

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from common.jsonsafe import JsonObject
 from services.cli.flags import (
     Subparsers,
     budget_arg,
@@ -187,7 +188,7 @@ def cmd_router(a: argparse.Namespace) -> int:
     return 0
 
 
-def _read_acl(path: Path) -> dict[str, Any]:
+def _read_acl(path: Path) -> JsonObject:
     """An access_control object (`tidelink acl SCENARIO --json`); ConfigError naming the file."""
     from common.config.errors import ConfigError
 

@@ -8,9 +8,10 @@ import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from common.config.bus import DEFAULT_CONNECT
+from common.jsonsafe import JsonObject
 from services.cli.core_commands import (
     check_exposure,
     report_outcome,
@@ -115,7 +116,7 @@ def _restart_policies(a: argparse.Namespace, names: tuple[str, ...]) -> dict[str
 
 
 def _recorder(
-    scenario: Scenario, raw: dict[str, Any], out: Path, recorders: list[TapRecorder]
+    scenario: Scenario, raw: JsonObject, out: Path, recorders: list[TapRecorder]
 ) -> Callable[[ClockSide], TapRecorder]:
     """--record: what the launch attaches to its clock side, a recorder of every frame to
     out/run.mcap, kept in `recorders` to report on at the end."""

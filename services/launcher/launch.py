@@ -18,12 +18,12 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import msgspec
 
 from common.config.bus import DEFAULT_CONNECT, BusConfig
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject
 from common.runtime.distributed import lockstep, realtime_driver
 from common.runtime.distributed.acl import access_control, run_grants
 from common.runtime.distributed.bringup import (
@@ -101,7 +101,7 @@ class LaunchOutcome:
 
 
 def launch(
-    scenario: Scenario, raw: dict[str, Any], out: Path, opts: LaunchOptions, display: Display
+    scenario: Scenario, raw: JsonObject, out: Path, opts: LaunchOptions, display: Display
 ) -> LaunchOutcome:
     """Run one mission across processes; see the module docstring. Raises ServiceFailed
     (naming the service) when a service fails for good, Interrupted if stopped before the

@@ -18,6 +18,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 
 from common.bus import CLOCK
 from common.bus.keys import END
+from common.jsonsafe import JsonObject
 from common.messages import WIRE_VERSION, RunEnd, WireError, decode
 from services.recording import layout
 
@@ -83,7 +84,7 @@ class Recording:
     run: str
     vehicle: str
     recorder: str
-    scenario_raw: dict[str, Any]
+    scenario_raw: JsonObject
     events: tuple[RecordedEvent, ...]
     truncation: Truncation | None
 
@@ -218,7 +219,7 @@ class _Parser:
             )
         self.meta = meta
 
-    def _scenario(self, meta: dict[str, str]) -> dict[str, Any]:
+    def _scenario(self, meta: dict[str, str]) -> JsonObject:
         try:
             raw = json.loads(meta["scenario"])
         except ValueError as exc:

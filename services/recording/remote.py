@@ -16,13 +16,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from common.bus import CLOCK, Bus, Keys, Liveliness
 from common.bus.gaps import SeqGaps
 from common.bus.keys import END
 from common.bus.watcher import END_GRACE_S, WatchedFrame, Watcher
 from common.config.scenario import Scenario, scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.messages import RunEnd, WireError, decode
 from common.runtime.processes.children import wait_for_endpoint
 from common.runtime.processes.signals import StopRequest
@@ -131,7 +131,7 @@ class RemoteRecorder:
                 return Keys(run, vehicle)
         return None
 
-    def _scenario(self, keys: Keys) -> dict[str, Any] | None:
+    def _scenario(self, keys: Keys) -> JsonObject | None:
         """The run's scenario, asked until it answers (its tap serves it)."""
         said = False
         while not self.stop.requested:

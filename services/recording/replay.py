@@ -20,17 +20,17 @@ import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from common.bus import CLOCK, Bus, Keys
 from common.bus.keys import END
 from common.bus.probe import puts_reach_router
 from common.config.scenario import scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.runtime.distributed.bringup import serve_watchers
 from common.runtime.distributed.claim import RoleTaken, claim
 from common.runtime.model.mission import load_mission
 from common.runtime.processes.signals import StopRequest
-from services.recording.reader import AliveEvent, Recording
+from services.recording.reader import AliveEvent, Recording, RecordingError
 
 STEP_S = 0.1  # longest wait between looks at the stop request
 
@@ -44,10 +44,13 @@ class ReplayOutcome:
     reason: str
 
 
-def replay_scenario(rec: Recording, run: str) -> dict[str, Any]:
+def replay_scenario(rec: Recording, run: str) -> JsonObject:
     """The recorded scenario, named `run` (a replay under another name answers as that run)."""
     raw = copy.deepcopy(rec.scenario_raw)
-    raw.setdefault("run", {})["name"] = run
+    table = raw.setdefault("run", {})
+    if not isinstance(table, dict):  # a recorded scenario was validated when it ran
+        raise RecordingError(f"{rec.path}: its scenario's run is not a table")
+    table["name"] = run
     return raw
 
 

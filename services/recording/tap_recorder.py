@@ -20,6 +20,7 @@ from common.bus import Liveliness
 from common.bus.keys import Keys
 from common.bus.watcher import WatchedFrame
 from common.config.scenario import scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.runtime.distributed.bringup import ClockSide
 from common.view import View
 from services.recording.layout import stream_types
@@ -34,7 +35,7 @@ class TapRecorder:
     """Records the run of `side` to `path`; use as a context manager around the run."""
 
     def __init__(
-        self, side: ClockSide, path: Path, scenario_raw: dict[str, Any], view: View | None = None
+        self, side: ClockSide, path: Path, scenario_raw: JsonObject, view: View | None = None
     ) -> None:
         self.side = side
         self.path = path

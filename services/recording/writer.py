@@ -22,12 +22,12 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from mcap.data_stream import RecordBuilder
 from mcap.records import DataEnd, Footer
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
+from common.jsonsafe import JsonObject
 from common.messages import WIRE_VERSION, Message, WireError, decode
 from common.view import View, ViewMessage
 from services.recording import layout
@@ -61,7 +61,7 @@ class RunInfo:
 
     run: str
     vehicle: str
-    scenario_raw: dict[str, Any]
+    scenario_raw: JsonObject
     recorder: str  # "launch" (in-process, lossless) or "record" (remote, through a watcher)
 
     def metadata(self) -> dict[str, str]:

@@ -16,16 +16,16 @@ import logging
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from common.bus import CLOCK, Bus, Inbox, Keys
 from common.bus.tap import WatchTap
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject
 from common.runtime.distributed.acl import LAUNCHER, access_control, run_grants
 from common.runtime.distributed.claim import claim
 from common.runtime.distributed.observer import Driver, RunContext
@@ -78,10 +78,10 @@ def clock_bus(
     cfg: BusConfig,
     keys: Keys,
     flow: Dataflow,
-    scenario_raw: dict[str, Any],
+    scenario_raw: JsonObject,
     *,
     lockstep: bool,
-    access_control: dict[str, Any] | None = None,
+    access_control: Mapping[str, object] | None = None,
 ) -> Iterator[ClockSide]:
     """Open the driver's bus (see the module docstring) as the launcher identity (mTLS);
     a router clock may enforce the run's access control. Everything closes on exit.
@@ -100,7 +100,7 @@ def clock_bus(
 
 
 def serve_watchers(
-    bus: Bus, keys: Keys, flow: Dataflow, scenario_raw: dict[str, Any], *, listen: bool = True
+    bus: Bus, keys: Keys, flow: Dataflow, scenario_raw: JsonObject, *, listen: bool = True
 ) -> WatchTap:
     """What tools joining a run ask it for: its declared dataflow (a queryable) and the watch
     tap (copies, latest frames, scenario). A run's clock serves them, and so does a replay
@@ -112,7 +112,7 @@ def serve_watchers(
 
 def run_locally(
     scenario: Scenario,
-    raw: dict[str, Any],
+    raw: JsonObject,
     log_dir: Path | None,
     service_module: str,
     make_driver: Callable[[RunContext], Driver],
@@ -135,7 +135,7 @@ def run_locally(
 
 def _run_locally(
     scenario: Scenario,
-    raw: dict[str, Any],
+    raw: JsonObject,
     log_dir: Path,
     service_module: str,
     make_driver: Callable[[RunContext], Driver],
@@ -152,7 +152,7 @@ def _run_locally(
 
 @contextmanager
 def local_run(
-    scenario: Scenario, raw: dict[str, Any], flow: Dataflow, service_module: str, log_dir: Path
+    scenario: Scenario, raw: JsonObject, flow: Dataflow, service_module: str, log_dir: Path
 ) -> Iterator[tuple[ClockSide, Supervisor]]:
     """This process is the router and the clock; each service is forked from the fork server.
 

@@ -17,10 +17,11 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 from common.bus import Inbox, Liveliness, Received
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.claim import ClaimWatch
@@ -333,6 +334,6 @@ class Coordinator:
         return RunResult(reason, t_us / 1e6, k + 1, self.record, self.mission.metrics(self.record))
 
 
-def run_lockstep(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:
+def run_lockstep(scenario: Scenario, raw: JsonObject, log_dir: Path | None = None) -> RunResult:
     """Run a mission with every service in its own process; see the module docstring."""
     return run_locally(scenario, raw, log_dir, SERVICE_MODULE, Coordinator)

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
 
 from common.bus import Event, Inbox, Liveliness
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.claim import ClaimWatch
@@ -272,6 +272,6 @@ class RealtimeDriver:
             self.take(ev)
 
 
-def run_realtime(scenario: Scenario, raw: dict[str, Any], log_dir: Path | None = None) -> RunResult:
+def run_realtime(scenario: Scenario, raw: JsonObject, log_dir: Path | None = None) -> RunResult:
     """Run a mission in real time (scaled by runtime.time_scale) across service processes."""
     return run_locally(scenario, raw, log_dir, SERVICE_MODULE, RealtimeDriver)

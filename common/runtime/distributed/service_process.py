@@ -17,6 +17,7 @@ from common.bus import CLOCK, Bus, Inbox, Keys, Publisher, Received
 from common.bus.watcher import watched
 from common.config.bus import BusConfig
 from common.config.scenario import Scenario, scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.messages import WireError, decode_routing
 from common.runtime.distributed.claim import RoleTaken
 from common.runtime.model.host import Host
@@ -42,7 +43,7 @@ class ServiceSetup:
     bus_cfg: BusConfig
 
     @classmethod
-    def of(cls, name: str, raw: dict[str, object], connect: str) -> ServiceSetup:
+    def of(cls, name: str, raw: JsonObject, connect: str) -> ServiceSetup:
         """Validate the scenario and build this service's Host (the whole dataflow is
         validated; only this service's core is built); a client of `connect`."""
         scenario = scenario_from_raw(raw)

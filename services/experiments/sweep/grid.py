@@ -14,6 +14,7 @@ from typing import Any
 from common.config.budget import DEFAULT_BUDGET, Budget
 from common.config.loader import ConfigError, apply_override, read_scenario_toml
 from common.config.scenario import scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.world.check import check_scenario
 from services.experiments.sweep.schema import Experiment, SetValue
 
@@ -26,7 +27,7 @@ class RunSpec:
     labels: dict[str, str]  # axis name -> value label, in axis order
     x: float  # position on the plot axis (nan if categorical)
     seed: int
-    raw: dict[str, Any]  # the scenario, every override, seed, run name and runtime applied
+    raw: JsonObject  # the scenario, every override, seed, run name and runtime applied
     log_dir: str = ""  # lockstep: where the service logs go ("" = a temporary folder)
     keep_trajectory: bool = False  # return the truth trajectory with the metrics
 
@@ -126,7 +127,7 @@ def expand(
 
 
 def _validate(
-    raw: dict[str, Any],
+    raw: JsonObject,
     exp: Experiment,
     file: str,
     labels: dict[str, str],
