@@ -6,13 +6,16 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from services.cli.flags import Subparsers, certs_args, command, connect_arg, scenario_args
 from services.cli.graph_render import to_dot, to_png, to_text
 
+if TYPE_CHECKING:
+    from common.runtime.model.dataflow import DataflowDescription
 
-def _from_scenario(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
+
+def _from_scenario(a: argparse.Namespace) -> list[tuple[str, DataflowDescription]]:
     from common.config.scenario import load_scenario
     from common.runtime.model.mission import load_mission
 
@@ -21,9 +24,10 @@ def _from_scenario(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
     return [(title, load_mission(scenario).dataflow.describe())]
 
 
-def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
+def _from_live_run(a: argparse.Namespace) -> list[tuple[str, DataflowDescription]]:
     from common.bus import Bus, Keys
     from common.config.bus import client_config
+    from common.runtime.model.dataflow import read_description
 
     selector = Keys.matching(a.run, a.vehicle).dataflow
     cfg = client_config(a.connect, a.certs)
@@ -31,7 +35,10 @@ def _from_live_run(a: argparse.Namespace) -> list[tuple[str, dict[str, Any]]]:
         replies = bus.query(selector, timeout_s=a.timeout)
     if not replies:
         raise RuntimeError(f"no running mission answered on {selector} via {a.connect}")
-    return [(f"dataflow of live run {f.key}", json.loads(f.payload)) for f in sorted(replies)]
+    return [
+        (f"dataflow of live run {f.key}", read_description(json.loads(f.payload)))
+        for f in sorted(replies)
+    ]
 
 
 def cmd_graph(a: argparse.Namespace) -> int:

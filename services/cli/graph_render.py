@@ -4,19 +4,24 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
-Described = dict[str, Any]
+if TYPE_CHECKING:  # the CLI starts without importing the runtime
+    from common.runtime.model.dataflow import (
+        DataflowDescription,
+        InputDescription,
+        ServiceDescription,
+    )
 
 
-def _period(s: dict[str, Any]) -> str:
+def _period(s: ServiceDescription) -> str:
     if s["period_s"] is None:
         return "event-driven"
     offset = f", offset {s['offset_s']:g} s" if s["offset_s"] else ""
     return f"every {s['period_s']:g} s{offset}"
 
 
-def _readers(d: Described) -> dict[tuple[str, str], list[str]]:
+def _readers(d: DataflowDescription) -> dict[tuple[str, str], list[str]]:
     out: dict[tuple[str, str], list[str]] = {}
     for s in d["services"]:
         for i in s["inputs"]:
@@ -24,7 +29,7 @@ def _readers(d: Described) -> dict[tuple[str, str], list[str]]:
     return out
 
 
-def to_text(d: Described, title: str) -> str:
+def to_text(d: DataflowDescription, title: str) -> str:
     """One block per service: its period, inputs (type, policy) and outputs (type, readers)."""
     readers = _readers(d)
     lines = [f"{title}: {len(d['services'])} services, {len(d['links'])} links", ""]
@@ -42,7 +47,7 @@ def to_text(d: Described, title: str) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def to_dot(d: Described, title: str) -> str:
+def to_dot(d: DataflowDescription, title: str) -> str:
     """Graphviz DOT: a box per service, an edge per link labelled stream: type."""
     out = [f'digraph "{title}" {{', "  rankdir=LR;", '  node [shape=box, fontname="Helvetica"];']
     for s in d["services"]:
@@ -58,7 +63,7 @@ def to_dot(d: Described, title: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def to_png(d: Described, title: str, path: Path) -> Path:
+def to_png(d: DataflowDescription, title: str, path: Path) -> Path:
     """Draw the graph with matplotlib: services on a circle, links as labelled arrows."""
     import matplotlib
 
@@ -74,7 +79,7 @@ def to_png(d: Described, title: str, path: Path) -> Path:
     }
     fig, ax = plt.subplots(figsize=(8, 7))
     # one arrow per (source, receiver) pair, labelled with every stream it carries
-    edges: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    edges: dict[tuple[str, str], list[InputDescription]] = {}
     for s in d["services"]:
         for i in s["inputs"]:
             edges.setdefault((i["source"], s["name"]), []).append(i)

@@ -7,14 +7,16 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
 
 from common.bus import Bus, Keys, Liveliness
 from common.bus.keys import CLOCK, END
 from common.bus.watcher import WatchedFrame, Watcher
 from common.config.bus import WatchTarget, client_config
 from common.config.scenario import scenario_from_raw
+from common.jsonsafe import JsonObject
 from common.messages import Message, WireError, decode
+from common.runtime.model.dataflow import read_description
 from common.runtime.processes.children import wait_for_endpoint
 from common.runtime.processes.signals import StopRequest
 from services.monitor.state import EVENT_TYPES, STATE_TYPES, Event, RunState
@@ -78,15 +80,21 @@ class PollMarks:
         return True
 
 
-def _event_streams(described: dict[str, Any] | None) -> list[tuple[str, str]]:
+def _event_streams(reply: JsonObject | None) -> list[tuple[str, str]]:
     """(service, stream) of every output the run declares with an event type (EVENT_TYPES);
-    none if the run did not answer (then they are followed once a poll shows them)."""
+    none if the run did not answer, or not with a description (then they are followed once a
+    poll shows them)."""
+    try:
+        described = read_description(reply or {"services": [], "links": []})
+    except ValueError as exc:
+        log.warning("the run's dataflow is not one this monitor reads: %s", exc)
+        return []
     names = {t.__name__ for t in EVENT_TYPES}
     return [
         (svc["name"], out["stream"])
-        for svc in (described or {}).get("services", [])
-        for out in svc.get("outputs", [])
-        if out.get("type") in names
+        for svc in described["services"]
+        for out in svc["outputs"]
+        if out["type"] in names
     ]
 
 

@@ -14,8 +14,9 @@ import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
+import msgspec
 import numpy as np
 
 from common.messages import Message
@@ -93,6 +94,48 @@ class CoreContext:
 
 
 CoreFactory = Callable[[CoreContext], ServiceCore]
+
+
+class InputDescription(TypedDict):
+    """An Input as Dataflow.describe() gives it: its message type and policy by name."""
+
+    source: str
+    stream: str
+    type: str
+    policy: str  # a QueuePolicy's value
+    wake: bool
+    max_queued: int
+
+
+class OutputDescription(TypedDict):
+    """An Output as Dataflow.describe() gives it."""
+
+    stream: str
+    type: str
+
+
+class ServiceDescription(TypedDict):
+    """A Service as Dataflow.describe() gives it (no factory: plain data)."""
+
+    name: str
+    period_s: float | None
+    offset_s: float
+    inputs: list[InputDescription]
+    outputs: list[OutputDescription]
+
+
+class DataflowDescription(TypedDict):
+    """Dataflow.describe(): the declaration as JSON-ready data, what a running mission serves
+    on Keys.dataflow; `links` by name (source/stream->receiver)."""
+
+    services: list[ServiceDescription]
+    links: list[str]
+
+
+def read_description(data: object) -> DataflowDescription:
+    """A described dataflow as it came (a live run's reply, parsed JSON), checked;
+    msgspec.ValidationError (a ValueError) says what does not fit."""
+    return msgspec.convert(data, DataflowDescription)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -191,7 +234,7 @@ class Dataflow:
             for rcv, i in rs
         )
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> DataflowDescription:
         """The declaration as plain data (JSON-ready): what a running mission serves."""
         return {
             "services": [
