@@ -294,7 +294,7 @@ class Bus:
         *,
         low_latency: bool = False,
         identity: str | None = None,
-        access_control: Mapping[str, Any] | None = None,
+        access_control: Mapping[str, object] | None = None,
     ) -> None:
         self.cfg = cfg
         self.keys = keys

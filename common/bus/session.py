@@ -6,7 +6,7 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import zenoh
 
@@ -35,7 +35,7 @@ def zenoh_config(
     cfg: BusConfig,
     *,
     identity: str | None = None,
-    access_control: Mapping[str, Any] | None = None,
+    access_control: Mapping[str, object] | None = None,
 ) -> zenoh.Config:
     """Translate our BusConfig into a zenoh.Config (multicast scouting off unless asked).
 
@@ -91,7 +91,7 @@ def open_session(
     cfg: BusConfig,
     *,
     identity: str | None = None,
-    access_control: Mapping[str, Any] | None = None,
+    access_control: Mapping[str, object] | None = None,
 ) -> zenoh.Session:
     """Open a session; the caller must close it (Bus does, deterministically).
 

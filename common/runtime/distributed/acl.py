@@ -34,7 +34,7 @@ sends it, egress what it sends a client; measured in tests/test_acl_live.py):
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Literal, TypedDict
 
 from common.bus import CLOCK, Keys
 from common.runtime.model.dataflow import Dataflow
@@ -121,12 +121,46 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
     return out
 
 
-def access_control(grants: dict[str, Grants]) -> dict[str, Any]:
+class AclRule(TypedDict):
+    """A rule of Zenoh's access_control: these messages in this flow, on these keys."""
+
+    id: str
+    messages: list[str]
+    flows: list[str]  # "ingress" or "egress", seen from the router
+    permission: Literal["allow", "deny"]
+    key_exprs: list[str]
+
+
+class AclSubject(TypedDict):
+    """A subject of Zenoh's access_control: whoever presents a certificate of this name."""
+
+    id: str
+    cert_common_names: list[str]
+
+
+class AclPolicy(TypedDict):
+    """A policy of Zenoh's access_control: these rules apply to these subjects."""
+
+    rules: list[str]
+    subjects: list[str]
+
+
+class AccessControl(TypedDict):
+    """Zenoh's `access_control` config object, as access_control() writes it."""
+
+    enabled: bool
+    default_permission: Literal["allow", "deny"]
+    rules: list[AclRule]
+    subjects: list[AclSubject]
+    policies: list[AclPolicy]
+
+
+def access_control(grants: dict[str, Grants]) -> AccessControl:
     """Zenoh's `access_control` config object for these grants: one subject per identity
     (its certificate's common name), one rule per (identity, message, flow), default deny."""
-    rules: list[dict[str, Any]] = []
-    subjects: list[dict[str, Any]] = []
-    policies: list[dict[str, Any]] = []
+    rules: list[AclRule] = []
+    subjects: list[AclSubject] = []
+    policies: list[AclPolicy] = []
     for identity, g in sorted(grants.items()):
         subjects.append({"id": identity, "cert_common_names": [identity]})
         by_message: dict[tuple[str, str], list[str]] = {}
