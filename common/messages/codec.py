@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 import threading
+from collections.abc import Mapping
 from typing import Any, Literal, Union
 
 import msgspec
@@ -50,7 +51,7 @@ def encode(
     if type(msg) not in _CLASSES:
         raise WireError(f"cannot encode {type(msg).__name__}: not a tidelink message type")
     if source is not None or seq is not None or sent is not None:
-        changes: dict[str, Any] = {}
+        changes: dict[str, str | int | float] = {}
         if source is not None:
             changes["source"] = source
         if seq is not None:
@@ -69,12 +70,12 @@ def encode(
 _CLASSES = frozenset(MESSAGE_TYPES)
 
 
-def fields_of(msg: Message) -> dict[str, Any]:
+def fields_of(msg: Message) -> dict[str, object]:
     """A message's fields by name, envelope included (what forge_frame takes back)."""
     return {f: getattr(msg, f) for f in msg.__struct_fields__}
 
 
-def forge_frame(type_name: str, fields: dict[str, Any]) -> bytes:
+def forge_frame(type_name: str, fields: Mapping[str, object]) -> bytes:
     """A frame as a buggy or hostile peer could send it: the wire layout with no checks at
     all (NaN, a stamp in Unix time, a seq of 2**62...). For fault injection only
     (services/chaos); every receiver must survive what this makes."""

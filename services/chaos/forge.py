@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
 
 from common.messages import Message, fields_of, forge_frame
 
@@ -17,7 +17,7 @@ SEQ_JUMP = 2**62
 HOSTILE = ("malformed", "non_finite", "extreme", "future", "unix", "seq_jump")
 
 
-def _floats(fields: dict[str, Any], value: float) -> dict[str, Any]:
+def _floats(fields: Mapping[str, object], value: float) -> dict[str, object]:
     """Every top-level float field but the envelope's set to `value`."""
     envelope = ("stamp", "sent", "seq", "source")
     return {

@@ -8,15 +8,20 @@ the mission time (s, the runtime clock) the values refer to.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
-NUM = {"type": "number"}
-INT = {"type": "integer"}
-STR = {"type": "string"}
-BOOL = {"type": "boolean"}
+from common.jsonsafe import JsonObject, JsonValue
 
-LINK_FIELDS: dict[str, dict[str, Any]] = {
+# a field's JSON Schema, e.g. {"type": "number"}
+Schema = JsonObject
+
+NUM: Schema = {"type": "number"}
+INT: Schema = {"type": "integer"}
+STR: Schema = {"type": "string"}
+BOOL: Schema = {"type": "boolean"}
+
+LINK_FIELDS: dict[str, JsonValue] = {  # each a Schema (JsonValue: it nests in one)
     # a link's counters and modelled delays come from its sender's stats, its measured
     # delays from its receiver's: two services' stats fill one row
     "link": STR,  # source/stream->receiver
@@ -37,7 +42,7 @@ LINK_FIELDS: dict[str, dict[str, Any]] = {
 
 
 # a vehicle state (truth or estimate) at its stamp t: pose and velocity
-MOTION: dict[str, Any] = {
+MOTION: dict[str, Schema] = {
     "t": NUM,
     "x_m": NUM,
     "y_m": NUM,
@@ -53,7 +58,7 @@ class JsonSeries:
 
     topic: str
     title: str
-    fields: tuple[tuple[str, dict[str, Any]], ...]
+    fields: tuple[tuple[str, Schema], ...]
     optional: frozenset[str] = frozenset()
 
     @property
@@ -67,7 +72,7 @@ class JsonSeries:
         }
         return json.dumps(doc, sort_keys=True).encode()
 
-    def encode(self, values: dict[str, Any]) -> bytes:
+    def encode(self, values: Mapping[str, JsonValue]) -> bytes:
         """One message of this series; a field the schema does not name is a bug here."""
         unknown = set(values) - {name for name, _ in self.fields}
         if unknown:
@@ -76,7 +81,7 @@ class JsonSeries:
 
 
 def _series(
-    topic: str, title: str, optional: tuple[str, ...] = (), **fields: dict[str, Any]
+    topic: str, title: str, optional: tuple[str, ...] = (), /, **fields: Schema
 ) -> JsonSeries:
     return JsonSeries(topic, title, tuple(fields.items()), frozenset(optional))
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ from foxglove.messages import (
 )
 
 from common.config.scenario import Scenario
+from common.jsonsafe import JsonObject, JsonValue
 from common.link_table import LinkRow, LinkTable, dropped
 from common.messages import (
     LinkStats,
@@ -142,7 +143,7 @@ class FoxgloveView:
     def static(self) -> list[ViewMessage]:
         """The chart (area, start, goal, static obstacles) and the run's identity."""
         s, g = self.scenario, self.scenario.world.goal
-        info = {
+        info: dict[str, JsonValue] = {
             "name": s.run.name,
             "vehicle": s.run.vehicle,
             "seed": s.run.seed,
@@ -211,7 +212,7 @@ class FoxgloveView:
         return [_proto(NAV_FIX, _pose(m.stamp, m.x, m.y, m.heading))]
 
     def _command(self, service: str, m: VelocityCommand) -> list[ViewMessage]:
-        values = {
+        values: dict[str, JsonValue] = {
             "t": m.stamp,
             "v_mps": m.v,
             "w_radps": m.w,
@@ -298,7 +299,7 @@ class FoxgloveView:
     # -- the network and the run -------------------------------------------------------------
     def _link_stats(self, service: str, m: LinkStats) -> list[ViewMessage]:
         self._links.see(m)
-        rows = [_link_columns(row) for row in self._links.rows()]
+        rows: list[JsonValue] = [_link_columns(row) for row in self._links.rows()]
         return [_json(series.LINKS, {"t": m.stamp, "links": rows})]
 
     def _run_end(self, service: str, m: RunEnd) -> list[ViewMessage]:
@@ -327,7 +328,7 @@ def _proto(topic: str, msg: Any) -> ViewMessage:
     return ViewMessage(topic, s.name, s.encoding, s.data, "protobuf", msg.encode())
 
 
-def _json(s: series.JsonSeries, values: dict[str, Any]) -> ViewMessage:
+def _json(s: series.JsonSeries, values: Mapping[str, JsonValue]) -> ViewMessage:
     return ViewMessage(s.topic, s.title, "jsonschema", s.schema, "json", s.encode(values))
 
 
@@ -337,7 +338,7 @@ def _replace_all(topic: str, t: float, entities: list[SceneEntity]) -> ViewMessa
     return _proto(topic, SceneUpdate(deletions=[clear], entities=entities))
 
 
-def _motion(m: TruthState | StateEstimate) -> dict[str, Any]:
+def _motion(m: TruthState | StateEstimate) -> dict[str, float]:
     """The series.MOTION fields of a truth or an estimate."""
     return {
         "t": m.stamp,
@@ -374,10 +375,10 @@ def _errors(scored: list[Scored]) -> list[ViewMessage]:
     return [_json(series.ESTIMATE_ERROR, s._asdict()) for s in scored]
 
 
-def _link_columns(row: LinkRow) -> dict[str, str | int | float]:
+def _link_columns(row: LinkRow) -> JsonObject:
     """A link's row of /links (series.LINK_FIELDS): the sender's counters, modelled delays and
     loss fraction, the receiver's measured delays, each part once it was heard."""
-    out: dict[str, str | int | float] = {"link": row.link}
+    out: dict[str, JsonValue] = {"link": row.link}
     if (c := row.counters) is not None:
         out.update(c.counts(), loss_fraction=dropped(c) / c.sent if c.sent else 0.0)
     if (d := row.measured) is not None:
