@@ -100,11 +100,13 @@ class OutsideFault:
     report: OutsideReport = field(default_factory=OutsideReport)
 
     def _cli(self, name: str, *args: str) -> Helper:
+        """Helper `name`: `tidelink ARGS --connect ENDPOINT` (every helper joins the run's
+        router), its output in out/NAME.out and .err."""
         self.out.mkdir(parents=True, exist_ok=True)
         out, err = self.out / f"{name}.out", self.out / f"{name}.err"
         with out.open("wb") as o, err.open("wb") as e:
             proc = subprocess.Popen(
-                [sys.executable, "-m", "services.cli", *args],
+                [sys.executable, "-m", "services.cli", *args, "--connect", self.endpoint],
                 stdout=o,
                 stderr=e,
                 stdin=subprocess.DEVNULL,
@@ -114,6 +116,10 @@ class OutsideFault:
         self.helpers[name] = Helper(name, proc, out, err)
         return self.helpers[name]
 
+    def _run_to_end(self, name: str, *args: str) -> None:
+        """Helper `name` (as _cli), waited for: how it ended goes into the report."""
+        self.report.helpers[name] = self._cli(name, *args).result()
+
     def launch_args(self) -> list[str]:
         """What the launch adds for this fault (watchers: its own lossless recording, whose
         timing says whether the loop kept its period)."""
@@ -121,12 +127,11 @@ class OutsideFault:
 
     def start(self) -> None:
         """The helpers that must be there from the run's start."""
-        connect = ["--connect", self.endpoint]
         if self.kind == "watchers":
-            self._cli("monitor", "monitor", *connect, "--json")
-            self._cli("record", "record", *connect, "-o", str(self.out / "watched.mcap"))
+            self._cli("monitor", "monitor", "--json")
+            self._cli("record", "record", "-o", str(self.out / "watched.mcap"))
         elif self.kind == "replay":
-            self._cli("record", "record", *connect, "-o", str(self.out / "recorded.mcap"))
+            self._cli("record", "record", "-o", str(self.out / "recorded.mcap"))
 
     def strike(self, keys: Keys, flow: Dataflow) -> int:
         """Apply the fault; returns the frames put (a forged Tick: 1)."""
@@ -141,35 +146,17 @@ class OutsideFault:
                     os.killpg(p.pid, signal.SIGCONT)
             return 0
         if self.kind == "duplicate":
+            scale = ("--time-scale", f"{self.time_scale:g}")
             sets = [x for s in self.sets for x in ("--set", s)]
-            dup = self._cli(
-                "duplicate",
-                "service",
-                self.target,
-                str(self.scenario),
-                "--connect",
-                self.endpoint,
-                "--time-scale",
-                f"{self.time_scale:g}",
-                *sets,
-            )
             # refused within seconds, or it hangs on
-            self.report.helpers["duplicate"] = dup.result()
+            self._run_to_end("duplicate", "service", self.target, str(self.scenario), *scale, *sets)
             return 0
         if self.kind == "replay":
             rec = self.helpers["record"]
             os.killpg(rec.proc.pid, signal.SIGTERM)  # its file is closed: a recording so far
             self.report.helpers["record"] = rec.result()
-            replay = self._cli(
-                "replay",
-                "replay",
-                str(self.out / "recorded.mcap"),
-                "--connect",
-                self.endpoint,
-                "--speed",
-                f"{self.time_scale:g}",
-            )
-            self.report.helpers["replay"] = replay.result()
+            speed = ("--speed", f"{self.time_scale:g}")
+            self._run_to_end("replay", "replay", str(self.out / "recorded.mcap"), *speed)
             return 0
         if self.kind == "forge_tick":
             return forge_tick(self.endpoint, keys, flow, ahead_s=self.hold_s)
