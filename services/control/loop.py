@@ -112,6 +112,24 @@ class CommandLoop(Generic[R]):
         """The controller's commands on `ref` (a stop without one; `give_way`: the link's)."""
         return self.link.follow(t, self.controller, ref, s, pred, give_way=give_way)
 
+    def steer(
+        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, give_way: bool = False
+    ) -> Emit:
+        """The command sent at t on `ref` (`follow`, then `send`; None: a stop)."""
+        return self.send(t, pred.effect_t, self.follow(t, s, pred, ref, give_way=give_way))
+
+    def step(self, t: float) -> list[Emit]:
+        """A step of a core with no business of its own (the onboard tracker): the command
+        for the newest estimate on the path followed (arrived: a stop), the controller
+        restarted after skipped steps; nothing without a fresh estimate (`begin`)."""
+        begun = self.begin(t)
+        if begun is None:
+            return []
+        s, pred = begun
+        if self.skipped(t):
+            self.restart()
+        return [self.steer(t, s, pred, None if self.arrival.arrived else self.ref)]
+
     def send(self, t: float, effect_t: float, vs_ws: Commands) -> Emit:
         """The command (sequence) sent at t to take effect at effect_t, on stream 'cmd'."""
         self.last_cmd_t = t

@@ -15,6 +15,7 @@ the factory takes from the scenario only what its core needs.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
@@ -233,10 +234,12 @@ def make_planner(
 
 def make_tracker(ctx: CoreContext) -> TrackerCore:
     """The onboard path follower (controller.placement = "onboard")."""
+    from services.control.loop import CommandLoop
     from services.tracker.core import TrackerCore
 
     s = ctx.scenario
-    return TrackerCore(s.planner, s.controller, s.vehicle, s.world)
+    log = logging.getLogger("tidelink.tracker")
+    return TrackerCore(CommandLoop(s.planner, s.controller, s.vehicle, s.world, log))
 
 
 def current_field(s: Scenario) -> CurrentField:

@@ -164,8 +164,8 @@ class PlannerCore:
         s, pred = begun
         out: list[Emit] = []
         if self.loop.arrival.arrived:
-            stop = self.link.stop(t, pred, give_way=self.stopping.gives_way(pred))
-            return [self.loop.send(t, pred.effect_t, stop)] if self.commands else []
+            give_way = self.stopping.gives_way(pred)
+            return [self.loop.steer(t, s, pred, None, give_way=give_way)] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -185,13 +185,12 @@ class PlannerCore:
         if path is None and not decision.replan and self.loop.skipped(t):
             # steps were skipped (a stale estimate): the plan holds, but the controller's state
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
-            self.link.restart(self.controller)
+            self.loop.restart()
         if self.commands:
             run_out = self.stopping.run_out(pred, self.loop.ref, self.last_result)
             ref = None if run_out else self.loop.ref
             give_way = ref is None and self.stopping.gives_way(pred)
-            commands = self.loop.follow(t, s, pred, ref, give_way=give_way)
-            out.append(self.loop.send(t, pred.effect_t, commands))
+            out.append(self.loop.steer(t, s, pred, ref, give_way=give_way))
         return out
 
     def _decide(

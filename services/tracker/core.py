@@ -10,12 +10,6 @@ nothing but freshness: the tracker keeps following the last one it holds.
 
 from __future__ import annotations
 
-import logging
-
-from common.config.controller import ControllerConfig
-from common.config.planner import PlannerConfig
-from common.config.vehicle import VehicleConfig
-from common.config.world import WorldConfig
 from common.guard import first_reason
 from common.messages import PathMsg
 from common.runtime.model.core import Delivery, Emit
@@ -23,24 +17,15 @@ from services.control.loop import CommandLoop
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath, curve_of
 
-log = logging.getLogger("tidelink.tracker")
-
 
 class TrackerCore:
     """Consumes estimator/state, planner/path and vehicle/status; publishes cmd."""
 
-    def __init__(
-        self,
-        planner: PlannerConfig,
-        controller: ControllerConfig,
-        vehicle: VehicleConfig,
-        world: WorldConfig,
-    ) -> None:
-        self.world = world
-        self.loop: CommandLoop[PathArcReference] = CommandLoop(
-            planner, controller, vehicle, world, log
-        )
-        self.inputs = self.loop.inputs
+    def __init__(self, loop: CommandLoop[PathArcReference]) -> None:
+        """`loop`: the link, controller, inputs and arrival this core commands with, built
+        from the scenario by the dataflow (services/mission/dataflow.py `make_tracker`)."""
+        self.loop = loop
+        self.inputs = loop.inputs
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
@@ -83,11 +68,4 @@ class TrackerCore:
 
     def step(self, t: float) -> list[Emit]:
         """The command for the newest estimate on the newest path (arrived: a stop)."""
-        begun = self.loop.begin(t)
-        if begun is None:
-            return []
-        s, pred = begun
-        if self.loop.skipped(t):
-            self.loop.restart()
-        ref = None if self.loop.arrival.arrived else self.loop.ref
-        return [self.loop.send(t, pred.effect_t, self.loop.follow(t, s, pred, ref))]
+        return self.loop.step(t)
