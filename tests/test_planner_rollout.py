@@ -17,6 +17,7 @@ from common.world import ObstacleState
 from common.world.geometry import Box
 from services.control.command.response import ResponseModel
 from services.control.controllers import Limits, make_controller
+from services.planner.asking import PlanAsk
 from services.planner.geometry.nurbs_curve import clamped_uniform_knots
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.safety.intent import IntentObstacle
@@ -69,6 +70,11 @@ def _flight(w0: float = 0.0, v0: float = V) -> RolloutInputs:
         start=(5.0, 20.0, 0.0, v0, w0),
         t0=0.0,
     )
+
+
+def _ask(req: PlanRequest, cfg: PlannerConfig, rollout: RolloutInputs) -> PlanAsk:
+    """A plan asked for req with the hull's own R_min the request's, and no way aside."""
+    return PlanAsk(req=req, r_water_m=req.r_min_m, cfg=cfg, rollout=rollout)
 
 
 def _circle_left_of_the_line(gap_m: float, x: float = 12.0) -> CircleObstacleConfig:
@@ -327,7 +333,7 @@ def test_a_plan_whose_own_rollout_touches_an_obstacle_is_never_handed_back(
     monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: through)
     req = _request(circles=(CircleObstacleConfig(id=1, x_m=30.0, y_m=20.0, radius_m=3.0),))
     fm = _flight()
-    got = asking.plan_clear_of_contact(req, req.r_min_m, CFG, fm, None)
+    got = asking.plan_clear_of_contact(_ask(req, CFG, fm))
     assert got is not through
     assert "would touch an obstacle" in got.reason, got.reason
     if got.ok:
@@ -339,7 +345,7 @@ def test_a_plan_whose_own_rollout_touches_an_obstacle_is_never_handed_back(
     # a plan clear of contact is handed back as it is
     clear = _straight(5.0)
     monkeypatch.setattr(asking, "_plan_over_ground", lambda *a, **k: clear)
-    assert asking.plan_clear_of_contact(req, req.r_min_m, CFG, fm, None) is clear
+    assert asking.plan_clear_of_contact(_ask(req, CFG, fm)) is clear
 
 
 def test_contact_beyond_the_horizon_does_not_hold_the_vehicle_at_its_start(
@@ -358,13 +364,9 @@ def test_contact_beyond_the_horizon_does_not_hold_the_vehicle_at_its_start(
     assert 5.0 < reach_s < 25.0
     near = dataclasses.replace(CFG.tuning, contact_horizon_s=reach_s + 5.0)
     far = dataclasses.replace(CFG.tuning, contact_horizon_s=reach_s - 5.0)
-    held = asking.plan_clear_of_contact(
-        req, req.r_min_m, dataclasses.replace(CFG, tuning=near), fm, None
-    )
+    held = asking.plan_clear_of_contact(_ask(req, dataclasses.replace(CFG, tuning=near), fm))
     assert held is not through
-    kept = asking.plan_clear_of_contact(
-        req, req.r_min_m, dataclasses.replace(CFG, tuning=far), fm, None
-    )
+    kept = asking.plan_clear_of_contact(_ask(req, dataclasses.replace(CFG, tuning=far), fm))
     assert kept is through
     within = rollout_clearance(through, req, fm, CFG, within_s=reach_s - 5.0)
     assert within.min_clearance_m > 0.0 and within.t_s <= reach_s - 5.0

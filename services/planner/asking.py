@@ -54,21 +54,30 @@ class Asked:
     pace: float = 1.0  # speed over ground per speed through the water on its way
 
 
-def _plan_over_ground(
-    req: PlanRequest,
-    r_water_m: float,
-    cfg: PlannerConfig,
-    flight: RolloutInputs,
-    aside: PlanResult | None,
-) -> PlanResult:
-    """The plan for req, whose R_min is the one over ground in the current (wider than the
-    hull's: `PlanAsking.ground_turn_radius_m`); failing that, one within the hull's own R_min
-    r_water_m: its bends with the current may be flown wide (its flight says so), but a path
-    is better than none, which in a current leaves the vehicle to drift (coded hull_turns)."""
-    result = plan_or_step_aside(req, cfg, flight, aside)
-    if result.ok or req.r_min_m <= r_water_m:
+@dataclass(frozen=True, kw_only=True)
+class PlanAsk:
+    """What one plan is made with: the request `req` (its R_min the one over ground in the
+    current: `PlanAsking.ground_turn_radius_m`), the hull's own R_min through the water
+    `r_water_m` (m), the config with the clearance margin in force, the rollout inputs it is
+    verified with (rollout.py), and the way aside in force (evade.py; None: none)."""
+
+    req: PlanRequest
+    r_water_m: float
+    cfg: PlannerConfig
+    rollout: RolloutInputs
+    aside: PlanResult | None = None
+
+
+def _plan_over_ground(ask: PlanAsk) -> PlanResult:
+    """The plan for ask.req, whose R_min is the one over ground in the current (wider than the
+    hull's); failing that, one within the hull's own R_min r_water_m: its bends with the
+    current may be flown wide (its rollout says so), but a path is better than none, which in
+    a current leaves the vehicle to drift (coded hull_turns)."""
+    req, cfg, rollout, aside = ask.req, ask.cfg, ask.rollout, ask.aside
+    result = plan_or_step_aside(req, cfg, rollout, aside)
+    if result.ok or req.r_min_m <= ask.r_water_m:
         return result
-    tighter = plan_or_step_aside(replace(req, r_min_m=r_water_m), cfg, flight, aside)
+    tighter = plan_or_step_aside(replace(req, r_min_m=ask.r_water_m), cfg, rollout, aside)
     if not tighter.ok:
         return result.coded(result.strategy, (*result.rejected, "hull_turns"))
     return replace(
@@ -79,26 +88,20 @@ def _plan_over_ground(
     )
 
 
-def plan_clear_of_contact(
-    req: PlanRequest,
-    r_water_m: float,
-    cfg: PlannerConfig,
-    flight: RolloutInputs,
-    aside: PlanResult | None,
-) -> PlanResult:
-    """_plan_over_ground, but never a plan its own flight (rollout.py) has the hull touch an
+def plan_clear_of_contact(ask: PlanAsk) -> PlanResult:
+    """_plan_over_ground, but never a plan its own rollout (rollout.py) has the hull touch an
     obstacle on: one made again that "fared no better" was adopted, and flown into contact
-    (a planner frozen 8 s, issue 61). Then a way aside whose flight keeps clear, else the
+    (a planner frozen 8 s, issue 61). Then a way aside whose rollout keeps clear, else the
     NO_PATH: the vehicle holds, and the next plan starts from there (declined_contact)."""
-    result = _plan_over_ground(req, r_water_m, cfg, flight, aside)
-    touch = _flown_clearance(result, req, cfg, flight)
+    result = _plan_over_ground(ask)
+    touch = _flown_clearance(result, ask)
     if touch >= 0.0:
         return result
     why = f"{result.reason}; flown, its hull would touch an obstacle ({touch:.2f} m) soon"
     tried = result.tried
     if not result.short_of_goal:
-        way = step_aside(req, cfg, flight, aside)
-        if way is not None and _flown_clearance(way, req, cfg, flight) >= 0.0:
+        way = step_aside(ask.req, ask.cfg, ask.rollout, ask.aside)
+        if way is not None and _flown_clearance(way, ask) >= 0.0:
             return replace(way, reason=f"{why}; {way.reason}", rejected=tried)
         tried = (*tried, "stepped_aside")
     return PlanResult(
@@ -111,19 +114,18 @@ def plan_clear_of_contact(
     )
 
 
-def _flown_clearance(
-    result: PlanResult, req: PlanRequest, cfg: PlannerConfig, flight: RolloutInputs
-) -> float:
-    """The hull's clearance where an OK plan's flight comes nearest what it must keep, at the
+def _flown_clearance(result: PlanResult, ask: PlanAsk) -> float:
+    """The hull's clearance where an OK plan's rollout comes nearest what it must keep, at the
     speed it was made for, within the first tuning.contact_horizon_s of it (inf for a
-    NO_PATH, or beyond): a flight's guess a minute ahead in a current is no reason to hold
+    NO_PATH, or beyond): a rollout's guess a minute ahead in a current is no reason to hold
     at the start (the plan is checked again on the way), contact soon after adoption is."""
     if not result.ok:
         return math.inf
+    req, cfg = ask.req, ask.cfg
     v = req.v_ref_mps if result.v_ref_mps is None else result.v_ref_mps
     horizon = cfg.tuning.contact_horizon_s
     return rollout_clearance(
-        result, replace(req, v_ref_mps=v), flight, cfg, horizon
+        result, replace(req, v_ref_mps=v), ask.rollout, cfg, horizon
     ).min_clearance_m
 
 
@@ -266,7 +268,8 @@ class PlanAsking:
             t0=t_plan,
         )
         r_water = self.vehicle.turn_radius_min_m
-        self.plans.start(lambda: plan_clear_of_contact(req, r_water, cfg, flight, aside))
+        ask = PlanAsk(req=req, r_water_m=r_water, cfg=cfg, rollout=flight, aside=aside)
+        self.plans.start(lambda: plan_clear_of_contact(ask))
 
     def done(self, t: float) -> Asked:
         """A plan is made (step t): what it was asked for, its lag counted (and told, if
