@@ -3,6 +3,7 @@ computations and the scenario, every message decoded with only its own schema.""
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Any
 
@@ -29,6 +30,7 @@ from common.messages import (
     VelocityCommand,
 )
 from common.messages import replace as replace_field
+from services.foxglove import series
 from services.foxglove import view as v
 from services.foxglove.view import FoxgloveView, ViewMessage
 
@@ -192,6 +194,27 @@ def test_the_path_in_force_its_replans_and_a_no_path(scenario: Scenario) -> None
     event = _one(blocked, v.EVENTS)
     assert event["level"] == 3 and "NO_PATH (goal enclosed)" in event["message"]  # Warning
     assert _one(blocked, "/plot/path")["ok"] == 0
+
+
+def test_a_path_shows_the_strategy_that_made_it_and_those_rejected(scenario: Scenario) -> None:
+    # the plan's reason codes (services/planner/reasons.py), as `tidelink monitor` shows them
+    view = FoxgloveView(scenario)
+    made = replace_field(_path(1), strategy="turned_first", rejected=("searched",))
+    msgs = view.translate("planner", "path", made)
+    plot = _one(msgs, "/plot/path")
+    assert (plot["strategy"], plot["rejected"]) == ("turned_first", ["searched"])
+    assert "[turned_first]" in _one(msgs, v.EVENTS)["message"]
+    held = replace_field(
+        _path(2, "NO_PATH", "no way out"), strategy="stuck", rejected=("searched", "turned_first")
+    )
+    plot = _one(view.translate("planner", "path", held), "/plot/path")
+    assert (plot["strategy"], plot["rejected"]) == ("stuck", ["searched", "turned_first"])
+    # a path from an older planner has no codes: empty, and the schema still holds
+    plot = _one(view.translate("planner", "path", _path(3)), "/plot/path")
+    assert (plot["strategy"], plot["rejected"]) == ("", [])
+    schema = json.loads(series.PATH.schema)
+    assert {"strategy", "rejected"} <= set(schema["required"])
+    assert schema["properties"]["rejected"] == {"type": "array", "items": {"type": "string"}}
 
 
 def test_replans_kept_are_bounded(scenario: Scenario) -> None:

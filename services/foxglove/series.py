@@ -142,6 +142,10 @@ PATH = _series(
     status=STR,
     ok=INT,  # 1 for OK, 0 for NO_PATH (plottable)
     reason=STR,
+    # the plan's reason codes (services/planner/reasons.py): the strategy that made it (a
+    # NO_PATH's: why none), and those that ran before it and did not give it, in order
+    strategy=STR,
+    rejected={"type": "array", "items": STR},
     length_m=NUM,
     f_l=NUM,
     max_curvature_1pm=NUM,

@@ -272,6 +272,8 @@ class FoxgloveView:
             "status": m.status,
             "ok": int(m.status == "OK"),
             "reason": m.reason,
+            "strategy": m.strategy,
+            "rejected": list(m.rejected),
             "length_m": m.length,
             "f_l": m.f_l,
             "max_curvature_1pm": m.max_curvature,
@@ -291,6 +293,7 @@ class FoxgloveView:
         if m.status != self._path_status:
             level = LogLevel.Info if m.status == "OK" else LogLevel.Warning
             text = f"path {m.path_id}: {m.status}" + (f" ({m.reason})" if m.reason else "")
+            text += f" [{m.strategy}]" if m.strategy else ""
             out.append(_event(t, level, service, text))
             self._path_status = m.status
         out.append(_replace_all(PLANNER_PATH, t, ents))

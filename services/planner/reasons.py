@@ -6,7 +6,8 @@ that ran before it and did not give it (`rejected`, in the order they ran; a str
 found nothing to try counts as run). A plan made by a strategy that runs the pipeline again
 (a recovery, a plan made again) is named by that strategy alone: the pipeline's own codes
 inside it are not kept. The code travels in the path message (PathMsg.strategy, .rejected)
-to metrics.json (plan_strategies, plan_strategies_rejected) and `tidelink monitor`.
+to metrics.json (plan_strategies, plan_strategies_rejected), `tidelink monitor` and Foxglove
+(/plot/path.strategy, .rejected: services/foxglove/view.py).
 """
 
 from __future__ import annotations
