@@ -266,14 +266,15 @@ class FoxgloveView:
         self._paths_seen.add(m.path_id)
         t = m.stamp
         self._n_paths += 1
-        values = {
+        rejected: list[JsonValue] = list(m.rejected)
+        values: dict[str, JsonValue] = {
             "t": t,
             "path_id": m.path_id,
             "status": m.status,
             "ok": int(m.status == "OK"),
             "reason": m.reason,
             "strategy": m.strategy,
-            "rejected": list(m.rejected),
+            "rejected": rejected,
             "length_m": m.length,
             "f_l": m.f_l,
             "max_curvature_1pm": m.max_curvature,
