@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -499,3 +500,18 @@ def test_the_bus_lease_is_zenohs_in_milliseconds() -> None:
     assert json.loads(zenoh_config(BusConfig()).get_json("transport/link/tx/lease")) == 10_000
     short = zenoh_config(BusConfig(lease_s=2.5))
     assert json.loads(short.get_json("transport/link/tx/lease")) == 2_500
+
+
+@pytest.mark.parametrize(
+    "error",
+    [
+        ConfigError("a.toml", ("network", "links", 0, "loss_p"), "1.5 is above 1"),
+        ConfigError("", "", "no key"),
+        ConfigValueError(("vertices_m", 2), "not a point"),
+    ],
+)
+def test_a_config_error_crosses_a_process_whole(error: ValueError) -> None:
+    # a sweep's process pool pickles what a worker raises; the key path and problem survive
+    back = pickle.loads(pickle.dumps(error))
+    assert type(back) is type(error) and str(back) == str(error)
+    assert back.key_path == error.key_path and back.problem == error.problem  # type: ignore[attr-defined]

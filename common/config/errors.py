@@ -35,6 +35,10 @@ class ConfigValueError(ValueError):
         self.problem = problem
         super().__init__(f"{format_key(self.key_path)}: {problem}")
 
+    def __reduce__(self) -> tuple[type[ConfigValueError], tuple[KeyPath, str]]:
+        # rebuilt from its fields, not its message, when it crosses a process (a sweep's pool)
+        return (type(self), (self.key_path, self.problem))
+
 
 class ConfigError(ValueError):
     """A scenario or experiment file is wrong: names the file, the key path and the expectation.
@@ -49,6 +53,10 @@ class ConfigError(ValueError):
         self.problem = problem
         where = f"{file}: " if file else ""
         super().__init__(f"{where}{self.key + ': ' if self.key_path else ''}{problem}")
+
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[str, KeyPath, str]]:
+        # rebuilt from its fields, not its message, when it crosses a process (a sweep's pool)
+        return (type(self), (self.file, self.key_path, self.problem))
 
     @property
     def key(self) -> str:
