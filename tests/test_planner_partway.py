@@ -3,20 +3,27 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 from helpers.planner_world import default_scenario
 
 from services.planner.decline import keeps_path_in_force
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
-from services.planner.safety.partway import PARTWAY_SHARES, plan_partway, route_point
+from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
+from services.planner.safety.partway import (
+    APPROACH_BACK_R,
+    PARTWAY_SHARES,
+    partway_goals,
+    plan_partway,
+    route_point,
+)
 
 SCENARIO = default_scenario()
 ROUTE = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 40.0]])  # 70 m with one corner
 
 
-def _request(r_min_m: float = 6.5) -> PlanRequest:
+def _request(r_min_m: float = 6.5, *, fix_goal_heading: bool = True) -> PlanRequest:
     return PlanRequest(
         start=Pose2D(x=0.0, y=0.0, theta=0.0),
         goal=Pose2D(x=30.0, y=40.0, theta=1.57),
@@ -25,7 +32,7 @@ def _request(r_min_m: float = 6.5) -> PlanRequest:
         vehicle_radius_m=SCENARIO.vehicle.radius_m,
         r_min_m=r_min_m,
         v_ref_mps=SCENARIO.vehicle.cruise_speed_mps,
-        fix_goal_heading=True,
+        fix_goal_heading=fix_goal_heading,
     )
 
 
@@ -59,22 +66,52 @@ def test_partway_plans_to_a_point_along_the_route_heading_free_and_short_of_the_
     )
 
 
-def test_partway_tries_each_share_then_gives_up() -> None:
+def test_partway_tries_each_share_then_the_approaches_then_gives_up() -> None:
     asked: list[Pose2D] = []
 
     def nothing(q: PlanRequest) -> PlanResult:
         asked.append(q.goal)
         return PlanResult(status="NO_PATH", reason="no", strategy="no_curve")
 
-    assert plan_partway(_request(), FAILED, nothing) is None
+    assert plan_partway(_request(fix_goal_heading=False), FAILED, nothing) is None
     assert len(asked) == len(PARTWAY_SHARES)
+    # a goal held with its heading: then the approach points behind it
+    asked.clear()
+    assert plan_partway(_request(), FAILED, nothing) is None
+    assert len(asked) == len(PARTWAY_SHARES) + len(APPROACH_BACK_R)
     # a share nearer the start than R_min along the route is not tried
     asked.clear()
-    assert plan_partway(_request(r_min_m=25.0), FAILED, nothing) is None
+    assert plan_partway(_request(r_min_m=25.0, fix_goal_heading=False), FAILED, nothing) is None
     assert [(g.x, g.y) for g in asked] == [route_point(ROUTE, 35.0), route_point(ROUTE, 52.5)]
-    assert (
-        plan_partway(_request(), dataclasses.replace(FAILED, grid_path=ROUTE[:1]), nothing) is None
+    no_route = dataclasses.replace(FAILED, grid_path=ROUTE[:1])
+    assert plan_partway(_request(fix_goal_heading=False), no_route, nothing) is None
+
+
+def test_the_approach_points_lie_behind_the_goal_along_its_heading() -> None:
+    req = dataclasses.replace(_request(), goal=Pose2D(x=95.0, y=20.0, theta=0.0))
+    approaches = [(x, y) for x, y, why in partway_goals(req, ROUTE[:1]) if "approach" in why]
+    assert approaches == [(95.0 - k * 6.5, 20.0) for k in APPROACH_BACK_R]
+
+
+def test_a_vehicle_that_overran_its_goal_comes_round_for_another_approach() -> None:
+    # just past the goal, heading away from it, the route to it shorter than a turn: no share
+    # of it is a partway goal (configs/ocean.toml, fuzzy PID, seed 710 held here, drifting,
+    # for the rest of the run); a real plan reaches the first approach point behind the goal
+    req = PlanRequest(
+        start=Pose2D(x=98.4, y=21.0, theta=math.radians(105.0)),
+        goal=Pose2D(x=95.0, y=20.0, theta=0.0),
+        area=SCENARIO.world.area,
+        obstacles=Obstacles(),
+        vehicle_radius_m=SCENARIO.vehicle.radius_m,
+        r_min_m=6.5,
+        v_ref_mps=SCENARIO.vehicle.cruise_speed_mps,
     )
+    failed = dataclasses.replace(FAILED, grid_path=np.array([[98.4, 21.0], [95.0, 20.0]]))
+    got = plan_partway(req, failed, lambda q: plan_path(q, SCENARIO.planner))
+    assert got is not None and got.ok and got.short_of_goal, failed.reason
+    assert "an approach 2 R_min behind the goal" in got.reason
+    end = got.curve().ctrl[-1]  # a clamped curve ends on its last control point
+    assert math.hypot(end[0] - 95.0, end[1] - 20.0) == pytest.approx(APPROACH_BACK_R[0] * 6.5)
 
 
 @pytest.mark.parametrize("why", ["corridor", "cruise"])
