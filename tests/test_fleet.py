@@ -493,10 +493,10 @@ goal = {{ x_m = 50.0, y_m = 20.0 }}
 @pytest.mark.deterministic
 @pytest.mark.slow
 def test_fleet4_in_lockstep_equals_inproc(tmp_path: Path) -> None:
-    # 16 service processes and the clock over one Zenoh session each, over the first 18 s:
+    # 16 service processes and the clock over one Zenoh session each, over the first 14 s:
     # the four vehicles' first encounters (their replans at 11-13 s); whole fleet4 missions,
     # every goal reached without contact, are `scripts/bench fleet_launches` (realtime)
-    s, raw = load_scenario(FLEET4, ["run.seed=3", "run.max_time_s=18.0"], check=check_scenario)
+    s, raw = load_scenario(FLEET4, ["run.seed=3", "run.max_time_s=14.0"], check=check_scenario)
     ref = run_inproc(s)
     got = run_lockstep(s, raw, tmp_path / "logs")
     assert got.metrics.trajectory_sha256 == ref.metrics.trajectory_sha256
