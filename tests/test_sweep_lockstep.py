@@ -11,7 +11,7 @@ import pytest
 from services.experiments.sweep.run import SweepOptions, run_sweep
 from services.experiments.sweep.schema import load_experiment
 
-pytestmark = [pytest.mark.slow, pytest.mark.deterministic, pytest.mark.background]
+pytestmark = [pytest.mark.slow, pytest.mark.deterministic, pytest.mark.heavy]
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "configs" / "experiments" / "smoke.toml"

@@ -63,7 +63,7 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-@pytest.mark.background
+@pytest.mark.heavy
 def test_a_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path: Path) -> None:
     exp = tmp_path / "resume.toml"
     exp.write_text(EXPERIMENT)
