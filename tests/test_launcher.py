@@ -281,7 +281,9 @@ def test_a_killed_router_under_its_own_policy_is_restarted_and_the_run_goes_on(
             t.wait_for(rf"service '{name}' rejoined at t=", WAIT_S)
         assert t.wait(WAIT_S) == 0, t.stderr
     after = _pids(out)
-    assert len(after["router"]) == 2
+    # one restart; a restarted router that fails to come up (seen once on a loaded fresh
+    # clone) is restarted again by the same on-failure policy: one comes back, as asked
+    assert len(after["router"]) >= 2
     # rejoined, not restarted: the same processes carried on
     assert {s: after[s] for s in services} == {s: before[s] for s in services}
     m = _metrics(out)
