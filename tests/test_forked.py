@@ -114,3 +114,23 @@ def test_a_launch_preloads_only_what_its_missions_services_import() -> None:
     assert preload(load_mission(auv)) == PRELOAD
     toy, _ = load_scenario(REPO / "configs" / "default.toml", ['run.mission="testloop"'])
     assert preload(load_mission(toy)) == (*RUNTIMES, "tests.helpers.testloop")
+
+
+def test_the_fork_server_starts_under_a_temp_dir_too_long_for_its_socket(tmp_path: Path) -> None:
+    # its socket goes in multiprocessing's pymp-* folder under the temp dir; from 80 bytes of
+    # temp dir on, the path passed the 107 an AF_UNIX socket holds ("AF_UNIX path too long")
+    deep = tmp_path / ("t" * max(1, 90 - len(str(tmp_path))))
+    deep.mkdir()
+    code = (
+        "from common.runtime.processes.forkserver import fork_module, warm_up\n"
+        "import pathlib, sys\n"
+        "warm_up(())\n"
+        f"log = pathlib.Path({str(deep / 'x.log')!r})\n"
+        "p = fork_module('helpers.fork_target', ['exit', '3'], log)\n"
+        "sys.exit(p.wait(60))\n"
+    )
+    env = {**os.environ, "TMPDIR": str(deep), "PYTHONPATH": f"{ROOT}{os.pathsep}{TESTS}"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 3, res.stderr  # the forked child's own exit code

@@ -20,6 +20,7 @@ import multiprocessing
 import os
 import subprocess
 import sys
+import tempfile
 import types
 from collections.abc import Iterator
 from multiprocessing.process import BaseProcess
@@ -58,7 +59,8 @@ def warm_up(preload: tuple[str, ...] = PRELOAD) -> None:
     _context(preload)
     from multiprocessing import forkserver
 
-    forkserver.ensure_running()
+    with _short_tempdir():
+        forkserver.ensure_running()
 
 
 def _child(
@@ -151,9 +153,29 @@ def fork_module(
         name=f"tidelink:{module}",
         daemon=True,  # multiprocessing terminates any left at our exit: none is orphaned
     )
-    with _main_module_hidden():
+    with _main_module_hidden(), _short_tempdir():
         proc.start()
     return ForkedProcess(proc, [module, *argv])
+
+
+# the fork server listens on an AF_UNIX socket in multiprocessing's pymp-* folder under the
+# temp dir (made once per process); a socket path holds at most 107 bytes, which a long
+# TMPDIR leaves too little of ("AF_UNIX path too long")
+_SOCKET_TEMPDIR_MAX = 60
+
+
+@contextlib.contextmanager
+def _short_tempdir() -> Iterator[None]:
+    """Within: a temp dir short enough for the fork server's socket (/tmp if it is not)."""
+    if len(tempfile.gettempdir()) <= _SOCKET_TEMPDIR_MAX:
+        yield
+        return
+    saved = tempfile.tempdir
+    tempfile.tempdir = "/tmp"
+    try:
+        yield
+    finally:
+        tempfile.tempdir = saved
 
 
 @contextlib.contextmanager
