@@ -129,7 +129,7 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
                 try:
                     mark = len(launcher.err)
                     # HOLD, then FAILSAFE; straight to FAILSAFE when the whole bus stalled as
-                    # the router dropped the cut-off planner's session (seen in 2 of 5
+                    # the router dropped the cut-off planner's session (seen in 2 of 7
                     # fresh-clone runs: every service silent ~6 s from the planner's lease
                     # end, the vehicle's next step past its failsafe time; docs/notes/0050)
                     launcher.wait_for(r"vehicle: mode RUN -> (HOLD|FAILSAFE)", WAIT_S, start=mark)
