@@ -4,6 +4,7 @@ sequences, measured delays and staleness beyond them."""
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 from pathlib import Path
 
@@ -184,11 +185,12 @@ def test_the_first_entries_are_the_same_floats_whatever_is_computed_after_them(k
     assert whole[0][-1] == 0.0  # the stop tail brakes to rest by the horizon's end
 
 
-def _twins() -> tuple[PlannerCore, PlannerCore]:
-    """A planner with prepared tails (the default fresh_s) and one computing every entry in
-    the step, both at a 0.2 s downlink delay."""
+def _twins(reuse: bool = False) -> tuple[PlannerCore, PlannerCore]:
+    """A planner with prepared tails (the default fresh_s; `reuse`: and reused tails, else
+    one rolled out after every step) and one computing every entry in the step, both at a
+    0.2 s downlink delay."""
     every = _core(["controller.sequence.fresh_s=10"], downlink_s=0.2)
-    return _core(downlink_s=0.2), every
+    return _core([] if reuse else ["controller.sequence.reuse_s=0"], downlink_s=0.2), every
 
 
 def _feed(core: PlannerCore, k: int) -> VelocityCommand:
@@ -246,6 +248,64 @@ def test_a_prepared_sequence_holds_only_for_the_step_path_and_controller_it_was_
             c.link.restart(c.controller)
     k = 4 if change == "another step time" else 3  # a step skipped: prepared for 0.35 s
     assert _feed(core, k) == _feed(every, k)  # every entry computed in the step
+
+
+def test_a_tail_the_newest_state_lies_on_is_reused_shifted_by_one_period() -> None:
+    core, every = _twins(reuse=True)
+    last = core.link.fresh_last(0.05, 0.05 + 0.2)
+    cmds = [_feed(core, k) for k in range(5)]
+    # the estimates lie on the prediction: every tail after the first step is the command
+    # just sent, one period on (no rollout after the step)
+    assert (core.link.tails_reused, core.link.tails_rolled) == (5, 0)
+    for a, b in itertools.pairwise(cmds):
+        assert b.v_next[last:-1] == a.v_next[last + 1 :]
+        assert b.w_next[last:-1] == a.w_next[last + 1 :]
+    # what the vehicle applies before the next command is fresh_s overdue: as before
+    for k, got in enumerate(cmds):
+        want = _feed(every, k)
+        assert (got.v, got.w, got.v_next[:last]) == (want.v, want.w, want.v_next[:last])
+        # the rest: close to every entry computed in the step, except that a tail shifted
+        # k - 1 times brakes to rest up to k - 1 periods sooner (its stop tail's horizon)
+        cruise = 40  # entries before the stop tail: 1.5 m/s / 0.3 m/s^2 = 5 s before the end
+        assert got.v_next[last:cruise] == pytest.approx(want.v_next[last:cruise], abs=0.05)
+        assert got.w_next[last:] == pytest.approx(want.w_next[last:], abs=0.05)
+        slack = 0.3 * 0.1 * max(0, k - 1) + 0.05
+        assert all(
+            g <= w + slack for g, w in zip(got.v_next[cruise:], want.v_next[cruise:], strict=True)
+        )
+
+
+def test_a_tail_the_newest_state_departs_from_is_rolled_out_afresh() -> None:
+    core, _ = _twins(reuse=True)
+    for k in range(3):
+        _feed(core, k)
+    reused, rolled = core.link.tails_reused, core.link.tails_rolled
+    # the estimate jumps 0.3 m to the side (a fix pulled it): beyond reuse_tolerance_m
+    t = round(0.05 + 0.1 * 3, 6)
+    core.deliver(_estimate(t - 0.05, t - 0.02, x=5.0 + 1.2 * (t - 0.05), y=20.3, v=1.2))
+    sent = _cmd(core, t)
+    core.prepare(round(t + 0.1, 6))
+    assert (core.link.tails_reused, core.link.tails_rolled) == (reused, rolled + 1)
+    prepared = core.link._prepared
+    assert prepared is not None and prepared.age == 0
+    last = core.link.fresh_last(t, t + 0.2)
+    assert prepared.vs[last:-1] != pytest.approx(sent.v_next[last:], abs=1e-3) or (
+        prepared.ws[last:-1] != pytest.approx(sent.w_next[last:], abs=1e-3)
+    )
+
+
+def test_a_reused_tail_is_at_most_reuse_s_old_and_reuse_s_0_rolls_every_tail() -> None:
+    core = _core(["controller.sequence.reuse_s=0.3"], downlink_s=0.2)
+    ages = []
+    for k in range(8):
+        _feed(core, k)
+        assert core.link._prepared is not None
+        ages.append(core.link._prepared.age)
+    assert max(ages) == 3 and 0 in ages
+    never = _core(["controller.sequence.reuse_s=0"], downlink_s=0.2)
+    for k in range(4):
+        _feed(never, k)
+    assert (never.link.tails_reused, never.link.tails_rolled) == (0, 4)
 
 
 def test_no_sequence_is_prepared_when_the_next_step_computes_every_entry() -> None:

@@ -142,10 +142,25 @@ class SequenceConfig:
     # goes out after a few controller evaluations instead of one per entry. >= horizon_s:
     # every entry in the step (sequence.py, "Prepared tails")
     fresh_s: float = 0.5
+    # a prepared tail is reused, shifted by one period, instead of rolled out again after the
+    # step, while the newest prediction agrees with it where the step's fresh entries end
+    # (pose and commands within the tolerances below): a tail at most reuse_s older than
+    # the fresh entries. 0: a tail rolled out after every step (sequence.py, "Reused tails")
+    reuse_s: float = 1.0
+    reuse_tolerance_m: float = 0.1  # position
+    reuse_tolerance_rad: float = 0.02  # heading (rad) and yaw rate (rad/s), state and command
+    reuse_tolerance_mps: float = 0.03  # speed, state and command
 
     def __post_init__(self) -> None:
-        nonneg("horizon_s", self.horizon_s)
-        nonneg("fresh_s", self.fresh_s)
+        for name in (
+            "horizon_s",
+            "fresh_s",
+            "reuse_s",
+            "reuse_tolerance_m",
+            "reuse_tolerance_rad",
+            "reuse_tolerance_mps",
+        ):
+            nonneg(name, getattr(self, name))
 
     def entries(self, period_s: float) -> int:
         """Future entries n of a command at control period period_s (0: off)."""

@@ -233,6 +233,9 @@ def _quantised(name: str, xs: Sequence[float]) -> tuple[int, ...]:
         raise WireError(f"{name}: {exc}") from None
 
 
+_INT_ONLY = frozenset((int,))
+
+
 class VelocityCommand(Message, frozen=True, kw_only=True, omit_defaults=True):
     """A velocity command to the vehicle: surge speed v (m/s) and yaw rate w (rad/s), in force
     from `stamp`, optionally followed by a sequence of future commands (packet-based
@@ -326,7 +329,7 @@ class VelocityCommand(Message, frozen=True, kw_only=True, omit_defaults=True):
         check_range("step_ms", self.step_ms, SEQUENCE_STEP_MIN_MS, SEQUENCE_STEP_MAX_MS)
         for name in ("v_next_mmps", "w_next_mradps"):
             qs = getattr(self, name)
-            if any(type(q) is not int for q in qs):
+            if not set(map(type, qs)) <= _INT_ONLY:  # every entry exactly an int (not a bool)
                 raise WireError(f"{name}: entries must be integers")
             check_range(f"{name} entry", min(qs), -_Q_MAX)
             check_range(f"{name} entry", max(qs), hi=_Q_MAX)

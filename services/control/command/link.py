@@ -31,7 +31,7 @@ from common.control import DelayMeter
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand
 from common.scalar import clamp, wrap_angle
 from services.control.command.response import Pose, ResponseModel
-from services.control.command.sequence import Prepared, command_sequence
+from services.control.command.sequence import Prepared, ReuseTolerance, command_sequence
 from services.control.command.timeline import CommandTimeline
 from services.control.controllers.arc_reference import ArcLengthReference
 from services.control.controllers.base import Controller, predict_pose
@@ -76,7 +76,14 @@ class CommandLink:
         self.entries = controller.sequence.entries(planner.period_s)  # n; 0: single commands
         self.step_s = round(planner.period_s * 1000) / 1000  # the wire's whole milliseconds
         self.fresh_s = controller.sequence.fresh_s
+        # a sent sequence is shifted into the next step's prepared one while its tail is at
+        # most this many periods old and the newest state lies on it (sequence.py)
+        self.reuse_periods = int(controller.sequence.reuse_s / self.step_s + 1e-9)
+        self.reuse_tolerance = ReuseTolerance.from_config(controller.sequence)
         self._prepared: Prepared | None = None  # the sequence the last step made for the next
+        self._sent: Prepared | None = None  # the one this step sent, if its tail may be reused
+        self.tails_rolled = 0  # prepared tails rolled out afresh
+        self.tails_reused = 0  # ... and reused, shifted from the sequence sent
         self._last_basis: tuple[float, Pose] | None = None  # (t, state predicted) of a sequence
         self._restarts = 0  # controller restarts: a sequence prepared before one is void
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
@@ -183,11 +190,28 @@ class CommandLink:
         last = self.fresh_last(t, pred.effect_t)
         if prepared is None or last >= self.entries or not prepared.holds(t, ref, self._restarts):
             last = self.entries
-        vs, ws = self._sequence(controller, ref, t, pred.now, pred.effect_t, last=last)
+        poses: list[Pose] = []
+        vs, ws = self._sequence(controller, ref, t, pred.now, pred.effect_t, last=last, poses=poses)
+        age = 0  # of the tail: all computed now
         if last < self.entries:
             assert prepared is not None
             vs.extend(prepared.vs[last + 1 :])
             ws.extend(prepared.ws[last + 1 :])
+            poses.extend(prepared.poses[last + 1 :])
+            on_tail = prepared.agrees(last, poses[last], vs[last], ws[last], self.reuse_tolerance)
+            age = prepared.age if on_tail else self.reuse_periods
+        self._sent = None
+        if age < self.reuse_periods:
+            self._sent = Prepared(
+                t=t,
+                ref=ref,
+                stop_s=stop_of(ref),
+                restarts=self._restarts,
+                vs=vs,
+                ws=ws,
+                poses=poses,
+                age=age,
+            )
         return vs, ws
 
     def prepare(self, t_next: float, controller: Controller, ref: ArcLengthReference) -> None:
@@ -195,16 +219,41 @@ class CommandLink:
         of the controller, from the state predicted then under the commands sent (this step's
         included); that step computes its first entries afresh and takes the rest from it."""
         basis, self._last_basis = self._last_basis, None
+        sent, self._sent = self._sent, None
         if basis is None or self.fresh_last(t_next, t_next + self.downlink_s) >= self.entries:
             return  # no sequence this step, or the next one computes every entry anyway
         t, now = basis
+        if (
+            sent is not None
+            and abs(t_next - t - self.step_s) < 1e-6  # the very next step (whole microseconds)
+            and sent.ref is ref
+            and sent.stop_s == stop_of(ref)
+            and sent.restarts == self._restarts
+        ):
+            self._prepared = sent.shifted(t_next)
+            self.tails_reused += 1
+            return
         start = self.timeline.predict(now, t, t_next, self.model)
+        poses: list[Pose] = []
         vs, ws = self._sequence(
-            copy.deepcopy(controller), ref, t_next, start, t_next + self.downlink_s, scratch=True
+            copy.deepcopy(controller),
+            ref,
+            t_next,
+            start,
+            t_next + self.downlink_s,
+            scratch=True,
+            poses=poses,
         )
         self._prepared = Prepared(
-            t=t_next, ref=ref, stop_s=stop_of(ref), restarts=self._restarts, vs=vs, ws=ws
+            t=t_next,
+            ref=ref,
+            stop_s=stop_of(ref),
+            restarts=self._restarts,
+            vs=vs,
+            ws=ws,
+            poses=poses,
         )
+        self.tails_rolled += 1
 
     def _sequence(
         self,
@@ -216,6 +265,7 @@ class CommandLink:
         *,
         last: int | None = None,
         scratch: bool = False,
+        poses: list[Pose] | None = None,
     ) -> tuple[list[float], list[float]]:
         return command_sequence(
             controller,
@@ -230,6 +280,7 @@ class CommandLink:
             stop_mps2=self.stop_mps2,
             last=last,
             scratch=scratch,
+            poses=poses,
         )
 
     def follow(

@@ -44,13 +44,27 @@ that sends the command, which is the sample-to-actuation latency of the loop, co
 controller evaluations instead of n + 1. A prepared sequence holds only for the step it was
 made for, on the same path stopping at the same place, with the controller not restarted
 since (`Prepared.holds`); otherwise the step computes every entry, as with fresh_s >= n T.
+
+Reused tails (controller.sequence.reuse_s): rolling a whole sequence out after every step
+cost a third of a mission's computation, though a step's newest state mostly lands where the
+rollout before predicted it. So when the step's fresh entries end where the prepared tail
+they join begins (`Prepared.agrees`: the pose predicted for that entry and its command alike
+within the reuse tolerances), the sequence just sent, shifted by one period, is the next
+step's prepared one (`Prepared.shifted`): the tail is the continuation of a rollout the newest
+state has just been checked to lie on. Its age is bounded (reuse_s): then a tail is rolled out
+afresh. A shifted tail brakes to rest one period sooner per shift (its stop tail was made for
+an earlier horizon's end): after an outage of most of the horizon the vehicle stops at most
+reuse_s early, never later.
 """
 
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
+from common.config.controller import SequenceConfig
+from common.scalar import wrap_angle
 from services.control.command.response import Pose, ResponseModel
 from services.control.command.timeline import CommandTimeline
 from services.control.controllers.arc_reference import ArcLengthReference
@@ -72,12 +86,14 @@ def command_sequence(
     stop_mps2: float = 0.0,
     last: int | None = None,
     scratch: bool = False,
+    poses: list[Pose] | None = None,
 ) -> tuple[list[float], list[float]]:
     """(vs, ws), each (last + 1,): the commands for t, t + step_s, ..., t + last step_s of a
     sequence of n + 1 (last: n by default), from the state `pose` predicted for t, the new
     command expected at the vehicle at `arrival`; stop_mps2 > 0 brings the vehicle to rest by
     t + n step_s (the stop tail). Entry k is the same floats whatever `last` is. `scratch`: the
-    controller is a copy to be thrown away, stepped for every entry (no copy is made)."""
+    controller is a copy to be thrown away, stepped for every entry (no copy is made).
+    `poses`: appended with the state each entry was computed on."""
     t_end = t + n * step_s
     last = n if last is None else min(last, n)
 
@@ -92,6 +108,8 @@ def command_sequence(
 
     v, w = controller.command(t, pose, ref)
     vs, ws = [tail(t, v)], [w]
+    if poses is not None:
+        poses.append(pose)
     if last <= 0:
         return vs, ws
     # the real controller's state must not see predictions
@@ -107,14 +125,33 @@ def command_sequence(
         v, w = roll.command(t_b, pose, ref)
         vs.append(tail(t_b, v))
         ws.append(w)
+        if poses is not None:
+            poses.append(pose)
     return vs, ws
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReuseTolerance:
+    """How close the newest prediction must lie to a prepared tail for it to be reused."""
+
+    position_m: float
+    angle_rad: float  # heading (rad), and yaw rate (rad/s)
+    speed_mps: float
+
+    @staticmethod
+    def from_config(cfg: SequenceConfig) -> ReuseTolerance:
+        return ReuseTolerance(
+            position_m=cfg.reuse_tolerance_m,
+            angle_rad=cfg.reuse_tolerance_rad,
+            speed_mps=cfg.reuse_tolerance_mps,
+        )
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class Prepared:
     """A whole sequence made after one step for the next (at `t`), on path `ref` stopping at
     `stop_s`, by a controller restarted `restarts` times: the entries that step takes as they
-    are."""
+    are, the states they were computed on, and how many periods ago its tail was rolled out."""
 
     t: float
     ref: ArcLengthReference
@@ -122,6 +159,34 @@ class Prepared:
     restarts: int
     vs: list[float]
     ws: list[float]
+    poses: list[Pose]
+    age: int = 0
+
+    def agrees(self, k: int, pose: Pose, v: float, w: float, tol: ReuseTolerance) -> bool:
+        """Whether entry k computed afresh, (v, w) on `pose`, lies on this sequence: the state
+        and the command alike within `tol` of its entry k."""
+        x, y, th, pv, pw = self.poses[k]
+        d_xy = math.hypot(pose[0] - x, pose[1] - y)
+        return (
+            d_xy <= tol.position_m
+            and abs(wrap_angle(pose[2] - th)) <= tol.angle_rad
+            and abs(pose[3] - pv) <= tol.speed_mps
+            and abs(pose[4] - pw) <= tol.angle_rad
+            and abs(v - self.vs[k]) <= tol.speed_mps
+            and abs(w - self.ws[k]) <= tol.angle_rad
+        )
+
+    def shifted(self, t: float) -> Prepared:
+        """This sequence one entry on, for the step at t (one period after its own): its last
+        entry held one period longer (with the stop tail, at rest)."""
+        return replace(
+            self,
+            t=t,
+            vs=[*self.vs[1:], self.vs[-1]],
+            ws=[*self.ws[1:], self.ws[-1]],
+            poses=[*self.poses[1:], self.poses[-1]],
+            age=self.age + 1,
+        )
 
     def holds(self, t: float, ref: ArcLengthReference, restarts: int) -> bool:
         """Whether it was made for a step at t on `ref` as it is now, by the controller as it is."""
