@@ -200,19 +200,29 @@ class CommandLink:
             poses.extend(prepared.poses[last + 1 :])
             on_tail = prepared.agrees(last, poses[last], vs[last], ws[last], self.reuse_tolerance)
             age = prepared.age if on_tail else self.reuse_periods
-        self._sent = None
-        if age < self.reuse_periods:
-            self._sent = Prepared(
-                t=t,
-                ref=ref,
-                stop_s=stop_of(ref),
-                restarts=self._restarts,
-                vs=vs,
-                ws=ws,
-                poses=poses,
-                age=age,
-            )
+        self._sent = self._made(t, ref, vs, ws, poses, age) if age < self.reuse_periods else None
         return vs, ws
+
+    def _made(
+        self,
+        t: float,
+        ref: ArcLengthReference,
+        vs: list[float],
+        ws: list[float],
+        poses: list[Pose],
+        age: int = 0,
+    ) -> Prepared:
+        """A sequence for the step at t on `ref` as it is, by the controller as it is."""
+        return Prepared(
+            t=t,
+            ref=ref,
+            stop_s=stop_of(ref),
+            restarts=self._restarts,
+            vs=vs,
+            ws=ws,
+            poses=poses,
+            age=age,
+        )
 
     def prepare(self, t_next: float, controller: Controller, ref: ArcLengthReference) -> None:
         """After a step's command is out: the whole sequence for the step at t_next, on a copy
@@ -223,12 +233,11 @@ class CommandLink:
         if basis is None or self.fresh_last(t_next, t_next + self.downlink_s) >= self.entries:
             return  # no sequence this step, or the next one computes every entry anyway
         t, now = basis
+        # the very next step (whole microseconds), on the path and by the controller as sent
         if (
             sent is not None
-            and abs(t_next - t - self.step_s) < 1e-6  # the very next step (whole microseconds)
-            and sent.ref is ref
-            and sent.stop_s == stop_of(ref)
-            and sent.restarts == self._restarts
+            and abs(t_next - t - self.step_s) < 1e-6
+            and sent.holds(t, ref, self._restarts)
         ):
             self._prepared = sent.shifted(t_next)
             self.tails_reused += 1
@@ -244,15 +253,7 @@ class CommandLink:
             scratch=True,
             poses=poses,
         )
-        self._prepared = Prepared(
-            t=t_next,
-            ref=ref,
-            stop_s=stop_of(ref),
-            restarts=self._restarts,
-            vs=vs,
-            ws=ws,
-            poses=poses,
-        )
+        self._prepared = self._made(t_next, ref, vs, ws, poses)
         self.tails_rolled += 1
 
     def _sequence(
