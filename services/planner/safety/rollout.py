@@ -29,7 +29,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -81,6 +81,12 @@ class RolloutInputs:
     step_s: float
     start: Pose
     t0: float
+    # the last rollout flown from these inputs, with the plan, speed and tuning it was flown
+    # for: a plan is flown when it is verified and again when checked for contact soon after
+    # adoption (asking.py), the same flight
+    last_flown: list[tuple[PlanResult, float, PlannerTuning, Rollout]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +105,21 @@ class Rollout:
 def roll_out(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning
 ) -> Rollout:
-    """An OK plan flown (see the module docstring)."""
+    """An OK plan flown (see the module docstring) at req.v_ref_mps: the flight of the last
+    call if it was for the same plan, speed and tuning (its arrays read-only)."""
+    if fm.last_flown:
+        plan, v, tun, flown = fm.last_flown[0]
+        if plan is result and v == req.v_ref_mps and tun is tuning:
+            return flown
+    flown = _fly(result, req, fm, tuning)
+    for a in (flown.pts, flown.t, flown.dist):
+        a.setflags(write=False)
+    fm.last_flown[:] = [(result, req.v_ref_mps, tuning, flown)]
+    return flown
+
+
+def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning) -> Rollout:
+    """roll_out's flight, flown."""
     ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as the loop resets it when a new path is put in force (adoption.py)
