@@ -4,6 +4,7 @@ profile, saturation, config."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,7 +31,8 @@ from services.control.controllers import (
     predict_pose,
 )
 from services.control.controllers.arc_reference import ArcLengthReference
-from services.control.controllers.base import path_errors
+from services.control.controllers.base import crab_angle, path_errors
+from services.control.controllers.follower import course_over_ground
 from services.control.controllers.fuzzy import (
     DKD_TABLE,
     DKI_TABLE,
@@ -237,6 +239,37 @@ def test_the_profile_ramps_up_from_the_vehicle_speed_and_slows_at_once() -> None
     fast = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0, v_ref=9.0)
     prof.reset()
     assert prof.command(0.0, fast, 0.0, 2.0) == LIMITS.v_max
+
+
+def test_a_path_taken_while_accelerating_carries_on_with_the_ramp() -> None:
+    # the hull's speed lags the command: a new path taken a period after the last command
+    # ramps on from that command, not from the (slower) vehicle; after a silence longer than
+    # ramp_carry_s, or with ramp_carry_s = 0, from the vehicle's speed as before
+    line = StraightLine(x0=0.0, y0=0.0, x1=200.0, y1=0.0)
+    for carry, t_new, expected in ((0.5, 3.1, 0.62), (0.5, 4.0, 0.1), (0.0, 3.1, 0.1)):
+        prof = SpeedProfile(replace(SPEED, ramp_carry_s=carry), LIMITS)
+        for k in range(31):  # 0 .. 3.0 s: the command reaches 0.6 m/s
+            prof.command(0.1 * k, line, 0.0, 0.0)
+        prof.reset()  # a new path, the vehicle still at 0.1 m/s
+        assert math.isclose(prof.command(t_new, line, 0.0, 0.1), expected)
+    # a vehicle faster than the last command (a slow-down) starts from its own speed
+    prof = SpeedProfile(SPEED, LIMITS)
+    prof.command(0.0, line, 0.0, 0.3)
+    prof.reset()
+    assert prof.command(0.1, line, 0.0, 0.9) == 0.9
+
+
+def test_the_course_over_ground_is_the_heading_crabbed_by_the_current() -> None:
+    # a path taken in a current leaves along the course the controllers steer, not the hull's
+    # heading: a hull crabbing 11.5 deg into a 0.3 m/s cross current at 1.5 m/s makes good
+    # its path's heading; in still water with no sway the course is the heading, bit for bit
+    crab = crab_angle((0.0, 0.3), 0.0, 1.5)
+    assert math.isclose(math.degrees(crab), -11.54, abs_tol=0.01)
+    assert abs(course_over_ground(crab, 1.5, 0.0, (0.0, 0.3))) < 1e-12
+    assert course_over_ground(0.7, 1.5, 0.0, (0.0, 0.0)) == 0.7
+    # sway to port turns the course to port; at rest the steerage speed is assumed
+    assert course_over_ground(0.0, 1.0, 0.1, (0.0, 0.0)) > 0.0
+    assert math.isclose(course_over_ground(0.0, 0.0, 0.0, (0.0, 0.5)), math.pi / 4)
 
 
 @pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])

@@ -341,11 +341,12 @@ class _Scripted(AtOnce[PlanResult]):
         super().start(lambda: self.edit(work()))
 
 
-@pytest.mark.parametrize("why", ["corridor", "cruise", "infeasible"])
+@pytest.mark.parametrize("why", ["corridor", "cruise", "current", "infeasible"])
 def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
     why: ReplanReason,
 ) -> None:
-    """A "corridor" or "cruise" replan is a precaution: the path in force was still feasible.
+    """A "corridor", "cruise" or "current" replan is a precaution: the path in force was still
+    feasible.
     Its result replaces that path only if it is an ordinary plan; a recovery (which may turn
     about into the safety margin: fleet4 seed 8) or NO_PATH is declined and the path in force
     followed on. A replan the path in force needs ("infeasible") takes whatever it gets."""

@@ -94,7 +94,8 @@ class SpeedConfig:
     """The speed profile every controller follows (services/control/controllers/speed.py).
 
     Cruise: the path's v_ref within eq. (11). Ramp: from the vehicle's speed when a path is
-    taken, the commanded speed rises at most accel_mps2. Slow-downs: v |kappa| <= budget *
+    taken (or the last command's ramp, if at most ramp_carry_s old and faster), the
+    commanded speed rises at most accel_mps2. Slow-downs: v |kappa| <= budget *
     w_max over the curvature preview window, and v <= sqrt(2 decel_mps2 d) with d the arc
     length left to the end of the path (a stop at the goal).
     """
@@ -111,11 +112,16 @@ class SpeedConfig:
     # (at most cruise): a vehicle slower than the current it crabs in drifts off its path
     # instead of arriving (the mission ends on arrival, within the goal tolerance)
     steerage_per_current: float = 2.0
+    # a path taken at most this long (s) after the last speed command carries on with that
+    # command's ramp when it is faster than the vehicle: the hull's speed lags the command,
+    # and a ramp restarted from it at every replan barely accelerates (0 = always restart)
+    ramp_carry_s: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("accel_mps2", "decel_mps2"):
             positive(name, getattr(self, name))
         nonneg("preview_s", self.preview_s)
+        nonneg("ramp_carry_s", self.ramp_carry_s)
         nonneg("steerage_per_current", self.steerage_per_current)
         fraction("curvature_budget", self.curvature_budget)
 

@@ -22,7 +22,8 @@ from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
 from common.runtime.deferred import Deferred
 from services.control.command.link import CommandLink, Prediction
-from services.control.controllers.base import Controller
+from services.control.controllers.base import Controller, crab_angle
+from services.control.controllers.follower import course_over_ground
 from services.planner.evade import plan_or_step_aside, step_aside
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D
 from services.planner.safety.rollout import RolloutInputs, rollout_clearance
@@ -216,9 +217,12 @@ class PlanAsking:
         s_here = ref.closest_s(here.x, here.y, s_now)
         s_then = min(s_here + max(v, 0.0) * lag, ref.stop_s, ref.length)
         x, y = ref.point_at_s(s_then)
-        # there it turns as the path in force does
+        # there it turns as the path in force does, its hull crabbed into the current (`ask`
+        # takes a hull's heading: its course is then the path's)
         twist = (v, v * ref.curvature_at_s(s_then))
-        return t_plan + lag, Pose2D(x=x, y=y, theta=ref.heading_at_s(s_then)), twist
+        course = ref.heading_at_s(s_then)
+        theta = course + crab_angle(self.link.model.current_mps, course, v)
+        return t_plan + lag, Pose2D(x=x, y=y, theta=theta), twist
 
     def ask(
         self,
@@ -234,9 +238,18 @@ class PlanAsking:
     ) -> None:
         """Start (at step t) a plan from `here`, the pose at t_plan, where the vehicle moves
         with `twist` (v, w) (the obstacles as they are then); flown by `controller` before it
-        is adopted (rollout.py); `aside`: the way aside in force, if any (evade.py)."""
+        is adopted (rollout.py); `aside`: the way aside in force, if any (evade.py).
+
+        The plan is over ground, so it leaves along the vehicle's course, not its hull's
+        heading: in a cross current the two differ by the crab angle (11 deg at 0.3 m/s
+        across 1.5 m/s), and a path leaving along the heading had the controllers, which
+        steer the course, start it that far off (they swung wide after every replan) and
+        made "no curve leaves along the heading" recoveries near obstacles. The rollout
+        starts from the hull's own state."""
+        current = self.link.model.current_mps
+        course = course_over_ground(here.theta, twist[0], controller.sway, current)
         req = PlanRequest(
-            start=here,
+            start=replace(here, theta=course),
             goal=self.goal,
             area=self.world.area,
             obstacles=obstacles,
@@ -252,14 +265,14 @@ class PlanAsking:
             obstacles=obstacles,
             why=why,
             asked_t=t,
-            current=self.link.model.current_mps,
+            current=current,
             pace=req.pace,
         )
         # a copy now: the plan may be made beside the steps, which go on using it; it flies
         # in the current believed now (the live controller learns it only when it follows a
         # path: before the first one, or after a NO_PATH, its own is stale)
         flown = copy.deepcopy(controller)
-        flown.current = self.link.model.current_mps
+        flown.current = current
         flight = RolloutInputs(
             controller=flown,
             model=self.link.model,

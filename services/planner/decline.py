@@ -26,8 +26,11 @@ log = logging.getLogger("tidelink.planner")
 # would have it by now is declined (`overtaken`): with R_min it cannot join it there
 STALE_HEADING_RAD = math.radians(45.0)
 # replans asked while the path in force is still feasible (replan.py): their result replaces
-# it only if it is an ordinary plan (`keeps_path_in_force`)
-PRECAUTIONS = ("corridor", "cruise")
+# it only if it is an ordinary plan (`keeps_path_in_force`). "current" too: the policy asks
+# it only when the path in force has no conflict, and near an obstacle the wider turning
+# radius of a stronger current often leaves only a recovery, whose arc may enter rho0; a
+# following current's estimate settling at the start took fuzzy PID into rho0 that way
+PRECAUTIONS = ("corridor", "cruise", "current")
 
 # the rules' reason codes (metrics.json plans_declined_by_reason)
 DeclineCode = Literal["overtaken", "kept_path_in_force"]

@@ -40,6 +40,27 @@ COURSE_GAIN_MIN, COURSE_GAIN_MAX = 0.5, 2.0
 G = TypeVar("G")
 
 
+def _ground_velocity(
+    v: float, c: float, sn: float, sway: float, cx: float, cy: float
+) -> tuple[float, float]:
+    """The velocity over ground (m/s, world) of a hull heading (c, sn) = (cos, sin) at v
+    through the water, slipping `sway` to port, in the current (cx, cy)."""
+    return v * c - sway * sn + cx, v * sn + sway * c + cy
+
+
+def course_over_ground(theta: float, v: float, sway: float, current: tuple[float, float]) -> float:
+    """The course over ground (rad) that PathFollower.over_ground steers for a hull heading
+    theta at v through the water (at least STEERAGE_MPS), slipping `sway` to port, in
+    `current`: the heading a path taken now must leave along, as the controllers see it.
+    Exactly theta in still water with no sway."""
+    cx, cy = current
+    if cx == 0.0 and cy == 0.0 and sway == 0.0:
+        return theta
+    ve = max(v, STEERAGE_MPS)
+    gx, gy = _ground_velocity(ve, math.cos(theta), math.sin(theta), sway, cx, cy)
+    return theta + wrap_angle(math.atan2(gy, gx) - theta)
+
+
 class PathFollower(Generic[G]):
     """Gains of type G, eq. (11) limits, the shared speed profile and the projection on s."""
 
@@ -101,7 +122,7 @@ class PathFollower(Generic[G]):
         ve = STEERAGE_MPS if STEERAGE_MPS > v else v  # max(v, STEERAGE_MPS)
         cx, cy = self.current
         c, sn = math.cos(th), math.sin(th)
-        gx, gy = ve * c - self.sway * sn + cx, ve * sn + self.sway * c + cy
+        gx, gy = _ground_velocity(ve, c, sn, self.sway, cx, cy)
         u = math.hypot(gx, gy)
         along = ve + cx * c + cy * sn  # g . e_theta
         across = self.sway - cx * sn + cy * c  # g . n_theta
