@@ -29,17 +29,18 @@ DEFAULT = REPO / "configs" / "default.toml"
 # one). Re-pinned when the planner's clearance margin came to grow with the measured loop delay
 # (issue 16): 5431be1d... before; and when planned curves came to keep that margin from the
 # area's edge too: 42edd711... before; and when the estimator came to carry the ocean current
-# and the controllers to follow the path over ground in it (issue 60): bc28f603... before.
+# and the controllers to follow the path over ground in it (issue 60): bc28f603... before; and when
+# a plan came to start along the course over ground (issue 60): aad897a1... before.
 # With other floating-point code the test compares it with a placement whose every link is
 # generic (the default placement written out is no such oracle: services on one node talk
 # over ideal local links).
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
-        "aad897a15cdc20ba859a24de5f1ada3dd8f9d52b3b2e72bb32efbd7c8b745613"
+        "4ed6b8cd2563601bab76a5cda97ca6ceeb5c5498faca1950072c7503979fc1e7"
     ),
     # the machine of 2026-12-01 (AVX512_SPR dispatched too): the same floats
     ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR")): (
-        "aad897a15cdc20ba859a24de5f1ada3dd8f9d52b3b2e72bb32efbd7c8b745613"
+        "4ed6b8cd2563601bab76a5cda97ca6ceeb5c5498faca1950072c7503979fc1e7"
     ),
 }
 
