@@ -35,8 +35,12 @@ def test_a_start_in_contact_escapes_instead_of_deadlocking() -> None:
     # the first plan waits for the first obstacle tracks: it plans from an estimate that has
     # fused noisy fixes by then (and cannot yet tell their noise from a current's or a sway's
     # drift), so the hull clearance it finds is near, not at, -0.30: a way out either way
-    why = paths[0].reason  # type: ignore[attr-defined]
-    assert re.search(
+    # (a plan starts along the course over ground: at rest, the estimate's noise sets it off
+    # the hull's heading, and the way out may then start with an arc that turns it first)
+    first = paths[0]
+    why = first.reason  # type: ignore[attr-defined]
+    assert first.status == "OK", why  # type: ignore[attr-defined]
+    assert first.strategy == "turned_first" or re.search(  # type: ignore[attr-defined]
         r"start (in contact|inside the safety margin) \(hull clearance -?0\.[0-4]\d m\)", why
     ), why
     truth = r.record.stream("vehicle", "truth")
