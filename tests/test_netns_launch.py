@@ -153,7 +153,11 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
     m = json.loads((out / "metrics.json").read_text())
     summary = {k: v for k, v in m.items() if k != "link_stats"}
     assert m["reached_goal"] is True and m["end_reason"] == "goal", summary
-    assert m["hold_time_s"] > 0.0 and m["failsafe_time_s"] > 0.0, summary
+    assert m["failsafe_time_s"] > 0.0, summary
+    # a HOLD is measured whenever the vehicle went through one (not when the whole bus stalled
+    # and it went straight to FAILSAFE, above)
+    if "vehicle: mode RUN -> HOLD" in launcher.stderr:
+        assert m["hold_time_s"] > 0.0, summary
     # the router closes the cut-off planner's session once its queue has been full for a
     # second (common/bus/session.py) and the planner reconnects; a shorter cut would have TCP
     # deliver the backlog instead, too late to apply
