@@ -158,6 +158,39 @@ def test_track_dropped_after_timeout_and_restarted() -> None:
     assert (tr.x, tr.y, tr.vx, tr.vy) == (60.0, 30.0, 0.0, 0.0) and back.gated_out == 0
 
 
+def test_a_track_behind_the_sonar_coasts_and_one_in_its_sector_is_dropped() -> None:
+    """Not seeing an obstacle outside the sonar's sector says nothing of where it is: its track
+    coasts up to track_coast_s; one predicted well inside the sector and not seen is gone."""
+    cfg = EstimatorConfig(track_timeout_s=3.0, track_coast_s=10.0)
+    tracker = ObstacleTracker(cfg, SensorConfig())  # 30 m, +-60 deg
+    state = _steady(tracker, 26, np.random.default_rng(2))  # last at (12.5, 8) at 5.0 s, east
+    ahead, past = (0.0, 8.0, 0.0), (30.0, 8.0, 0.0)  # the vehicle short of it, and past it
+    assert tracker.tracks_at(state, 8.05, ahead) == ()
+    assert [t.id for t in tracker.tracks_at(state, 8.05, past)] == [5]
+    (tr,) = tracker.tracks_at(state, 14.9, past)
+    assert tr.x == pytest.approx(12.5 + 0.5 * 9.9, abs=0.5)  # coasting on its prediction
+    assert tracker.tracks_at(state, 15.1, past) == ()
+    # without a sector (or a pose) every track is dropped at track_timeout_s, as before
+    assert ObstacleTracker(cfg).tracks_at(state, 8.05, past) == ()
+    assert tracker.tracks_at(state, 8.05) == ()
+    # seen again while coasting, past track_timeout_s: a fresh track, not a gated-out update
+    back = tracker.fuse(state, ObstacleDetections(stamp=9.0, detections=(_det(5, 60.0, 30.0),)))
+    (tr,) = tracker.tracks_at(back, 9.0, past)
+    assert (tr.x, tr.y, tr.vx, tr.vy) == (60.0, 30.0, 0.0, 0.0) and back.gated_out == 0
+
+
+def test_the_sonar_sector_with_a_margin() -> None:
+    sonar = SensorConfig(det_range_m=30.0, det_fov_half_angle_rad=math.radians(60.0))
+    assert sonar.sees(0.0, 0.0, 0.0, 10.0, 0.0, 1.0)
+    edge = (10.0 * math.cos(math.radians(58.0)), 10.0 * math.sin(math.radians(58.0)))
+    assert sonar.sees(0.0, 0.0, 0.0, *edge, 1.0)  # 2 deg inside the edge ...
+    assert not sonar.sees(0.0, 0.0, 0.0, *edge, 1.0, inside_m=1.0)  # ... but not 1 m inside
+    assert sonar.sees(0.0, 0.0, 0.0, 30.5, 0.0, 1.0) and not sonar.sees(
+        0.0, 0.0, 0.0, 30.5, 0.0, 1.0, inside_m=1.0
+    )
+    assert not sonar.sees(0.0, 0.0, 0.0, 0.5, 0.0, 0.2, inside_m=1.0)  # it could be anywhere
+
+
 def test_track_message_layout() -> None:
     tracker = ObstacleTracker(EstimatorConfig())
     state = _steady(tracker, 40, np.random.default_rng(3))

@@ -68,7 +68,13 @@ class EstimatorConfig:
     track_init_std_v_mps: float = 1.0
     track_init_std_a_mps2: float = 0.5
     track_gate_probability: float = 0.9999  # chi-square (2 dof) Mahalanobis gate
-    track_timeout_s: float = 3.0  # a track not updated for this long is dropped
+    track_timeout_s: float = 3.0  # a track not updated for this long is dropped ...
+    # ... unless its obstacle is predicted outside the sonar's sector (sensor.det_range_m,
+    # det_fov_half_angle_rad, from the estimated pose): not seeing it there says nothing of
+    # where it is, so it coasts on its prediction up to this long after its last detection
+    # (an obstacle that fell behind the vehicle's beam still crosses its way); a detection
+    # after track_timeout_s starts it afresh. <= track_timeout_s: dropped like any other
+    track_coast_s: float = 10.0
     # out-of-sequence fusion: measurements up to history_s older than the newest are re-fused
     history_s: float = 2.0
 
@@ -101,6 +107,7 @@ class EstimatorConfig:
             "sway_std_mps",
             "track_cv_accel_psd_m2_s3",
             "track_jerk_psd_m2_s5",
+            "track_coast_s",
         ):
             nonneg(name, getattr(self, name))
         if self.prefilter not in ("none", "mean", "lag", "mean+lag"):

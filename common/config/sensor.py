@@ -16,6 +16,7 @@ from typing import Literal
 
 from common.config.checks import nonneg, positive
 from common.config.errors import ConfigValueError
+from common.scalar import wrap_angle
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -118,6 +119,29 @@ class SensorConfig:
     def period_s(self) -> float:
         """The core's step period: 1 / base_rate_hz."""
         return 1.0 / self.base_rate_hz
+
+    def sees(
+        self,
+        x: float,
+        y: float,
+        heading: float,
+        ox: float,
+        oy: float,
+        radius: float,
+        inside_m: float = 0.0,
+    ) -> bool:
+        """Whether the sonar at (x, y) looking along `heading` (rad) has an obstacle of centre
+        (ox, oy) and `radius` (m) in its sector: its surface within det_range_m, the bearing to
+        its centre within +-det_fov_half_angle_rad of the heading; with `inside_m`, only when
+        the centre may move that far (m) any way and still be so."""
+        dx, dy = ox - x, oy - y
+        dist = math.hypot(dx, dy)
+        if dist - radius + inside_m > self.det_range_m:
+            return False
+        bearing = abs(wrap_angle(math.atan2(dy, dx) - heading))
+        if inside_m > 0.0:
+            bearing += math.pi if dist <= inside_m else math.asin(inside_m / dist)
+        return bearing <= self.det_fov_half_angle_rad
 
     @property
     def scan_every(self) -> int:

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
+from common.config.sensor import SensorConfig
 from common.config.world import AreaConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.guard.rejects import warn_rejected
@@ -109,10 +110,11 @@ class EstimatorCore:
         *,
         area: AreaConfig | None = None,
         start_speed_mps: float = 0.0,
+        sonar: SensorConfig | None = None,
     ) -> None:
         self.cfg = cfg
         self._filter = make_vehicle_filter(cfg)
-        self._tracker = ObstacleTracker(cfg)
+        self._tracker = ObstacleTracker(cfg, sonar)
         self._judge = Plausibility.of_area(area if area is not None else AreaConfig())
         self._rejects = RateLimitedLog(log)
         x0 = np.zeros(DIM_X)
@@ -405,7 +407,8 @@ class EstimatorCore:
             sway=float(x[SWAY]),
             sway_std=math.sqrt(max(0.0, P[SWAY, SWAY])),
         )
-        tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t))
+        pose = (state.x, state.y, state.theta)  # whence the sonar looks (tracks.py coasting)
+        tracks = ObstacleTracks(stamp=t, tracks=self._tracker.tracks_at(self.scans.state, t, pose))
         return [Emit(stream="state", msg=state), Emit(stream="tracks", msg=tracks)]
 
     # -- what the runtime reports --------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -9,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
+from common.config.sensor import SensorConfig
 from common.guard import MAX_ITEMS
 from common.messages import ObstacleDetections, Track
 from services.estimator.gate import ChiSquareGate
@@ -21,6 +23,9 @@ FloatArray = NDArray[np.float64]
 # order [x, y, vx, vy, ax, ay]
 _TO_MSG = np.array([0, 3, 1, 4, 2, 5])
 _TO_MSG_2D = np.ix_(_TO_MSG, _TO_MSG)
+# a coasting track is dropped once its predicted centre is this many standard deviations
+# inside the sonar's sector and still not detected (ObstacleTracker._in_view)
+VIEW_SIGMAS = 2.0
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -52,11 +57,15 @@ class ObstacleTracker:
 
     At most MAX_ITEMS tracks are held (a detection of one more id is refused: the work of
     every publish grows with the tracks); a track whose filter diverges restarts from its
-    detection.
+    detection. With the sonar's sector (`sonar`), a track predicted outside it coasts up to
+    track_coast_s (EstimatorConfig); without, every track is dropped after track_timeout_s.
     """
 
-    def __init__(self, cfg: EstimatorConfig) -> None:
+    def __init__(self, cfg: EstimatorConfig, sonar: SensorConfig | None = None) -> None:
         self.cfg = cfg
+        self.sonar = sonar
+        # how long a track is remembered: a coasting one until track_coast_s
+        self._memory_s = max(cfg.track_timeout_s, cfg.track_coast_s if sonar else 0.0)
         self.gate = ChiSquareGate(cfg.track_gate_probability)
         self._imm = ImmFilter(
             cfg.track_cv_accel_psd_m2_s3,
@@ -91,16 +100,17 @@ class ObstacleTracker:
     def fuse(self, state: TrackerState, msg: ObstacleDetections) -> TrackerState:
         """The tracks after one scan (stamped msg.stamp, fused in id order)."""
         timeout = self.cfg.track_timeout_s
-        # forget tracks that can never be published again (t >= msg.stamp from now on); a
-        # detection of a forgotten id starts a fresh track
-        out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= timeout}
+        # forget tracks that can never be published again (t >= msg.stamp from now on)
+        out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= self._memory_s}
         gated_out, refused, resets = state.gated_out, state.refused, state.resets
         for det in sorted(msg.detections, key=lambda d: d.id):
             z = np.array([det.x, det.y])
             var = max(det.std_xy**2, 1e-12)
             r_var = max(det.std_radius**2, 1e-12)
             b = out.get(det.id)
-            if b is None:
+            # a detection of a forgotten id, or of one coasting past track_timeout_s (its
+            # prediction has drifted), starts a fresh track
+            if b is None or msg.stamp - b.stamp > timeout:
                 if len(out) >= MAX_ITEMS:
                     refused += 1
                     continue
@@ -127,19 +137,43 @@ class ObstacleTracker:
             )
         return TrackerState(tracks=out, gated_out=gated_out, refused=refused, resets=resets)
 
-    def live(self, state: TrackerState, t: float) -> dict[int, TrackBelief]:
-        """The tracks updated within track_timeout_s of t (the others are dropped)."""
+    def live(
+        self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
+    ) -> dict[int, TrackBelief]:
+        """The tracks updated within track_timeout_s of t, and, seen from the vehicle's pose
+        (x, y, heading), those coasting up to track_coast_s predicted outside the sonar's
+        sector (the others are dropped)."""
         timeout = self.cfg.track_timeout_s
-        return {k: b for k, b in state.tracks.items() if t - b.stamp <= timeout}
+        out: dict[int, TrackBelief] = {}
+        for k, b in state.tracks.items():
+            age = t - b.stamp
+            if age <= timeout or (age <= self._memory_s and not self._in_view(b, t, pose)):
+                out[k] = b
+        return out
+
+    def _in_view(self, b: TrackBelief, t: float, pose: tuple[float, float, float] | None) -> bool:
+        """Whether the sonar would see track b's obstacle at t from `pose` (True without a
+        sector or a pose: a track is then dropped at track_timeout_s)."""
+        if self.sonar is None or pose is None:
+            return True
+        x, P = self.predict(b, t)
+        # a missed detection says the obstacle is gone only where the sonar would surely see
+        # it: its predicted centre VIEW_SIGMAS standard deviations inside the sector's edges
+        pos = P[np.ix_((0, 3), (0, 3))]
+        sigma = math.sqrt(max(0.0, float(np.linalg.eigvalsh(pos)[-1])))
+        return self.sonar.sees(*pose, float(x[0]), float(x[3]), b.radius, VIEW_SIGMAS * sigma)
 
     def predict(self, b: TrackBelief, t: float) -> tuple[FloatArray, FloatArray]:
         """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
         return combine(*self._imm.predict(b.modes, t - b.stamp))
 
-    def tracks_at(self, state: TrackerState, t: float) -> tuple[Track, ...]:
-        """Live tracks predicted to t, as wire tracks ([x, y, vx, vy, ax, ay] covariance)."""
+    def tracks_at(
+        self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
+    ) -> tuple[Track, ...]:
+        """Live tracks (`live`) predicted to t, as wire tracks ([x, y, vx, vy, ax, ay]
+        covariance)."""
         out: list[Track] = []
-        live = self.live(state, t)
+        live = self.live(state, t, pose)
         for oid in sorted(live):
             x, P = self.predict(live[oid], t)
             if not healthy(x, P):

@@ -184,7 +184,11 @@ def make_estimator(ctx: CoreContext) -> EstimatorCore:
 
     s = ctx.scenario
     return EstimatorCore(
-        s.estimator, _start(s), area=s.world.area, start_speed_mps=s.world.start.speed_mps
+        s.estimator,
+        _start(s),
+        area=s.world.area,
+        start_speed_mps=s.world.start.speed_mps,
+        sonar=s.sensor,
     )
 
 

@@ -81,15 +81,8 @@ def position_fix(truth: TruthState, cfg: SensorConfig, z: FloatArray) -> Positio
 
 
 def in_view(o: ObstacleState, x: float, y: float, heading: float, cfg: SensorConfig) -> bool:
-    """Is the obstacle in the sonar's sector?
-
-    Range is measured to its surface (centre distance - radius <= det_range_m); the bearing
-    to its centre must lie within +-det_fov_half_angle_rad of the heading.
-    """
-    dx, dy = o.x - x, o.y - y
-    if math.hypot(dx, dy) - o.radius > cfg.det_range_m:
-        return False
-    return abs(wrap_angle(math.atan2(dy, dx) - heading)) <= cfg.det_fov_half_angle_rad
+    """Is the obstacle in the sonar's sector (SensorConfig.sees)?"""
+    return cfg.sees(x, y, heading, o.x, o.y, o.radius)
 
 
 def scan(
