@@ -370,3 +370,38 @@ def test_contact_beyond_the_horizon_does_not_hold_the_vehicle_at_its_start(
     assert kept is through
     within = rollout_clearance(through, req, fm, CFG, within_s=reach_s - 5.0)
     assert within.min_clearance_m > 0.0 and within.t_s <= reach_s - 5.0
+
+
+def _hook() -> PlanResult:
+    """An OK plan to the goal (60, 20) whose last bend no controller follows: it comes down on
+    the goal from (60, 25), and its rollout passes the goal metres off."""
+    ctrl = np.array([(5, 20), (20, 20), (40, 20), (54, 20), (57, 25), (60, 25), (60, 20)], float)
+    return PlanResult(
+        status="OK",
+        reason="",
+        strategy="searched",
+        degree=3,
+        control_points=ctrl,
+        weights=np.ones(len(ctrl)),
+        knots=clamped_uniform_knots(len(ctrl), 3),
+        length_m=62.0,
+    )
+
+
+def test_a_plan_whose_rollout_misses_the_goal_is_made_again_until_one_arrives() -> None:
+    req = dataclasses.replace(_request(), goal_tolerance_m=1.5)
+    made: list[tuple[PlanRequest, PlannerConfig]] = []
+
+    def plan(q: PlanRequest, c: PlannerConfig) -> PlanResult:
+        made.append((q, c))
+        return _hook() if len(made) == 1 else _straight(20.0, 5.0, 60.0)
+
+    got = plan_and_verify(req, CFG, _flight(), plan)
+    assert got.strategy == "remade_wider" and "passed the goal" in got.reason, got.reason
+    assert made[1][1].curvature_margin < CFG.curvature_margin  # gentler bends asked
+    # without a tolerance, or when no plan made again arrives, the first plan stands
+    made.clear()
+    assert plan_and_verify(_request(), CFG, _flight(), plan).control_points.shape == (7, 2)
+    made.clear()
+    first = plan_and_verify(req, CFG, _flight(), lambda q, c: _hook())
+    assert first.strategy == "searched" and first.rejected == ("remade_wider", "remade_slower")

@@ -258,6 +258,7 @@ class PlanAsking:
             v_ref_mps=self.vehicle.cruise_speed_mps,
             fix_goal_heading=self.fix_goal_heading,
             pace=self._pace(here),
+            goal_tolerance_m=self.world.goal_tolerance_m,
         )
         cfg = self._plan_config()
         self._asked = Asked(

@@ -23,7 +23,7 @@ Strategy = Literal[
     "escaped_first",  # a way out of contact, the margin or beyond the area first (leave_then_plan)
     "came_about_first",  # come about across the area's edge first (come_about_then_plan)
     "partway",  # a plan part of the way along the searched route (safety/partway.py)
-    "remade_wider",  # made again with a wider margin: the first one's rollout broke rho0
+    "remade_wider",  # made again wider: the first one's rollout broke rho0 or missed the goal
     "remade_around",  # ... around where that rollout came nearest a static obstacle
     "remade_slower",  # ... for a lower speed (safety/rollout.py)
     "hull_turns",  # within the hull's own R_min: none within R_min over ground (asking.py)

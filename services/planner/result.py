@@ -54,8 +54,14 @@ class PlanRequest:
     # speed over ground per speed through the water on the way to the goal: 1 in still
     # water; in a current, how much faster (or slower) the vehicle passes along its path
     pace: float = 1.0
+    # a plan to the goal is flown to within this of it (m; rollout.py); 0: not checked
+    goal_tolerance_m: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.goal_tolerance_m) and self.goal_tolerance_m >= 0.0):
+            raise ValueError(
+                f"goal_tolerance_m: {self.goal_tolerance_m!r} is invalid, expected >= 0"
+            )
         for name in ("vehicle_radius_m", "r_min_m", "v_ref_mps", "pace"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):

@@ -20,7 +20,10 @@ of rollout_detour_m where the first flight came nearest a static obstacle, so th
 another way; and then (that, too, near a static obstacle only) for rollout_slow_factor of the
 speed, flown at it. The plan whose flight clears the most is adopted (the first when none
 fares better), with the speed it was made for (`PlanResult.v_ref_mps`); either way its
-reason says what the flight found. The tunables named here are planner.tuning's
+reason says what the flight found. A plan to the goal whose flight keeps rho0 but passes the
+goal farther than the mission's goal tolerance (a controller that lags on the last bend, and
+then comes about for it, often beyond the area's edge) is made again with gentler bends, then
+slower, and the first whose flight arrives is taken. The tunables named here are planner.tuning's
 (common/config/planner_tuning.py). Pure: the same floats in every runtime.
 """
 
@@ -203,7 +206,7 @@ def plan_and_verify(
         return first
     f1 = rollout_clearance(first, req, fm, cfg)
     if f1.short_m <= 0.0:
-        return first
+        return _arriving(first, req, cfg, fm, plan)
     found = (
         f"flown on the response model its hull cleared an obstacle by {f1.min_clearance_m:.2f} "
         f"m (rho0 {cfg.rho0_m:.2f} m) at ({f1.x:.1f}, {f1.y:.1f}) {f1.t_s:.1f} s on, "
@@ -252,6 +255,66 @@ def plan_and_verify(
         f"{found}; {how}, whose flight {kept} {best_f.keep_m:.2f} m (clearance there "
         f"{best_f.min_clearance_m:.2f} m)",
     )
+
+
+def goal_miss_m(
+    result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig
+) -> float:
+    """How far from the goal the rollout of a plan that ends there passes at its nearest (m;
+    0 for a plan that ends elsewhere, a way aside or a partway plan, and for a rollout that
+    ended short of the path's end, at rollout_max_s)."""
+    f = roll_out(result, req, fm, cfg.tuning)
+    ex, ey = f.ref.point_at_s(f.ref.length)
+    if math.hypot(ex - req.goal.x, ey - req.goal.y) > 1e-6:
+        return 0.0
+    last = f.ref.closest_s(float(f.pts[-1, 0]), float(f.pts[-1, 1]), None)
+    if last < f.ref.length - req.vehicle_radius_m - req.goal_tolerance_m:
+        return 0.0
+    return float(np.hypot(f.pts[:, 0] - req.goal.x, f.pts[:, 1] - req.goal.y).min())
+
+
+def _arriving(
+    first: PlanResult, req: PlanRequest, cfg: PlannerConfig, fm: RolloutInputs, plan: Plan
+) -> PlanResult:
+    """A plan whose rollout keeps its clearance, made again if the rollout passes the goal
+    farther than req.goal_tolerance_m (a controller that lags on the last bend misses the
+    goal, and coming about for it costs a loop): with its curvature aimed
+    rollout_curvature_factor lower, then for rollout_slow_factor of the speed; the first whose
+    rollout keeps the clearance and arrives."""
+    if req.goal_tolerance_m <= 0.0:
+        return first
+    miss = goal_miss_m(first, req, fm, cfg)
+    if miss <= req.goal_tolerance_m:
+        return first
+    gentler = replace(
+        cfg, curvature_margin=cfg.curvature_margin * cfg.tuning.rollout_curvature_factor
+    )
+    slower = replace(req, v_ref_mps=req.v_ref_mps * cfg.tuning.rollout_slow_factor)
+    tried: list[tuple[str, Strategy, PlanRequest, PlannerConfig]] = [
+        ("made again with gentler bends", "remade_wider", req, gentler),
+        (f"made again for {slower.v_ref_mps:.2f} m/s", "remade_slower", slower, cfg),
+    ]
+    remade: list[Strategy] = []
+    for what, way, q, c in tried:
+        again = plan(q, c)
+        remade.append(way)
+        if not again.ok:
+            continue
+        flown = replace(req, v_ref_mps=q.v_ref_mps)
+        if rollout_clearance(again, flown, fm, cfg).short_m > 0.0:
+            continue
+        miss_again = goal_miss_m(again, flown, fm, cfg)
+        if miss_again > req.goal_tolerance_m:
+            continue
+        if q.v_ref_mps != req.v_ref_mps:  # slow to the goal: no cruise replan on the way
+            again = replace(again, v_ref_mps=q.v_ref_mps, slow_until_m=again.length_m)
+        again = again.coded(way, (*first.tried, *remade[:-1]))
+        return _with_reason(
+            again,
+            f"flown on the response model it passed the goal {miss:.2f} m off (tolerance "
+            f"{req.goal_tolerance_m:.2f} m); {what}, it arrives ({miss_again:.2f} m)",
+        )
+    return first.coded(first.strategy, (*first.rejected, *remade))
 
 
 def _detour(req: PlanRequest, cfg: PlannerConfig, f: RolloutClearance) -> PlanRequest | None:
