@@ -52,3 +52,25 @@ def test_one_blas_thread_by_default_and_the_users_setting_wins() -> None:
         pytest.fail(f"numpy's BLAS is not the OpenBLAS this test knows: {got}")
     assert got == "1"
     assert _threads({**env, "OPENBLAS_NUM_THREADS": "2"}) == "2"
+
+
+def test_numpy_loaded_before_common_is_warned_of() -> None:
+    """Too late to set the threads: a script that imports numpy first is told so (a chaotic
+    run, ocean.toml's, then ends differently from `tidelink run`'s)."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+
+    def warned(code: str, **extra: str) -> bool:
+        res = subprocess.run(
+            [sys.executable, "-W", "always", "-c", code],
+            cwd=REPO,
+            env={**env, **extra},
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+        )
+        return "numpy was imported before tidelink's `common`" in res.stderr
+
+    assert warned("import numpy; import common")
+    assert not warned("import common; import numpy")
+    assert not warned("import numpy; import common", OPENBLAS_NUM_THREADS="1")
