@@ -30,4 +30,7 @@ export PATH="$VENV/bin:$PATH"
 # a run starts dozens of Python processes (services, routers, tools, test workers): each one
 # compiled every module from source again where the environment forbids bytecode caches
 unset PYTHONDONTWRITEBYTECODE
+# one BLAS thread per process (common/__init__.py), also for the benchmarks that load numpy
+# before tidelink; a setting of the user's own wins
+export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
 cd "$ROOT"
