@@ -259,17 +259,17 @@ def plan_and_verify(
 
 def goal_miss_m(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig
-) -> float:
-    """How far from the goal the rollout of a plan that ends there passes at its nearest (m;
-    0 for a plan that ends elsewhere, a way aside or a partway plan, and for a rollout that
-    ended short of the path's end, at rollout_max_s)."""
+) -> float | None:
+    """How far from the goal the rollout of a plan that ends there passes at its nearest (m);
+    None for a plan that ends elsewhere (a way aside, a partway plan) and for a rollout that
+    ended short of the path's end (at rollout_max_s): not judged."""
     f = roll_out(result, req, fm, cfg.tuning)
     ex, ey = f.ref.point_at_s(f.ref.length)
     if math.hypot(ex - req.goal.x, ey - req.goal.y) > 1e-6:
-        return 0.0
+        return None
     last = f.ref.closest_s(float(f.pts[-1, 0]), float(f.pts[-1, 1]), None)
     if last < f.ref.length - req.vehicle_radius_m - req.goal_tolerance_m:
-        return 0.0
+        return None
     return float(np.hypot(f.pts[:, 0] - req.goal.x, f.pts[:, 1] - req.goal.y).min())
 
 
@@ -284,7 +284,7 @@ def _arriving(
     if req.goal_tolerance_m <= 0.0:
         return first
     miss = goal_miss_m(first, req, fm, cfg)
-    if miss <= req.goal_tolerance_m:
+    if miss is None or miss <= req.goal_tolerance_m:
         return first
     gentler = replace(
         cfg, curvature_margin=cfg.curvature_margin * cfg.tuning.rollout_curvature_factor
@@ -304,7 +304,7 @@ def _arriving(
         if rollout_clearance(again, flown, fm, cfg).short_m > 0.0:
             continue
         miss_again = goal_miss_m(again, flown, fm, cfg)
-        if miss_again > req.goal_tolerance_m:
+        if miss_again is None or miss_again > req.goal_tolerance_m:
             continue
         if q.v_ref_mps != req.v_ref_mps:  # slow to the goal: no cruise replan on the way
             again = replace(again, v_ref_mps=q.v_ref_mps, slow_until_m=again.length_m)
