@@ -34,19 +34,23 @@ V = SCENARIO.vehicle.cruise_speed_mps
 W_MAX = V / SCENARIO.vehicle.turn_radius_min_m  # the hardest turn at cruise speed
 
 
-def _straight(y: float, x0: float = 5.0, x1: float = 60.0) -> PlanResult:
-    """An OK plan along the line y from x0 to x1 (a degree-3 NURBS, evenly spaced points)."""
-    ctrl = np.column_stack([np.linspace(x0, x1, 8), np.full(8, y)])
+def _plan_through(ctrl: np.ndarray, length_m: float) -> PlanResult:
+    """An OK plan of a degree-3 NURBS with these control points (N, 2), unit weights."""
     return PlanResult(
         status="OK",
         reason="",
         strategy="searched",
         degree=3,
         control_points=ctrl,
-        weights=np.ones(8),
-        knots=clamped_uniform_knots(8, 3),
-        length_m=x1 - x0,
+        weights=np.ones(len(ctrl)),
+        knots=clamped_uniform_knots(len(ctrl), 3),
+        length_m=length_m,
     )
+
+
+def _straight(y: float, x0: float = 5.0, x1: float = 60.0) -> PlanResult:
+    """An OK plan along the line y from x0 to x1 (evenly spaced control points)."""
+    return _plan_through(np.column_stack([np.linspace(x0, x1, 8), np.full(8, y)]), x1 - x0)
 
 
 def _request(*, circles: tuple[CircleObstacleConfig, ...] = (), moving=()) -> PlanRequest:
@@ -376,16 +380,7 @@ def _hook() -> PlanResult:
     """An OK plan to the goal (60, 20) whose last bend no controller follows: it comes down on
     the goal from (60, 25), and its rollout passes the goal metres off."""
     ctrl = np.array([(5, 20), (20, 20), (40, 20), (54, 20), (57, 25), (60, 25), (60, 20)], float)
-    return PlanResult(
-        status="OK",
-        reason="",
-        strategy="searched",
-        degree=3,
-        control_points=ctrl,
-        weights=np.ones(len(ctrl)),
-        knots=clamped_uniform_knots(len(ctrl), 3),
-        length_m=62.0,
-    )
+    return _plan_through(ctrl, 62.0)
 
 
 def test_a_plan_whose_rollout_misses_the_goal_is_made_again_until_one_arrives() -> None:
