@@ -24,7 +24,7 @@ FloatArray = NDArray[np.float64]
 _TO_MSG = np.array([0, 3, 1, 4, 2, 5])
 _TO_MSG_2D = np.ix_(_TO_MSG, _TO_MSG)
 # a coasting track is dropped once its predicted centre is this many standard deviations
-# inside the sonar's sector and still not detected (ObstacleTracker._in_view)
+# inside the sonar's sector and still not detected (ObstacleTracker._seen_there)
 VIEW_SIGMAS = 2.0
 
 
@@ -137,31 +137,18 @@ class ObstacleTracker:
             )
         return TrackerState(tracks=out, gated_out=gated_out, refused=refused, resets=resets)
 
-    def live(
-        self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
-    ) -> dict[int, TrackBelief]:
-        """The tracks updated within track_timeout_s of t, and, seen from the vehicle's pose
-        (x, y, heading), those coasting up to track_coast_s predicted outside the sonar's
-        sector (the others are dropped)."""
-        timeout = self.cfg.track_timeout_s
-        out: dict[int, TrackBelief] = {}
-        for k, b in state.tracks.items():
-            age = t - b.stamp
-            if age <= timeout or (age <= self._memory_s and not self._in_view(b, t, pose)):
-                out[k] = b
-        return out
-
-    def _in_view(self, b: TrackBelief, t: float, pose: tuple[float, float, float] | None) -> bool:
-        """Whether the sonar would see track b's obstacle at t from `pose` (True without a
-        sector or a pose: a track is then dropped at track_timeout_s)."""
+    def _seen_there(
+        self, x: FloatArray, P: FloatArray, radius: float, pose: tuple[float, float, float] | None
+    ) -> bool:
+        """Whether the sonar at `pose` (x, y, heading) would see an obstacle predicted as (x, P)
+        (True without a sector or a pose: a track is then dropped at track_timeout_s)."""
         if self.sonar is None or pose is None:
             return True
-        x, P = self.predict(b, t)
         # a missed detection says the obstacle is gone only where the sonar would surely see
         # it: its predicted centre VIEW_SIGMAS standard deviations inside the sector's edges
         pos = P[np.ix_((0, 3), (0, 3))]
         sigma = math.sqrt(max(0.0, float(np.linalg.eigvalsh(pos)[-1])))
-        return self.sonar.sees(*pose, float(x[0]), float(x[3]), b.radius, VIEW_SIGMAS * sigma)
+        return self.sonar.sees(*pose, float(x[0]), float(x[3]), radius, VIEW_SIGMAS * sigma)
 
     def predict(self, b: TrackBelief, t: float) -> tuple[FloatArray, FloatArray]:
         """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
@@ -170,12 +157,19 @@ class ObstacleTracker:
     def tracks_at(
         self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
     ) -> tuple[Track, ...]:
-        """Live tracks (`live`) predicted to t, as wire tracks ([x, y, vx, vy, ax, ay]
-        covariance)."""
+        """The tracks updated within track_timeout_s of t, and those coasting up to
+        track_coast_s that the sonar, at the vehicle's pose (x, y, heading), would not see,
+        predicted to t as wire tracks ([x, y, vx, vy, ax, ay] covariance); the others are
+        dropped."""
         out: list[Track] = []
-        live = self.live(state, t, pose)
-        for oid in sorted(live):
-            x, P = self.predict(live[oid], t)
+        for oid in sorted(state.tracks):
+            b = state.tracks[oid]
+            age = t - b.stamp
+            if age > self._memory_s:
+                continue
+            x, P = self.predict(b, t)
+            if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
+                continue  # where the sonar would see it, and does not: gone
             if not healthy(x, P):
                 continue  # never publish a non-finite track (its next detection restarts it)
             xm, Pm = x[_TO_MSG], P[_TO_MSG_2D]
@@ -188,7 +182,7 @@ class ObstacleTracker:
                     vy=float(xm[3]),
                     ax=float(xm[4]),
                     ay=float(xm[5]),
-                    radius=max(0.0, live[oid].radius),
+                    radius=max(0.0, b.radius),
                     covariance=tuple(Pm.ravel().tolist()),  # Python floats, row-major
                 )
             )
