@@ -13,9 +13,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from filterpy.common import Q_discrete_white_noise
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
+
+from services.estimator.filterpy_lazy import KalmanFilter, Q_discrete_white_noise
 
 FloatArray = NDArray[np.float64]
 

@@ -7,11 +7,15 @@ import math
 from typing import Protocol
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter, MerweScaledSigmaPoints, UnscentedKalmanFilter
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
 from common.scalar import wrap_angle
+from services.estimator.filterpy_lazy import (
+    ExtendedKalmanFilter,
+    MerweScaledSigmaPoints,
+    UnscentedKalmanFilter,
+)
 from services.estimator.measurements import Observation
 from services.estimator.unicycle import (
     DIM_X,
