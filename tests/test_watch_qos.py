@@ -45,6 +45,7 @@ def _subscriber(endpoint: str, key: str) -> Tidelink:
     return t
 
 
+@pytest.mark.exclusive  # its bounds are wall-clock gaps, which the machine's load stretches
 def test_a_stopped_watcher_stalls_neither_the_tap_nor_another_watcher() -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     keys = Keys("qos", "auv1")
@@ -68,10 +69,11 @@ def test_a_stopped_watcher_stalls_neither_the_tap_nor_another_watcher() -> None:
             finally:
                 stopped.signal(signal.SIGCONT)
         router.signal(signal.SIGINT)
-    # BLOCK here stalled the publisher 4.6 s and the other subscriber 5 s (docs/notes/0002)
-    assert worst_put < 0.5, f"the tap's put blocked {worst_put:.2f} s"
+    # BLOCK here stalled the publisher 4.6 s and the other subscriber 5 s (docs/notes/0002);
+    # a loaded 2-core machine's scheduler alone has left a reader 0.7 s without a sample
+    assert worst_put < 1.0, f"the tap's put blocked {worst_put:.2f} s"
     assert len(gaps) >= SECONDS - 2
-    assert max(gaps[1:]) < 0.5, f"the other watcher starved: gaps {gaps}"
+    assert max(gaps[1:]) < 1.0, f"the other watcher starved: gaps {gaps}"
 
 
 # A watcher that reads slowly (a loaded machine's monitor) and says when the run's end came.
