@@ -594,6 +594,7 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     # to 12 s of mission time at time_scale 6 (a fresh-clone run under load: about t = 20 s);
     # the vehicle then flies out its 10 s command sequence, holds, and fails safe to the end
     assert not one.reached_goal and one.hold_time_s + one.failsafe_time_s > 20.0
-    assert two.reached_goal and two.collisions == 0 and two.hold_time_s == 0.0
+    seen = (two.outcome, two.final_distance_to_goal_m, two.min_clearance_m, two.no_path_events)
+    assert two.reached_goal and two.collisions == 0 and two.hold_time_s == 0.0, seen
     assert m.mission.vehicle_collisions == 0 and m.mission.min_separation_m >= s.planner.rho0_m
     assert two.intent_fraction < 0.5  # by auv1's track after its intent went stale
