@@ -168,14 +168,43 @@ def test_a_stop_in_a_known_current_keeps_station_head_to_it() -> None:
     )  # fmt: skip
     pred = link.predict(0.0, est)
     vs, ws = link.stop(0.0, pred)
-    assert all(v == pytest.approx(0.4, abs=0.01) for v in vs)
     assert ws[0] > 0.0  # the current runs south: it turns to port, to head north
+    # it comes about faster than the current flows, and once head to it makes way at its speed
+    assert vs[0] > 0.5 and vs[-1] == pytest.approx(0.4, abs=0.03)
+    assert all(a >= b - 1e-9 for a, b in zip(vs, vs[1:], strict=False))
     # still water, or a current it cannot yet tell from the noise of its fixes: a plain stop
     calm = StateEstimate(
         stamp=0.0, x=50.0, y=20.0, theta=0.0, v=1.0, w=0.0, covariance=(0.01,) * 25,
         current_x=0.0, current_y=-0.2, current_std=0.15,
     )  # fmt: skip
     assert link.stop(0.0, link.predict(0.0, calm)) == ([0.0] * len(vs), [0.0] * len(vs))
+
+
+def test_a_stop_facing_downstream_comes_about_before_the_current_carries_it_far() -> None:
+    # issue 60, ocean + faults with the planner topside, seed 800 (fuzzy PID): in NO_PATH,
+    # facing downstream, it made way at the current's speed, turning at v / R_min: a minute to
+    # come about, twice the current's drift all the while, into an obstacle 20 m on. Coming
+    # about on R_min takes it R_min downstream in the water, plus the current's drift while
+    # it turns (pi R_min / v at v): at cruise speed ~9 m here, at the current's speed ~21 m
+    vehicle = VehicleConfig()
+    link = CommandLink(PlannerConfig(), ControllerConfig(), vehicle)
+    c, r = 0.4, vehicle.turn_radius_min_m
+    pose = (50.0, 20.0, -math.pi / 2, 0.4, 0.0)
+    south = 0.0
+    for k in range(40):  # a stop asked every second for 40 s, from where the vehicle is
+        est = StateEstimate(
+            stamp=float(k), x=pose[0], y=pose[1], theta=pose[2], v=pose[3], w=pose[4],
+            covariance=(0.01,) * 25, current_x=0.0, current_y=-c, current_std=0.01,
+        )  # fmt: skip
+        pred = link.predict(float(k), est)
+        vs, ws = link.stop(float(k), pred)
+        for v, w in zip(vs[:10], ws[:10], strict=True):
+            pose = link.model.advance(pose, v, w, link.step_s)
+            south = max(south, 20.0 - pose[1])
+    assert south < r + c * math.pi * r / vehicle.cruise_speed_mps + 1.0
+    # ... and then holds its ground, head to the current
+    assert abs(math.remainder(pose[2] - math.pi / 2, 2.0 * math.pi)) < math.radians(20.0)
+    assert 20.0 - pose[1] < south
 
 
 def test_a_stop_with_an_obstacle_close_upstream_lets_the_current_carry_it_clear() -> None:

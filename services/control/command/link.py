@@ -90,6 +90,7 @@ class CommandLink:
         self.current_known = False
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
+        self.cruise_mps = vehicle.cruise_speed_mps  # how fast a station keeper turns about
         self.timeline = CommandTimeline(vehicle.watchdog, vehicle.v_min_mps, start_speed_mps)
         self.uplink = DelayMeter(planner.delay_window)  # ages of the estimates as they arrive
         self.status: VehicleStatus | None = None  # the vehicle's newest status (by stamp)
@@ -321,14 +322,20 @@ class CommandLink:
             return zeros, list(zeros)
         upstream = math.atan2(-cy, -cx)
         v_hold = min(c * (GIVE_WAY_FRACTION if give_way else 1.0), self.model.v_max_mps)
+        v_turn = max(v_hold, min(self.cruise_mps, self.model.v_max_mps))
         pose, vs, ws = pred.at_effect, [], []
         for _ in range(n):
             x, y, th, v, _ = pose
+            err = wrap_angle(upstream - th)
+            # facing away from the current, making way at its speed carries the vehicle
+            # downstream while it turns at v / R_min (a minute to come about): it comes about
+            # at up to cruise speed, the same circle in a fraction of the time, then holds
+            v_cmd = v_hold + (v_turn - v_hold) * 0.5 * (1.0 - math.cos(err))
             cap = max(v, 0.0) / self.model.r_min_m
-            w = clamp(STATION_GAIN_PS * wrap_angle(upstream - th), -cap, cap)
-            vs.append(v_hold)
+            w = clamp(STATION_GAIN_PS * err, -cap, cap)
+            vs.append(v_cmd)
             ws.append(w)
-            pose = self.model.advance(pose, v_hold, w, self.step_s)
+            pose = self.model.advance(pose, v_cmd, w, self.step_s)
         return vs, ws
 
     def send(
