@@ -49,6 +49,7 @@ def _sweep(exp: Path, out: Path) -> subprocess.Popen[str]:
             "1",
             "--out",
             str(out),
+            "--no-plots",  # what is resumed are the runs; plots are test_sweep_run's
         ],
         cwd=ROOT,
         stdout=subprocess.PIPE,
