@@ -13,10 +13,12 @@ from helpers.runs import inproc
 from common.config.errors import ConfigError
 from common.config.placement import VEHICLE_NODE, PlacementConfig, Station
 from common.config.scenario import Scenario, load_scenario
+from common.messages import PathMsg, VelocityCommand
 from common.netmodel import NetworkModel
 from common.runtime.distributed.lockstep import run_lockstep
 from common.runtime.model.inproc import run_inproc
 from common.runtime.model.mission import load_mission
+from common.runtime.model.record import Record
 from common.runtime.run import run_metrics
 from common.world.check import check_scenario
 
@@ -233,6 +235,47 @@ def test_the_onboard_tracker_follows_the_planners_path_to_the_goal() -> None:
     m = run_metrics(run_inproc(s), s, wall_s=None).to_json()
     assert m["success"] is True and m["collisions"] == 0
     assert m["control_actions"] > 500  # counted on tracker/cmd
+
+
+def _paths(record: Record) -> list[PathMsg]:
+    return [p for p in record.stream("planner", "path") if isinstance(p, PathMsg)]
+
+
+def test_a_lost_path_reaches_the_onboard_tracker_when_sent_again() -> None:
+    # nothing tells the planner which path the tracker follows: every path of the first 6 s
+    # is lost (the path link down), and the path in force is sent again every
+    # planner.path_repeat_s, so the tracker follows the newest one within a repeat of the
+    # link's return, instead of keeping station until the planner happens to replan
+    end_s = 6.0
+    sets = (
+        'controller.placement="onboard"',
+        f'network.outages=[{{start_s=0.0, end_s={end_s}, link="planner/path->tracker"}}]',
+        "world.moving=[]",
+        "run.max_time_s=15.0",
+    )
+    s = _load(*sets)
+    lag = s.planner.path_repeat_s + 2 * s.planner.period_s
+
+    def behind(record: Record) -> list[float]:
+        """When (s) the tracker followed an older path than one sent `lag` before."""
+        sent = [(p.stamp, p.path_id) for p in _paths(record)]
+        return [
+            c.stamp
+            for c in record.stream("tracker", "cmd")
+            if isinstance(c, VelocityCommand)
+            and c.stamp >= end_s + lag
+            and c.path_id < max((i for t, i in sent if t <= c.stamp - lag), default=0)
+        ]
+
+    got = run_inproc(s)
+    assert behind(got.record) == []
+    steered = [c for c in got.record.stream("tracker", "cmd") if isinstance(c, VelocityCommand)]
+    assert steered and steered[-1].path_id >= 1
+    ids = [p.path_id for p in _paths(got.record)]
+    assert len(ids) > len(set(ids))  # sent again ...
+    assert run_metrics(got, s, wall_s=None).to_json()["replans"] == len(set(ids))  # ... once
+    never = run_inproc(_load(*sets, "planner.path_repeat_s=0.0")).record
+    assert behind(never) != []  # without: left behind
 
 
 @pytest.mark.heavy

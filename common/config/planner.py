@@ -84,6 +84,9 @@ class PlannerConfig:
     # median age of the last delay_window estimates as they arrived): a known delay is no outage
     max_estimate_age_s: float = 1.0
     delay_window: int = 31
+    # with the controller onboard (services/tracker) the path in force is sent again this often
+    # (s): one lost path message left the tracker on an older path, or none, for good; 0: never
+    path_repeat_s: float = 2.0
     # fleets: another vehicle's intent (its broadcast path, placed by its estimate) is used
     # while that estimate is at most this old; then its sonar track takes over
     intent_max_age_s: float = 2.0
@@ -117,6 +120,7 @@ class PlannerConfig:
             "intent_margin_m",
             "min_replan_interval_s",
             "first_plan_wait_s",
+            "path_repeat_s",
         ):
             nonneg(name, getattr(self, name))
         positive("period_s", self.period_s)

@@ -20,7 +20,7 @@ from common.runtime.model.result import RunResult
 from common.world import World
 from common.world.current import CurrentField
 from services.mission.fleet_metrics import closest_approach, fleet_truths
-from services.mission.metrics import path_points
+from services.mission.metrics import distinct_paths, path_points
 
 if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not with this module
     from matplotlib.figure import Figure
@@ -179,7 +179,7 @@ def _draw_vehicle(ax: Any, record: Record, scenario: Scenario, vid: str, colour:
 
     w = scenario.world
     truth: list[TruthState] = _of_type(record, TruthState, vid)
-    paths = [p for p in _of_type(record, PathMsg, vid) if p.status == "OK"]
+    paths = [p for p in distinct_paths(_of_type(record, PathMsg, vid)) if p.status == "OK"]
     if vid:
         for p in paths:
             xy = path_points(p, PATH_SAMPLES)

@@ -64,6 +64,18 @@ def path_points(p: PathMsg, n: int = 4000) -> np.ndarray:
     return np.asarray(curve.evaluate(u, n_ders=0)[0])
 
 
+def distinct_paths(paths: Iterable[PathMsg]) -> list[PathMsg]:
+    """Each path once, as first sent: with the controller onboard the planner sends the path in
+    force again until a newer one (services/planner/repeat.py)."""
+    seen: set[int] = set()
+    out = []
+    for p in paths:
+        if p.path_id not in seen:
+            seen.add(p.path_id)
+            out.append(p)
+    return out
+
+
 def _typed(record: Record, service: str, stream: str, cls: type) -> list[Any]:
     return [m for m in record.stream(service, stream) if isinstance(m, cls)]
 
@@ -266,7 +278,7 @@ def _path_metrics(
     y: np.ndarray,
     end: int,
 ) -> Fields:
-    paths: list[PathMsg] = _typed(record, planner, "path", PathMsg)
+    paths = distinct_paths(_typed(record, planner, "path", PathMsg))
     cmds: list[VelocityCommand] = _typed(record, cmd_source, "cmd", VelocityCommand)
     ok = [p for p in paths if p.status == "OK"]
     out: Fields = {

@@ -26,6 +26,7 @@ from services.planner.asking import PlanAsking
 from services.planner.fleet import FleetExchange
 from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
 from services.planner.plan import Obstacles, PlanResult, Pose2D
+from services.planner.repeat import PathRepeat
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.safety.intent import FleetIntents
 from services.planner.shaping.path_arc_reference import PathArcReference
@@ -63,6 +64,7 @@ class PlannerCore:
         )
         # False: the controller runs onboard (services/tracker): this core only plans
         self.commands = commands
+        self.repeat = PathRepeat(0.0 if commands else planner.path_repeat_s)  # repeat.py
         self.vehicle = vehicle
         self.world = world
         # the link, the controller, the judged inputs, arrival and the path followed
@@ -180,8 +182,9 @@ class PlannerCore:
             self._ask(t, t_plan, here, pred, obstacles, decision.reason)
         made = self.plans.result()
         path = None if made is None else self.adoption.settle(t, pred, self.asking.done(t), made)
-        if path is not None:
-            out.append(Emit(stream="path", msg=path))
+        sent = self.repeat.outgoing(t, path)  # onboard, a lost path is not final (repeat.py)
+        if sent is not None:
+            out.append(Emit(stream="path", msg=sent))
         if path is None and not decision.replan and self.loop.skipped(t):
             # steps were skipped (a stale estimate): the plan holds, but the controller's state
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it
