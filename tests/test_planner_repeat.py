@@ -2,27 +2,17 @@
 
 from __future__ import annotations
 
+import msgspec
+from helpers.samples import one_of_each
+
 from common.messages import PathMsg
 from services.mission.metrics import distinct_paths
 from services.planner.repeat import PathRepeat
 
 
 def _path(path_id: int, stamp: float) -> PathMsg:
-    return PathMsg(
-        stamp=stamp,
-        path_id=path_id,
-        status="NO_PATH",
-        reason="no_path",
-        degree=3,
-        control_points=(),
-        weights=(),
-        knots=(),
-        waypoints=(),
-        length=0.0,
-        f_l=0.0,
-        max_curvature=0.0,
-        v_ref=0.0,
-    )
+    sample = next(m for m in one_of_each() if isinstance(m, PathMsg))
+    return msgspec.structs.replace(sample, path_id=path_id, stamp=stamp)
 
 
 def test_the_path_in_force_is_due_again_every_period_restamped() -> None:
