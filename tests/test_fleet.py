@@ -590,9 +590,10 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     assert m.facts.end_reason == "max_time" and m.facts.failure.startswith("auv1.planner lost: ")
     assert isinstance(m.mission, FleetMetrics)
     one, two = m.mission.vehicles["auv1"], m.mission.vehicles["auv2"]
-    # the kill lands at the first progress line past t = 10 s: one every 2 s of wall time, up
-    # to 12 s of mission time at time_scale 6 (a fresh-clone run under load: about t = 20 s);
-    # the vehicle then flies out its 10 s command sequence, holds, and fails safe to the end
+    # the kill lands at the first progress line past t = 10 s: one every 0.25 s of wall time
+    # (services/chaos/case.py), before they meet even under load (one every 2 s put it at up
+    # to t = 22 s, in the middle of the pass); the vehicle then flies out its 10 s command
+    # sequence, holds, and fails safe to the end
     assert not one.reached_goal and one.hold_time_s + one.failsafe_time_s > 20.0
     seen = (two.outcome, two.final_distance_to_goal_m, two.min_clearance_m, two.no_path_events)
     assert two.reached_goal and two.collisions == 0 and two.hold_time_s == 0.0, seen

@@ -25,6 +25,7 @@ from services.mission.records import AuvRun, read_metrics
 
 PROGRESS = re.compile(r"t=\s*([0-9.]+) s of")
 STOPPED = "mission clock started"
+PROGRESS_EVERY_S = 0.25  # wall seconds between the launch's progress lines (PROGRESS)
 
 
 @dataclass(frozen=True)
@@ -111,7 +112,9 @@ def run_case(setup: CaseSetup, fault: Fault, out: Path, keys: Keys, flow: Datafl
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     argv = [sys.executable, "-m", "services.cli", "launch", str(setup.scenario)]
     argv += ["--listen", endpoint, "--time-scale", f"{setup.time_scale:g}"]
-    argv += ["--out", str(out), "--no-plot", "--json"]
+    # the fault strikes at the first progress line past fault_at_s: one every PROGRESS_EVERY_S
+    # of wall time, so that under load it still lands near its time, not seconds later
+    argv += ["--out", str(out), "--no-plot", "--json", "--progress-every", f"{PROGRESS_EVERY_S:g}"]
     for s in setup.sets:
         argv += ["--set", s]
     if fault.restart:

@@ -194,7 +194,7 @@ def budget_arg(p: argparse.ArgumentParser) -> None:
     """--budget FACTOR: the work budget `tidelink check` enforces, scaled (a bigger machine)."""
     p.add_argument(
         "--budget",
-        type=_budget_factor,
+        type=positive("factor"),
         default=1.0,
         metavar="FACTOR",
         help="allow FACTOR times every work budget a scenario is checked against (the planner "
@@ -202,11 +202,16 @@ def budget_arg(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _budget_factor(text: str) -> float:
-    try:
-        factor = float(text)
-    except ValueError:
-        factor = math.nan
-    if not (math.isfinite(factor) and factor > 0.0):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a factor > 0")
-    return factor
+def positive(what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number > 0, refused as "'TEXT' is not a WHAT > 0"."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0.0):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {what} > 0")
+        return value
+
+    return parse

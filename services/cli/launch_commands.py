@@ -26,6 +26,7 @@ from services.cli.flags import (
     host_args,
     listen_arg,
     no_plot_arg,
+    positive,
     report_args,
     scenario_args,
 )
@@ -68,7 +69,9 @@ def cmd_launch(a: argparse.Namespace) -> int:
         attach=(_recorder(scenario, raw, out, recorders),) if a.record else (),
     )
     try:
-        outcome = launch(scenario, raw, out, opts, make_display(sys.stderr))
+        outcome = launch(
+            scenario, raw, out, opts, make_display(sys.stderr, every_s=a.progress_every)
+        )
     except Interrupted:
         print("tidelink: interrupted before the mission started", file=sys.stderr)
         return 130
@@ -252,6 +255,14 @@ def register(sub: Subparsers) -> None:
         type=float,
         default=0.5,
         help="seconds before the first restart, doubled for each further one",
+    )
+    la.add_argument(
+        "--progress-every",
+        type=positive("number of seconds"),
+        default=2.0,
+        metavar="SECONDS",
+        help="wall seconds between progress lines when stderr is not a terminal (default 2; "
+        "`tidelink chaos` strikes a fault at the first line past its time)",
     )
     no_plot_arg(la)
     la.add_argument(

@@ -196,11 +196,11 @@ class RichDisplay:
         self.progress.stop()
 
 
-def make_display(out: IO[str]) -> Display:
-    """A progress bar if `out` is a terminal, else plain lines."""
+def make_display(out: IO[str], *, every_s: float = 2.0) -> Display:
+    """A progress bar if `out` is a terminal, else plain lines, one every `every_s` seconds."""
     if out.isatty():
         return RichDisplay(out)
-    return PlainDisplay(out)
+    return PlainDisplay(out, every_s)
 
 
 class LoggedDisplay:
