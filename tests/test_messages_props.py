@@ -31,6 +31,7 @@ from common.messages import (
     Message,
     NavFix,
     Odometry,
+    PathAck,
     PathMsg,
     PositionFix,
     RunEnd,
@@ -85,6 +86,7 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
     },
     Track: {"id": COUNT, "radius": NONNEG, "covariance": _cov(6)},
     VelocityCommand: {"path_id": COUNT},
+    PathAck: {"path_id": COUNT, "since": NONNEG},
     VehicleStatus: {
         "command_age": NONNEG,
         "commands_applied": COUNT,

@@ -209,6 +209,19 @@ class PathMsg(Message, frozen=True, kw_only=True, omit_defaults=True):
         check_non_negative(self, "", "length", "f_l", "max_curvature", "v_ref")
 
 
+class PathAck(Message, frozen=True, kw_only=True):
+    """The onboard tracker's word on the path it follows: `path_id` (0: none yet), taken at
+    `since` (s, runtime clock), sent on every path message it receives, so the planner knows
+    when a path reached it however late or lossy the link (wire version 11)."""
+
+    path_id: int
+    since: float = 0.0
+
+    def validate(self) -> None:
+        check_range("path_id", self.path_id, 0)
+        check_range("since", self.since, 0.0)
+
+
 # Bounds of a command's sequence of future entries (packet-based predictive control). The
 # wire refuses more entries (a hostile 10^6-entry frame is refused from its array header, before
 # a single entry is read); the vehicle accepts at most `max_sequence_len` of them.
@@ -551,4 +564,5 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     TickAck,
     Odometry,
     PositionFix,
+    PathAck,
 )

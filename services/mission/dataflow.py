@@ -6,6 +6,7 @@
     vehicle   --status---------->  planner    (the one-way delay measured on commands)
     with controller.placement = "onboard" a fifth service, on the vehicle's node:
     planner   --path------------>  tracker    --cmd------------>  vehicle (status -> tracker)
+    tracker   --ack------------->  planner    (the path it follows, on each path received)
     (planner/path and every <service>/stats are published for the record, monitors and
      metrics; no service reads them)
 
@@ -26,6 +27,7 @@ from common.messages import (
     ObstacleDetections,
     ObstacleTracks,
     Odometry,
+    PathAck,
     PathMsg,
     PositionFix,
     StateEstimate,
@@ -82,7 +84,10 @@ def _tracker(s: Scenario) -> Service:
             Input(source="planner", stream="path", msg_type=PathMsg, policy=NEWEST),
             STATUS,
         ),
-        outputs=(Output(stream="cmd", msg_type=VelocityCommand),),
+        outputs=(
+            Output(stream="cmd", msg_type=VelocityCommand),
+            Output(stream="ack", msg_type=PathAck),
+        ),
     )
 
 
@@ -135,7 +140,11 @@ def _services(s: Scenario) -> tuple[Service, ...]:
             inputs=(
                 Input(source="estimator", stream="state", msg_type=StateEstimate, policy=NEWEST),
                 Input(source="estimator", stream="tracks", msg_type=ObstacleTracks, policy=NEWEST),
-                *(() if onboard else (STATUS,)),
+                *(
+                    (Input(source="tracker", stream="ack", msg_type=PathAck, policy=NEWEST),)
+                    if onboard
+                    else (STATUS,)
+                ),
             ),
             outputs=(
                 Output(stream="path", msg_type=PathMsg),

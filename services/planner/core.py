@@ -29,6 +29,7 @@ from services.planner.plan import Obstacles, PlanResult, Pose2D
 from services.planner.repeat import PathRepeat
 from services.planner.replan import ReplanDecision, ReplanPolicy
 from services.planner.safety.intent import FleetIntents
+from services.planner.shadow import TrackerShadow
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.stopping import Stopping
 
@@ -73,6 +74,7 @@ class PlannerCore:
         )
         loop = self.loop
         self.link, self.controller, self.inputs = loop.link, loop.controller, loop.inputs
+        self.shadow = TrackerShadow(loop)  # onboard, the tracker's commands predicted (shadow.py)
         g = world.goal
         # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
         self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
@@ -164,7 +166,8 @@ class PlannerCore:
         if begun is None:
             return []
         s, pred = begun
-        out: list[Emit] = []
+        if not self.commands:  # onboard: the tracker's own closed loop predicted (shadow.py)
+            pred = self.shadow.predict(t, s, pred.effect_t)
         if self.loop.arrival.arrived:
             give_way = self.stopping.gives_way(pred)
             return [self.loop.steer(t, s, pred, None, give_way=give_way)] if self.commands else []
@@ -182,9 +185,10 @@ class PlannerCore:
             self._ask(t, t_plan, here, pred, obstacles, decision.reason)
         made = self.plans.result()
         path = None if made is None else self.adoption.settle(t, pred, self.asking.done(t), made)
+        if path is not None:  # onboard, expected at the tracker a downlink delay on (shadow.py)
+            self.shadow.put(path.path_id, self.loop.ref, t + self.link.downlink_s)
         sent = self.repeat.outgoing(t, path)  # onboard, a lost path is not final (repeat.py)
-        if sent is not None:
-            out.append(Emit(stream="path", msg=sent))
+        out = [] if sent is None else [Emit(stream="path", msg=sent)]
         if path is None and not decision.replan and self.loop.skipped(t):
             # steps were skipped (a stale estimate): the plan holds, but the controller's state
             # (virtual reference, integrals, speed ramp) is as old as the silence: restart it

@@ -5,13 +5,15 @@ thin acoustic link) sends paths only, and this core, on the vehicle's node, comp
 commands from the onboard estimate: the same controller, speed profile, prediction, command
 sequences and input checks as the planner's own (services/control/command/: link.py
 `CommandLink.follow`, inputs.py), on a link that is local. A late or lost path costs
-nothing but freshness: the tracker keeps following the last one it holds.
+nothing but freshness: the tracker keeps following the last one it holds. Every path message
+it receives it acknowledges (PathAck, the number of the path it follows), so the planner knows
+which path the vehicle is on, and since when, however late or lossy the link.
 """
 
 from __future__ import annotations
 
 from common.guard import first_reason
-from common.messages import PathMsg
+from common.messages import PathAck, PathMsg
 from common.runtime.model.core import Delivery, Emit
 from services.control.loop import CommandLoop
 from services.planner.shaping.path_arc_reference import PathArcReference
@@ -19,13 +21,15 @@ from services.planner.shaping.planned_path import PlannedPath, curve_of
 
 
 class TrackerCore:
-    """Consumes estimator/state, planner/path and vehicle/status; publishes cmd."""
+    """Consumes estimator/state, planner/path and vehicle/status; publishes cmd and ack."""
 
     def __init__(self, loop: CommandLoop[PathArcReference]) -> None:
         """`loop`: the link, controller, inputs and arrival this core commands with, built
         from the scenario by the dataflow (services/mission/dataflow.py `make_tracker`)."""
         self.loop = loop
         self.inputs = loop.inputs
+        self._ack_due = False  # a path message came since the last acknowledgement
+        self._since = 0.0  # when the path followed was taken
 
     @property
     def inputs_rejected(self) -> dict[str, int]:
@@ -40,7 +44,10 @@ class TrackerCore:
             why = first_reason(self.inputs.judge.stamp(msg.stamp, d.t))
             if why is not None:
                 self.inputs.reject("path", why, d.t, msg)
-            elif msg.path_id > self.loop.path_id:
+                return []
+            self._ack_due = True  # a repeat too: the acknowledgement of the last may be lost
+            if msg.path_id > self.loop.path_id:
+                self._since = d.t
                 self._take(msg)
         else:
             self.inputs.offer(d.t, msg)
@@ -67,5 +74,11 @@ class TrackerCore:
         self.loop.prepare(t_next)
 
     def step(self, t: float) -> list[Emit]:
-        """The command for the newest estimate on the newest path (arrived: a stop)."""
-        return self.loop.step(t)
+        """The command for the newest estimate on the newest path (arrived: a stop), and the
+        acknowledgement of the path followed when a path message came since the last."""
+        out = self.loop.step(t)
+        if self._ack_due:
+            self._ack_due = False
+            ack = PathAck(stamp=t, path_id=self.loop.path_id, since=self._since)
+            out.append(Emit(stream="ack", msg=ack))
+        return out

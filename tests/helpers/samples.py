@@ -12,6 +12,7 @@ from common.messages import (
     ObstacleDetections,
     ObstacleTracks,
     Odometry,
+    PathAck,
     PathMsg,
     PositionFix,
     RunEnd,
@@ -233,6 +234,7 @@ def one_of_each() -> list[Message]:
             std_velocity=0.015625,
         ),
         PositionFix(stamp=12.5, seq=14, source=SOURCE, sent=SENT, x=10.5, y=-3.0, std_xy=0.75),
+        PathAck(stamp=12.5, seq=15, source=SOURCE, sent=SENT, path_id=2, since=11.25),
     ]
 
 

@@ -1,4 +1,5 @@
-"""What a commanding core accepts from the loop: estimates and vehicle statuses, judged first.
+"""What a commanding core accepts from the loop: estimates, vehicle statuses and path
+acknowledgements, judged first.
 
 The planner and the onboard tracker (services/tracker) command the vehicle alike
 (command/link.py), so they take its inputs alike: an estimate or a vehicle status is judged
@@ -6,6 +7,7 @@ plausible (stamp, pose, speeds; measured delay) or rejected, counted and logged 
 '<stream>.<reason>'. An accepted one feeds the link's delay measurements, late ones too
 (their delay is real), and the newest estimate by stamp, not the last handed over, is the
 one steered from: a backlog or a reordering link may hand an older one over after a newer.
+The newest acknowledgement of the onboard tracker (PathAck) is kept the same way.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import logging
 from common.config.world import AreaConfig
 from common.guard import Plausibility, RateLimitedLog, Reason, first_reason
 from common.guard.rejects import warn_rejected
-from common.messages import Message, StateEstimate, VehicleStatus
+from common.messages import Message, PathAck, StateEstimate, VehicleStatus
 from services.control.command.link import CommandLink
 
 
@@ -32,13 +34,15 @@ def judge_status(j: Plausibility, m: VehicleStatus, now: float) -> Reason | None
 
 
 class LoopInputs:
-    """The newest plausible estimate, the link told of every estimate and status accepted,
-    and the count and log of the core's inputs rejected (these and its own: `reject`)."""
+    """The newest plausible estimate and path acknowledgement, the link told of every estimate
+    and status accepted, and the count and log of the core's inputs rejected (these and its
+    own: `reject`)."""
 
     def __init__(self, area: AreaConfig, link: CommandLink, log: logging.Logger) -> None:
         self.judge = Plausibility.of_area(area)
         self.link = link
         self.state: StateEstimate | None = None
+        self.ack: PathAck | None = None
         self.rejects = RateLimitedLog(log)
 
     @property
@@ -47,8 +51,8 @@ class LoopInputs:
         return dict(self.rejects.counts)
 
     def offer(self, t: float, msg: Message) -> bool:
-        """Judge and take an estimate or a vehicle status delivered at t; False for any other
-        message (the core's own business)."""
+        """Judge and take an estimate, a vehicle status or a path acknowledgement delivered at
+        t; False for any other message (the core's own business)."""
         if isinstance(msg, StateEstimate):
             why = judge_state(self.judge, msg, t)
             if why is not None:
@@ -63,6 +67,12 @@ class LoopInputs:
                 self.reject("status", why, t, msg)
             else:
                 self.link.on_status(msg)
+        elif isinstance(msg, PathAck):
+            why = first_reason(self.judge.stamp(msg.stamp, t))
+            if why is not None:
+                self.reject("ack", why, t, msg)
+            elif self.ack is None or msg.stamp >= self.ack.stamp:
+                self.ack = msg
         else:
             return False
         return True

@@ -57,6 +57,27 @@ class Prediction:
     at_effect: Pose
 
 
+@dataclass(frozen=True, kw_only=True, slots=True)
+class StationKeeper:
+    """Station keeping in a current: head into it (`upstream`, rad) and make way at v_hold."""
+
+    upstream: float
+    v_hold: float
+    v_turn: float  # how fast it comes about, facing downstream
+    r_min: float
+
+    def __call__(self, pose: Pose) -> tuple[float, float]:
+        """The command (v, w) for a vehicle in state `pose`."""
+        _, _, th, v, _ = pose
+        err = wrap_angle(self.upstream - th)
+        # facing away from the current, making way at its speed carries the vehicle
+        # downstream while it turns at v / R_min (a minute to come about): it comes about
+        # at up to cruise speed, the same circle in a fraction of the time, then holds
+        v_cmd = self.v_hold + (self.v_turn - self.v_hold) * 0.5 * (1.0 - math.cos(err))
+        cap = max(v, 0.0) / self.r_min
+        return v_cmd, clamp(STATION_GAIN_PS * err, -cap, cap)
+
+
 class CommandLink:
     """Measured delays, staleness, prediction along the commands sent, and the commands."""
 
@@ -181,7 +202,7 @@ class CommandLink:
         first ones computed now, the rest from the sequence prepared for this step if it holds
         (sequence.py)."""
         controller.current = self.model.current_mps
-        controller.sway = _shrunk(est.sway, est.sway_std)
+        controller.sway = shrunk(est.sway, est.sway_std)
         if not self.entries:  # as before sequences: the controller compensates the latency
             latency = max(0.0, t - est.stamp) + self.downlink_s
             v, w = controller.command(t, (est.x, est.y, est.theta, est.v, est.w), ref, latency)
@@ -315,28 +336,32 @@ class CommandLink:
         an obstacle lies close upstream, so it makes way at GIVE_WAY_FRACTION of the current
         and drifts back clear of it, still heading into the current."""
         n = self.entries + 1
-        cx, cy = self.model.current_mps
-        c = math.hypot(cx, cy)
-        if c < STATION_KEEP_MPS or not self.current_known:
+        keep = self.station_keeper(give_way=give_way)
+        if keep is None:
             zeros = [0.0] * n
             return zeros, list(zeros)
-        upstream = math.atan2(-cy, -cx)
-        v_hold = min(c * (GIVE_WAY_FRACTION if give_way else 1.0), self.model.v_max_mps)
-        v_turn = max(v_hold, min(self.cruise_mps, self.model.v_max_mps))
         pose, vs, ws = pred.at_effect, [], []
         for _ in range(n):
-            x, y, th, v, _ = pose
-            err = wrap_angle(upstream - th)
-            # facing away from the current, making way at its speed carries the vehicle
-            # downstream while it turns at v / R_min (a minute to come about): it comes about
-            # at up to cruise speed, the same circle in a fraction of the time, then holds
-            v_cmd = v_hold + (v_turn - v_hold) * 0.5 * (1.0 - math.cos(err))
-            cap = max(v, 0.0) / self.model.r_min_m
-            w = clamp(STATION_GAIN_PS * err, -cap, cap)
+            v_cmd, w = keep(pose)
             vs.append(v_cmd)
             ws.append(w)
             pose = self.model.advance(pose, v_cmd, w, self.step_s)
         return vs, ws
+
+    def station_keeper(self, *, give_way: bool = False) -> StationKeeper | None:
+        """What a stop commands in the newest estimate's current (`stop`); None in still
+        water, or a current not yet told from the fixes' noise: a stop is zeros."""
+        cx, cy = self.model.current_mps
+        c = math.hypot(cx, cy)
+        if c < STATION_KEEP_MPS or not self.current_known:
+            return None
+        v_hold = min(c * (GIVE_WAY_FRACTION if give_way else 1.0), self.model.v_max_mps)
+        return StationKeeper(
+            upstream=math.atan2(-cy, -cx),
+            v_hold=v_hold,
+            v_turn=max(v_hold, min(self.cruise_mps, self.model.v_max_mps)),
+            r_min=self.model.r_min_m,
+        )
 
     def send(
         self,
@@ -370,7 +395,7 @@ class CommandLink:
 
 
 def believed_current(est: StateEstimate) -> tuple[float, float]:
-    """The current the loop acts on (m/s): the estimate shrunk by its uncertainty (`_shrunk`).
+    """The current the loop acts on (m/s): the estimate shrunk by its uncertainty (`shrunk`).
     A current the estimator has barely seen (its first seconds: fix noise it cannot yet tell
     from drift, or still water's wander) is not steered against, nor predicted over a whole
     plan's flight; one it knows well is taken as it is."""
@@ -387,7 +412,7 @@ def _shrink(value2: float, std: float) -> float:
     return value2 / (value2 + std * std)
 
 
-def _shrunk(value: float, std: float) -> float:
+def shrunk(value: float, std: float) -> float:
     """A scalar estimate shrunk by its uncertainty (the hull's sway: from 10 Hz fixes alone it
     is mostly their noise; a DVL measures it)."""
     return value * _shrink(value * value, std)
