@@ -75,17 +75,18 @@ connect_arg = EndpointFlag("-e", "--connect")
 listen_arg = EndpointFlag("-l", "--listen")
 
 
-def watcher_args(p: argparse.ArgumentParser, *, run_help: str, vehicle_help: str) -> None:
+def watcher_args(p: argparse.ArgumentParser, *, runs: str, vehicles: str) -> None:
     """-e/--connect, --run, --vehicle and the credentials of the tools that watch live runs
-    (monitor, foxglove, record): the run's router, and which run and vehicle to watch."""
+    (monitor, foxglove, record): the run's router, and which run and vehicle to watch;
+    `runs` and `vehicles` say which a command takes without --run and --vehicle."""
     connect_arg(
         p,
         default=DEFAULT_CONNECT,
         help=f"the run's router (default {DEFAULT_CONNECT}, where `tidelink launch` listens "
         "when that port is free; otherwise the launch prints its own)",
     )
-    p.add_argument("--run", default=None, help=run_help)
-    p.add_argument("--vehicle", default=None, help=vehicle_help)
+    p.add_argument("--run", default=None, help=f"only this run id (default: {runs})")
+    p.add_argument("--vehicle", default=None, help=f"only this vehicle id (default: {vehicles})")
     certs_args(p, identity="monitor")
 
 

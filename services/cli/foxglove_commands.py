@@ -50,11 +50,7 @@ def _print_layout(scenario_path: Path) -> int:
 def register(sub: Subparsers) -> None:
     """Add foxglove to the tidelink parser."""
     f = command(sub, "foxglove", cmd_foxglove)
-    watcher_args(
-        f,
-        run_help="show only this run (default: any, one at a time)",
-        vehicle_help="show only this vehicle (default: any)",
-    )
+    watcher_args(f, runs="any, one at a time", vehicles="any")
     f.add_argument("--host", default="127.0.0.1", help="address to serve on (0.0.0.0: all)")
     f.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765)")
     f.add_argument(

@@ -34,11 +34,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
 def register(sub: Subparsers) -> None:
     """Add monitor to the tidelink parser."""
     m = command(sub, "monitor", cmd_monitor)
-    watcher_args(
-        m,
-        run_help="watch only this run id (default: every run)",
-        vehicle_help="watch only this vehicle id (default: every)",
-    )
+    watcher_args(m, runs="every run", vehicles="every vehicle")
     m.add_argument("--json", action="store_true", help="one JSON object per event/update")
     m.add_argument(
         "--follow", action="store_true", help="keep watching across a run's end and new runs"

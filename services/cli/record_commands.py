@@ -205,11 +205,7 @@ def cmd_metrics(a: argparse.Namespace) -> int:
 def register(sub: Subparsers) -> None:
     """Add record, replay and metrics to the tidelink parser."""
     r = command(sub, "record", cmd_record)
-    watcher_args(
-        r,
-        run_help="the run id (default: the first run seen)",
-        vehicle_help="the vehicle id (default: any)",
-    )
+    watcher_args(r, runs="the first run seen", vehicles="any")
     r.add_argument("-o", "--out", type=Path, required=True, help="the MCAP file to write")
 
     p = command(sub, "replay", cmd_replay)
