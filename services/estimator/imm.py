@@ -87,7 +87,8 @@ def combine(
     """
     m0, m1 = float(mu[0]), float(mu[1])
     d = xs[0] - xs[1]
-    return m0 * xs[0] + m1 * xs[1], m0 * Ps[0] + m1 * Ps[1] + (m0 * m1) * np.outer(d, d)
+    # np.outer(d, d) is this product (d[:, None] * d[None, :]), without its argument handling
+    return m0 * xs[0] + m1 * xs[1], m0 * Ps[0] + m1 * Ps[1] + (m0 * m1) * (d[:, None] * d)
 
 
 def mix(
