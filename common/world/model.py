@@ -119,9 +119,15 @@ class World:
             out.append(_static(cid, x, y, float(self._cr[i])))
         for p in self._polygons:
             out.append(_static(p.id, p.cx, p.cy, p.circumradius))
-        for mid, r, traj in self._moving:
-            out.append(ObstacleState.of_motion(mid, r, *traj.state(t)))
+        out.extend(self.moving_at(t))
         return tuple(sorted(out, key=lambda o: o.id))
+
+    def moving_at(self, t: float) -> tuple[ObstacleState, ...]:
+        """The moving obstacles at time t (s), in their configured order: obstacles_at's
+        moving ones, without building the static ones."""
+        return tuple(
+            ObstacleState.of_motion(mid, r, *traj.state(t)) for mid, r, traj in self._moving
+        )
 
     def clearance(self, x: float, y: float, r_vehicle: float, t: float) -> float:
         """eq. (12): min_k ||x - alpha_k(t)|| - (r + r_k); negative means collision.
