@@ -126,7 +126,7 @@ def command_sequence(
         if t_a < t_b:  # then entry k - 1 of this one
             pose = advance(pose, v_prev, w_prev, t_b - t_a)
         v, w_prev = command(t_b, pose, ref)
-        v_prev = tail(t_b, v) if stop_mps2 > 0.0 else v
+        v_prev = v if stop_mps2 <= 0.0 else tail(t_b, v)  # tail's own test, one call less
         vs.append(v_prev)
         ws.append(w_prev)
         if poses is not None:
