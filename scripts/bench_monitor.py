@@ -50,7 +50,7 @@ from common.runtime.metrics_record import RunMetrics
 from common.runtime.processes.children import free_port
 from common.world.check import check_scenario
 from services.cli import build_parser
-from services.launcher import LaunchOptions, launch
+from services.launcher.launch import LaunchOptions, launch
 from services.launcher.progress import MissionView
 
 ROOT = Path(__file__).resolve().parents[1]

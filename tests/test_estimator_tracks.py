@@ -235,3 +235,18 @@ def test_kf_predict_is_filterpys_predict_bit_for_bit(ca: bool) -> None:
         got_x, got_P = kf_predict(x, P, F, Q)
         assert np.array_equal(got_x, kf.x)
         assert np.array_equal(got_P, kf.P)
+
+
+@pytest.mark.parametrize("ca", [False, True])
+def test_process_noise_is_filterpys_white_noise_bit_for_bit(ca: bool) -> None:
+    from filterpy.common import Q_discrete_white_noise
+
+    for dt in (0.05, 0.1, 0.30000000000000004, 0.37, 1.7, 12.3 - 12.2):
+        psd = 0.3
+        if ca:
+            want = Q_discrete_white_noise(dim=3, dt=dt, var=psd * dt, block_size=2)
+        else:
+            want = np.zeros((6, 6))
+            q2 = Q_discrete_white_noise(dim=2, dt=dt, var=psd / dt)
+            want[0:2, 0:2] = want[3:5, 3:5] = q2
+        assert np.array_equal(process_noise(dt, ca, psd), want)

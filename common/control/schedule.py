@@ -67,14 +67,26 @@ class Schedule:
         age = max(0.0, t - self.starts[k])
         if t < self.t_hold:
             return Applied(mode="RUN", v=self.vs[k], w=self.ws[k], age_s=age)
-        # HOLD / FAILSAFE (k = n: t_hold is past the last start): lower the commanded speed
-        # from the last entry's, hold the heading (w = 0); an infinite rate drops it at once
-        # (inf * 0 would be NaN at t_hold itself)
+        mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
+        return Applied(mode=mode, v=self._held_v(t), w=0.0, age_s=age)
+
+    def vw_at(self, t: float) -> tuple[float, float]:
+        """The command (v, w) of `at(t)`, without building its Applied: the planner's
+        predictions and the plant's integrator ask this at every step."""
+        if not self.starts:
+            return self.idle_v, 0.0
+        if t < self.t_hold:
+            k = max(0, bisect_right(self.starts, t) - 1) if len(self.starts) > 1 else 0
+            return self.vs[k], self.ws[k]
+        return self._held_v(t), 0.0
+
+    def _held_v(self, t: float) -> float:
+        """The speed commanded in HOLD / FAILSAFE (k = n: t_hold is past the last start): the
+        last entry's, lowered at `decel` (w = 0: the heading is held); an infinite rate drops
+        it at once (inf * 0 would be NaN at t_hold itself)."""
         v_last = self.vs[-1]
         drop = math.inf if math.isinf(self.decel) else self.decel * (t - self.t_hold)
-        v = min(v_last, max(self.v_floor, v_last - drop))
-        mode: VehicleMode = "FAILSAFE" if t >= self.t_fail else "HOLD"
-        return Applied(mode=mode, v=v, w=0.0, age_s=age)
+        return min(v_last, max(self.v_floor, v_last - drop))
 
     def transitions_between(self, t_a: float, t_b: float) -> list[float]:
         """The times in (t_a, t_b) at which this schedule changes by itself: the starts of

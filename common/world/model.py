@@ -93,6 +93,12 @@ class World:
         self._circle_ids = tuple(c.id for c in cfg.circles)
         self._cxy = np.array([(c.x_m, c.y_m) for c in cfg.circles], dtype=np.float64)
         self._cr = np.array([c.radius_m for c in cfg.circles], dtype=np.float64)
+        # (id, x, y, radius) as Python floats, the same values: `nearest` runs at every step of
+        # the plant, and arithmetic on numpy scalars costs several times a float's
+        self._circles = [
+            (cid, float(cx), float(cy), float(cr))
+            for cid, (cx, cy), cr in zip(self._circle_ids, self._cxy, self._cr, strict=True)
+        ]
         self._polygons: list[_Polygon] = []
         for p in cfg.polygons:
             v = vertices_array(p.vertices_m)
@@ -113,9 +119,15 @@ class World:
             out.append(_static(cid, x, y, float(self._cr[i])))
         for p in self._polygons:
             out.append(_static(p.id, p.cx, p.cy, p.circumradius))
-        for mid, r, traj in self._moving:
-            out.append(ObstacleState.of_motion(mid, r, *traj.state(t)))
+        out.extend(self.moving_at(t))
         return tuple(sorted(out, key=lambda o: o.id))
+
+    def moving_at(self, t: float) -> tuple[ObstacleState, ...]:
+        """The moving obstacles at time t (s), in their configured order: obstacles_at's
+        moving ones, without building the static ones."""
+        return tuple(
+            ObstacleState.of_motion(mid, r, *traj.state(t)) for mid, r, traj in self._moving
+        )
 
     def clearance(self, x: float, y: float, r_vehicle: float, t: float) -> float:
         """eq. (12): min_k ||x - alpha_k(t)|| - (r + r_k); negative means collision.
@@ -132,8 +144,8 @@ class World:
         (None, +inf) when there is no obstacle; `moving=False` looks at static ones only.
         """
         best, who = math.inf, None
-        for i, cid in enumerate(self._circle_ids):
-            d = math.hypot(x - self._cxy[i, 0], y - self._cxy[i, 1]) - (r_vehicle + self._cr[i])
+        for cid, cx, cy, cr in self._circles:
+            d = math.hypot(x - cx, y - cy) - (r_vehicle + cr)
             if d < best:
                 best, who = float(d), cid
         for p in self._polygons:

@@ -52,7 +52,7 @@ def cmd_launch(a: argparse.Namespace) -> int:
     from common.runtime.model.mission import load_mission
     from common.runtime.processes.signals import Interrupted
     from services.cli.summary import print_run_end
-    from services.launcher import LaunchOptions, launch
+    from services.launcher.launch import LaunchOptions, launch
     from services.launcher.progress import make_display
 
     scenario, raw = load_scenario(a.scenario, runtime_overrides(a), a.seed, check=scenario_check(a))

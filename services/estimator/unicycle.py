@@ -97,7 +97,7 @@ def process_noise(
     h = np.array([math.cos(th + 0.5 * w * dt), math.sin(th + 0.5 * w * dt)])
     d2, d3 = dt * dt / 2.0, dt**3 / 3.0
     Q = np.zeros((DIM_X, DIM_X))
-    Q[0:2, 0:2] = q_accel * d3 * np.outer(h, h)
+    Q[0:2, 0:2] = q_accel * d3 * (h[:, None] * h)  # np.outer(h, h), without its overhead
     Q[0:2, 3] = Q[3, 0:2] = q_accel * d2 * h
     Q[3, 3] = q_accel * dt
     Q[2, 2], Q[2, 4], Q[4, 2], Q[4, 4] = (

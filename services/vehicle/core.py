@@ -256,8 +256,7 @@ class VehicleCore:
         return sched
 
     def _applied_vw(self, t: float) -> tuple[float, float]:
-        a = self._in_force(t).at(t)
-        return a.v, a.w
+        return self._in_force(t).vw_at(t)
 
     def _integrate(self, state: PlantState, t_a: float, t_b: float) -> PlantState:
         """RK4 over [t_a, t_b] inside one grid cell, split where the applied (v, w) changes."""

@@ -110,8 +110,8 @@ class Watchdog:
             self._rejected[verdict] += 1
             return verdict
         # eq. (11): clamp every entry to the bounds, and count that we had to
-        vs = tuple(min(max(x, self._v_bounds[0]), self._v_bounds[1]) for x in (v, *v_next))
-        ws = tuple(min(max(x, self._w_bounds[0]), self._w_bounds[1]) for x in (w, *w_next))
+        vs = _clamped((v, *v_next), *self._v_bounds)
+        ws = _clamped((w, *w_next), *self._w_bounds)
         if vs != (v, *v_next) or ws != (w, *w_next):
             self.clamped += 1
         self.applied += 1
@@ -157,3 +157,11 @@ class Watchdog:
     def command(self, t: float) -> Applied:
         """The command in force at time t under the current schedule."""
         return self.schedule.at(t)
+
+
+def _clamped(xs: Sequence[float], lo: float, hi: float) -> tuple[float, ...]:
+    """min(max(x, lo), hi) of each x, written out (max(a, b) is b if b > a else a, min(a, b)
+    b if b < a else a: the same floats) in list comprehensions: a generator of builtin calls
+    over every entry of every command took 1.5 % of a mission."""
+    raised = [lo if lo > x else x for x in xs]
+    return tuple([hi if hi < m else m for m in raised])

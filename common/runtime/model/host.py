@@ -19,6 +19,7 @@ import heapq
 import itertools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import cast
 
 from common.config.network import link_name
 from common.messages import (
@@ -111,6 +112,11 @@ class Host:
         # the core prepares its next step once a step's outputs are out (core.Prepares); the
         # time of the next step, set by a tick that stepped, until `prepare` is called
         self._prepares = isinstance(core, Prepares)
+        # the other optional protocols, told once: isinstance on a runtime_checkable Protocol
+        # costs ~10 us, and statistics are published every second
+        self._judges = isinstance(core, JudgesInputs)
+        self._restarts = isinstance(core, RestartsFilters)
+        self._counts = isinstance(core, CountsForStats)
         self._prepare_for: float | None = None
         self.drops = InputDrops(name)
         self._now_us = 0  # the last tick's time (drops are logged on the mission clock)
@@ -231,8 +237,8 @@ class Host:
         t_next, self._prepare_for = self._prepare_for, None
         if t_next is None:
             return False
-        assert isinstance(self.core, Prepares)
-        self.core.prepare(t_next)
+        assert self._prepares  # (set only by a core that Prepares)
+        cast(Prepares, self.core).prepare(t_next)
         return True
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
@@ -367,10 +373,12 @@ class Host:
             links=links,
             measured=measured,
             inputs_dropped=self.drops.by_link(),
-            inputs_rejected=dict(core.inputs_rejected) if isinstance(core, JudgesInputs) else {},
-            resets=dict(core.resets) if isinstance(core, RestartsFilters) else {},
+            inputs_rejected=(
+                dict(cast(JudgesInputs, core).inputs_rejected) if self._judges else {}
+            ),
+            resets=dict(cast(RestartsFilters, core).resets) if self._restarts else {},
             counters={
-                **(core.stats_counters if isinstance(core, CountsForStats) else {}),
+                **(cast(CountsForStats, core).stats_counters if self._counts else {}),
                 **self.runtime_counters(),
             },
         )

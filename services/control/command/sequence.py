@@ -114,6 +114,9 @@ def command_sequence(
         return vs, ws
     # the real controller's state must not see predictions
     roll = controller if scratch else copy.deepcopy(controller)
+    # looked up once: this loop evaluates the controller ~40k times a mission
+    command, advance = roll.command, model.advance
+    v_prev, w_prev = vs[0], w
     for k in range(1, last + 1):
         t_a, t_b = t + (k - 1) * step_s, t + k * step_s
         if t_a < arrival:  # until this command arrives, the vehicle applies the ones before it
@@ -121,10 +124,11 @@ def command_sequence(
             pose = timeline.predict(pose, t_a, mid, model)
             t_a = mid
         if t_a < t_b:  # then entry k - 1 of this one
-            pose = model.advance(pose, vs[-1], ws[-1], t_b - t_a)
-        v, w = roll.command(t_b, pose, ref)
-        vs.append(tail(t_b, v))
-        ws.append(w)
+            pose = advance(pose, v_prev, w_prev, t_b - t_a)
+        v, w_prev = command(t_b, pose, ref)
+        v_prev = v if stop_mps2 <= 0.0 else tail(t_b, v)  # tail's own test, one call less
+        vs.append(v_prev)
+        ws.append(w_prev)
         if poses is not None:
             poses.append(pose)
     return vs, ws

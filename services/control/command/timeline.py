@@ -92,7 +92,7 @@ class CommandTimeline:
             sched = self._idle if cur is None else cur.schedule
             # within, the applied command changes only at the schedule's own transitions
             for c in sorted({end, *sched.transitions_between(t, end)}):
-                a = sched.at(t)
-                pose = model.advance(pose, a.v, a.w, c - t)
+                v, w = sched.vw_at(t)
+                pose = model.advance(pose, v, w, c - t)
                 t = c
         return pose

@@ -63,12 +63,19 @@ class NurbsTracker(PathFollower[NurbsGains]):
         e_y, e_th = path_errors(x, y, theta, ref, s)
         self.last_errors = (e_y, e_th)
         kappa = ref.curvature_at_s(self.limits.ahead(s, v_meas, ref.length))
-        v_cmd = self.speed.command(t, ref, s, self.water_speed, self.current_speed)
-        # kinematic terms use the measured speed (over ground): the vehicle turns at w / v
-        v_k = max(v_meas, 0.0)
-        delta = max(g.lookahead_m, g.lookahead_time_s * v_cmd)
+        cx, cy = self.current  # current_speed, written out: a rollout asks at every entry
+        v_cmd = self.speed.command(t, ref, s, self.water_speed, math.hypot(cx, cy))
+        # kinematic terms use the measured speed (over ground): the vehicle turns at w / v;
+        # max(a, b) written out below as b if b > a else a (the same floats, NaN and -0.0
+        # included)
+        v_k = 0.0 if 0.0 > v_meas else v_meas
+        delta = g.lookahead_time_s * v_cmd
+        if not delta > g.lookahead_m:
+            delta = g.lookahead_m
         chi = -math.atan(e_y / delta)
-        denom = max(1.0 - kappa * e_y, 0.2)  # guard the Frenet singularity at the centre
+        denom = 1.0 - kappa * e_y
+        if 0.2 > denom:  # guard the Frenet singularity at the centre
+            denom = 0.2
         w_ff = kappa * v_k * math.cos(e_th) / denom  # curvature feed-forward
         dchi = -delta / (delta * delta + e_y * e_y) * v_k * math.sin(e_th)
         w = w_ff + dchi - g.k_heading_ps * wrap_angle(e_th - chi)

@@ -17,6 +17,8 @@ import numpy as np
 
 from services.planner.shaping.planned_path import PlannedPath
 
+_TWO_PI = 2.0 * math.pi
+
 
 class PathArcReference:
     """Adapts a PlannedPath (parameter u) to the controllers' ArcLengthReference (arc length s)."""
@@ -107,15 +109,26 @@ class PathArcReference:
     # the segment j with s_j <= s < s_{j+1} is bisect_right(s) - 1: -1 before the table,
     # len - 1 at or beyond its end; written out in each query (a call less: these are asked
     # several times for every command entry)
+    # and _lerp is written out in them too, x and y sharing the segment's s1 - s0 and s - s0
+    # (the same floats as two _lerp calls)
     def point_at_s(self, s: float) -> tuple[float, float]:
-        sl = self._sl
+        sl, xl, yl = self._sl, self._xl, self._yl
         j = bisect_right(sl, s) - 1
-        return _lerp(sl, self._xl, j, s), _lerp(sl, self._yl, j, s)
+        if j < 0:
+            return xl[0], yl[0]
+        if j >= len(sl) - 1:
+            return xl[-1], yl[-1]
+        s0 = sl[j]
+        if s == s0:
+            return xl[j], yl[j]
+        ds, d = sl[j + 1] - s0, s - s0
+        x0, y0 = xl[j], yl[j]
+        return (xl[j + 1] - x0) / ds * d + x0, (yl[j + 1] - y0) / ds * d + y0
 
     def heading_at_s(self, s: float) -> float:
         sl = self._sl
         j = bisect_right(sl, s) - 1
-        return math.remainder(_lerp(sl, self._headingl, j, s), 2.0 * math.pi)
+        return math.remainder(_lerp(sl, self._headingl, j, s), _TWO_PI)
 
     def curvature_at_s(self, s: float) -> float:
         sl = self._sl

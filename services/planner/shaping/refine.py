@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.optimize import minimize
 
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve, rational_basis
@@ -247,6 +246,10 @@ def lbfgsb(
     obj: Objective, x0: FloatArray, lo: FloatArray, hi: FloatArray, max_iter: int
 ) -> FloatArray:
     """scipy L-BFGS-B on F, in variables scaled so its first step is a few centimetres."""
+    # imported here: scipy.optimize costs every process ~70 ms to import, and only this
+    # alternative solver needs it
+    from scipy.optimize import minimize
+
     x0 = np.clip(x0, lo, hi)
     sc = _LBFGS_STEP_M
 
