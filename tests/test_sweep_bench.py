@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -30,3 +31,15 @@ def test_bench_sweep_reports_runs_per_minute(
     assert set(rpm) == {"inproc"} and math.isfinite(rpm["inproc"]) and rpm["inproc"] > 0.0
     out = capsys.readouterr().out
     assert "runs/min" in out and ", 0 failed" in out
+
+
+def test_bench_help_says_how_to_run_it_and_installs_nothing(tmp_path: Path) -> None:
+    # from a copy of the script alone: were it to set anything up, it would fail there
+    script = tmp_path / "scripts" / "bench"
+    script.parent.mkdir()
+    script.write_bytes((ROOT / "scripts" / "bench").read_bytes())
+    script.chmod(0o755)
+    for flag in ("-h", "--help"):
+        done = subprocess.run([str(script), flag], capture_output=True, text=True, timeout=30)
+        assert done.returncode == 0 and "Run one: scripts/bench" in done.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scripts"]
