@@ -86,6 +86,20 @@ def _ack(loop: CommandLoop[PathArcReference], t: float, path_id: int, since: flo
     loop.inputs.offer(t, PathAck(stamp=t, path_id=path_id, since=since))
 
 
+def test_an_acknowledgement_from_the_future_is_rejected_and_an_older_one_kept_out() -> None:
+    loop = _loop(_load())
+    shadow = TrackerShadow(loop)
+    shadow.put(1, _line(20.0), expected_t=100.0)
+    shadow.put(2, _line(21.0), expected_t=100.0)
+    _ack(loop, 4.0, 1, since=3.0)
+    # a forged stamp would hold the place of every later acknowledgement: counted, not taken
+    loop.inputs.offer(4.5, PathAck(stamp=400.0, path_id=2, since=3.5))
+    assert loop.inputs.rejected == {"ack.future": 1}
+    loop.inputs.offer(5.0, PathAck(stamp=3.9, path_id=2, since=3.5))  # late, behind the newest
+    shadow.predict(5.0, _estimate(4.5, 10.0, 20.0), 6.0)
+    assert shadow.followed_at(4.0) == 1  # neither taken: path 2 not before its expected 100 s
+
+
 def test_the_path_followed_is_the_acknowledged_one_a_newer_one_from_when_it_is_expected() -> None:
     loop = _loop(_load())
     shadow = TrackerShadow(loop)
