@@ -140,6 +140,17 @@ def test_liveliness_tells_up_gone_and_restarted_and_the_clock_ends_the_run() -> 
     assert s.over(now=4.0 + END_GRACE_S + 0.1)
 
 
+def test_a_run_whose_copies_still_drain_after_its_clock_went_is_not_over_yet() -> None:
+    # under load the tap's backlog of copies, and the RunEnd behind it, arrive seconds after
+    # the clock's token vanished: the grace counts from the last frame heard
+    s = _state()
+    s.liveliness("runtime", True, 1.0)
+    s.liveliness("runtime", False, 4.0)
+    s.heard_at = 4.0 + END_GRACE_S  # a copy of the backlog, just now
+    assert not s.over(now=4.0 + END_GRACE_S + 0.1)
+    assert s.over(now=4.0 + 2 * END_GRACE_S + 0.1)
+
+
 def test_run_end_and_link_stats_reach_the_snapshot_and_json_lines_are_strict_json() -> None:
     s = _state()
     link = LinkCounters(

@@ -268,6 +268,7 @@ class Monitor:
         if key in self._ended:
             return
         state = self._state(watcher, *key)
+        state.heard_at = time.time()
         msg = self._see(state, ev)
         if msg is not None:  # a copy heard on a subscription: a gap in its seqs is a loss
             state.copies.see(f"{ev.service}/{ev.stream}", msg.seq)

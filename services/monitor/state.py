@@ -221,6 +221,7 @@ class RunState:
         self.services: dict[str, ServiceLife] = {}
         self.links = LinkTable()
         self.end: RunEnd | None = None
+        self.heard_at = 0.0  # when (local Unix s) the monitor last got a frame of this run
         self.rejected = 0  # frames that did not decode
         # copies heard on subscriptions that never came: the tap sends them DROP, so a monitor
         # that fell behind (stopped, slow, a thin link) loses them, and says so
@@ -295,12 +296,16 @@ class RunState:
             self._event(wall, "service", f"{service} gone")
 
     def over(self, now: float) -> bool:
-        """The run ended: its RunEnd arrived, or its clock's token vanished more than
-        END_GRACE_S before `now` (the RunEnd can arrive after the token's end)."""
+        """The run ended: its RunEnd arrived, or its clock's token vanished and nothing of the
+        run came for END_GRACE_S before `now`. The RunEnd travels behind the tap's copies:
+        under load it arrives seconds after the token's end, while the backlog of copies
+        drains, so the grace counts from the last frame heard."""
         clock = self.services.get(CLOCK)
         if self.end is not None:
             return True
-        return clock is not None and not clock.up and now - clock.since > END_GRACE_S
+        if clock is None or clock.up:
+            return False
+        return now - max(clock.since, self.heard_at) > END_GRACE_S
 
     # -- output ------------------------------------------------------------------------------
     def _world_of(self, vid: str) -> WorldConfig | None:
