@@ -154,9 +154,10 @@ class PlanAsking:
     def clearance_margin_m(self) -> float:
         """The margin a plan made now aims beyond the required clearance (m): the configured
         one widened by the loop's measured delay (a tube as wide as the prediction's drift
-        grows) and by the estimated current, to the centimetre."""
+        grows) and by the current the estimate may yet settle to, to the centimetre."""
         extra = self.cfg.clearance_margin_per_delay_s * self.link.loop_delay_s
-        extra += self.cfg.clearance_margin_per_current_s * math.hypot(*self.link.model.current_mps)
+        current = math.hypot(*self.link.doubted_current_mps)
+        extra += self.cfg.clearance_margin_per_current_s * current
         return round(self.cfg.clearance_margin_m + extra, 2)
 
     @property
@@ -167,7 +168,7 @@ class PlanAsking:
         turns at that rate at speed v + c, and a crab into a cross current asks the same: a
         bend of radius R_min (1 + |c| / v)^2 over ground is what the hull can hold, at
         cruise speed, with the current from any side."""
-        c = math.hypot(*self.link.model.current_mps)
+        c = math.hypot(*self.link.doubted_current_mps)
         factor = 1.0 + c / self.vehicle.cruise_speed_mps
         return self.vehicle.turn_radius_min_m * factor * factor
 
@@ -277,6 +278,7 @@ class PlanAsking:
         flight = RolloutInputs(
             controller=flown,
             model=self.link.model,
+            doubt=self.link.model.with_current(*self.link.doubted_current_mps),
             step_s=self.cfg.period_s,
             start=(here.x, here.y, here.theta, *twist),
             t0=t_plan,

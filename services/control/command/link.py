@@ -109,6 +109,7 @@ class CommandLink:
         self._restarts = 0  # controller restarts: a sequence prepared before one is void
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
         self.current_known = False
+        self.doubted_current_mps = (0.0, 0.0)  # `doubted_current` of the newest estimate
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.cruise_mps = vehicle.cruise_speed_mps  # how fast a station keeper turns about
@@ -159,6 +160,7 @@ class CommandLink:
         estimate as it is (without sequences the controller compensates on its own)."""
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
         self.model = self.model.with_current(*believed_current(est))
+        self.doubted_current_mps = doubted_current(est)
         # a current is worth keeping station against once it is told from the fixes' noise
         self.current_known = math.hypot(est.current_x, est.current_y) > 2.0 * est.current_std
         t_b = basis_time(est)
@@ -401,6 +403,20 @@ def believed_current(est: StateEstimate) -> tuple[float, float]:
     plan's flight; one it knows well is taken as it is."""
     cx, cy, std = est.current_x, est.current_y, est.current_std
     k = _shrink(cx * cx + cy * cy, std)
+    return k * cx, k * cy
+
+
+def doubted_current(est: StateEstimate) -> tuple[float, float]:
+    """The stronger current the estimate may yet settle to (m/s): once the current is told
+    from the fixes' noise (more than twice its standard deviation), its mean one standard
+    deviation longer; before, the believed one. While the estimator is still learning a
+    current, the believed one lags it (it grows from 0 over the first seconds), and a plan
+    sized and flown in it alone turns too tight over ground (asking.py, rollout.py)."""
+    cx, cy, std = est.current_x, est.current_y, est.current_std
+    c = math.hypot(cx, cy)
+    if c <= 2.0 * std:
+        return believed_current(est)
+    k = (c + std) / c
     return k * cx, k * cy
 
 

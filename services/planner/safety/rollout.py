@@ -84,12 +84,24 @@ class RolloutInputs:
     step_s: float
     start: Pose
     t0: float
+    # the model in the stronger current the estimate may yet settle to (link.py
+    # `doubted_current`): a plan is flown in it too, and held to the same there
+    doubt: ResponseModel | None = None
     # the last rollout flown from these inputs, with the plan, speed and tuning it was flown
     # for: a plan is flown when it is verified and again when checked for contact soon after
     # adoption (asking.py), the same flight
     last_flown: list[tuple[PlanResult, float, PlannerTuning, Rollout]] = field(
         default_factory=list, compare=False, repr=False
     )
+    doubt_flown: list[tuple[PlanResult, float, PlannerTuning, Rollout]] = field(
+        default_factory=list, compare=False, repr=False
+    )
+
+    def doubted(self) -> RolloutInputs | None:
+        """These inputs in the doubted current (None without one)."""
+        if self.doubt is None:
+            return None
+        return replace(self, model=self.doubt, doubt=None, last_flown=self.doubt_flown)
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +167,20 @@ def rollout_clearance(
     within_s: float = math.inf,
 ) -> RolloutClearance:
     """Fly an OK plan (see the module docstring) and measure its clearance against what it
-    must keep, over its first within_s seconds."""
+    must keep, over its first within_s seconds, in the believed current and in the doubted
+    one (`RolloutInputs.doubt`): the report of the flight that falls shorter."""
+    f = _clearance(result, req, fm, cfg, within_s)
+    doubted = fm.doubted()
+    if doubted is None:
+        return f
+    g = _clearance(result, req, doubted, cfg, within_s)
+    return g if g.short_m > f.short_m else f
+
+
+def _clearance(
+    result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig, within_s: float
+) -> RolloutClearance:
+    """rollout_clearance of one flight."""
     accel_horizon_s = cfg.accel_horizon_s
     f = roll_out(result, req, fm, cfg.tuning)
     ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
@@ -169,14 +194,22 @@ def rollout_clearance(
     soon = t <= cfg.tuning.rollout_moving_s
     d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
     d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
-    d[gone < result.escape_m] = math.inf  # the plan itself may pass nearer there
     d[t > within_s] = math.inf
+    clearance = d - req.vehicle_radius_m
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
     # turning radius on, rho0 alone is kept; beyond, the cushion too (held to rho0 alone for
     # the whole flight, a plan flown off its path well past its escape was adopted as made)
     settling = (result.escape_m > 0.0) & (gone < result.escape_m + req.r_min_m)
-    keep = cfg.rho0_m + np.where(settling, 0.0, cfg.tuning.rollout_cushion_m)
-    clearance = d - req.vehicle_radius_m
+    cushion = cfg.tuning.rollout_cushion_m
+    keep = cfg.rho0_m + np.where(settling, 0.0, cushion)
+    # the plan itself may pass nearer over its escape: from inside the margin, anywhere it
+    # must; from outside (a turn first), as far into the margin as the plan's own arc goes,
+    # and the cushion
+    escaping = gone < result.escape_m
+    if clearance[0] < cfg.rho0_m:
+        clearance[escaping] = math.inf
+    else:
+        keep[escaping] = cfg.rho0_m - max(result.margin_entered_m, 0.0) - cushion
     j = int(np.argmin(clearance - keep))
     x, y = float(pts[j, 0]), float(pts[j, 1])
     s_near = ref.closest_s(x, y, None)
