@@ -24,7 +24,12 @@ from common.runtime.model.core import Delivery
 from common.runtime.model.inproc import run_inproc
 from common.world import World
 from common.world.check import check_scenario
-from services.control.command.link import GIVE_WAY_FRACTION, CommandLink
+from services.control.command.link import (
+    GIVE_WAY_FRACTION,
+    CommandLink,
+    believed_current,
+    doubted_current,
+)
 from services.control.controllers.base import Limits
 from services.control.controllers.nurbs_tracker import NurbsTracker
 from services.estimator import EstimatorCore
@@ -178,6 +183,26 @@ def test_a_stop_in_a_known_current_keeps_station_head_to_it() -> None:
         current_x=0.0, current_y=-0.2, current_std=0.15,
     )  # fmt: skip
     assert link.stop(0.0, link.predict(0.0, calm)) == ([0.0] * len(vs), [0.0] * len(vs))
+
+
+def test_a_current_told_from_the_noise_is_doubted_one_std_stronger_along_itself() -> None:
+    def est(cx: float, cy: float, std: float) -> StateEstimate:
+        return StateEstimate(
+            stamp=0.0, x=0.0, y=0.0, theta=0.0, v=1.0, w=0.0, covariance=(0.01,) * 25,
+            current_x=cx, current_y=cy, current_std=std,
+        )  # fmt: skip
+
+    # learning a 0.3 m/s current: 0.2 believed-ish, std 0.08; it may yet be 0.28
+    learning = est(0.12, 0.16, 0.08)
+    bx, by = believed_current(learning)
+    dx, dy = doubted_current(learning)
+    assert math.hypot(dx, dy) == pytest.approx(0.28)
+    assert math.atan2(dy, dx) == pytest.approx(math.atan2(0.16, 0.12))
+    assert math.hypot(bx, by) < 0.2 < math.hypot(dx, dy)
+    # a wander within twice its std (still water): no stronger current is doubted
+    calm = est(0.05, -0.04, 0.05)
+    assert doubted_current(calm) == believed_current(calm)
+    assert doubted_current(est(0.0, 0.0, 0.0)) == (0.0, 0.0)
 
 
 def test_a_stop_facing_downstream_comes_about_before_the_current_carries_it_far() -> None:

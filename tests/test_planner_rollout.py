@@ -159,6 +159,33 @@ def test_the_escape_stretch_is_not_held_to_rho0() -> None:
     assert rollout_clearance(escaping, req, _flight(), CFG).min_clearance_m > 1.0
 
 
+def test_a_turn_first_from_outside_the_margin_is_held_to_its_own_depth() -> None:
+    # seed 1504 in a current: a turn-first arc from 5 m clear was spared over its whole 11 m,
+    # its flight passed 0.27 m from the obstacle its own arc passed at 0.8 m
+    circle = _circle_left_of_the_line(0.2, x=12.0)  # 7 m on; the start is well clear
+    req = _request(circles=(circle,))
+    shallow = dataclasses.replace(_straight(20.0), escape_m=10.0, margin_entered_m=0.1)
+    f = rollout_clearance(shallow, req, _flight(), CFG)
+    assert f.min_clearance_m < 0.25
+    assert f.keep_m == pytest.approx(CFG.rho0_m - 0.1 - CFG.tuning.rollout_cushion_m)
+    assert f.short_m > 0.0
+    # an arc planned that deep into the margin is flown as deep
+    deep = dataclasses.replace(shallow, margin_entered_m=0.9)
+    assert rollout_clearance(deep, req, _flight(), CFG).short_m <= 0.0
+
+
+def test_a_plan_is_flown_in_the_stronger_current_the_estimate_may_settle_to() -> None:
+    # the obstacle clears the path by rho0 + 0.3 m; the controller believes still water, and a
+    # 0.3 m/s current towards the obstacle, if it is there, carries the flight inside rho0
+    gap = CFG.rho0_m + 0.3
+    req = _request(circles=(_circle_left_of_the_line(gap, x=30.0),))
+    calm = _flight()
+    assert rollout_clearance(_straight(20.0), req, calm, CFG).short_m <= 0.0
+    doubted = dataclasses.replace(calm, doubt=calm.model.with_current(0.0, 0.3))
+    f = rollout_clearance(_straight(20.0), req, doubted, CFG)
+    assert f.short_m > 0.0 and f.min_clearance_m < gap - 0.1
+
+
 class _Planner:
     """A stand-in for plan_path: a straight path farther from y = 20 the wider the margin
     asked, or NO_PATH from the second call on (`fail_again`), but for a request with a disc

@@ -167,7 +167,8 @@ class PlanAsking:
         while the current carries it on; in a following current of c, the track over ground
         turns at that rate at speed v + c, and a crab into a cross current asks the same: a
         bend of radius R_min (1 + |c| / v)^2 over ground is what the hull can hold, at
-        cruise speed, with the current from any side."""
+        cruise speed, with the current from any side; c is the current the estimate may yet
+        settle to (link.py `doubted_current`)."""
         c = math.hypot(*self.link.doubted_current_mps)
         factor = 1.0 + c / self.vehicle.cruise_speed_mps
         return self.vehicle.turn_radius_min_m * factor * factor

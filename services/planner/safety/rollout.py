@@ -10,8 +10,10 @@ of an obstacle the plan cleared.
 So a plan is flown here first, as the planner's command sequences fly it (sequence.py): the
 controller (a copy, reset as on adoption) commands every control period, the response model
 (response.py) answers, from the state the plan starts at, twist included, for the whole path
-(at most rollout_max_s). Where the flight comes inside rho0 of an obstacle (past the stretch
-the plan itself may pass nearer: escape_m), the flight's distance off the path there is the
+(at most rollout_max_s), in the current believed now and again in the one the estimate may
+yet settle to (link.py `doubted_current`; the controller still believes the first). Where
+either flight comes inside rho0 of an obstacle (past the stretch the plan itself may pass
+nearer: escape_m), the flight's distance off the path there is the
 tracking error, and the plan is made again with a clearance margin that wide plus
 rollout_cushion_m, its curvature aimed rollout_curvature_factor lower; if that flight does not
 keep rho0 + rollout_cushion_m either (a squeeze at a bend can be too narrow for the wider
