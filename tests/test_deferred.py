@@ -8,6 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from helpers.planner_world import planner_core
 
 from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
@@ -102,7 +103,7 @@ def _estimate(t: float, x: float, y: float = 20.0) -> Delivery:
 def test_the_planner_commands_on_its_path_while_a_replan_is_made() -> None:
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     held = HeldPlans()
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core = planner_core(s, plans=held)
     core.deliver(_estimate(0.0, 5.0))
     out = core.step(0.05)  # the first plan is asked for: until it is there, a stop
     assert held.started == 1 and not [e for e in out if e.stream == "path"]
@@ -139,7 +140,7 @@ def test_a_plan_the_vehicle_has_left_behind_while_it_was_made_is_declined_and_as
     # a loaded machine: the plan for where the vehicle was is done when it is 6 m on
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     held = HeldPlans()
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core = planner_core(s, plans=held)
     core.deliver(_estimate(0.0, 5.0))
     core.step(0.05)
     held.finish()
@@ -181,7 +182,7 @@ def test_a_slow_replan_starts_where_the_vehicle_will_be_and_it_stops_short_of_th
 ):
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     held = HeldPlans()
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=held)
+    core = planner_core(s, plans=held)
     core.deliver(_estimate(0.0, 5.0))
     core.step(0.05)
     for k in range(1, 20):  # the first plan takes 2 s

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.planner_world import planner_core
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -110,7 +111,7 @@ COV = tuple(0.01 if i % 6 == 0 else 0.0 for i in range(25))
 
 def _planner() -> PlannerCore:
     s, _ = load_scenario(DEFAULT)
-    return PlannerCore(s.planner, s.controller, s.vehicle, s.world)
+    return planner_core(s)
 
 
 def _estimate(stamp: float, t: float, x: float = 5.0, v: float = 1.0) -> Delivery:

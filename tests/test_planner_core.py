@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.planner_world import planner_core
 
 from common.config.scenario import load_scenario
 from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, VelocityCommand
@@ -33,7 +34,7 @@ def _core(overrides: list[str] | None = None, *, wait_for_tracks: bool = False) 
     plan's wait for the obstacle tracks (tested on its own below), so they switch it off."""
     wait = [] if wait_for_tracks else ["planner.first_plan_wait_s=0"]
     s, _ = load_scenario(DEFAULT, [*wait, *(overrides or [])])
-    return PlannerCore(s.planner, s.controller, s.vehicle, s.world)
+    return planner_core(s)
 
 
 def _estimate(stamp: float, x: float = 5.0, y: float = 20.0, v: float = 1.0) -> Delivery:
@@ -323,7 +324,7 @@ def test_the_clearance_margin_widens_with_the_measured_loop_delay() -> None:
         cfg.clearance_margin_m + cfg.clearance_margin_per_delay_s * 1.0, abs=0.006
     )
     still, _ = load_scenario(DEFAULT, ["planner.clearance_margin_per_delay_s=0"])
-    fixed = PlannerCore(still.planner, still.controller, still.vehicle, still.world)
+    fixed = planner_core(still)
     for k in range(10):
         est = StateEstimate(stamp=0.1 * k, x=5.0, y=20.0, theta=0.0, v=1.0, w=0.0, covariance=COV)
         fixed.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.1 * k + 1.0))
@@ -352,7 +353,7 @@ def test_a_precautionary_replan_keeps_the_path_in_force_over_a_recovery_or_none(
     followed on. A replan the path in force needs ("infeasible") takes whatever it gets."""
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     plans = _Scripted()
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core = planner_core(s, plans=plans)
     core.deliver(_estimate(0.0))
     (first,) = [e.msg for e in core.step(0.05) if e.stream == "path"]
     assert isinstance(first, PathMsg) and first.status == "OK"
@@ -390,7 +391,7 @@ def test_a_plan_made_for_a_lower_speed_is_followed_and_broadcast_at_it() -> None
     plans = _Scripted()
     slow = 0.5 * s.vehicle.cruise_speed_mps
     plans.edit = lambda r: dataclasses.replace(r, v_ref_mps=slow)
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core = planner_core(s, plans=plans)
     core.deliver(_estimate(0.0))
     (made,) = _paths(core.step(0.05))
     assert made.status == "OK" and made.v_ref == slow
@@ -419,7 +420,7 @@ def test_a_way_aside_is_kept_until_a_plan_reaches_the_goal() -> None:
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
     plans = _Scripted()
     plans.edit = lambda r: dataclasses.replace(r, short_of_goal=True)
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, plans=plans)
+    core = planner_core(s, plans=plans)
     core.deliver(_estimate(0.0))
     (aside,) = _paths(core.step(0.05))
     assert aside.status == "OK" and core.last_result is not None

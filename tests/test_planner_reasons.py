@@ -7,13 +7,12 @@ import math
 from pathlib import Path
 
 import pytest
-from helpers.planner_world import circle, default_scenario, polygon
+from helpers.planner_world import circle, default_scenario, planner_core, polygon
 
 from common.config.planner import PlannerConfig
 from common.config.scenario import load_scenario
 from common.messages import PathMsg, StateEstimate
 from common.runtime.model.core import Delivery
-from services.planner.core import PlannerCore
 from services.planner.path_message import path_message
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.reasons import STRATEGIES
@@ -93,7 +92,7 @@ def test_every_code_is_one_word_of_the_vocabulary() -> None:
 
 def test_the_planner_core_publishes_the_strategy_of_each_path() -> None:
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0", "world.start.x_m=15.5"])
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world)
+    core = planner_core(s)
     est = StateEstimate(stamp=0.0, x=15.5, y=20.0, theta=1.5708, v=1.0, w=0.0, covariance=COV)
     core.deliver(Delivery(source="estimator", stream="state", msg=est, t=0.05))
     (path,) = [e.msg for e in core.step(0.05) if e.stream == "path"]

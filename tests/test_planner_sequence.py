@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.planner_world import planner_core
 
 from common.config.controller import ControllerConfig
 from common.config.scenario import load_scenario
@@ -30,7 +31,7 @@ MODEL = ResponseModel.from_vehicle(SCENARIO.vehicle)
 
 def _core(overrides: list[str] | None = None, *, downlink_s: float = 0.0) -> PlannerCore:
     s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0", *(overrides or [])])
-    return PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=downlink_s)
+    return planner_core(s, expected_downlink_s=downlink_s)
 
 
 def _estimate(

@@ -41,8 +41,10 @@ from common.world import World
 from common.world.current import CurrentField
 
 if TYPE_CHECKING:
+    from services.control.loop import CommandLoop
     from services.estimator.core import EstimatorCore
     from services.planner.core import PlannerCore
+    from services.planner.shaping.path_arc_reference import PathArcReference
     from services.sensor.core import SensorCore
     from services.tracker.core import TrackerCore
     from services.vehicle.core import VehicleCore
@@ -222,11 +224,10 @@ def make_planner(
     # until the vehicle reports the delay it measures
     down = profile_for(s.network, link_name("planner", "cmd", "vehicle"))
     return PlannerCore(
+        command_loop(s, logging.getLogger("tidelink.planner"), expected_downlink_s=down.delay_s),
         s.planner,
-        s.controller,
         s.vehicle,
         s.world,
-        expected_downlink_s=down.delay_s,
         commands=commander(s) == "planner",
         intents=None
         if others is None
@@ -247,12 +248,21 @@ def make_planner(
 
 def make_tracker(ctx: CoreContext) -> TrackerCore:
     """The onboard path follower (controller.placement = "onboard")."""
-    from services.control.loop import CommandLoop
     from services.tracker.core import TrackerCore
 
-    s = ctx.scenario
-    log = logging.getLogger("tidelink.tracker")
-    return TrackerCore(CommandLoop(s.planner, s.controller, s.vehicle, s.world, log))
+    return TrackerCore(command_loop(ctx.scenario, logging.getLogger("tidelink.tracker")))
+
+
+def command_loop(
+    s: Scenario, log: logging.Logger, *, expected_downlink_s: float = 0.0
+) -> CommandLoop[PathArcReference]:
+    """The frame a core that commands the vehicle steers in (services/control/loop.py), built
+    alike for the planner and the onboard tracker, so that their commands are the same."""
+    from services.control.loop import CommandLoop
+
+    return CommandLoop(
+        s.planner, s.controller, s.vehicle, s.world, log, expected_downlink_s=expected_downlink_s
+    )
 
 
 def current_field(s: Scenario) -> CurrentField:

@@ -9,10 +9,8 @@ estimator's tracks, predicted with their velocity and acceleration (paper §2).
 
 from __future__ import annotations
 
-import logging
 import math
 
-from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
@@ -33,8 +31,6 @@ from services.planner.shadow import TrackerShadow
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.stopping import Stopping
 
-log = logging.getLogger("tidelink.planner")
-
 
 class PlannerCore:
     """Consumes estimator/state, estimator/tracks and vehicle/status (the delay the vehicle
@@ -42,18 +38,19 @@ class PlannerCore:
 
     def __init__(
         self,
+        loop: CommandLoop[PathArcReference],
         planner: PlannerConfig,
-        controller: ControllerConfig,
         vehicle: VehicleConfig,
         world: WorldConfig,
         *,
-        expected_downlink_s: float = 0.0,
         commands: bool = True,
         intents: FleetIntents | None = None,
         pose_every_s: float = 0.0,
         intent_every_s: float = 0.0,
         plans: Deferred[PlanResult] | None = None,
     ) -> None:
+        """`loop`: the link, controller, inputs and arrival this core commands with, built from
+        the scenario by the dataflow as the tracker's is (services/mission/dataflow.py)."""
         self.cfg = planner
         # where a plan is made: at once, in the step that asks for it (virtual time), or
         # beside the steps, which go on tracking the path in force until it is there (the
@@ -69,10 +66,7 @@ class PlannerCore:
         self.vehicle = vehicle
         self.world = world
         # the link, the controller, the judged inputs, arrival and the path followed
-        self.loop: CommandLoop[PathArcReference] = CommandLoop(
-            planner, controller, vehicle, world, log, expected_downlink_s=expected_downlink_s
-        )
-        loop = self.loop
+        self.loop = loop
         self.link, self.controller, self.inputs = loop.link, loop.controller, loop.inputs
         self.shadow = TrackerShadow(loop)  # onboard, the tracker's commands predicted (shadow.py)
         g = world.goal

@@ -68,15 +68,15 @@ class VehicleCore:
         self._hull_scans_us = tuple(
             sorted({(round(p * 1e6), round(first * 1e6)) for p, first in hull_scans_s})
         )
-        self._plant = make_plant(cfg)
+        # the water's velocity at (x, y, t); None in still water (the plant skips it)
+        self._current = None if current is None or current.is_calm else current.velocity
+        self._plant = make_plant(cfg, self._current)  # it moves in that water
         self._dt = cfg.dt_internal_s
         self._state: PlantState = self._plant.initial(
             float(start[0]), float(start[1]), float(start[2]), start_speed_mps
         )
         self._t = float(t0)  # committed time: the plant state is known up to here
         self._pieces: list[tuple[float, Schedule]] = [(self._t, Schedule(idle_v=start_speed_mps))]
-        # the water's velocity at (x, y, t); None in still water (the plant skips it)
-        self._current = None if current is None or current.is_calm else current.velocity
         self._watchdog = Watchdog(
             cfg.watchdog,
             v_min=cfg.v_min_mps,
@@ -280,7 +280,7 @@ class VehicleCore:
         h = t_b - t_a
         if h < _MIN_STEP_S:
             return state
-        return self._plant.step(state, h, t_a, vw[0], vw[1], self._current)
+        return self._plant.step(state, h, t_a, vw[0], vw[1])
 
     def applied(self, t: float) -> Applied:
         """Mode and command the watchdog applies at time t."""

@@ -36,16 +36,8 @@ class Plant(Protocol):
         """A state at (x, y, theta) moving so, its actuators and autopilots at rest on it."""
         ...
 
-    def step(
-        self,
-        s: PlantState,
-        h: float,
-        t0: float,
-        v_cmd: float,
-        w_cmd: float,
-        current: CurrentFn | None,
-    ) -> PlantState:
-        """One RK4 step of h seconds from time t0 under (v_cmd, w_cmd); current None: still."""
+    def step(self, s: PlantState, h: float, t0: float, v_cmd: float, w_cmd: float) -> PlantState:
+        """One RK4 step of h seconds from time t0 under (v_cmd, w_cmd), in the plant's water."""
         ...
 
     def motion(self, s: PlantState) -> Motion:
@@ -64,25 +56,18 @@ class Plant(Protocol):
 class UnicyclePlant:
     """dynamics.py behind the Plant protocol: state (x, y, theta, v, w, z), no sway."""
 
-    def __init__(self, cfg: VehicleConfig) -> None:
+    def __init__(self, cfg: VehicleConfig, current: CurrentFn | None = None) -> None:
         self.p = PlantParams.from_config(cfg)
+        self.current = current  # None: still water (rk4_step then makes no call at all)
 
     def initial(
         self, x: float, y: float, theta: float, v: float = 0.0, sway: float = 0.0, w: float = 0.0
     ) -> PlantState:
         return (x, y, theta, v, w, 0.0)
 
-    def step(
-        self,
-        s: PlantState,
-        h: float,
-        t0: float,
-        v_cmd: float,
-        w_cmd: float,
-        current: CurrentFn | None,
-    ) -> PlantState:
+    def step(self, s: PlantState, h: float, t0: float, v_cmd: float, w_cmd: float) -> PlantState:
         x, y, th, v, w, z = s
-        return rk4_step((x, y, th, v, w, z), h, v_cmd, w_cmd, self.p, t=t0, current=current)
+        return rk4_step((x, y, th, v, w, z), h, v_cmd, w_cmd, self.p, t=t0, current=self.current)
 
     def motion(self, s: PlantState) -> Motion:
         return s[0], s[1], s[2], s[3], 0.0, s[4]
@@ -101,24 +86,17 @@ def _still(x: float, y: float, t: float) -> tuple[float, float]:
 class Fossen3DofPlant:
     """fossen.py behind the Plant protocol: (x, y, psi, u, v, r, thrust, rudder, z_u, z_r)."""
 
-    def __init__(self, cfg: VehicleConfig) -> None:
+    def __init__(self, cfg: VehicleConfig, current: CurrentFn | None = None) -> None:
         self.fossen = FossenPlant(cfg.fossen, v_max_mps=cfg.v_max_mps)
+        self.current = _still if current is None else current  # fossen.py always calls it
 
     def initial(
         self, x: float, y: float, theta: float, v: float = 0.0, sway: float = 0.0, w: float = 0.0
     ) -> PlantState:
         return self.fossen.initial(x, y, theta, v, sway, w)
 
-    def step(
-        self,
-        s: PlantState,
-        h: float,
-        t0: float,
-        v_cmd: float,
-        w_cmd: float,
-        current: CurrentFn | None,
-    ) -> PlantState:
-        return self.fossen.step(s, h, t0, v_cmd, w_cmd, _still if current is None else current)
+    def step(self, s: PlantState, h: float, t0: float, v_cmd: float, w_cmd: float) -> PlantState:
+        return self.fossen.step(s, h, t0, v_cmd, w_cmd, self.current)
 
     def motion(self, s: PlantState) -> Motion:
         return s[0], s[1], s[2], s[3], s[4], s[5]
@@ -130,8 +108,9 @@ class Fossen3DofPlant:
         return self.fossen.drag_n(s[3])
 
 
-def make_plant(cfg: VehicleConfig) -> Plant:
-    """The plant vehicle.model names."""
+def make_plant(cfg: VehicleConfig, current: CurrentFn | None = None) -> Plant:
+    """The plant vehicle.model names, moving in the water's velocity `current(x, y, t)` (world
+    frame, m/s; None: still water)."""
     if cfg.model == "fossen3dof":
-        return Fossen3DofPlant(cfg)
-    return UnicyclePlant(cfg)
+        return Fossen3DofPlant(cfg, current)
+    return UnicyclePlant(cfg, current)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
+from typing import Any
 
 from common.config.scenario import Scenario, load_scenario
 from common.config.world import CircleObstacleConfig, PolygonObstacleConfig
 from common.world import ObstacleState, World
+from services.mission.dataflow import command_loop
+from services.planner.core import PlannerCore
 from services.planner.result import Obstacles, Pose2D
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "configs" / "default.toml"
@@ -15,6 +19,14 @@ DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "configs" / "default.to
 def default_scenario() -> Scenario:
     """The default scenario: the one paper-like 100 x 40 m field (paper §4) and its vehicle."""
     return load_scenario(DEFAULT_SCENARIO)[0]
+
+
+def planner_core(s: Scenario, *, expected_downlink_s: float = 0.0, **kw: Any) -> PlannerCore:
+    """A planner core of scenario s, its command loop built as the dataflow builds it (`kw`:
+    PlannerCore's keyword arguments)."""
+    log = logging.getLogger("tidelink.planner")
+    loop = command_loop(s, log, expected_downlink_s=expected_downlink_s)
+    return PlannerCore(loop, s.planner, s.vehicle, s.world, **kw)
 
 
 def default_obstacles(t: float = 0.0) -> Obstacles:

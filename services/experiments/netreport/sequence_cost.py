@@ -12,6 +12,7 @@ report (networked.py).
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ import numpy as np
 from common.config.scenario import Scenario, load_scenario
 from common.messages import StateEstimate, VelocityCommand, encode
 from common.runtime.model.core import Delivery
+from services.mission.dataflow import command_loop
 from services.planner.core import PlannerCore
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[3] / "configs" / "default.toml"
@@ -67,7 +69,8 @@ def bench_steps(
     """(CPU seconds of each planner step, bytes of each command) along the first plan; the CPU
     seconds of preparing after each step are appended to `prepared`, if given."""
     s = _scenario(kind, horizon_s)
-    core = PlannerCore(s.planner, s.controller, s.vehicle, s.world, expected_downlink_s=0.05)
+    loop = command_loop(s, logging.getLogger("tidelink.planner"), expected_downlink_s=0.05)
+    core = PlannerCore(loop, s.planner, s.vehicle, s.world)
     start = s.world.start
     est = StateEstimate(
         stamp=0.0, x=start.x_m, y=start.y_m, theta=start.theta_rad, v=1.5, w=0.0, covariance=_COV
