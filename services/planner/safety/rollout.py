@@ -100,8 +100,9 @@ class RolloutInputs:
     )
 
     def doubted(self) -> RolloutInputs | None:
-        """These inputs in the doubted current (None without one)."""
-        if self.doubt is None:
+        """These inputs in the doubted current (None without one, or when it is the believed
+        one: the same flight)."""
+        if self.doubt is None or self.doubt.current_mps == self.model.current_mps:
             return None
         return replace(self, model=self.doubt, doubt=None, last_flown=self.doubt_flown)
 
