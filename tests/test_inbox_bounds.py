@@ -25,7 +25,7 @@ def _nav(seq: int) -> RawFrame:
 
 
 def _tick(n: int) -> RawFrame:
-    return RawFrame(TICK, encode(Tick(stamp=0.0, tick=n, time_us=n, watermarks={})), None)
+    return RawFrame(TICK, encode(Tick(stamp=0.0, tick=n, time_us=n)), None)
 
 
 def _drain(inbox: Inbox) -> list[Received | Liveliness]:

@@ -10,9 +10,8 @@ and no output to one (it moves no one else's), and publishing nothing the missio
 depends on (Mission.ends_on). While only predictable services are still running tick k, the
 coordinator judges the tick's end on the data it has, works out tick k+1, and sends it at
 once to its services that are not running tick k: one that none of the running ones feeds
-starts at once (what it reads from them was all sent before tick k); one they feed is told
-to wait for their acks, which it hears directly, and for the data these report (the step
-after the planner's then waits one hop for it, not two hops and the coordinator). The end of
+starts at once (what it reads from them was all sent before tick k); one they feed is sent
+it as soon as their acks, which carry the frames it reads, are in (lockstep.py). The end of
 tick k+1 is judged only after tick k's (no data of a later tick can be seen early), so the
 trajectory is the same as without look-ahead (and as inproc), bit for bit.
 """
@@ -66,6 +65,6 @@ class Lookahead:
 
     def waits(self, due: Sequence[str], running: Sequence[str]) -> dict[str, tuple[str, ...]]:
         """The services of the next tick (`due`) that may be sent it while `running` finish
-        theirs (those not running it), each with the running ones it reads: it starts when
-        their acks and the data these report are in (lockstep_service.py)."""
+        theirs (those not running it), each with the running ones it reads: it is sent the
+        tick when their acks, with the frames it reads, are in (lockstep.py)."""
         return {s: tuple(r for r in running if s in self.feeds[r]) for s in due if s not in running}
