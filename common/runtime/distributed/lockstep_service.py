@@ -34,6 +34,7 @@ class LockstepService:
         # the highest seq taken per input: a tick carries the frames of every service it is
         # for, so it may bring one this service took with an earlier tick
         self.taken = {(i.source, i.stream): 0 for i in self.host.inputs}
+        self.last_tick = -1  # the newest tick run: the clock's ticks come in order
 
     def run(self) -> int:
         with Bus(self.bus_cfg, self.keys, identity=self.name) as bus:
@@ -49,6 +50,9 @@ class LockstepService:
                 tick = self._next_tick(inbox)
                 if not tick.stop and self.name not in tick.due:
                     continue  # (a stop tick goes to every service, the others to the due)
+                if tick.tick <= self.last_tick:  # one session sends them: Zenoh keeps its order
+                    raise RuntimeError(f"{self.name}: tick {tick.tick} after {self.last_tick}")
+                self.last_tick = tick.tick
                 self._take(tick.frames)
                 if tick.stop:
                     out = [self.host.publish_stats(tick.tick, tick.time_us)]
