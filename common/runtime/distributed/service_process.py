@@ -61,13 +61,10 @@ class ServiceSetup:
         )
 
 
-def wire(
-    bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool, quiet: bool = False
-) -> dict[str, Publisher]:
-    """Subscribe the host's inputs (quiet: not waking a wait for the clock, Inbox) and the
-    clock; one publisher per output stream and stats."""
+def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> dict[str, Publisher]:
+    """Subscribe the host's inputs and the clock; one publisher per output stream and stats."""
     for i in host.inputs:
-        bus.subscribe_stream(i.source, i.stream, inbox, quiet=quiet)
+        bus.subscribe_stream(i.source, i.stream, inbox)
     bus.subscribe(keys.ticks_for(host.name), inbox)
     bus.watch_alive(inbox, keys.alive(CLOCK))
     return {s: bus.publisher(host.name, s, express=express) for s in host.streams}
