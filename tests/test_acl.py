@@ -47,16 +47,15 @@ def test_only_the_planner_puts_commands_only_the_launcher_ticks_monitor_puts_not
     assert [who for who, g in grants.items() if any("/tick/" in k for k in g.put)] == [LAUNCHER]
     assert grants[MONITOR].put == () and grants[MONITOR].token == ()
     assert grants[ROUTER].items() == []
-    # each service: its own outputs, stats and acks; its own token; its inputs, their
-    # publishers' acks and its ticks
+    # each service: its own outputs, stats and acks; its own token; its inputs and its ticks
     for name, svc in flow.services.items():
         g = grants[name]
         own = {keys.stream(name, o.stream) for o in svc.outputs} | {keys.stream(name, "stats")}
         assert set(g.put) == own | {keys.ack(name)}
         assert g.token == (keys.alive(name), keys.claims(name))  # its token, its role claimed
         assert set(g.subscribe) == {keys.stream(i.source, i.stream) for i in svc.inputs} | {
-            keys.ack(i.source) for i in svc.inputs
-        } | {keys.ticks_for(name)}
+            keys.ticks_for(name)
+        }
 
 
 def test_a_stream_added_to_a_service_updates_its_rules() -> None:

@@ -313,7 +313,7 @@ def test_run_end_and_detections(scenario: Scenario) -> None:
     ring = _xy(_entities(_one(scan, v.SCENE_DETECTIONS))["detection/3"]["lines"][0])
     assert np.hypot(ring[:, 0] - 34.0, ring[:, 1] - 32.0) == pytest.approx(np.full(24, 4.4))
     # a clock message is not part of the view
-    tick = Tick(stamp=0.0, tick=1, time_us=0, watermarks={})
+    tick = Tick(stamp=0.0, tick=1, time_us=0)
     assert view.translate("runtime", "tick", tick) == []
 
 

@@ -4,12 +4,8 @@ without max_pending it never drops anything."""
 
 from __future__ import annotations
 
-import queue
-import threading
-from typing import Any
-
 from common.bus import Inbox, Keys, Liveliness, Received
-from common.bus.bus import QUIET_BATCH, RawFrame
+from common.bus.bus import RawFrame
 from common.messages import NavFix, Tick, encode
 
 KEYS = Keys("r", "v")
@@ -25,7 +21,7 @@ def _nav(seq: int) -> RawFrame:
 
 
 def _tick(n: int) -> RawFrame:
-    return RawFrame(TICK, encode(Tick(stamp=0.0, tick=n, time_us=n, watermarks={})), None)
+    return RawFrame(TICK, encode(Tick(stamp=0.0, tick=n, time_us=n)), None)
 
 
 def _drain(inbox: Inbox) -> list[Received | Liveliness]:
@@ -75,73 +71,3 @@ def test_what_a_shed_kept_is_detached_in_order_when_the_bus_closes() -> None:
     inbox.detach()
     assert inbox.pending() == 5
     assert [e.msg.seq for e in _drain(inbox) if isinstance(e, Received)] == [27, 28, 29, 30, 31]
-
-
-class _WatchedQueue(queue.SimpleQueue[Any]):
-    """A queue that says when a reader starts waiting on it."""
-
-    def __init__(self) -> None:
-        self.waiting = threading.Event()
-
-    def get(self, block: bool = True, timeout: float | None = None) -> Any:
-        self.waiting.set()
-        return super().get(block, timeout)
-
-
-def _waiting_get(inbox: Inbox, fifo: _WatchedQueue, *, data: bool) -> list[Received]:
-    """Events a reader blocked in get(data=...) took: started, then once it waits."""
-    got: list[Received] = []
-
-    def read() -> None:
-        for _ in range(2):
-            ev = inbox.get(timeout=30.0, data=data)
-            assert isinstance(ev, Received)
-            got.append(ev)
-
-    reader = threading.Thread(target=read)
-    reader.start()
-    assert fifo.waiting.wait(30.0)  # the reader is inside its wait
-    inbox.on_quiet_sample(_nav(1))  # data arrives quietly...
-    inbox._q.put(_tick(1))  # ...then the clock's tick
-    reader.join(30.0)
-    assert not reader.is_alive()
-    return got
-
-
-def test_a_quiet_sample_does_not_end_a_wait_for_the_clock_but_comes_first_after_it() -> None:
-    # a lockstep service waiting for its tick is not woken by each message arriving meanwhile
-    fifo = _WatchedQueue()
-    got = _waiting_get(Inbox(fifo=fifo), fifo, data=False)
-    assert [type(e.msg).__name__ for e in got] == ["Tick", "NavFix"]
-
-
-def test_a_quiet_sample_ends_a_wait_for_data() -> None:
-    fifo = _WatchedQueue()
-    got = _waiting_get(Inbox(fifo=fifo), fifo, data=True)
-    assert [type(e.msg).__name__ for e in got] == ["NavFix", "Tick"]
-
-
-def test_quiet_samples_are_counted_detached_and_kept_in_order() -> None:
-    inbox = Inbox()
-    for seq in range(1, 4):
-        inbox.on_quiet_sample(_nav(seq))
-    assert inbox.pending() == 3
-    inbox.detach()
-    assert [e.msg.seq for e in _drain(inbox) if isinstance(e, Received)] == [1, 2, 3]
-
-
-def test_a_batch_of_quiet_samples_ends_any_wait() -> None:
-    # a flood on a data key is worked off as it comes, not piled up until the next tick
-    fifo = _WatchedQueue()
-    inbox = Inbox(fifo=fifo)
-    got: list[Received | Liveliness | None] = []
-    reader = threading.Thread(target=lambda: got.append(inbox.get(timeout=30.0, data=False)))
-    reader.start()
-    assert fifo.waiting.wait(30.0)
-    for seq in range(1, QUIET_BATCH + 1):
-        inbox.on_quiet_sample(_nav(seq))
-    reader.join(30.0)
-    assert not reader.is_alive()
-    first = got[0]
-    assert isinstance(first, Received) and isinstance(first.msg, NavFix) and first.msg.seq == 1
-    assert inbox.pending() == QUIET_BATCH - 1  # the rest, taken next without waiting

@@ -56,14 +56,12 @@ def _forge(endpoint: str, run: Tidelink) -> Forged:
         acks = bus.publisher_on(keys.ack("planner"))
         truth = bus.publisher_on(keys.stream("vehicle", "truth"))
         inbox = Inbox()
-        bus.subscribe_stream("vehicle", "truth", inbox)
+        # the real truth travels in the vehicle's acks, not on its stream key: the forger
+        # paces itself on the watch tap's copy of it
+        bus.subscribe(keys.watch("vehicle", "truth"), inbox)
         while run.proc.poll() is None:
             acks.put(TruthState(stamp=1.0, source="planner", seq=done.acks + 1, **not_an_ack))
-            acks.put(
-                TickAck(
-                    stamp=1.0, tick=done.acks, service="vehicle", published={}, next_us=0, wakes={}
-                )
-            )
+            acks.put(TickAck(stamp=1.0, tick=done.acks, service="vehicle", next_us=0, wakes={}))
             done.acks += 1
             real = real_truth_due(inbox.get(timeout=0.005), EVERY)
             if real is None:

@@ -46,8 +46,13 @@ def test_the_sensor_and_estimator_start_while_the_planner_steps_the_vehicle_wait
         "planner": ("estimator",),
         "vehicle": (),
     }
-    # a service still running the last tick gets the next one when it is done
-    assert la.waits(["planner", "vehicle"], ["planner"]) == {"vehicle": ("planner",)}
+    # a service still running the last tick is sent the next one at once (it waits in its
+    # inbox), unless another running one feeds it
+    assert la.waits(["planner", "vehicle"], ["planner"]) == {"planner": (), "vehicle": ("planner",)}
+    assert la.waits(["planner", "sensor"], ["estimator", "planner"]) == {
+        "planner": ("estimator",),
+        "sensor": (),
+    }
 
 
 def test_wake_inputs_make_a_service_unpredictable(testloop_toml: Path) -> None:

@@ -25,6 +25,7 @@ from common.messages import (
     SEQUENCE_STEP_MIN_MS,
     WIRE_VERSION,
     Detection,
+    Frame,
     LinkCounters,
     LinkStats,
     MeasuredDelay,
@@ -121,7 +122,12 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
         k: st.dictionaries(TEXT, COUNT, max_size=5)
         for k in ("inputs_dropped", "inputs_rejected", "resets", "counters")
     },
-    Tick: {"tick": COUNT, "time_us": COUNT, "after": st.dictionaries(TEXT, COUNT, max_size=3)},
+    Tick: {"tick": COUNT, "time_us": COUNT},
+    Frame: {
+        "source": st.text(min_size=1, max_size=12),
+        "stream": st.text(min_size=1, max_size=12),
+        "seq": st.integers(1, 2**62),
+    },
     TickAck: {"tick": COUNT, "next_us": COUNT, "service": st.text(min_size=1, max_size=12)},
     RunEnd: {"ticks": COUNT},
 }
@@ -129,7 +135,13 @@ OVERRIDES: dict[type, dict[str, S[Any]]] = {
 
 def strategy_for_hint(hint: Any) -> S[Any]:
     """A strategy of valid values for one field type (float, int, str, bool, Literal, ...)."""
-    simple: dict[Any, S[Any]] = {float: FINITE, int: INT64, str: TEXT, bool: st.booleans()}
+    simple: dict[Any, S[Any]] = {
+        float: FINITE,
+        int: INT64,
+        str: TEXT,
+        bool: st.booleans(),
+        bytes: st.binary(max_size=32),
+    }
     if hint in simple:
         return simple[hint]
     origin, args = typing.get_origin(hint), typing.get_args(hint)

@@ -71,7 +71,7 @@ def test_data_without_or_with_bad_routing_is_dropped_and_counted(svc: RealtimeSe
 
 
 def test_only_the_clocks_keys_carry_ticks(svc: RealtimeService) -> None:
-    stop = Tick(stamp=0.0, tick=1, time_us=0, watermarks={}, stop=True)
+    stop = Tick(stamp=0.0, tick=1, time_us=0, stop=True)
     routed = encode_routing(1, {"estimator": (0,)})
     # a stop tick on a data key neither stops the service nor reaches the core
     assert not svc._handle(Received(svc.keys.stream(*NAV), stop, routed))
@@ -88,7 +88,7 @@ def test_every_tick_after_the_first_moves_the_clock_only_forward_to_the_least_de
 
     def tick(t_s: float) -> None:
         t_us = round(t_s * 1e6)
-        svc._handle(Received(key, Tick(stamp=t_s, tick=1, time_us=t_us, watermarks={}), None))
+        svc._handle(Received(key, Tick(stamp=t_s, tick=1, time_us=t_us), None))
 
     tick(10.0)  # joined at 10 s, from a Tick that may have been delayed
     # a Tick saying the launcher's clock reads 5 ms (wall) more is believed at once ...

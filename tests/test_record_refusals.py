@@ -46,18 +46,6 @@ def test_forged_messages_are_refused_by_reason_and_the_stream_carries_on() -> No
     assert len(record.stream("vehicle", "truth")) == record.count == 20
 
 
-def test_a_forged_message_cannot_complete_a_lockstep_watermark() -> None:
-    record = Record()
-    for k in (1, 2, 4):  # seq 3 still on its way
-        record.add("vehicle", "truth", _truth(k, float(k)))
-    assert record.missing({"vehicle/truth": 4}) == ["vehicle/truth"]
-    record.add("vehicle", "truth", _truth(99, 0.0, source="planner"))
-    record.add("vehicle", "truth", _truth(2**62, 0.0))
-    assert record.missing({"vehicle/truth": 4}) == ["vehicle/truth"]
-    record.add("vehicle", "truth", _truth(3, 3.0))
-    assert record.missing({"vehicle/truth": 4, "sensor/nav": 0}) == []
-
-
 def test_renumbering_a_restarted_service_never_overflows_on_a_forged_seq() -> None:
     record = Record()
     renumbering = Renumbering(record)

@@ -81,15 +81,6 @@ def _plain(sample: zenoh.Sample) -> RawFrame:
 _Item = zenoh.Sample | RawFrame | Liveliness
 
 
-class _Nudge:
-    """Queued to wake a `get` waiting for data when a quiet sample arrives (never returned)."""
-
-
-_NUDGE = _Nudge()
-# quiet samples queued that wake any wait, so a flood is worked off as it comes, in batches
-QUIET_BATCH = 64
-
-
 def _key_of(item: _Item) -> str:
     if isinstance(item, RawFrame | Liveliness):
         return item.key
@@ -111,14 +102,6 @@ class Inbox(_Rejects):
     down to half, keeping every liveliness event and every sample whose key `keep` accepts
     (a clock's ticks); `on_shed(key, n)` is told what was shed. Without it nothing is ever
     dropped (a lockstep service must see every message).
-
-    Samples of a `quiet` subscription (Bus.subscribe) are queued without waking a `get` that
-    waits for something else: a lockstep service waiting for its next tick is not woken for
-    each message that arrives meanwhile (in a fleet of 16 a sensor hears 300 truths a
-    second), it takes them all when the tick comes; `get(data=True)` (waiting for the data a
-    tick needs) is woken by each. Every QUIET_BATCH-th one wakes any wait, so a flood is
-    worked off in batches as it comes, not piled up until the tick. Quiet samples are taken
-    before the others queued.
     """
 
     def __init__(
@@ -133,39 +116,27 @@ class Inbox(_Rejects):
         # clock and fifo are seams for tests (a fake clock, a queue that trickles)
         super().__init__()
         self._clock = clock
-        self._q: queue.SimpleQueue[_Item | _Nudge] = queue.SimpleQueue() if fifo is None else fifo
+        self._q: queue.SimpleQueue[_Item] = queue.SimpleQueue() if fifo is None else fifo
         self._on_sample: Callable[[zenoh.Sample], None] = self._q.put
         self._max_pending = max_pending
         self._keep = keep
         self._on_shed = on_shed
         self._backlog: deque[_Item] = deque()  # survivors of a shed, taken before the queue
-        self._quiet: deque[_Item] = deque()  # samples of quiet subscriptions
-        self._data_wanted = False  # a `get(data=True)` is waiting: quiet samples nudge it
         self.shed: dict[str, int] = {}  # key -> samples shed
-
-    def on_quiet_sample(self, sample: _Item) -> None:
-        """Queue a sample of a quiet subscription; wake `get` only if it waits for data (or
-        a batch has piled up)."""
-        self._quiet.append(sample)
-        if self._data_wanted or len(self._quiet) % QUIET_BATCH == 0:
-            self._q.put(_NUDGE)
 
     def pending(self) -> int:
         """Events queued and not yet taken (valid or not: decoding happens in `get`)."""
-        return self._q.qsize() + len(self._backlog) + len(self._quiet)
+        return self._q.qsize() + len(self._backlog)
 
     def _drain(self) -> list[_Item]:
         items = list(self._backlog)
         self._backlog.clear()
-        while self._quiet:
-            items.append(self._quiet.popleft())
         while True:
             try:
                 item = self._q.get_nowait()
             except queue.Empty:
                 return items
-            if not isinstance(item, _Nudge):
-                items.append(item)
+            items.append(item)
 
     def detach(self) -> None:
         """Replace the queued Zenoh samples by plain data, keeping their order."""
@@ -190,38 +161,25 @@ class Inbox(_Rejects):
             self.shed[key] = self.shed.get(key, 0) + n
             self._on_shed(key, n)
 
-    def _take(self, deadline: float | None, data: bool) -> _Item | None:
-        """The next queued event (survivors of a shed first, then quiet samples), waiting
-        until the deadline; quiet samples end the wait only if `data`."""
+    def _take(self, deadline: float | None) -> _Item | None:
+        """The next queued event (survivors of a shed first), waiting until the deadline."""
         if self._max_pending is not None and self.pending() > self._max_pending:
             self._shed()
         if self._backlog:
             return self._backlog.popleft()
-        self._data_wanted = data
         try:
-            while True:
-                # after the flag is set: a quiet sample queued from here on nudges the wait
-                if self._quiet:
-                    return self._quiet.popleft()
-                if deadline is None:
-                    item = self._q.get()
-                else:
-                    item = self._q.get(timeout=max(0.0, deadline - self._clock()))
-                if not isinstance(item, _Nudge):
-                    return item
+            if deadline is None:
+                return self._q.get()
+            return self._q.get(timeout=max(0.0, deadline - self._clock()))
         except queue.Empty:
             return None
-        finally:
-            self._data_wanted = False
 
-    def get(self, timeout: float | None = None, *, data: bool = True) -> Event | None:
-        """The next valid event, or None when `timeout` seconds pass with nothing valid;
-        with data=False, quiet samples queued meanwhile do not end the wait (they come first
-        once something else does)."""
+    def get(self, timeout: float | None = None) -> Event | None:
+        """The next valid event, or None when `timeout` seconds pass with nothing valid."""
         # One deadline for the whole call: a trickle of undecodable payloads must not keep
         # restarting the wait (the caller's step would never come).
         deadline = None if timeout is None else self._clock() + timeout
-        item = self._take(deadline, data)
+        item = self._take(deadline)
         if item is None:
             return None
         while True:
@@ -233,7 +191,7 @@ class Inbox(_Rejects):
                 return Received(key, decode(payload), att)
             except WireError as exc:
                 self._reject(key, str(exc))
-            item = self._take(deadline, data)
+            item = self._take(deadline)
             if item is None:
                 return None
 
@@ -386,20 +344,16 @@ class Bus:
         )
         return Publisher(self._keep(pub), key)
 
-    def subscribe(self, key_expr: str, inbox: Inbox, *, quiet: bool = False) -> None:
-        """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it);
-        `quiet`: without waking a loop that waits for something else (Inbox)."""
-        on_sample = inbox.on_quiet_sample if quiet else inbox._on_sample
-        handler = zenoh.handlers.Callback(on_sample, indirect=not self.low_latency)
+    def subscribe(self, key_expr: str, inbox: Inbox) -> None:
+        """Feed every sample on `key_expr` into `inbox` (decoded when the loop takes it)."""
+        handler = zenoh.handlers.Callback(inbox._on_sample, indirect=not self.low_latency)
         self._keep(self.session.declare_subscriber(key_expr, handler))
         with self._lock:
             if inbox not in self._inboxes:
                 self._inboxes.append(inbox)
 
-    def subscribe_stream(
-        self, service: str, stream: str, inbox: Inbox, *, quiet: bool = False
-    ) -> None:
-        self.subscribe(self.keys.stream(service, stream), inbox, quiet=quiet)
+    def subscribe_stream(self, service: str, stream: str, inbox: Inbox) -> None:
+        self.subscribe(self.keys.stream(service, stream), inbox)
 
     def subscribe_typed(
         self, key_expr: str, on_message: Callable[[Received], None]

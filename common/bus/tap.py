@@ -57,7 +57,8 @@ class WatchTap:
         self._latest: dict[str, RawFrame] = {}  # latest key -> frame as a query reply
         self._latest_n: dict[str, int] = {}
         self._latest_name: dict[str, str] = {}  # latest key -> "<service>/<stream>"
-        self._pubs: dict[tuple[str, str], Publisher] = {}
+        # per stream: its latest key, name and copies' publisher (_outlet)
+        self._outlets: dict[tuple[str, str], tuple[str, str, Publisher]] = {}
         self._sinks: list[Callable[[WatchedFrame], None]] = []
         self._closed = False
         scenario = json.dumps(scenario_raw, sort_keys=True).encode()
@@ -96,30 +97,35 @@ class WatchTap:
     def feed(self, service: str, stream: str, payload: bytes, attachment: bytes | None) -> None:
         """Copy one frame of `service`/`stream` for watchers (what the run's bus carried, or
         what a replay reads from its recording)."""
-        f = RawFrame(self.keys.stream(service, stream), payload, attachment)
         with self._lock:
             if self._closed:
                 return
+            out = self._outlets.get((service, stream))
+            if out is None:
+                out = self._outlets[(service, stream)] = self._outlet(service, stream)
+            latest, name, pub = out
             self._n += 1
             self._taken.notify_all()
             n, wall = self._n, time.time()
-            att = encode_watch(wall, n, f.attachment)
-            latest = self.keys.latest(service, stream)
-            self._latest[latest] = RawFrame(latest, f.payload, att)
+            att = encode_watch(wall, n, attachment)
+            self._latest[latest] = RawFrame(latest, payload, att)
             self._latest_n[latest] = n
-            self._latest_name[latest] = f"{service}/{stream}"
-            pub = self._pubs.get((service, stream))
-            if pub is None:
-                pub = self._pubs[(service, stream)] = self.bus.monitoring_publisher(
-                    self.keys.watch(service, stream)
-                )
-            sinks = list(self._sinks)
-        pub.put_bytes(f.payload, att)
-        tapped = WatchedFrame(
-            self.keys.run, self.keys.vehicle, service, stream, f.payload, f.attachment, wall, n
-        )
-        for sink in sinks:
-            sink(tapped)
+            self._latest_name[latest] = name
+            sinks = list(self._sinks) if self._sinks else ()
+        pub.put_bytes(payload, att)
+        if sinks:
+            tapped = WatchedFrame(
+                self.keys.run, self.keys.vehicle, service, stream, payload, attachment, wall, n
+            )
+            for sink in sinks:
+                sink(tapped)
+
+    def _outlet(self, service: str, stream: str) -> tuple[str, str, Publisher]:
+        """A stream's latest key, its name and its copies' publisher (made once per stream:
+        a lockstep coordinator feeds the tap every frame on its tick's path)."""
+        name = f"{service}/{stream}"
+        pub = self.bus.monitoring_publisher(self.keys.watch(service, stream))
+        return self.keys.latest(service, stream), name, pub
 
     def _answer(self, key_expr: str, params: dict[str, str]) -> list[RawFrame]:
         """The newest frame of every stream matching the query, newer than `?after=N`, of the

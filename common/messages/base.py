@@ -12,8 +12,9 @@ import msgspec
 # 5: VelocityCommand's future entries, VehicleStatus's delay figures; 6: StateEstimate's
 # predicted_s (how far the estimate was carried past its newest fix); 7: LinkCounters.bytes_sent;
 # 8: LinkStats.counters (what a core counted, e.g. a fleet planner's steps by intent or track);
-# 9: the ocean (current, sway, Odometry, PositionFix); 10: PathMsg's reason codes; 11: PathAck
-WIRE_VERSION = 11
+# 9: the ocean (current, sway, Odometry, PositionFix); 10: PathMsg's reason codes; 11: PathAck;
+# 12: lockstep ticks and acks carry the frames (Frame) instead of watermarks
+WIRE_VERSION = 12
 
 
 class WireError(ValueError):

@@ -23,8 +23,8 @@ _TYPE_NAMES = {cls.__name__ for cls in MESSAGE_TYPES}
 
 # One frame type for all: msgspec picks the class from the `type` tag in a single C call.
 _AnyMessage = Union[tuple(MESSAGE_TYPES)]  # type: ignore[valid-type]  # noqa: UP007
-_Frame = tuple[Literal[11], _AnyMessage]  # type: ignore[valid-type]
-assert WIRE_VERSION == 11, "update _Frame with the wire version"
+_Frame = tuple[Literal[12], _AnyMessage]  # type: ignore[valid-type]
+assert WIRE_VERSION == 12, "update _Frame with the wire version"
 
 
 class _Codec(threading.local):

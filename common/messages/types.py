@@ -512,23 +512,39 @@ class RunEnd(Message, frozen=True, kw_only=True):
         check_range("ticks", self.ticks, 0)
 
 
+class Frame(WireRecord, frozen=True, kw_only=True, array_like=True):
+    """One message a service published in a lockstep tick, as it would cross the wire on its
+    stream: the encoded message (whose seq it repeats) and its routing attachment
+    (encode_routing). An ack carries the frames its service published in the tick, a tick
+    those its services read that were published since each was last ticked
+    (common/runtime/distributed/lockstep.py). An array on the wire, [source, stream, seq, data,
+    routing]: a tick may carry many."""
+
+    source: str
+    stream: str
+    seq: int
+    data: bytes
+    routing: bytes
+
+    def validate(self) -> None:
+        if not self.source or not self.stream:
+            raise WireError("frame: source and stream must not be empty")
+        check_range("frame.seq", self.seq, 1)
+
+
 class Tick(Message, frozen=True, kw_only=True):
-    """Lockstep clock: advance to virtual time `time_us`; watermarks of every stream so far."""
+    """The clock: advance to virtual time `time_us` (lockstep) or tell the time (realtime)."""
 
     tick: int
     time_us: int
-    watermarks: dict[str, int]
     due: tuple[str, ...] = ()  # the services that run this tick (the others have nothing due)
     stop: bool = False  # end of run: publish final statistics, acknowledge and exit
-    # service -> the tick it is still running: wait for its ack of it, and for the data that
-    # ack reports, before running this one (a tick sent early, lookahead.py)
-    after: dict[str, int] = msgspec.field(default_factory=dict)
+    # lockstep: what the due services read, published since each was last ticked
+    frames: tuple[Frame, ...] = ()
 
     def validate(self) -> None:
         check_range("tick", self.tick, 0)
         check_range("time_us", self.time_us, 0)
-        for tick in self.after.values():
-            check_range("after", tick, 0)
 
 
 class TickAck(Message, frozen=True, kw_only=True):
@@ -536,10 +552,10 @@ class TickAck(Message, frozen=True, kw_only=True):
 
     tick: int
     service: str
-    published: dict[str, int]  # stream key -> last seq published so far
     next_us: int  # next time this service needs a tick (its next step or wake delivery)
     # receiver -> earliest wake delivery
     wakes: dict[str, int] = msgspec.field(default_factory=dict)
+    frames: tuple[Frame, ...] = ()  # what it published in the tick, in order
     done: bool = False  # the service asks the run to end (e.g. the vehicle reached the goal)
 
     def validate(self) -> None:

@@ -183,7 +183,7 @@ def forge_tick(connect: str, keys: Keys, flow: Dataflow, *, ahead_s: float) -> i
             except WireError:
                 continue
         t = now + ahead_s
-        tick = Tick(stamp=t, tick=10**6, time_us=round(t * 1e6), watermarks={})
+        tick = Tick(stamp=t, tick=10**6, time_us=round(t * 1e6))
         pub = bus.publisher_on(keys.tick(flow.names))
         pub.put_bytes(encode(tick))  # as the run's clock puts its Ticks
         # closed at once, the session could drop the put: a probe's round trip through the

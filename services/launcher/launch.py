@@ -257,7 +257,7 @@ def _until_interrupted(driver: Driver, side: ClockSide, view: MissionView) -> Ru
     """Wait for the services and drive the run; a stop request ends it as 'interrupted'."""
     try:
         driver.await_alive(side.inbox)
-        return driver.drive(side.inbox, side.ticks)
+        return driver.drive(side.inbox, side.ticks, side.tap)
     except Interrupted:
         driver.observer.event(f"mission ended at t={view.t_sim:.2f} s: interrupted")
         metrics = driver.mission.metrics(driver.record)

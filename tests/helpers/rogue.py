@@ -71,7 +71,7 @@ def main() -> int:
                     ),
                     routing,
                 )
-                stop.put(Tick(stamp=stamp, tick=0, time_us=now_us, watermarks={}, stop=True))
+                stop.put(Tick(stamp=stamp, tick=0, time_us=now_us, stop=True))
                 sent["cmd"] += 1
                 sent["stop_ticks"] += 1
                 if sent["watched"]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from common.messages import (
     Detection,
+    Frame,
     LinkCounters,
     LinkStats,
     MeasuredDelay,
@@ -23,6 +24,7 @@ from common.messages import (
     TruthState,
     VehicleStatus,
     VelocityCommand,
+    encode_routing,
     replace,
 )
 
@@ -200,10 +202,17 @@ def one_of_each() -> list[Message]:
             sent=SENT,
             tick=250,
             time_us=12_500_000,
-            watermarks={"sensor/nav": 125, "planner/cmd": 124},
             due=("estimator", "planner"),
             stop=False,
-            after={"sensor": 249},
+            frames=(
+                Frame(
+                    source="sensor",
+                    stream="nav",
+                    seq=125,
+                    data=b"\x92\x0c\x81",
+                    routing=encode_routing(249, {"estimator": (12_450_000,)}),
+                ),
+            ),
         ),
         TickAck(
             stamp=12.5,
@@ -212,9 +221,17 @@ def one_of_each() -> list[Message]:
             sent=SENT,
             tick=250,
             service="estimator",
-            published={"estimator/state": 125},
             next_us=12_600_000,
             wakes={"planner": 12_550_000},
+            frames=(
+                Frame(
+                    source="estimator",
+                    stream="state",
+                    seq=125,
+                    data=b"\x92\x0c\x80",
+                    routing=encode_routing(250, {"planner": (12_550_000,), "vehicle": ()}),
+                ),
+            ),
             done=False,
         ),
         Odometry(

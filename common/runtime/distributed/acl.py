@@ -3,9 +3,9 @@
 Each identity (a certificate's common name) gets exactly what its code does on the bus
 (docs/security.md):
 - a service puts its own output streams, its stats and its lockstep acks, subscribes to its
-  inputs, to their publishers' acks and to the ticks addressed to it, declares only its own
-  liveliness token and claim to its role (and sees the other claims of it), and may ask the
-  tap for its own newest frames (a restarted vehicle resumes from them);
+  inputs and to the ticks addressed to it (a lockstep tick carries its inputs), declares only
+  its own liveliness token and claim to its role (and sees the other claims of it), and may
+  ask the tap for its own newest frames (a restarted vehicle resumes from them);
 - the launcher (the clock) puts ticks and the watch copies, hears every stream, serves the
   run's dataflow, latest frames and scenario, owns the clock's token and claim, and sees
   every claim;
@@ -90,7 +90,6 @@ def run_grants(flow: Dataflow, keys: Keys) -> dict[str, Grants]:
             put=(*(keys.stream(name, s) for s in streams), keys.ack(name)),
             subscribe=(
                 *(keys.stream(i.source, i.stream) for i in svc.inputs),
-                *(keys.ack(source) for source in sorted({i.source for i in svc.inputs})),
                 keys.ticks_for(name),
             ),
             # its token, and its claim to its role (claim.py): it asks for the others' claims

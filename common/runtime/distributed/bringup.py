@@ -145,7 +145,7 @@ def _run_locally(
         ctx = RunContext(scenario=scenario, mission=mission, keys=run_keys(scenario), sup=sup)
         driver = make_driver(ctx)
         driver.await_alive(side.inbox)
-        result = driver.drive(side.inbox, side.ticks)
+        result = driver.drive(side.inbox, side.ticks, side.tap)
         side.announce_end(result)
         return result
 

@@ -30,7 +30,7 @@ class MissionClock:
     def start(self) -> None:
         """Time 0 is now: the start Tick carries exactly 0."""
         self.t0 = time.monotonic()
-        self.pub.put(Tick(stamp=0.0, tick=0, time_us=0, watermarks={}))
+        self.pub.put(Tick(stamp=0.0, tick=0, time_us=0))
         self.ticks = 1
 
     def now_us(self) -> int:
@@ -41,8 +41,6 @@ class MissionClock:
     def tell(self, *, stop: bool = False) -> int:
         """Publish the current mission time (us); stop=True ends the run for every service."""
         t_us = self.now_us()
-        self.pub.put(
-            Tick(stamp=t_us / 1e6, tick=self.ticks, time_us=t_us, watermarks={}, stop=stop)
-        )
+        self.pub.put(Tick(stamp=t_us / 1e6, tick=self.ticks, time_us=t_us, stop=stop))
         self.ticks += 1
         return t_us

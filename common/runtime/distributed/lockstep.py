@@ -1,15 +1,19 @@
 """The lockstep runtime: one OS process per service over Zenoh, virtual time from a coordinator.
 
-The coordinator is the clock and the recorder of everything the services publish. Tick k at
-time T carries the watermarks (last seq of every stream published before tick k); each service
-first waits until it holds every input message up to those watermarks, then runs the tick
-exactly as the inproc runtime does and acknowledges with what it published and when it next
-needs a tick. Time jumps to the earliest such need. While only services whose outcome is
-predictable are still running a tick, the next one already goes out, those it reads from
-told to wait for (lookahead.py). Because the hosts, link models and
-delivery order are the same, the trajectory is bit-identical to an inproc run of the same
-scenario and seed. `run_lockstep` makes this process the Zenoh router and forks the services;
-the launcher drives the same Coordinator with its own router and supervised processes.
+The coordinator is the clock, the recorder of everything the services publish, and the hub
+every frame goes through. Tick k at time T goes to the services due at T and carries every
+frame each of them reads that was published since it was last ticked; each runs the tick
+exactly as the inproc runtime does and acknowledges with the frames it published and when it
+next needs a tick. The coordinator records the frames (and hands them to the watch tap),
+queues each for the services that read it, and jumps time to the earliest need. So a due
+service costs a tick one message in and one out through the router, and waits for nothing
+but its tick (docs/notes/0058-lockstep-hub.md). While only services whose outcome is
+predictable are still running a tick, the next one already goes out to the services not
+running it, those that read a running one as soon as its ack is in (lookahead.py). Because
+the hosts, link models and delivery order are the same, the trajectory is bit-identical to
+an inproc run of the same scenario and seed. `run_lockstep` makes this process the Zenoh
+router and forks the services; the launcher drives the same Coordinator with its own router
+and supervised processes.
 """
 
 from __future__ import annotations
@@ -20,11 +24,13 @@ from pathlib import Path
 from typing import NamedTuple
 
 from common.bus import Inbox, Liveliness, Received
+from common.bus.tap import WatchTap
 from common.config.scenario import Scenario
 from common.jsonsafe import JsonObject
 from common.messages import Tick, TickAck
 from common.runtime.distributed.bringup import run_locally
 from common.runtime.distributed.claim import ClaimWatch
+from common.runtime.distributed.hub import FrameHub
 from common.runtime.distributed.lookahead import Lookahead
 from common.runtime.distributed.observer import RunContext
 from common.runtime.distributed.ticks import TickSender
@@ -33,23 +39,32 @@ from common.runtime.model.mission import mission_record
 from common.runtime.model.result import RunResult
 from common.runtime.processes.supervisor import ServiceFailed
 
+log = logging.getLogger("tidelink.lockstep")
 SERVICE_MODULE = "common.runtime.distributed.lockstep_service"
 PROGRESS_EVERY_S = 0.25  # wall seconds between progress reports to the observer
 
 
 class Ahead(NamedTuple):
-    """The next tick, already sent to some of its services (lookahead.py)."""
+    """The next tick, already sent (or held to be sent) to some of its services (lookahead.py)."""
 
     time_us: int
     services: tuple[str, ...]
     predicted: dict[str, int]  # the next need of each service still running the last tick
 
 
-class Done(NamedTuple):
-    """A tick complete: the watermarks after it, its acks, the mission's end (or None), and
-    the next tick if it was started early."""
+class Held(NamedTuple):
+    """Services of tick k+1 sent it once `feeders` (running tick k, read by them) acked k."""
 
-    marks: dict[str, int]
+    tick: int
+    time_us: int
+    services: tuple[str, ...]
+    feeders: tuple[str, ...]
+
+
+class Done(NamedTuple):
+    """A tick complete: its acks, the mission's end (or None), and the next tick if it was
+    started early."""
+
     acks: dict[str, TickAck]
     end: str | None
     ahead: Ahead | None
@@ -69,6 +84,8 @@ class Coordinator:
         self.stop = ctx.stop
         self.record = mission_record(ctx.mission)
         self.acks: dict[int, dict[str, TickAck]] = {}  # by tick, then service
+        self.hub = FrameHub(ctx.mission.dataflow, self.record, self.observer)
+        self.held: list[Held] = []  # groups of the next tick waiting for their feeders' acks
         self.lookahead = Lookahead.of(ctx.mission)
         self._tick_no = 0  # the tick being run
         self._max_us = 0  # the run's end (drive)
@@ -144,16 +161,41 @@ class Coordinator:
             # an ack counts on its service's own key only; anything else there is ignored
             if not isinstance(ev.msg, TickAck) or ev.msg.service != acked_by:
                 return
-            if ev.msg.tick >= self._tick_no:  # an older one is a late repeat
-                self.acks.setdefault(ev.msg.tick, {})[ev.msg.service] = ev.msg
+            ack = ev.msg
+            # an older one is a late repeat, and a repeat of one taken carries nothing new
+            if ack.tick >= self._tick_no and acked_by not in self.acks.get(ack.tick, {}):
+                self.acks.setdefault(ack.tick, {})[acked_by] = ack
+                self.hub.take(acked_by, ack.frames)
             if self.stopping:
-                self.finished.add(ev.msg.service)
+                self.finished.add(acked_by)
             return
         if isinstance(ev.msg, Tick):
             return
+        # nothing of the run's own is put on a stream key in lockstep (its frames travel in
+        # acks): this is someone else's put, recorded only if it can be the stream's
+        # publisher's (Record), and sent to no service
         service, stream = self.keys.split(ev.key)
         if self.record.add(service, stream, ev.msg) is None:  # not shown if refused
             self.observer.message(service, stream, ev.msg)
+
+    def _send(
+        self, pub: TickSender, k: int, t_us: int, to: list[str], *, stop: bool = False
+    ) -> None:
+        """Tick k at t_us to the services `to`, carrying every frame they read not sent them
+        yet (FrameHub): one put, which Zenoh copies to each of them."""
+        frames = () if stop else self.hub.for_tick(to)
+        pub.put(
+            Tick(stamp=t_us / 1e6, tick=k, time_us=t_us, due=tuple(to), stop=stop, frames=frames)
+        )
+
+    def _release(self, pub: TickSender, got: dict[str, TickAck]) -> None:
+        """Send the held groups of the next tick whose feeders have all acked this one."""
+        if not self.held:
+            return
+        ready = [h for h in self.held if all(f in got for f in h.feeders)]
+        for h in ready:
+            self.held.remove(h)
+            self._send(pub, h.tick, h.time_us, list(h.services))
 
     def _tick(
         self,
@@ -161,7 +203,6 @@ class Coordinator:
         pub: TickSender,
         k: int,
         t_us: int,
-        marks: dict[str, int],
         due: list[str],
         *,
         need: dict[str, int] | None = None,
@@ -169,43 +210,33 @@ class Coordinator:
         stop: bool = False,
     ) -> Done:
         """Run tick k: send it to the due services not `sent` it early, collect every due
-        service's ack and data, judge the end. Given `need` (every service's next need before
-        the tick; the caller's judgement that each due one's is known) it may start tick k+1
-        early (lookahead.py)."""
+        service's ack (and so its frames), judge the end. Given `need` (every service's next
+        need before the tick; the caller's judgement that each due one's is known) it may
+        start tick k+1 early (lookahead.py)."""
         self._tick_no = k
         self.stopping = stop
         self.t_us = t_us
         to = [n for n in due if n not in sent]
         if to:
-            pub.put(
-                Tick(
-                    stamp=t_us / 1e6,
-                    tick=k,
-                    time_us=t_us,
-                    watermarks=marks,
-                    due=tuple(to),
-                    stop=stop,
-                )
-            )
+            self._send(pub, k, t_us, to, stop=stop)
         deadline = time.monotonic() + self.timeout_s
         judged, end, ahead = False, None, None
         while True:
-            got = dict(self.acks.get(k, {}))
+            got = self.acks.get(k, {})
+            self._release(pub, got)
             running = [n for n in due if n not in got]
             if not running:
                 break
             if need is not None and not judged and self.lookahead.predictable(running):
-                # the end is judged on the data of the services done (lookahead.py)
-                partial = self._data_of(inbox, deadline, k, marks, got)
+                # the end is judged on the frames of the services done (lookahead.py)
                 judged, end = True, self.mission.observe(self.record)
                 if end is None:
-                    ahead = self._start_next(pub, k, t_us, partial, need, got, running)
+                    ahead = self._start_next(pub, k, t_us, need, dict(got), running)
                 continue
             self._pump(inbox, deadline, f"acknowledging tick {k}")
         acks = self.acks.pop(k)
         for old in [t for t in self.acks if t < k]:
             del self.acks[old]
-        new_marks = self._data_of(inbox, deadline, k, marks, acks)
         if ahead is not None:
             for n, predicted in ahead.predicted.items():
                 if acks[n].next_us != predicted or acks[n].wakes:
@@ -215,36 +246,19 @@ class Coordinator:
                     )
         if not judged and not stop:
             end = self.mission.observe(self.record)
-        return Done(new_marks, acks, end, ahead)
-
-    def _data_of(
-        self,
-        inbox: Inbox,
-        deadline: float,
-        k: int,
-        marks: dict[str, int],
-        acks: dict[str, TickAck],
-    ) -> dict[str, int]:
-        """Wait until the data the acks of tick k report are recorded; the watermarks."""
-        new_marks = dict(marks)
-        for a in acks.values():
-            new_marks.update(a.published)
-        while missing := self.record.missing(new_marks):
-            self._pump(inbox, deadline, f"data of tick {k} on {', '.join(missing)}")
-        return new_marks
+        return Done(acks, end, ahead)
 
     def _start_next(
         self,
         pub: TickSender,
         k: int,
         t_us: int,
-        marks: dict[str, int],
         need: dict[str, int],
         got: dict[str, TickAck],
         running: list[str],
     ) -> Ahead | None:
-        """Send tick k+1 now to its services not running tick k, each told which running ones
-        it reads and must wait for (lookahead.py)."""
+        """Send tick k+1 now to its services not running tick k that read none of the running
+        ones; hold it for those that do until these have acked (lookahead.py)."""
         predicted = {n: t_us + self.lookahead.period_us[n] for n in running}
         after = dict(need) | {n: a.next_us for n, a in got.items()} | predicted
         for a in got.values():
@@ -260,24 +274,20 @@ class Coordinator:
         for service, feeders in waits.items():
             groups.setdefault(feeders, []).append(service)
         for feeders, services in sorted(groups.items()):
-            pub.put(
-                Tick(
-                    stamp=nxt / 1e6,
-                    tick=k + 1,
-                    time_us=nxt,
-                    watermarks=marks,
-                    due=tuple(services),
-                    after=dict.fromkeys(feeders, k),
-                )
-            )
+            if feeders:
+                self.held.append(Held(k + 1, nxt, tuple(services), feeders))
+            else:
+                self._send(pub, k + 1, nxt, services)
         self.started_early += 1
         return Ahead(nxt, tuple(sorted(waits)), predicted)
 
-    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
-        """Tick until the mission ends or max_time; a stop request raises Interrupted."""
+    def drive(self, inbox: Inbox, pub: TickSender, tap: WatchTap | None = None) -> RunResult:
+        """Tick until the mission ends or max_time; a stop request raises Interrupted. Every
+        frame recorded is handed to `tap` (the run's watch tap): no frame is put on its
+        stream's key, where the tap would hear it."""
+        self.hub.tap = tap
         max_us = self._max_us = round(self.mission.max_time_s * 1e6)
         k, t_us, reason = 0, 0, "max_time"
-        marks: dict[str, int] = {}
         # when each service next needs a tick: its own next event (from its last ack) or a
         # wake delivery someone sent it since (reported by the sender, before it arrives)
         need = dict.fromkeys(self.names, 0)
@@ -294,12 +304,10 @@ class Coordinator:
                 pub,
                 k,
                 t_us,
-                marks,
                 due,
                 need=need if stepped.issuperset(due) else None,
                 sent=sent,
             )
-            marks = done.marks
             stepped.update(due)
             for n in due:
                 need[n] = done.acks[n].next_us
@@ -321,8 +329,8 @@ class Coordinator:
                 break
             t_us, k = nxt, k + 1
             sent = done.ahead.services if done.ahead is not None else ()
-        self._tick(inbox, pub, k + 1, t_us, marks, sorted(need), stop=True)
-        logging.getLogger("tidelink.lockstep").info(
+        self._tick(inbox, pub, k + 1, t_us, sorted(need), stop=True)
+        log.info(
             "lockstep run ended at t=%.3f s after %d ticks (%d started early) in %.2f s wall: %s",
             t_us / 1e6,
             k + 1,

@@ -1,9 +1,10 @@
 """A lockstep service process: hosts one core, steps only when the coordinator ticks.
 
-A tick sent early (lookahead.py) may name services still running the tick before (`after`):
-the service then waits for their acks, which it hears directly (it subscribes to the acks of
-the predictable services it reads), and for the data they report, and steps as soon as they
-are in: the step after the planner's waits one hop for it, not two and the coordinator's.
+It hears one message a tick and sends one back. The Tick carries every frame its service
+reads that was published since it was last ticked (the coordinator, which records every
+frame, forwards them); the TickAck carries the frames it published in the tick. So the
+service subscribes to its ticks alone, and each due service costs a tick two messages through
+the router, not one per input, output and look-ahead ack (docs/notes/0058-lockstep-hub.md).
 """
 
 from __future__ import annotations
@@ -12,24 +13,16 @@ import logging
 import sys
 import time
 
-from common.bus import Bus, Inbox, Liveliness, Received
-from common.messages import Tick, TickAck, encode_routing
+from common.bus import CLOCK, Bus, Inbox, Liveliness, Received
+from common.messages import Frame, Tick, TickAck, WireError, decode, encode_routing
 from common.runtime.distributed.claim import claim
-from common.runtime.distributed.lookahead import Lookahead
-from common.runtime.distributed.service_process import (
-    ServiceSetup,
-    service_main,
-    take_data,
-    wire,
-)
-from common.runtime.model.seqwindow import SeqWindow, max_seq_gap
+from common.runtime.distributed.service_process import ServiceSetup, route, service_main
 
 log = logging.getLogger("tidelink.lockstep")
-MAX_ACKS_KEPT = 64  # feeders' acks held before those of past ticks are dropped
 
 
 class LockstepService:
-    """Waits for each tick, makes sure it holds every message sent before it, runs the tick."""
+    """Waits for each tick, takes the frames it carries, runs the tick, acks with its own."""
 
     def __init__(self, setup: ServiceSetup) -> None:
         self.scenario = setup.scenario
@@ -37,51 +30,51 @@ class LockstepService:
         self.host = setup.host
         self.keys = setup.keys
         self.bus_cfg = setup.bus_cfg
-        # which seqs of each input arrived: a tick's data are here when the complete prefix
-        # reaches its watermark (counting messages instead, one forged message on an input
-        # key would make the service step before the real one arrives)
-        gap = max_seq_gap(self.host.flow, self.scenario.run.max_time_s)
-        self.received = {f"{i.source}/{i.stream}": SeqWindow(gap) for i in self.host.inputs}
         self.timeout_s = self.scenario.runtime.tick_timeout_s
-        # the acks it may be told to wait for: of the predictable services it reads
-        predictable = Lookahead.of(setup.mission).period_us
-        self.feeders = sorted({i.source for i in self.host.inputs} & set(predictable))
-        self.acks: dict[tuple[str, int], TickAck] = {}  # theirs, by (service, tick)
+        # the highest seq taken per input: a tick carries the frames of every service it is
+        # for, so it may bring one this service took with an earlier tick
+        self.taken = {(i.source, i.stream): 0 for i in self.host.inputs}
+        self.last_tick = -1  # the newest tick run: the clock's ticks come in order
 
     def run(self) -> int:
-        # The Bus defaults (batching publishers, callbacks handed to a Python thread) make a
-        # faster tick loop on the default mission than express publishers and callbacks on
-        # Zenoh's network thread: Zenoh sends a batch as soon as its link is free, so nothing
-        # waits for a batch to fill.
         with Bus(self.bus_cfg, self.keys, identity=self.name) as bus:
             claim(bus, self.keys, self.name)  # RoleTaken: another one is in the run
             inbox = Inbox()
-            # data are quiet: taken when the tick comes, not each on arrival (a wake-up per
-            # message was most of a fleet sensor's CPU)
-            pubs = wire(bus, self.host, self.keys, inbox, express=False, quiet=True)
-            for feeder in self.feeders:
-                bus.subscribe(self.keys.ack(feeder), inbox)
+            bus.subscribe(self.keys.ticks_for(self.name), inbox)
+            bus.watch_alive(inbox, self.keys.alive(CLOCK))
+            # batched (not express): Zenoh sends a batch as soon as its link is free, so the
+            # ack waits for nothing (docs/notes/0017-lockstep-ticks-batched.md)
             ack_pub = bus.publisher_on(self.keys.ack(self.name))
             bus.declare_alive(self.name)
             while True:
                 tick = self._next_tick(inbox)
                 if not tick.stop and self.name not in tick.due:
-                    continue  # nothing due here: messages keep arriving into the host
-                self._wait_for(inbox, self._after(inbox, tick))
+                    continue  # (a stop tick goes to every service, the others to the due)
+                if tick.tick <= self.last_tick:  # one session sends them: Zenoh keeps its order
+                    raise RuntimeError(f"{self.name}: tick {tick.tick} after {self.last_tick}")
+                self.last_tick = tick.tick
+                self._take(tick.frames)
                 if tick.stop:
                     out = [self.host.publish_stats(tick.tick, tick.time_us)]
                 else:
                     out = self.host.run_tick(tick.tick, tick.time_us)
-                for o in out:
-                    pubs[o.stream].put_bytes(o.data, encode_routing(tick.tick, o.schedule))
                 ack_pub.put(
                     TickAck(
                         stamp=tick.time_us / 1e6,
                         tick=tick.tick,
                         service=self.name,
-                        published={f"{self.name}/{k}": v for k, v in self.host.published().items()},
                         next_us=self.host.next_event_us(),
                         wakes=self.host.wake_deliveries_us(out),
+                        frames=tuple(
+                            Frame(
+                                source=self.name,
+                                stream=o.stream,
+                                seq=o.seq,
+                                data=o.data,
+                                routing=encode_routing(tick.tick, o.schedule),
+                            )
+                            for o in out
+                        ),
                     )
                 )
                 if tick.stop:
@@ -90,32 +83,34 @@ class LockstepService:
                 # off the tick's critical path: the coordinator goes on meanwhile, and the
                 # next tick for this service waits in its inbox until this is done
                 self.host.prepare()
-                if len(self.acks) > MAX_ACKS_KEPT:  # the feeders' acks of ticks gone by
-                    self.acks = {key: a for key, a in self.acks.items() if key[1] >= tick.tick}
 
-    def _after(self, inbox: Inbox, tick: Tick) -> dict[str, int]:
-        """The watermarks of `tick`, with those its `after` services' acks report (waited for)."""
-        if not tick.after:
-            return tick.watermarks
-        marks = dict(tick.watermarks)
-        deadline = time.monotonic() + self.timeout_s
-        for service, k in sorted(tick.after.items()):
-            if service not in self.feeders:
-                raise RuntimeError(f"{self.name}: tick {tick.tick} waits for {service}, not read")
-            while (service, k) not in self.acks:
-                ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()), data=False)
-                if ev is None:
-                    raise TimeoutError(f"{self.name}: {service}'s ack of tick {k} never came")
-                if self._handle(ev) is not None:
-                    raise RuntimeError(f"{self.name}: a new tick came before {service}'s ack")
-            marks.update(self.acks[(service, k)].published)
-        return marks
+    def _take(self, frames: tuple[Frame, ...]) -> None:
+        """Queue in the host the frames of this tick that it reads and has not taken yet (a
+        tick carries those of every service it is for; each reader of a stream is queued every
+        frame of it, in order, so one at or below the highest seq taken was taken before)."""
+        for f in frames:
+            key = (f.source, f.stream)
+            last = self.taken.get(key)
+            if last is None or f.seq <= last:
+                continue
+            self.taken[key] = f.seq
+            try:
+                msg = decode(f.data)
+            except WireError as exc:
+                self.host.count_dropped(f.source, f.stream, 1, "undecodable", str(exc))
+                continue
+            if msg.source != f.source or msg.seq != f.seq:
+                self.host.count_dropped(f.source, f.stream, 1, "not its frame", msg.source)
+                continue
+            routed = route(self.host, f.source, f.stream, f.routing)
+            if routed is not None and routed.times_us:
+                self.host.accept(msg, f.source, f.stream, routed.times_us, routed.sent_tick)
 
     def _await_release(self, inbox: Inbox) -> None:
         """Stay connected until the coordinator leaves, so the final ack is surely delivered."""
         deadline = time.monotonic() + self.timeout_s
         while time.monotonic() < deadline:
-            ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()), data=False)
+            ev = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
             if isinstance(ev, Liveliness) and not ev.alive:
                 return
         log.warning(
@@ -131,37 +126,13 @@ class LockstepService:
             return None
         if self.keys.is_tick(ev.key):  # only the clock's keys carry ticks
             return ev.msg if isinstance(ev.msg, Tick) else None
-        acked_by = self.keys.acked_by(ev.key)
-        if acked_by is not None:  # a feeder's ack, on its own key only
-            if isinstance(ev.msg, TickAck) and ev.msg.service == acked_by:
-                self.acks[(acked_by, ev.msg.tick)] = ev.msg
-            return None
-        service, stream = self.keys.split(ev.key)
-        window = self.received.get(f"{service}/{stream}")
-        if window is not None and ev.msg.source == service and window.plausible(ev.msg.seq):
-            window.take(ev.msg.seq)
-        routed = take_data(self.host, self.keys, ev)
-        if routed is not None and routed.times_us:
-            self.host.accept(
-                ev.msg, routed.source, routed.stream, routed.times_us, routed.sent_tick
-            )
         return None
 
     def _next_tick(self, inbox: Inbox) -> Tick:
         while True:
-            tick = self._handle(inbox.get(timeout=self.timeout_s, data=False))
+            tick = self._handle(inbox.get(timeout=self.timeout_s))
             if tick is not None:
                 return tick
-
-    def _wait_for(self, inbox: Inbox, watermarks: dict[str, int]) -> None:
-        deadline = time.monotonic() + self.timeout_s
-        for key, seq in watermarks.items():
-            while key in self.received and self.received[key].prefix < seq:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise TimeoutError(f"{self.name}: {key} seq {seq} never arrived")
-                if self._handle(inbox.get(timeout=left)) is not None:
-                    raise RuntimeError(f"{self.name}: a new tick came before the data of the last")
 
 
 def main(argv: list[str] | None = None) -> int:

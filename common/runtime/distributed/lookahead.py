@@ -9,12 +9,14 @@ that service is *predictable*: periodic, with no wake input (its next need is it
 and no output to one (it moves no one else's), and publishing nothing the mission's end
 depends on (Mission.ends_on). While only predictable services are still running tick k, the
 coordinator judges the tick's end on the data it has, works out tick k+1, and sends it at
-once to its services that are not running tick k: one that none of the running ones feeds
-starts at once (what it reads from them was all sent before tick k); one they feed is told
-to wait for their acks, which it hears directly, and for the data these report (the step
-after the planner's then waits one hop for it, not two hops and the coordinator). The end of
-tick k+1 is judged only after tick k's (no data of a later tick can be seen early), so the
-trajectory is the same as without look-ahead (and as inproc), bit for bit.
+once to its services: one that none of the other running ones feeds gets it at once (what it
+reads from them was all sent before tick k), and if it is still running tick k itself, the
+next tick waits in its inbox and it runs it as soon as it acks tick k; one they feed is sent
+it as soon as their acks, which carry the frames it reads, are in (lockstep.py). On a tick
+whose due services are all predictable (the toy loop's, every one), tick k+1 so goes out with
+tick k, and the coordinator's collecting of tick k's acks is off the services' path. The end
+of tick k+1 is judged only after tick k's (no data of a later tick can be seen early), so
+the trajectory is the same as without look-ahead (and as inproc), bit for bit.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class Lookahead:
         return all(n in self.period_us for n in running)
 
     def waits(self, due: Sequence[str], running: Sequence[str]) -> dict[str, tuple[str, ...]]:
-        """The services of the next tick (`due`) that may be sent it while `running` finish
-        theirs (those not running it), each with the running ones it reads: it starts when
-        their acks and the data these report are in (lockstep_service.py)."""
-        return {s: tuple(r for r in running if s in self.feeds[r]) for s in due if s not in running}
+        """The services of the next tick (`due`), sent it while `running` (predictable, the
+        caller's judgement) finish theirs, each with the other running ones it reads: it is
+        sent the tick when their acks, with the frames it reads, are in (lockstep.py)."""
+        return {s: tuple(r for r in running if r != s and s in self.feeds[r]) for s in due}

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from common.bus import Inbox, Keys
+from common.bus.tap import WatchTap
 from common.config.scenario import Scenario
 from common.messages import Message
 from common.runtime.distributed.ticks import TickSender
@@ -68,5 +69,6 @@ class Driver(Protocol):
     def await_alive(self, inbox: Inbox) -> None:
         """Wait until every service has declared its liveliness token."""
 
-    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
-        """Run the mission clock until the mission ends, max_time or a stop request."""
+    def drive(self, inbox: Inbox, pub: TickSender, tap: WatchTap) -> RunResult:
+        """Run the mission clock until the mission ends, max_time or a stop request; frames
+        recorded that were not put on their stream keys (lockstep) are handed to `tap`."""

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from common.bus import Event, Inbox, Liveliness
+from common.bus.tap import WatchTap
 from common.config.scenario import Scenario
 from common.jsonsafe import JsonObject
 from common.messages import Tick, TickAck
@@ -198,7 +199,8 @@ class RealtimeDriver:
             f"all {len(self.names)} services alive after {time.monotonic() - t0:.2f} s"
         )
 
-    def drive(self, inbox: Inbox, pub: TickSender) -> RunResult:
+    def drive(self, inbox: Inbox, pub: TickSender, tap: WatchTap | None = None) -> RunResult:
+        """Run the clock (the services' frames go on their stream keys: `tap` hears them)."""
         scale = self.scenario.runtime.time_scale
         max_us = round(self.mission.max_time_s * 1e6)
         self.clock = clock = MissionClock(pub, scale)

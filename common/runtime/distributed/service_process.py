@@ -61,13 +61,10 @@ class ServiceSetup:
         )
 
 
-def wire(
-    bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool, quiet: bool = False
-) -> dict[str, Publisher]:
-    """Subscribe the host's inputs (quiet: not waking a wait for the clock, Inbox) and the
-    clock; one publisher per output stream and stats."""
+def wire(bus: Bus, host: Host, keys: Keys, inbox: Inbox, *, express: bool) -> dict[str, Publisher]:
+    """Subscribe the host's inputs and the clock; one publisher per output stream and stats."""
     for i in host.inputs:
-        bus.subscribe_stream(i.source, i.stream, inbox, quiet=quiet)
+        bus.subscribe_stream(i.source, i.stream, inbox)
     bus.subscribe(keys.ticks_for(host.name), inbox)
     bus.watch_alive(inbox, keys.alive(CLOCK))
     return {s: bus.publisher(host.name, s, express=express) for s in host.streams}
@@ -106,18 +103,24 @@ class Routed(NamedTuple):
 
 def take_data(host: Host, keys: Keys, ev: Received) -> Routed | None:
     """The routing of a data message for this host, or None: a message on a key that is not
-    an input, or without a valid routing attachment, is not delivered; the host counts it
-    among its inputs' drops and logs it once per input and reason per mission second (a
-    flood of them costs one line a second, not one a message)."""
+    an input is not delivered (see `route` for the routing attachment)."""
     try:
         source, stream = keys.split(ev.key)
     except ValueError:  # a key with more chunks: a tick key, or nothing we subscribed to
         return None
-    if ev.attachment is None:
+    return route(host, source, stream, ev.attachment)
+
+
+def route(host: Host, source: str, stream: str, attachment: bytes | None) -> Routed | None:
+    """The routing of a message of `source`/`stream` for this host, or None: without a valid
+    routing attachment it is not delivered; the host counts it among its inputs' drops and
+    logs it once per input and reason per mission second (a flood of them costs one line a
+    second, not one a message)."""
+    if attachment is None:
         host.count_dropped(source, stream, 1, "no routing attachment")
         return None
     try:
-        sent_tick, schedule = decode_routing(ev.attachment)
+        sent_tick, schedule = decode_routing(attachment)
     except WireError as exc:
         host.count_dropped(source, stream, 1, "bad routing attachment", str(exc))
         return None

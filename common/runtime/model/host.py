@@ -69,6 +69,7 @@ class Outgoing:
     """
 
     stream: str
+    seq: int  # the message's, as in its envelope
     data: bytes
     schedule: dict[str, tuple[int, ...]]
 
@@ -322,7 +323,7 @@ class Host:
             schedule[receiver] = (
                 (to_us(times[0]),) if len(times) == 1 else tuple(to_us(x) for x in times)
             )
-        return Outgoing(stream, data, schedule)
+        return Outgoing(stream, seq, data, schedule)
 
     def wake_deliveries_us(self, out: list[Outgoing]) -> dict[str, int]:
         """Earliest delivery to a wake input per receiver, among messages just sent: what the

@@ -33,8 +33,7 @@ class Record:
     - future: stamped after `latest_s`, the recorder's own mission time when it is given (a
       realtime run: no service's clock may be ahead of the launcher's, and the run's metrics
       must not run past its end).
-    So one forged message can neither become a stream's `last` from far ahead nor make a
-    lockstep run believe it holds a tick's data (`missing` counts the complete prefix).
+    So one forged message cannot become a stream's `last` from far ahead.
     """
 
     def __init__(self, max_seq_gap: int = DEFAULT_MAX_GAP) -> None:
@@ -110,16 +109,6 @@ class Record:
         """Highest seq recorded on a stream (0 if none)."""
         last = self._last.get((service, stream))
         return 0 if last is None else last.seq
-
-    def missing(self, watermarks: dict[str, int]) -> list[str]:
-        """The 'service/stream' keys whose messages up to the watermark are not all here."""
-        out = []
-        for key, seq in watermarks.items():
-            service, _, stream = key.partition("/")
-            window = self._windows.get((service, stream))
-            if seq and (window is None or window.prefix < seq):
-                out.append(key)
-        return out
 
     def keys(self) -> list[tuple[str, str]]:
         return sorted(self._streams)
