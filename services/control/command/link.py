@@ -162,7 +162,7 @@ class CommandLink:
         self.model = self.model.with_current(*believed_current(est))
         self.doubted_current_mps = doubted_current(est)
         # a current is worth keeping station against once it is told from the fixes' noise
-        self.current_known = math.hypot(est.current_x, est.current_y) > 2.0 * est.current_std
+        self.current_known = current_told(est)
         t_b = basis_time(est)
         settle = YAW_SETTLE_TAUS * self.model.tau_w_s
         self.timeline.forget_before(t_b - settle)
@@ -412,12 +412,18 @@ def doubted_current(est: StateEstimate) -> tuple[float, float]:
     deviation longer; before, the believed one. While the estimator is still learning a
     current, the believed one lags it (it grows from 0 over the first seconds), and a plan
     sized and flown in it alone turns too tight over ground (asking.py, rollout.py)."""
+    if not current_told(est):
+        return believed_current(est)
     cx, cy, std = est.current_x, est.current_y, est.current_std
     c = math.hypot(cx, cy)
-    if c <= 2.0 * std:
-        return believed_current(est)
     k = (c + std) / c
     return k * cx, k * cy
+
+
+def current_told(est: StateEstimate) -> bool:
+    """The estimated current is told from the fixes' noise: more than twice its standard
+    deviation (what station keeping and the doubted current wait for)."""
+    return math.hypot(est.current_x, est.current_y) > 2.0 * est.current_std
 
 
 def _shrink(value2: float, std: float) -> float:
