@@ -564,6 +564,8 @@ def test_launch_progress_shows_every_vehicle() -> None:
 def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     tmp_path: Path,
 ) -> None:
+    # (x3: at x6 a loaded 2-core machine let auv2 lose its pace: short of its goal once,
+    # within rho0 of the held auv1 once)
     # a real launch of the head-on pair 50 m apart (8 service processes); auv1's planner is
     # SIGKILLed at t = 10 s, before they meet, and not restarted: auv1's vehicle holds, then
     # fails safe, on its own watchdog; auv2 passes it (its last intent, then its sonar track)
@@ -574,7 +576,7 @@ def test_a_sigkilled_planner_leaves_its_vehicle_holding_and_the_fleet_going_on(
     from services.chaos.faults import Fault
 
     setup = CaseSetup(
-        scenario=HEADON_SHORT, sets=("run.max_time_s=60.0",), time_scale=6.0, fault_at_s=10.0
+        scenario=HEADON_SHORT, sets=("run.max_time_s=60.0",), time_scale=3.0, fault_at_s=10.0
     )
     s, _ = load_scenario(HEADON_SHORT, list(setup.sets))
     got = run_case(

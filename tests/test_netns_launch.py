@@ -174,6 +174,8 @@ def test_a_secured_launch_across_namespaces_survives_a_link_outage(
 
 
 FLEET = ("auv1", "auv2")
+# x3: at x6 a loaded 2-core machine let the head-on pair lose its pace (once, contact)
+FLEET_SCALE = "3"
 
 
 def test_a_fleet_runs_one_router_per_vehicle_host(tmp_path: Path) -> None:
@@ -194,7 +196,7 @@ def test_a_fleet_runs_one_router_per_vehicle_host(tmp_path: Path) -> None:
         try:
             with ExitStack() as stack:
                 launcher = stack.enter_context(
-                    _clock_only(scenario, top, out, "6", "--no-plot", "--insecure")
+                    _clock_only(scenario, top, out, FLEET_SCALE, "--no-plot", "--insecure")
                 )
                 launcher.wait_for(r"waiting for .* to join", WAIT_S)
                 local = f"tcp/127.0.0.1:{PORT}"  # each host's own router, on its loopback
@@ -214,7 +216,7 @@ def test_a_fleet_runs_one_router_per_vehicle_host(tmp_path: Path) -> None:
                     f"{v}.{s}": stack.enter_context(
                         Tidelink(
                             *("service", s, scenario, "--vehicle", v, "--connect", local),
-                            *("--time-scale", "6"),
+                            *("--time-scale", FLEET_SCALE),
                             netns=links[v].ns_b,
                         )
                     )
