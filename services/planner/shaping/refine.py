@@ -89,6 +89,24 @@ def _rows(*terms: tuple[FloatArray, FloatArray]) -> FloatArray:
     return out.reshape(len(b0), -1)
 
 
+@dataclass(frozen=True, slots=True)
+class _Point:
+    """F at one x, with the sample quantities its derivatives are built from."""
+
+    f: float
+    c: FloatArray  # curve points (m, 2)
+    v1: FloatArray  # C'
+    v2: FloatArray  # C''
+    sp: FloatArray  # |C'|
+    cross: FloatArray  # x'y'' - y'x''
+    k: FloatArray  # curvature
+    vk: FloatArray  # its hinge
+    turn: tuple[FloatArray, FloatArray, FloatArray] | None  # g(k), g'(k), each sample's F_R
+    dists: list[FloatArray]  # clearances: static, then moving
+    dirs: list[FloatArray]  # their unit directions away
+    hinges: list[FloatArray]  # max(0, d_t - d) of each
+
+
 class Objective:
     """F(x) of eq. (9) with its gradient and a Gauss-Newton / majoriser Hessian."""
 
@@ -114,48 +132,67 @@ class Objective:
         self, x: FloatArray, hessian: bool = False
     ) -> tuple[float, FloatArray, FloatArray]:
         """F(x), dF/dx and (if asked) the PSD Hessian model; the last is empty otherwise."""
+        at = self.value(x)
+        gx, h = self.derivatives(at, hessian)
+        return at.f, gx, h
+
+    def value(self, x: FloatArray) -> _Point:
+        """F(x) alone, with what its derivatives reuse: a trial step that does not lower F
+        needs no more (Levenberg-Marquardt rejects a third of its steps)."""
         wts = self.wts
         p = self.lay.ctrl(x)
         c, v1, v2 = self.r0 @ p, self.r1 @ p, self.r2 @ p
         sp = np.maximum(np.hypot(v1[:, 0], v1[:, 1]), 1e-9)
         f = float(self.wq @ sp)  # eq. (8): length
-        g1 = (self.wq / sp)[:, None] * v1
         # eq. (19)-(20): curvature k = |x'y'' - y'x''| / |C'|^3 and its hinge
         cross = v1[:, 0] * v2[:, 1] - v1[:, 1] * v2[:, 0]
         k = np.abs(cross) / sp**3
         vk = np.maximum(k - wts.k_target, 0.0)
         f += wts.c_k * float(vk @ vk)
-        sg = np.sign(cross) / sp**3
+        turn = None
+        if wts.c_r > 0.0:  # eq. (19): c_r F_R, F_R = int g(k) ds with ds = |C'| du (turn_cost)
+            gk, dgk = turn_cost(k, self.prob.r_min_m, wts.k_target)
+            fr = wts.c_r * self.wq * sp * gk
+            f += float(np.sum(fr))
+            turn = (gk, dgk, fr)
+        dists, dirs = self._clearances(c)
+        hinges = []
+        for dist_m in dists:
+            vd = np.maximum(self.d_t - dist_m, 0.0)
+            f += wts.c_d * float(vd @ vd)
+            hinges.append(vd)
+        return _Point(f, c, v1, v2, sp, cross, k, vk, turn, dists, dirs, hinges)
+
+    def derivatives(self, at: _Point, hessian: bool = False) -> tuple[FloatArray, FloatArray]:
+        """dF/dx at a point `value` gave and (if asked) the PSD Hessian model, else empty."""
+        wts = self.wts
+        v1, v2, sp, k, vk = at.v1, at.v2, at.sp, at.k, at.vk
+        g1 = (self.wq / sp)[:, None] * v1
+        sg = np.sign(at.cross) / sp**3
         kk = 3.0 * k / sp**2
         dk1 = np.stack([sg * v2[:, 1] - kk * v1[:, 0], -sg * v2[:, 0] - kk * v1[:, 1]], axis=1)
         dk2 = np.stack([-sg * v1[:, 1], sg * v1[:, 0]], axis=1)
         g1 += (2.0 * wts.c_k * vk)[:, None] * dk1
         g2 = (2.0 * wts.c_k * vk)[:, None] * dk2
-        # eq. (19): c_r F_R, F_R = int g(k) ds with ds = |C'| du (turn_cost)
         turn_rows = None
-        if wts.c_r > 0.0:
-            gk, dgk = turn_cost(k, self.prob.r_min_m, wts.k_target)
+        if at.turn is not None:
+            gk, dgk, fr = at.turn
             ws = wts.c_r * self.wq
-            fr = ws * sp * gk
-            f += float(np.sum(fr))
             a1 = (ws * gk / sp)[:, None] * v1 + (ws * sp * dgk)[:, None] * dk1
             a2 = (ws * sp * dgk)[:, None] * dk2
             g1 += a1
             g2 += a2
             if hessian:
                 turn_rows = (fr, a1, a2)
-        dists, dirs = self._clearances(c)
-        gc = np.zeros_like(c)
-        for dist_m, dd in zip(dists, dirs, strict=True):
-            vd = np.maximum(self.d_t - dist_m, 0.0)
-            f += wts.c_d * float(vd @ vd)
+        gc = np.zeros_like(at.c)
+        for vd, dd in zip(at.hinges, at.dirs, strict=True):
             gc -= (2.0 * wts.c_d * vd)[:, None] * dd
         gp = self.r0.T @ gc + self.r1.T @ g1 + self.r2.T @ g2
         gx = self.lay.m.T @ gp.ravel()
         if not hessian:
-            return f, gx, np.zeros((0, 0))
-        hp = self._hessian_model(sp, k, dk1, dk2, dists, dirs, turn_rows)
-        return f, gx, self.lay.m.T @ hp @ self.lay.m
+            return gx, np.zeros((0, 0))
+        hp = self._hessian_model(sp, k, dk1, dk2, at.dists, at.dirs, turn_rows)
+        return gx, self.lay.m.T @ hp @ self.lay.m
 
     def _clearances(self, c: FloatArray) -> tuple[list[FloatArray], list[FloatArray]]:
         """eq. (12)-(13): the samples' (m,) clearances to static (bilinear grid) and moving
@@ -228,9 +265,11 @@ def levenberg_marquardt(
     for _ in range(max_iter):
         step = np.linalg.solve(h + lam * (np.diag(np.diag(h)) + 1e-6 * eye), -g)
         xn = np.minimum(np.maximum(x + step, lo), hi)
-        fn, gn, hn = obj(xn, hessian=True)
+        at = obj.value(xn)  # the derivatives only for a step that is kept
+        fn = at.f
         if fn < f:
             done = f - fn < 1e-6 * abs(f)
+            gn, hn = obj.derivatives(at, hessian=True)
             x, f, g, h = xn, fn, gn, hn
             lam = max(lam / 3.0, 1e-9)
             if done:
