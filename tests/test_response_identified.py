@@ -1,4 +1,4 @@
-"""The planner's response model against the REMUS hull it predicts (command/identify.py).
+"""The planner's response model against the REMUS hull it predicts (scripts/identify_response.py).
 
 configs/ocean.toml keeps the unicycle's lags (note 0061): the test measures how far they put
 the model from the hull, and checks that the identified ones bring it close.
@@ -6,27 +6,36 @@ the model from the hull, and checks that the identified ones bring it close.
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
 
 import pytest
 
 from common.config.scenario import load_scenario
-from services.control.command.identify import identify, main, mismatch
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = ROOT / "configs"
+_spec = importlib.util.spec_from_file_location(
+    "identify_response", ROOT / "scripts" / "identify_response.py"
+)
+assert _spec is not None and _spec.loader is not None
+tool = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = tool  # its dataclasses look their module up there
+_spec.loader.exec_module(tool)
 
 
 def test_identified_lags_follow_the_hull_the_unicycle_lags_do_not() -> None:
     """Identified: within 2 deg of the hull's heading through turns begun, ended and reversed,
     and 0.6 m of its run through speed steps; the unicycle's lags: 10 deg and 2 m off."""
     vehicle = load_scenario(CONFIGS / "ocean.toml")[0].vehicle
-    fitted = identify(vehicle)
+    fitted = tool.identify(vehicle)
     assert (fitted.yaw_tau_s, fitted.yaw_accel_max_rps2, fitted.accel_max_mps2) == (
         0.4,
         0.2,
         0.2,
     )
-    ours, theirs = mismatch(fitted), mismatch(vehicle)
+    ours, theirs = tool.mismatch(fitted), tool.mismatch(vehicle)
     assert ours.heading_rad < 0.035
     assert ours.along_m < 0.6
     assert theirs.heading_rad > 0.15
@@ -34,7 +43,7 @@ def test_identified_lags_follow_the_hull_the_unicycle_lags_do_not() -> None:
 
 
 def test_the_tool_prints_both(capsys: pytest.CaptureFixture[str]) -> None:
-    main([str(CONFIGS / "ocean.toml")])
+    tool.main([str(CONFIGS / "ocean.toml")])
     out = capsys.readouterr().out
     assert "configured: yaw_tau_s = 0.5" in out
     assert "identified: yaw_tau_s = 0.4, yaw_accel_max_rps2 = 0.2, accel_max_mps2 = 0.2" in out
@@ -42,4 +51,4 @@ def test_the_tool_prints_both(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_unicycle_plant_has_nothing_to_identify() -> None:
     with pytest.raises(SystemExit, match="nothing to identify"):
-        main([str(CONFIGS / "default.toml")])
+        tool.main([str(CONFIGS / "default.toml")])

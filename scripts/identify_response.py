@@ -1,7 +1,8 @@
 """The response model's mismatch with the plant, and its lags identified from the plant's steps.
 
-The planner and the controllers predict the vehicle with their own model (response.py), not
-with the plant. Under `vehicle.model = "fossen3dof"` the hull's yaw loop (the rudder's rate
+The planner and the controllers predict the vehicle with their own model
+(services/control/command/response.py), which never imports the plant: this tool, above both,
+compares them. Under `vehicle.model = "fossen3dof"` the hull's yaw loop (the rudder's rate
 limit, the hull's yaw inertia) reverses a turn in about a second, where the model's lags (the
 unicycle's: yaw_tau_s 0.5 s, yaw_accel_max_rps2 0.5) do it in half that. `mismatch` measures
 how far the model strays over step trials, and `identify` fits the lags to the plant, as a
@@ -13,7 +14,7 @@ trials engineer fits a manoeuvring model to zig-zag and acceleration runs:
 configs/ocean.toml keeps the unicycle's lags: the identified ones were flown and changed no
 outcome for the better (docs/notes/0061-response-model-identified-not-adopted.md).
 
-    python -m services.control.command.identify configs/ocean.toml
+    python scripts/identify_response.py configs/ocean.toml
 """
 
 from __future__ import annotations
