@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
 import subprocess
 import tracemalloc
@@ -30,6 +29,7 @@ from services.planner.geometry.clearance import StaticField
 from services.planner.plan import PlanRequest, plan_path
 from services.planner.search.costmap import build_costmap
 from services.planner.search.graph import _structure
+from tests.helpers.scripts import load_script
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "configs" / "default.toml"
@@ -259,10 +259,7 @@ def test_a_sweep_checks_every_cell_against_the_budget_before_it_starts(tmp_path:
 def test_the_budget_benchmark_measures_replans_near_the_estimate(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    spec = importlib.util.spec_from_file_location("bench_budget", REPO / "scripts/bench_budget.py")
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_budget")
     rows = bench.bench_replans([0.25], [("dijkstra", 8), ("dijkstra", 16)])
     # each replan in a fresh process: its resident growth is the estimate, within 15 %
     assert [(r[0], r[1]) for r in rows] == [("dijkstra", 8), ("dijkstra", 16)]

@@ -3,29 +3,20 @@ leaves by itself, and one that joined and was SIGSTOPped (killed at the end)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
+from tests.helpers.scripts import load_script
+
 # a real launch on the wall clock, beside the other shared realtime tests: it asserts that the
 # script measures, never how fast (what the machine's load could change is the benchmark's)
 pytestmark = [pytest.mark.slow]
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _bench() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "bench_monitor", ROOT / "scripts" / "bench_monitor.py"
-    )
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = bench  # its dataclasses look their module up there
-    spec.loader.exec_module(bench)
-    return bench
+    return load_script("bench_monitor")
 
 
 def test_bench_monitor_measures_the_loop_with_a_monitor(tmp_path: Path) -> None:

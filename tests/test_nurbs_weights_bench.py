@@ -2,26 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.helpers.scripts import load_script
 
 
 def test_the_weights_experiment_compares_points_only_with_points_and_weights(
-    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    spec = importlib.util.spec_from_file_location(
-        "bench_nurbs_weights", ROOT / "scripts" / "bench_nurbs_weights.py"
-    )
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, bench)  # its dataclasses look their module up
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_nurbs_weights")
     (row,) = bench.main(n_varied=0, n_fields=0, max_iter=3)  # the default plan only
     assert row.plan.ok and all(math.isfinite(v.f) for v in (row.plan, row.points, row.joint))
     # more refinement never makes F worse than the plan's, and the weights stay in bounds

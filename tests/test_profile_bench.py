@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+
+from tests.helpers.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -14,12 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_bench_profile_accounts_for_a_tick(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    spec = importlib.util.spec_from_file_location(
-        "bench_profile", ROOT / "scripts" / "bench_profile.py"
-    )
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_profile")
     small = tmp_path / "small5.toml"
     base = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
     small.write_text(f'extends = "{base}"\n[run]\nmax_time_s = 5.0\n')

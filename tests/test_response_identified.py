@@ -6,23 +6,15 @@ the model from the hull, and checks that the identified ones bring it close.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
 
 from common.config.scenario import load_scenario
+from tests.helpers.scripts import load_script
 
-ROOT = Path(__file__).resolve().parents[1]
-CONFIGS = ROOT / "configs"
-_spec = importlib.util.spec_from_file_location(
-    "identify_response", ROOT / "scripts" / "identify_response.py"
-)
-assert _spec is not None and _spec.loader is not None
-tool = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = tool  # its dataclasses look their module up there
-_spec.loader.exec_module(tool)
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+tool = load_script("identify_response")
 
 
 def test_identified_lags_follow_the_hull_the_unicycle_lags_do_not() -> None:

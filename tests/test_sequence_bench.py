@@ -3,23 +3,14 @@ sequence_cost.py): a few control steps at two horizons."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from services.experiments.netreport.sequence_cost import bench_steps
-
-ROOT = Path(__file__).resolve().parents[1]
+from tests.helpers.scripts import load_script
 
 
 def test_bench_sequence_times_steps_and_sizes_commands(capsys: pytest.CaptureFixture[str]) -> None:
-    spec = importlib.util.spec_from_file_location(
-        "bench_sequence", ROOT / "scripts" / "bench_sequence.py"
-    )
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_sequence")
     _, single = bench_steps("nurbs", 0.0, 5)
     times, sizes = bench_steps("nurbs", 2.0, 5)
     assert len(times) == len(sizes) == 5 and min(times) >= 0.0

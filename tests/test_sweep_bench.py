@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import subprocess
 from pathlib import Path
 
 import pytest
+
+from tests.helpers.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -16,12 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_bench_sweep_reports_runs_per_minute(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    spec = importlib.util.spec_from_file_location(
-        "bench_sweep", ROOT / "scripts" / "bench_sweep.py"
-    )
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_sweep")
     # the small scenario's first 8 s: a smoke test of the script, not of the runs
     small = tmp_path / "small8.toml"
     base = ROOT / "configs" / "experiments" / "scenarios" / "small.toml"
