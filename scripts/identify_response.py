@@ -57,7 +57,7 @@ class Mismatch:
 
 
 @dataclass(frozen=True)
-class _Trials:
+class Trials:
     """The plant's responses to the steps, sampled every SAMPLE_S from the step on: headings
     (rad, from the step's) and distances run (m)."""
 
@@ -65,8 +65,9 @@ class _Trials:
     runs: tuple[tuple[float, ...], ...]
 
 
-def _plant_trials(vehicle: VehicleConfig) -> _Trials:
-    """Run the steps on the plant vehicle.model names, in still water."""
+def plant_trials(vehicle: VehicleConfig) -> Trials:
+    """Run the steps on the plant vehicle.model names, in still water (the same for any model
+    lags under fossen3dof: its plant does not read them)."""
     plant = make_plant(vehicle)
     h = vehicle.dt_internal_s
     per_sample = round(SAMPLE_S / h)
@@ -96,7 +97,7 @@ def _plant_trials(vehicle: VehicleConfig) -> _Trials:
     for v0, v1 in SPEED_STEPS:
         m = respond(v0, 0.0, v1, 0.0, SPEED_WINDOW_S)
         runs.append(tuple(p[0] - m[0][0] for p in m))
-    return _Trials(tuple(headings), tuple(runs))
+    return Trials(tuple(headings), tuple(runs))
 
 
 def _model_samples(
@@ -112,7 +113,7 @@ def _model_samples(
     return out
 
 
-def _errors(model: ResponseModel, v: float, trials: _Trials) -> tuple[list[float], list[float]]:
+def _errors(model: ResponseModel, v: float, trials: Trials) -> tuple[list[float], list[float]]:
     """Per sample, heading errors over the yaw steps and distance errors over the speed steps."""
     dh: list[float] = []
     for (w0, w1), plant in zip(YAW_STEPS, trials.headings, strict=True):
@@ -125,17 +126,18 @@ def _errors(model: ResponseModel, v: float, trials: _Trials) -> tuple[list[float
     return dh, dx
 
 
-def mismatch(vehicle: VehicleConfig) -> Mismatch:
+def mismatch(vehicle: VehicleConfig, trials: Trials | None = None) -> Mismatch:
     """How far the response model of `vehicle` strays from its plant over the steps."""
     model = ResponseModel.from_vehicle(vehicle)
-    dh, dx = _errors(model, vehicle.cruise_speed_mps, _plant_trials(vehicle))
+    trials = plant_trials(vehicle) if trials is None else trials
+    dh, dx = _errors(model, vehicle.cruise_speed_mps, trials)
     return Mismatch(max(map(abs, dh)), max(map(abs, dx)))
 
 
-def identify(vehicle: VehicleConfig) -> VehicleConfig:
+def identify(vehicle: VehicleConfig, trials: Trials | None = None) -> VehicleConfig:
     """`vehicle` with the model's lags that fit its plant best (least squares over the steps,
     on the grids YAW_TAUS x YAW_ACCELS and ACCELS)."""
-    trials = _plant_trials(vehicle)
+    trials = plant_trials(vehicle) if trials is None else trials
     base = ResponseModel.from_vehicle(vehicle)
     v = vehicle.cruise_speed_mps
 
@@ -163,10 +165,11 @@ def main(argv: Sequence[str] | None = None) -> None:
             "vehicle.model = 'unicycle': the plant is this model's own form, its lags are the "
             "plant's (nothing to identify); try --set 'vehicle.model=\"fossen3dof\"'"
         )
-    fitted = identify(vehicle)
+    trials = plant_trials(vehicle)  # run once: the fitted lags are the model's, not the hull's
+    fitted = identify(vehicle, trials)
     print(f"plant: vehicle.model = {vehicle.model!r}")
     for label, cfg in (("configured", vehicle), ("identified", fitted)):
-        m = mismatch(cfg)
+        m = mismatch(cfg, trials)
         print(
             f"{label:>10}: yaw_tau_s = {cfg.yaw_tau_s}, yaw_accel_max_rps2 = "
             f"{cfg.yaw_accel_max_rps2}, accel_max_mps2 = {cfg.accel_max_mps2}: heading off by "

@@ -21,13 +21,14 @@ def test_identified_lags_follow_the_hull_the_unicycle_lags_do_not() -> None:
     """Identified: within 2 deg of the hull's heading through turns begun, ended and reversed,
     and 0.6 m of its run through speed steps; the unicycle's lags: 10 deg and 2 m off."""
     vehicle = load_scenario(CONFIGS / "ocean.toml")[0].vehicle
-    fitted = tool.identify(vehicle)
+    trials = tool.plant_trials(vehicle)
+    fitted = tool.identify(vehicle, trials)
     assert (fitted.yaw_tau_s, fitted.yaw_accel_max_rps2, fitted.accel_max_mps2) == (
         0.4,
         0.2,
         0.2,
     )
-    ours, theirs = tool.mismatch(fitted), tool.mismatch(vehicle)
+    ours, theirs = tool.mismatch(fitted, trials), tool.mismatch(vehicle, trials)
     assert ours.heading_rad < 0.035
     assert ours.along_m < 0.6
     assert theirs.heading_rad > 0.15
