@@ -13,6 +13,7 @@ from common.messages.codec import (
     replace,
 )
 from common.messages.types import (
+    LINK_COUNTS,
     MAX_SEQUENCE_LEN,
     MESSAGE_TYPES,
     SEQUENCE_STEP_MAX_MS,
@@ -42,6 +43,7 @@ from common.messages.types import (
 )
 
 __all__ = [
+    "LINK_COUNTS",
     "MAX_SEQUENCE_LEN",
     "MESSAGE_TYPES",
     "SEQUENCE_STEP_MAX_MS",

@@ -419,6 +419,10 @@ class TruthState(Message, frozen=True, kw_only=True):
         )
 
 
+# what a link counts, as LinkCounters and the netmodel's snapshots name it
+LINK_COUNTS = ("sent", "delivered", "dropped_loss", "dropped_outage", "dropped_queue", "duplicated")
+
+
 class LinkCounters(WireRecord, frozen=True, kw_only=True):
     """Counters of one modelled link (one stream as seen by one receiving service)."""
 
@@ -437,32 +441,14 @@ class LinkCounters(WireRecord, frozen=True, kw_only=True):
     def counts(self) -> dict[str, int | float]:
         """The counters and modelled delays as a table row (metrics' link_stats, Foxglove's
         /links): sent, delivered, each drop, duplicates, delay_p50/p95/p99_s."""
-        return {
-            "sent": self.sent,
-            "delivered": self.delivered,
-            "dropped_loss": self.dropped_loss,
-            "dropped_outage": self.dropped_outage,
-            "dropped_queue": self.dropped_queue,
-            "duplicated": self.duplicated,
-            "delay_p50_s": self.delay_p50,
-            "delay_p95_s": self.delay_p95,
-            "delay_p99_s": self.delay_p99,
-        }
+        row: dict[str, int | float] = {name: getattr(self, name) for name in LINK_COUNTS}
+        delays = (self.delay_p50, self.delay_p95, self.delay_p99)
+        row.update(zip(("delay_p50_s", "delay_p95_s", "delay_p99_s"), delays, strict=True))
+        return row
 
     def validate(self) -> None:
         check_non_negative(
-            self,
-            "link.",
-            "sent",
-            "delivered",
-            "dropped_loss",
-            "dropped_outage",
-            "dropped_queue",
-            "bytes_sent",
-            "duplicated",
-            "delay_p50",
-            "delay_p95",
-            "delay_p99",
+            self, "link.", *LINK_COUNTS, "bytes_sent", "delay_p50", "delay_p95", "delay_p99"
         )
 
 

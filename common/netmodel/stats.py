@@ -7,12 +7,18 @@ from bisect import bisect_left
 from dataclasses import dataclass
 from itertools import accumulate
 
+from common.messages import LINK_COUNTS
+
 # Delay histogram: bin 0 holds delays below 1 us, bin i >= 1 holds [D0*R^(i-1), D0*R^i), so a
 # percentile is reported within a factor sqrt(R) (0.5 %) of the exact sample value.
 _D0_S = 1e-6
 _RATIO = 1.01
 _LOG_RATIO = math.log(_RATIO)
 _N_BINS = 1 + math.ceil(math.log(1e4 / _D0_S) / _LOG_RATIO)  # up to 10^4 s; larger go in the last
+
+
+# the accumulator's counters, which a snapshot copies under the same names
+_COUNTS = (*LINK_COUNTS, "loss_bursts", "max_loss_burst", "bytes_sent")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,21 +99,14 @@ class LinkStatsAccumulator:
     def snapshot(self) -> LinkStatsSnapshot:
         """The counters and delay statistics so far."""
         p50, p95, p99 = self.delays.quantiles(0.5, 0.95, 0.99)
+        counts = {name: getattr(self, name) for name in _COUNTS}
         return LinkStatsSnapshot(
-            sent=self.sent,
-            delivered=self.delivered,
-            dropped_loss=self.dropped_loss,
-            dropped_outage=self.dropped_outage,
-            dropped_queue=self.dropped_queue,
-            duplicated=self.duplicated,
+            **counts,
             delay_p50_s=p50,
             delay_p95_s=p95,
             delay_p99_s=p99,
             delay_mean_s=self.delays.mean,
             delay_max_s=self.delays.max,
-            loss_bursts=self.loss_bursts,
-            max_loss_burst=self.max_loss_burst,
-            bytes_sent=self.bytes_sent,
         )
 
 

@@ -23,6 +23,7 @@ from typing import cast
 
 from common.config.network import link_name
 from common.messages import (
+    LINK_COUNTS,
     LinkCounters,
     LinkStats,
     MeasuredDelay,
@@ -345,12 +346,7 @@ class Host:
         links = tuple(
             LinkCounters(
                 link=name,
-                sent=s.sent,
-                delivered=s.delivered,
-                dropped_loss=s.dropped_loss,
-                dropped_outage=s.dropped_outage,
-                dropped_queue=s.dropped_queue,
-                duplicated=s.duplicated,
+                **{count: getattr(s, count) for count in LINK_COUNTS},
                 delay_p50=s.delay_p50_s,
                 delay_p95=s.delay_p95_s,
                 delay_p99=s.delay_p99_s,
