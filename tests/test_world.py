@@ -24,6 +24,7 @@ from common.world import World
 from common.world.check import check_world
 from common.world.geometry import (
     Box,
+    nearest_distances,
     polygon_centroid,
     polygon_signed_distance,
     vertices_array,
@@ -234,3 +235,13 @@ def test_the_distance_of_two_boxes_bounds_that_of_any_points_inside_them(
     far = b + np.array([500.0, 0.0])  # boxes apart along x: exactly the gap between them
     gap = far[:, 0].min() - a[:, 0].max()
     assert Box.of(a[:, 0], a[:, 1]).distance(Box.of(far[:, 0], a[:, 1])) == pytest.approx(gap)
+
+
+def test_nearest_distances_are_every_pairs_minimum_across_blocks() -> None:
+    rng = np.random.default_rng(7)
+    to = rng.uniform(-50.0, 50.0, (37, 2))
+    points = rng.uniform(-60.0, 60.0, (300, 2))  # more than one block of rows
+    got = nearest_distances(points, to, block=64)
+    want = np.array([min(math.hypot(px - qx, py - qy) for qx, qy in to) for px, py in points])
+    np.testing.assert_allclose(got, want, rtol=1e-15, atol=0.0)
+    assert nearest_distances(to[:3], to)[0] == 0.0

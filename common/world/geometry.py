@@ -1,5 +1,5 @@
 """Exact planar geometry: polygon area, centroid, simplicity, vectorised signed distance;
-bounding boxes."""
+nearest-point distances; bounding boxes."""
 
 from __future__ import annotations
 
@@ -149,3 +149,20 @@ def polygon_signed_distance(v: FloatArray, px: ArrayLike, py: ArrayLike) -> Floa
     bx, by = np.broadcast_arrays(np.asarray(px, np.float64), np.asarray(py, np.float64))
     pts = np.stack([bx.ravel(), by.ravel()], axis=1)
     return PolygonEdges.of([v]).signed_distance(pts)[0].reshape(bx.shape)
+
+
+def nearest_distances(points: FloatArray, to: FloatArray, *, block: int = 256) -> FloatArray:
+    """For each of `points` (N, 2), the distance (m) to the nearest of `to` (M, 2, M >= 1):
+    (N,). Exact (every pair, `block` rows at a time: N x M of a run's track against a path's
+    samples is a few million pairs), without scipy.spatial's KD-tree, whose import cost a
+    launch or a run more than its queries save."""
+    out = np.empty(len(points))
+    qx, qy = to[:, 0], to[:, 1]
+    for i in range(0, len(points), block):
+        dx = points[i : i + block, 0, None] - qx
+        dy = points[i : i + block, 1, None] - qy
+        dx *= dx
+        dy *= dy
+        dx += dy
+        out[i : i + block] = dx.min(axis=1)
+    return np.sqrt(out)

@@ -50,7 +50,7 @@ class AuvMission:
     def metrics(self, record: Record) -> MissionMetrics:
         """One vehicle's metrics (AuvMetrics), or a fleet's (FleetMetrics)."""
         # imported here: only a run's driver computes metrics, and they need the planner's
-        # curves and scipy.spatial, which a service process would otherwise load for nothing
+        # curves, which a service process would otherwise load for nothing
         from services.mission.fleet_metrics import fleet_metrics
         from services.mission.metrics import mission_metrics
 

@@ -8,7 +8,6 @@ from collections.abc import Iterable
 from typing import Any, NotRequired, TypedDict
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from common.config.scenario import Scenario
 from common.estimate_error import estimate_errors
@@ -24,12 +23,13 @@ from common.messages import (
 from common.runtime.model.dataflow import qualified
 from common.runtime.model.record import Record, trajectory_sha256
 from common.world import ObstacleState, World
+from common.world.geometry import nearest_distances
 from services.mission.continuity import follows, reach_mps
 from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.records import AuvMetrics, build
 from services.mission.reentry import reentries
-from services.planner.adoption import PLANS_DECLINED
+from services.planner.reasons import PLANS_DECLINED
 from services.planner.shaping.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
@@ -301,8 +301,8 @@ def _path_metrics(
     if not ok:
         return out
     first = ok[0]  # the "optimal path": planned at the start with the whole chart
-    tree = cKDTree(path_points(first))
-    xte, _ = tree.query(np.column_stack([x[: end + 1], y[: end + 1]]))
+    optimal = path_points(first)
+    xte = nearest_distances(np.column_stack([x[: end + 1], y[: end + 1]]), optimal)
     out.update(
         {
             "planned_length_m": first.length,
@@ -321,7 +321,7 @@ def _path_metrics(
     for i, p in enumerate(ok):
         sel = np.flatnonzero(which == i)
         if len(sel):
-            errs[sel] = cKDTree(path_points(p)).query(np.column_stack([x[sel], y[sel]]))[0]
+            errs[sel] = nearest_distances(np.column_stack([x[sel], y[sel]]), path_points(p))
     errs = errs[~np.isnan(errs)]
     if len(errs):
         out["xte_planned_rms_m"] = float(np.sqrt(np.mean(errs**2)))
@@ -330,7 +330,7 @@ def _path_metrics(
     if cmds:
         ct = np.array([c.stamp for c in cmds])
         cx, cy = np.interp(ct, t, x), np.interp(ct, t, y)
-        d, _ = tree.query(np.column_stack([cx, cy]))
+        d = nearest_distances(np.column_stack([cx, cy]), optimal)
         out["control_actions_on_path"] = int(np.count_nonzero(d <= ON_PATH_TOL_M))
     return out
 
