@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import msgspec
@@ -22,7 +24,7 @@ from services.mission.metrics import TRACK_AHEAD_S, YAW_RATE_TOL_RPS, mission_me
 from services.mission.outcome import OUTCOMES, classify, describe
 from services.mission.records import AuvMetrics
 from services.mission.verdict import mission_failure
-from services.planner.adoption import PLANS_DECLINED
+from services.planner.reasons import PLANS_DECLINED
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 SPEED = 1.5  # m/s along y = 20
@@ -302,3 +304,17 @@ def test_plan_strategies_count_the_paths_codes_into_metrics_json() -> None:
     old = _record(95.0, None, None)
     old.add("planner", "path", _path(1, ""))
     assert "plan_strategies" not in msgspec.to_builtins(mission_metrics(old, s, World(s.world)))
+
+
+def test_the_metrics_load_neither_the_planners_search_nor_a_kd_tree() -> None:
+    # a launcher computes a run's metrics: it read a path's curve, and loaded the whole planner
+    # (scipy's graph and image modules) and scipy.spatial with it, ~0.45 s of every launch
+    probe = (
+        "import sys, services.mission.metrics; "
+        "print(sorted(m for m in ('scipy.spatial', 'scipy.ndimage', 'services.planner.plan') "
+        "if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
+    ).stdout
+    assert out.strip() == "[]"

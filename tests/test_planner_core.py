@@ -18,9 +18,9 @@ from common.messages import ObstacleTracks, PathMsg, StateEstimate, Track, Veloc
 from common.runtime.deferred import AtOnce
 from common.runtime.model.core import Delivery, Emit
 from services.planner import plan as plan_module
-from services.planner.adoption import PLANS_DECLINED
 from services.planner.core import PlannerCore
 from services.planner.decline import PRECAUTIONS
+from services.planner.reasons import PLANS_DECLINED
 from services.planner.replan import ReplanDecision, ReplanReason
 from services.planner.result import PlanResult, Pose2D
 

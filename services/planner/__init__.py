@@ -32,7 +32,10 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
     where a stopping vehicle stays; fleet.py exchanges intents with a fleet's other vehicles.
     reasons.py: the codes each result carries, the strategy that made it and those rejected.
 
-Functional API of the planning pipeline (pure: no clock, no randomness, no I/O):
+Functional API of the planning pipeline (pure: no clock, no randomness, no I/O), each name
+from its own module (plan.py, result.py, shaping/): this package imports nothing itself, so
+that a reader of one module (the metrics of a run read a path's curve) does not load the whole
+planner with scipy's graph and image modules.
 
     req = PlanRequest(start=..., goal=..., obstacles=..., vehicle_radius_m=vehicle.radius_m)
     result = plan_path(req, PlannerConfig())
@@ -44,24 +47,3 @@ Obstacles use the world's types (common.config.world circles and polygons, commo
 ObstacleState for moving ones); the area is the scenario's AreaConfig.
 """
 
-from services.planner.geometry.nurbs_curve import NurbsCurve
-from services.planner.plan import PlanRequest, PlanResult, PlanTiming, plan_path
-from services.planner.replan import ReplanDecision, ReplanPolicy, replan_request
-from services.planner.result import Obstacles, Pose2D
-from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
-
-__all__ = [
-    "NurbsCurve",
-    "Obstacles",
-    "PathArcReference",
-    "PlanRequest",
-    "PlanResult",
-    "PlanTiming",
-    "PlannedPath",
-    "Pose2D",
-    "ReplanDecision",
-    "ReplanPolicy",
-    "plan_path",
-    "replan_request",
-]

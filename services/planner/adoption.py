@@ -9,12 +9,11 @@ from services.control.loop import CommandLoop
 from services.planner.asking import Asked
 from services.planner.decline import decline
 from services.planner.path_message import path_message
+from services.planner.reasons import PLANS_DECLINED
 from services.planner.replan import ReplanPolicy
 from services.planner.result import PlanResult, PlanStatus, Pose2D
 from services.planner.shaping.path_arc_reference import PathArcReference
 from services.planner.shaping.planned_path import PlannedPath
-
-PLANS_DECLINED = "plans_declined"  # the statistics counter of them (the metric of that name)
 
 
 class Adoption:

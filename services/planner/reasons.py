@@ -38,3 +38,7 @@ Strategy = Literal[
 ]
 
 STRATEGIES: tuple[Strategy, ...] = get_args(Strategy)
+
+# the statistics counter of the plans declined, the path in force kept (adoption.py; the
+# metric of that name), and its prefix by decline rule ("plans_declined.<code>")
+PLANS_DECLINED = "plans_declined"
