@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers.planner_world import default_scenario
 
-from services.planner.decline import keeps_path_in_force
+from services.planner.decline import keeps_path_in_force, keeps_safer_path
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.safety.partway import (
     APPROACH_BACK_R,
@@ -124,3 +124,24 @@ def test_a_precaution_that_finds_only_a_partway_plan_keeps_the_path_in_force(why
     # a path in force that has failed (or none) takes it: a receding-horizon step on
     assert keeps_path_in_force("infeasible", partway, has_path=True, stepping_aside=False) is None
     assert keeps_path_in_force(why, partway, has_path=False, stepping_aside=False) is None
+
+
+def test_a_plan_whose_rollout_breaks_clearance_before_the_path_in_force_stops_is_declined() -> None:
+    # a turn about whose rollout falls 0.4 m short 2.5 s on, for a conflict the path in force
+    # stops short of in 9 s (decline.py keeps_safer_path)
+    turn = PlanResult(
+        status="OK",
+        reason="turned first",
+        strategy="turned_first",
+        flown_short_m=0.4,
+        flown_short_at_s=2.5,
+    )
+    declined = keeps_safer_path("infeasible", turn, safe_for_s=9.0)
+    assert declined is not None and declined.code == "kept_safer_path"
+    assert "0.40 m short" in declined.detail and "9.0 s" in declined.detail
+    # the path in force stops sooner than the breach: the plan is taken
+    assert keeps_safer_path("infeasible", turn, safe_for_s=2.0) is None
+    # a plan whose rollout keeps its clearance, or a replan not for a conflict ahead
+    clear = dataclasses.replace(turn, flown_short_m=0.0, flown_short_at_s=math.inf)
+    assert keeps_safer_path("infeasible", clear, safe_for_s=9.0) is None
+    assert keeps_safer_path("deviation", turn, safe_for_s=9.0) is None

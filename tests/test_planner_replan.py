@@ -191,3 +191,19 @@ def test_a_way_aside_asks_for_the_goal_again_at_every_interval() -> None:
     assert d.replan and d.reason == "aside" and "short of the goal" in d.detail
     pol.on_planned(1.0, res, GOAL, NONE)  # an ordinary plan ends it
     assert not pol.check(2.0, _on_path(1.0), GOAL, NONE).replan
+
+
+def test_a_path_kept_cut_short_of_a_conflict_is_planned_again_once_the_conflict_is_gone() -> None:
+    pol, _ = _planned()
+    crossing = moving_circle(id=9, x=50.0, y=5.0, vx=0.0, vy=15.0 / 30.0, radius=1.0)
+    d = pol.check(1.0, _on_path(1.0), GOAL, Obstacles(moving=(crossing.advanced(1.0),)))
+    assert d.replan and d.reason == "infeasible" and math.isfinite(d.conflict_s)
+    # its replacement was declined (decline.py keeps_safer_path): the path in force is kept,
+    # stopping short of the conflict; once the crossing is gone it would stop there for good
+    pol.on_kept(1.0, Obstacles(moving=(crossing.advanced(1.0),)), cut_short=True)
+    assert not pol.check(1.5, _on_path(1.5), GOAL, NONE).replan  # the interval holds
+    d = pol.check(2.0, _on_path(2.0), GOAL, NONE)
+    assert d.replan and d.reason == "infeasible" and not math.isfinite(d.conflict_s), d
+    # a plan put in force ends it
+    pol.on_planned(2.0, _planned()[1], GOAL, NONE)
+    assert not pol.check(3.5, _on_path(1.5), GOAL, NONE).replan

@@ -224,6 +224,7 @@ def test_a_plan_whose_flight_keeps_rho0_is_adopted_as_made() -> None:
         and got.reason == ""
         and np.array_equal(got.control_points, first.control_points)
     )
+    assert (got.flown_short_m, got.flown_short_at_s) == (0.0, math.inf)
 
 
 def test_a_plan_flown_inside_rho0_is_made_again_wider_and_says_so() -> None:
@@ -256,6 +257,10 @@ def test_when_the_wider_plan_fails_the_first_is_kept_and_the_reason_says_why() -
     assert "fared no better" in got.reason
     assert got.strategy == "searched"  # the first, after each way it was made again
     assert got.rejected == ("remade_wider", "remade_around", "remade_slower")
+    # ... and it carries how far and when its flight first falls short (decline.py)
+    flown = rollout_clearance(got, req, _flight(w0=W_MAX), CFG)
+    assert got.flown_short_m == pytest.approx(flown.short_m) and got.flown_short_m > 0.0
+    assert 0.0 < got.flown_short_at_s <= flown.t_s
 
 
 def test_a_bend_flown_wide_at_any_margin_is_made_again_slower_and_flown_at_that_speed() -> None:

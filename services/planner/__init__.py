@@ -46,4 +46,3 @@ planner with scipy's graph and image modules.
 Obstacles use the world's types (common.config.world circles and polygons, common.world's
 ObstacleState for moving ones); the area is the scenario's AreaConfig.
 """
-

@@ -62,12 +62,21 @@ class Adoption:
             last=self.last_result,
             has_path=self.loop.ref is not None,
             arrived_m=self.cfg.tuning.arrived_m,
+            safe_for_s=self._safe_for_s(),
         )
         if declined is None:
             return self._adopt(t, asked, made)
         self.declined += 1
         self.declined_by[declined.code] = self.declined_by.get(declined.code, 0) + 1
         return None
+
+    def _safe_for_s(self) -> float:
+        """How long the path in force can be followed before it stops (s): short of a conflict
+        found ahead (core.py), else at its end; 0 without one."""
+        ref = self.loop.ref
+        if ref is None:
+            return 0.0
+        return max(ref.stop_s - self.policy.s_now, 0.0) / ref.v_ref
 
     def _adopt(self, t: float, asked: Asked, result: PlanResult) -> PathMsg:
         """Put the plan made in force; the path message is stamped t, when it is sent."""

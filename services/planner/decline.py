@@ -4,6 +4,8 @@ Each rule returns a `Declined` (a reason code and what the log says) or None. `o
 a plan made later than the time it starts (realtime only: a plan of seconds on a loaded
 machine) that the vehicle, going on meanwhile, has left. `keeps_path_in_force`: a plan asked
 as a precaution that found only a recovery or none, or a NO_PATH while the vehicle steps aside.
+`keeps_safer_path`: a plan for a conflict ahead whose own rollout breaks its clearance sooner
+than the path in force, cut short of that conflict, can be followed.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ STALE_HEADING_RAD = math.radians(45.0)
 PRECAUTIONS = ("corridor", "cruise", "current")
 
 # the rules' reason codes (metrics.json plans_declined_by_reason)
-DeclineCode = Literal["overtaken", "kept_path_in_force"]
+DeclineCode = Literal["overtaken", "kept_path_in_force", "kept_safer_path"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -104,6 +106,25 @@ def keeps_path_in_force(
     return Declined(code="kept_path_in_force", detail=f"the {why} replan found {found}")
 
 
+def keeps_safer_path(why: str, result: PlanResult, *, safe_for_s: float) -> Declined | None:
+    """Decline a plan asked because the path in force is infeasible ahead (replan.py; the core
+    cut it short of the conflict) whose rollout falls short of its clearance sooner (s after
+    its start) than the path in force reaches that stop (`safe_for_s`, s; 0 without one): a
+    recovery turned about in a squeeze for a moving obstacle's crossing 10-20 s ahead was
+    adopted, rollout 0.6 m into rho0 a few seconds on, and flown there. The path in force is
+    followed towards its stop while the next checks ask again, from where the way round is
+    often clear, and the first plan whose breach comes no sooner than that stop is adopted."""
+    if why != "infeasible" or not result.ok or result.flown_short_m <= 0.0:
+        return None
+    if result.flown_short_at_s >= safe_for_s:
+        return None
+    return Declined(
+        code="kept_safer_path",
+        detail=f"its rollout falls {result.flown_short_m:.2f} m short of its clearance "
+        f"{result.flown_short_at_s:.1f} s on, the path in force is clear for {safe_for_s:.1f} s",
+    )
+
+
 def decline(
     t: float,
     pred: Prediction,
@@ -115,11 +136,17 @@ def decline(
     last: PlanResult | None,
     has_path: bool,
     arrived_m: float,
+    safe_for_s: float = 0.0,
 ) -> Declined | None:
     """The first rule that declines the plan `result` made at t (s) for `asked`, logged;
-    None: it is adopted. A plan kept out by keeps_path_in_force is told to the replan policy,
-    which goes on judging the path in force."""
+    None: it is adopted. A plan kept out by keeps_path_in_force or keeps_safer_path is told
+    to the replan policy, which goes on judging the path in force (`safe_for_s`: how long it
+    can be followed, keeps_safer_path)."""
     why = overtaken(t, pred, asked.t_plan, result, v_ref, policy.cfg.deviation_threshold_m)
+    if why is None and has_path:
+        why = keeps_safer_path(asked.why, result, safe_for_s=safe_for_s)
+        if why is not None:
+            policy.on_kept(asked.t_plan, asked.obstacles, cut_short=True)
     if why is None:
         # at its end the vehicle stops either way: the NO_PATH is then told (the launcher's
         # alarm on a NO_PATH that lasts), not kept silent behind a way aside run out

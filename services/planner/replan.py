@@ -10,7 +10,8 @@ last replan, so noisy tracks cannot make the planner chatter):
   infeasible    the rest of the path violates eq. (12)-(13): some obstacle (static, or moving
                 at the time the vehicle will pass) is closer than r + rho0 (static ones are
                 not counted over the plan's escape_m, which it may pass closer: leaving the
-                margin, or contact, is what that stretch is for);
+                margin, or contact, is what that stretch is for); or the path in force was
+                kept cut short of such a conflict (decline.py `keeps_safer_path`);
   corridor      a tracked moving obstacle the current plan did not account for is predicted
                 to come within corridor_halfwidth_m of the path ahead when the vehicle passes;
   cruise        the path in force was made for less than cruise speed (rollout.py: a bend no
@@ -97,6 +98,7 @@ class ReplanPolicy:
         self.escape_m = 0.0  # the current plan's first escape_m may pass static obstacles closer
         self.slow_until_m = math.inf  # a slower plan's arc length past which cruise resumes
         self.short_of_goal = False  # the path in force steps aside, short of the goal
+        self.cut_short = False  # it was kept, cut short of a conflict ahead (on_kept)
         self.current: tuple[float, float] = (0.0, 0.0)  # the path in force was flown in it
         self.pace = 1.0  # speed over ground per speed through the water along it
         self.last_check_t: float | None = None
@@ -128,6 +130,7 @@ class ReplanPolicy:
         self.v_ref = self.cruise if result.v_ref_mps is None else result.v_ref_mps
         self.slow_until_m = result.slow_until_m
         self.short_of_goal = result.short_of_goal
+        self.cut_short = False
         if not result.ok:
             self.pts = None
             return
@@ -139,11 +142,14 @@ class ReplanPolicy:
         gap, ids = _least_gaps(self._sample_gaps(obstacles, 0, 0.0), obstacles)
         self.known_ids = frozenset(ids[gap < self.cfg.corridor_halfwidth_m].tolist())
 
-    def on_kept(self, t: float, obstacles: Obstacles) -> None:
-        """A replan at time t was declined and the current path kept (core.py): the moving
-        obstacles it was asked with count as accounted for, and the interval runs from t."""
+    def on_kept(self, t: float, obstacles: Obstacles, *, cut_short: bool = False) -> None:
+        """A replan at time t was declined and the current path kept (decline.py): the moving
+        obstacles it was asked with count as accounted for, and the interval runs from t.
+        `cut_short`: it was kept stopping short of a conflict, so a plan is asked again at
+        the next interval even once the conflict has gone (else it would stop there)."""
         self.last_replan_t = t
         self.known_ids |= {o.id for o in obstacles.moving}
+        self.cut_short = self.cut_short or cut_short
 
     @property
     def remaining_m(self) -> float:
@@ -189,6 +195,12 @@ class ReplanPolicy:
             conflict = self._moving_conflict(obstacles, i_now)
         if conflict is not None:
             return conflict
+        if self.cut_short:
+            return ReplanDecision(
+                replan=True,
+                reason="infeasible",
+                detail="the path in force stops short of a conflict no longer ahead",
+            )
         change = math.hypot(current[0] - self.current[0], current[1] - self.current[1])
         if change > self.cfg.current_change_mps:
             return ReplanDecision(

@@ -125,6 +125,12 @@ class PlanResult:
     short_of_goal: bool = False
     # a plan to a point along the searched route, no curve reaching the goal (partway.py)
     partway: bool = False
+    # a plan adopted although its rollout falls short of the clearance it must keep (rollout.py:
+    # none made again fared better): by how much at most (m), and when it first falls short (s
+    # after its start); 0 and inf
+    # for a plan whose rollout keeps it, or that was not flown
+    flown_short_m: float = 0.0
+    flown_short_at_s: float = math.inf
     timing: PlanTiming = field(default_factory=PlanTiming)
 
     @property

@@ -68,6 +68,7 @@ class RolloutClearance:
     off_path_m: float
     path_s_m: float  # the path's arc length (from its start) nearest there
     static: bool = True  # the obstacle nearest there is a static one (else a moving one)
+    first_short_s: float = math.inf  # when it first falls short of what it must keep (s)
 
     @property
     def short_m(self) -> float:
@@ -214,6 +215,7 @@ def _clearance(
     else:
         keep[escaping] = cfg.rho0_m - max(result.margin_entered_m, 0.0) - cushion
     j = int(np.argmin(clearance - keep))
+    short = clearance < keep
     x, y = float(pts[j, 0]), float(pts[j, 1])
     s_near = ref.closest_s(x, y, None)
     px, py = ref.point_at_s(s_near)
@@ -226,6 +228,7 @@ def _clearance(
         off_path_m=math.hypot(x - px, y - py),
         path_s_m=s_near,
         static=bool(d_static[j] <= d[j]),
+        first_short_s=float(t[int(np.argmax(short))]) if short.any() else math.inf,
     )
 
 
@@ -282,10 +285,10 @@ def plan_and_verify(
         if best_f.short_m <= 0.0:
             break
     if best is first:
-        first = first.coded(first.strategy, (*first.rejected, *remade))
+        first = _short(first.coded(first.strategy, (*first.rejected, *remade)), f1)
         return _with_reason(first, f"{found}; made again, it fared no better")
     kept = "clears" if best_f.short_m <= 0.0 else "comes nearer clearing"
-    best = best.coded(code, (*first.tried, *(w for w in remade if w != code)))
+    best = _short(best.coded(code, (*first.tried, *(w for w in remade if w != code))), best_f)
     return _with_reason(
         best,
         f"{found}; {how}, whose flight {kept} {best_f.keep_m:.2f} m (clearance there "
@@ -370,6 +373,13 @@ def _detour(req: PlanRequest, cfg: PlannerConfig, f: RolloutClearance) -> PlanRe
         id=max(ids, default=0) + 1, x_m=f.x, y_m=f.y, radius_m=t.rollout_detour_m
     )
     return replace(req, obstacles=replace(obs, circles=(*obs.circles, disc)))
+
+
+def _short(result: PlanResult, f: RolloutClearance) -> PlanResult:
+    """The result with how far and when its rollout `f` falls short (PlanResult.flown_short_m)."""
+    if f.short_m <= 0.0:
+        return result
+    return replace(result, flown_short_m=f.short_m, flown_short_at_s=f.first_short_s)
 
 
 def _with_reason(result: PlanResult, note: str) -> PlanResult:
