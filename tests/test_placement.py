@@ -32,17 +32,21 @@ DEFAULT = REPO / "configs" / "default.toml"
 # (issue 16): 5431be1d... before; and when planned curves came to keep that margin from the
 # area's edge too: 42edd711... before; and when the estimator came to carry the ocean current
 # and the controllers to follow the path over ground in it (issue 60): bc28f603... before; and when
-# a plan came to start along the course over ground (issue 60): aad897a1... before; and when
-# a plan came to be flown also in the estimate's current one std stronger before the current is
-# told from the fixes' noise (issue 60): 4ed6b8cd... before on the AVX-512 machines, which no
-# machine at hand could compute again (fed66e39... on an AVX2 one). Those now compare the
-# placements.
+# a plan came to start along the course over ground (issue 60): aad897a1... before.
 # With other floating-point code the test compares it with a placement whose every link is
 # generic (the default placement written out is no such oracle: services on one node talk
 # over ideal local links).
 DEFAULT_SHA256: dict[tuple[str, str, tuple[str, ...]], str] = {
+    ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL")): (
+        "4ed6b8cd2563601bab76a5cda97ca6ceeb5c5498faca1950072c7503979fc1e7"
+    ),
+    # the machine of 2026-12-01 (AVX512_SPR dispatched too): the same floats
+    ("2.4.6", "1.17.1", ("X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR")): (
+        "4ed6b8cd2563601bab76a5cda97ca6ceeb5c5498faca1950072c7503979fc1e7"
+    ),
+    # an AVX2-only machine (2026-12-06): the same trajectory in other floats
     ("2.4.6", "1.17.1", ("X86_V3",)): (
-        "784c5a9037e16300524d9ef54289604ae751c32aabc49c8603a1ee19e8f96b48"
+        "fed66e398e9f1c009fd43c2ddd8715c909c9fb77d30af519dc1302d547951b8d"
     ),
 }
 

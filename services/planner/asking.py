@@ -279,7 +279,7 @@ class PlanAsking:
         flight = RolloutInputs(
             controller=flown,
             model=self.link.model,
-            doubt=self.link.model.with_current(*self.link.flight_doubt_mps),
+            doubt=self.link.model.with_current(*self.link.doubted_current_mps),
             step_s=self.cfg.period_s,
             start=(here.x, here.y, here.theta, *twist),
             t0=t_plan,

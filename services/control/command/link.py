@@ -110,7 +110,6 @@ class CommandLink:
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
         self.current_known = False
         self.doubted_current_mps = (0.0, 0.0)  # `doubted_current` of the newest estimate
-        self.flight_doubt_mps = (0.0, 0.0)  # `flight_doubt` of the newest estimate
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.cruise_mps = vehicle.cruise_speed_mps  # how fast a station keeper turns about
@@ -162,7 +161,6 @@ class CommandLink:
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
         self.model = self.model.with_current(*believed_current(est))
         self.doubted_current_mps = doubted_current(est)
-        self.flight_doubt_mps = flight_doubt(est)
         # a current is worth keeping station against once it is told from the fixes' noise
         self.current_known = current_told(est)
         t_b = basis_time(est)
@@ -409,26 +407,15 @@ def believed_current(est: StateEstimate) -> tuple[float, float]:
 
 
 def doubted_current(est: StateEstimate) -> tuple[float, float]:
-    """The stronger current the estimate may yet settle to (m/s), as plans are sized for it
-    (asking.py: R_min over ground, the clearance margin): once the current is told from the
-    fixes' noise (more than twice its standard deviation), `flight_doubt`; before, the
-    believed one. While the estimator is still learning a current, the believed one lags it
-    (it grows from 0 over the first seconds), and a plan sized and flown in it alone turns too
-    tight over ground."""
-    return flight_doubt(est) if current_told(est) else believed_current(est)
-
-
-def flight_doubt(est: StateEstimate) -> tuple[float, float]:
-    """The current a plan is flown in too before it is adopted (m/s; rollout.py): the
-    estimate's mean one standard deviation longer, told from the fixes' noise or not. Before it
-    is told its direction is a guess, but a better one than the believed current shrunk
-    towards still water: a plan flown in that alone passed an obstacle 1.15 m off, the
-    vehicle 0.87 m (0.1 m/s northwards, fuzzy PID, seed 2102). A second flight only makes the
-    check stricter; in still water it flies the estimate's wander."""
+    """The stronger current the estimate may yet settle to (m/s): once the current is told
+    from the fixes' noise (more than twice its standard deviation), its mean one standard
+    deviation longer; before, the believed one. While the estimator is still learning a
+    current, the believed one lags it (it grows from 0 over the first seconds), and a plan
+    sized and flown in it alone turns too tight over ground (asking.py, rollout.py)."""
+    if not current_told(est):
+        return believed_current(est)
     cx, cy, std = est.current_x, est.current_y, est.current_std
     c = math.hypot(cx, cy)
-    if c == 0.0:
-        return believed_current(est)
     k = (c + std) / c
     return k * cx, k * cy
 

@@ -11,7 +11,7 @@ So a plan is flown here first, as the planner's command sequences fly it (sequen
 controller (a copy, reset as on adoption) commands every control period, the response model
 (response.py) answers, from the state the plan starts at, twist included, for the whole path
 (at most rollout_max_s), in the current believed now and again in the one the estimate may
-yet settle to (link.py `flight_doubt`; the controller still believes the first). Where
+yet settle to (link.py `doubted_current`; the controller still believes the first). Where
 either flight comes inside rho0 of an obstacle (past the stretch the plan itself may pass
 nearer: escape_m), the flight's distance off the path there is the
 tracking error, and the plan is made again with a clearance margin that wide plus
@@ -88,7 +88,7 @@ class RolloutInputs:
     start: Pose
     t0: float
     # the model in the stronger current the estimate may yet settle to (link.py
-    # `flight_doubt`): a plan is flown in it too, and held to the same there
+    # `doubted_current`): a plan is flown in it too, and held to the same there
     doubt: ResponseModel | None = None
     # the last rollout flown from these inputs, with the plan, speed and tuning it was flown
     # for: a plan is flown when it is verified and again when checked for contact soon after
