@@ -145,3 +145,30 @@ def test_a_plan_whose_rollout_breaks_clearance_before_the_path_in_force_stops_is
     clear = dataclasses.replace(turn, flown_short_m=0.0, flown_short_at_s=math.inf)
     assert keeps_safer_path("infeasible", clear, safe_for_s=9.0) is None
     assert keeps_safer_path("deviation", turn, safe_for_s=9.0) is None
+
+
+def test_a_vehicle_late_beside_a_goal_held_with_its_heading_goes_to_it_heading_free() -> None:
+    # ocean, fuzzy PID seed 1404: late on its last bend it passed 7 m south of the goal
+    # heading 44 deg, R_min over ground 9.6 m; no curve joins the goal's heading 0 from there,
+    # and the approach behind it was found only after it had passed (then held and drifted
+    # to the area's edge, NO_PATH 140 times). The mission asks only to reach the goal.
+    req = PlanRequest(
+        start=Pose2D(x=91.5, y=13.9, theta=0.77),
+        goal=Pose2D(x=95.0, y=20.0, theta=0.0),
+        area=SCENARIO.world.area,
+        obstacles=Obstacles(),
+        vehicle_radius_m=SCENARIO.vehicle.radius_m,
+        r_min_m=9.6,
+        v_ref_mps=SCENARIO.vehicle.cruise_speed_mps,
+        fix_goal_heading=True,
+    )
+    got = plan_path(req, SCENARIO.planner)
+    assert got.ok and got.strategy == "heading_freed" and not got.short_of_goal, got.reason
+    assert "with its heading free" in got.reason
+    end = got.curve().ctrl[-1]
+    assert math.hypot(end[0] - 95.0, end[1] - 20.0) < 1e-9
+    assert got.max_curvature < 1.0 / 9.6
+    # far from the goal the heading is held: the same bend 40 m back finds a curve that joins it
+    far = dataclasses.replace(req, start=Pose2D(x=51.5, y=13.9, theta=0.77))
+    got = plan_path(far, SCENARIO.planner)
+    assert got.ok and "heading_freed" not in got.tried

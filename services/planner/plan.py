@@ -16,6 +16,7 @@ route no curve follows to the goal is followed part of the way (partway.py).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -176,6 +177,9 @@ class _Setup:
 
 
 Rest = Callable[[PlanRequest], PlanResult]  # the plan after a recovery (never recovers again)
+
+# a goal held with its heading is tried with it free from a start this many R_min from it
+GOAL_FREED_R_MIN = 3.0
 
 
 def _plan(
@@ -375,12 +379,19 @@ def _fallbacks(
     req: PlanRequest, cfg: PlannerConfig, setup: _Setup, failed: PlanResult, rest: Rest
 ) -> PlanResult:
     """After no feasible curve, the recoveries in order, the first plan that is ok kept.
-    Near an obstacle the heading may be what no curve can satisfy (eq. (10) with R_min):
-    turn away on an arc within R_min first; inside the margin, failing that, drive out
-    first; a route no curve follows to the goal: follow one part of the way (partway.py);
+    Near a goal held with its heading, reach it with the heading free. Near an obstacle the
+    heading may be what no curve can satisfy (eq. (10) with R_min): turn away on an arc
+    within R_min first; inside the margin, failing that, drive out first; a route no curve
+    follows to the goal: follow one part of the way (partway.py);
     the area's edge may be what is in the way: come about across it. Each is coded after
     the searches and the recoveries that ran before it (reasons.py)."""
     tried = failed.rejected
+    if _near_a_held_goal(req):
+        freed = rest(dataclasses.replace(req, fix_goal_heading=False))
+        if freed.ok:
+            note = "to the goal with its heading free"
+            return _with_note(freed, failed.reason, note).coded("heading_freed", tried)
+        tried = (*tried, "heading_freed")
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok:
         return turned.coded("turned_first", tried)
@@ -399,6 +410,23 @@ def _fallbacks(
         return about.coded("came_about_first", tried)
     last = failed if setup.start_inside else turned
     return last.coded(last.strategy, (*tried, "came_about_first"))
+
+
+def _near_a_held_goal(req: PlanRequest) -> bool:
+    """The goal's heading is held (eq. (10)) and the start is within GOAL_FREED_R_MIN turning
+    radii of it: there a vehicle that came past or beside the goal, often late on its last
+    bend, has no curve that joins the heading, and the mission asks only to reach the goal."""
+    near = GOAL_FREED_R_MIN * req.r_min_m
+    return (
+        req.fix_goal_heading
+        and math.hypot(req.goal.x - req.start.x, req.goal.y - req.start.y) <= near
+    )
+
+
+def _with_note(result: PlanResult, failed: str, note: str) -> PlanResult:
+    """An OK result of a fallback, its reason after the failure that led to it."""
+    why = f"{failed}; {note}" + (f": {result.reason}" if result.reason else "")
+    return dataclasses.replace(result, reason=why)
 
 
 def _fit_and_check(

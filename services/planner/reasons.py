@@ -22,6 +22,7 @@ Strategy = Literal[
     "turned_first",  # turn away on an arc, then plan (recover.py turn_then_plan)
     "escaped_first",  # a way out of contact, the margin or beyond the area first (leave_then_plan)
     "came_about_first",  # come about across the area's edge first (come_about_then_plan)
+    "heading_freed",  # near the goal, to it with its heading free: none joins it (plan.py)
     "partway",  # a plan part of the way along the searched route (safety/partway.py)
     "remade_wider",  # made again wider: the first one's rollout broke rho0 or missed the goal
     "remade_around",  # ... around where that rollout came nearest a static obstacle
