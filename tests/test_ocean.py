@@ -11,6 +11,7 @@ from pathlib import Path
 import msgspec
 import numpy as np
 import pytest
+from helpers.planner_world import planner_core
 
 from common.config.controller import ControllerConfig
 from common.config.estimator import EstimatorConfig
@@ -27,6 +28,7 @@ from common.world.check import check_scenario
 from services.control.command.link import (
     GIVE_WAY_FRACTION,
     CommandLink,
+    Prediction,
     believed_current,
     doubted_current,
 )
@@ -232,6 +234,35 @@ def test_a_stop_facing_downstream_comes_about_before_the_current_carries_it_far(
     assert 20.0 - pose[1] < south
 
 
+def test_a_stop_that_would_come_about_into_an_obstacle_drifts_instead() -> None:
+    # issue 60, ocean seed 1505 (fuzzy PID): in NO_PATH, heading downstream 6 m short of
+    # obstacle 5, station keeping came about towards the current at cruise speed on R_min and
+    # swept the hull into the obstacle: 17 s in contact. Default scenario: circle 2 at (32, 8)
+    s, _ = load_scenario(DEFAULT, ["planner.first_plan_wait_s=0"])
+    core = planner_core(s)
+
+    def at(x: float, y: float, theta: float) -> Prediction:
+        est = StateEstimate(
+            stamp=0.0, x=x, y=y, theta=theta, v=1.5, w=0.0, covariance=(0.01,) * 25,
+            current_x=0.25, current_y=-0.27, current_std=0.01,
+        )  # fmt: skip
+        return core.link.predict(0.0, est)
+
+    # heading east 7 m short of it, the current running south-east: coming about to the
+    # north-west sweeps the hull into circle 2; drifting does not go as deep
+    pred = at(24.3, 6.0, 0.0)
+    keep = core.link.station_keeper()
+    assert keep is not None
+    station = core.stopping._least_clearance(pred, keep)
+    drift = core.stopping._least_clearance(pred, lambda pose: (0.0, 0.0))
+    assert station < 0.0 < drift - station and core.stopping.hold(pred) == "drift"
+    vs, ws = core.link.stop(0.0, pred, hold="drift")
+    assert vs == [0.0] * len(vs) and ws == [0.0] * len(ws)
+    # in open water, or already head to the current, station is kept
+    assert core.stopping.hold(at(10.0, 30.0, 0.0)) == "station"
+    assert core.stopping.hold(at(24.3, 6.0, 2.3)) == "station"
+
+
 def test_a_stop_with_an_obstacle_close_upstream_lets_the_current_carry_it_clear() -> None:
     # issue 60, ocean + faults, seed 809: station kept head to the current, the hull was held
     # at an obstacle upstream of it, in contact for 153 s with no way out within R_min
@@ -240,7 +271,7 @@ def test_a_stop_with_an_obstacle_close_upstream_lets_the_current_carry_it_clear(
         stamp=0.0, x=50.0, y=20.0, theta=math.pi / 2, v=0.4, w=0.0, covariance=(0.01,) * 25,
         current_x=0.0, current_y=-0.4, current_std=0.01,
     )  # fmt: skip
-    vs, _ = link.stop(0.0, link.predict(0.0, est), give_way=True)
+    vs, _ = link.stop(0.0, link.predict(0.0, est), hold="give_way")
     assert all(v == pytest.approx(0.4 * GIVE_WAY_FRACTION, abs=0.01) for v in vs)
     # the current runs south: an obstacle north of the vehicle is upstream, one south is not
     static = StaticField.build((CircleObstacleConfig(id=1, x_m=50.0, y_m=24.0, radius_m=2.0),), ())

@@ -22,7 +22,7 @@ from common.messages import StateEstimate
 from common.runtime.model.core import Emit
 from services.control.command.arrival import Arrival
 from services.control.command.inputs import LoopInputs
-from services.control.command.link import CommandLink, Prediction
+from services.control.command.link import CommandLink, Hold, Prediction
 from services.control.controllers.arc_reference import ArcLengthReference
 from services.control.controllers.base import Limits
 from services.control.controllers.factory import make_controller
@@ -107,16 +107,16 @@ class CommandLoop(Generic[R]):
             self.restart()
 
     def follow(
-        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, give_way: bool = False
+        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, hold: Hold = "station"
     ) -> Commands:
-        """The controller's commands on `ref` (a stop without one; `give_way`: the link's)."""
-        return self.link.follow(t, self.controller, ref, s, pred, give_way=give_way)
+        """The controller's commands on `ref` (a stop without one; `hold`: the link's)."""
+        return self.link.follow(t, self.controller, ref, s, pred, hold=hold)
 
     def steer(
-        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, give_way: bool = False
+        self, t: float, s: StateEstimate, pred: Prediction, ref: R | None, *, hold: Hold = "station"
     ) -> Emit:
         """The command sent at t on `ref` (`follow`, then `send`; None: a stop)."""
-        return self.send(t, pred.effect_t, self.follow(t, s, pred, ref, give_way=give_way))
+        return self.send(t, pred.effect_t, self.follow(t, s, pred, ref, hold=hold))
 
     def step(self, t: float) -> list[Emit]:
         """A step of a core with no business of its own (the onboard tracker): the command

@@ -163,8 +163,8 @@ class PlannerCore:
         if not self.commands:  # onboard: the tracker's own closed loop predicted (shadow.py)
             pred = self.shadow.predict(t, s, pred.effect_t)
         if self.loop.arrival.arrived:
-            give_way = self.stopping.gives_way(pred)
-            return [self.loop.steer(t, s, pred, None, give_way=give_way)] if self.commands else []
+            hold = self.stopping.hold(pred)
+            return [self.loop.steer(t, s, pred, None, hold=hold)] if self.commands else []
         here = Pose2D(x=pred.at_effect[0], y=pred.at_effect[1], theta=pred.at_effect[2])
         # a plan made now starts where the vehicle will be when it takes effect, among the
         # obstacles as they will be then
@@ -190,8 +190,8 @@ class PlannerCore:
         if self.commands:
             run_out = self.stopping.run_out(pred, self.loop.ref, self.last_result)
             ref = None if run_out else self.loop.ref
-            give_way = ref is None and self.stopping.gives_way(pred)
-            out.append(self.loop.steer(t, s, pred, ref, give_way=give_way))
+            hold = self.stopping.hold(pred) if ref is None else "station"
+            out.append(self.loop.steer(t, s, pred, ref, hold=hold))
         return out
 
     def _decide(

@@ -2,20 +2,31 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
+import numpy as np
+
 from common.config.planner import PlannerConfig
 from common.config.vehicle import VehicleConfig
 from common.config.world import WorldConfig
-from services.control.command.link import Prediction
+from services.control.command.link import Hold, Prediction
+from services.control.command.response import Pose
 from services.planner.asking import PlanAsking
 from services.planner.geometry.clearance import StaticField, current_pushes_clear
 from services.planner.obstacle_picture import ObstaclePicture
 from services.planner.result import PlanResult
 from services.planner.shaping.path_arc_reference import PathArcReference
 
+StopCommand = Callable[[Pose], tuple[float, float]]  # a stop's (v, w) for a pose
+
+# a stop's station keeping is flown this long (s) before it is commanded (`Stopping.hold`):
+# coming about from downstream at cruise speed on R_min takes about this long
+COME_ABOUT_S = 12.0
+
 
 class Stopping:
-    """When the vehicle stops rather than follow its path (`run_out`), and whether it then
-    keeps station or lets the current carry it back (`gives_way`)."""
+    """When the vehicle stops rather than follow its path (`run_out`), and how it then holds
+    in a current (`hold`): keeping station, or letting the current carry it."""
 
     def __init__(
         self,
@@ -39,6 +50,39 @@ class Stopping:
             return False
         s_here = ref.closest_s(pred.at_effect[0], pred.at_effect[1], None)
         return ref.length - s_here <= self.cfg.tuning.arrived_m
+
+    def hold(self, pred: Prediction) -> Hold:
+        """How a stop holds (link.py `Hold`): it gives way to the current when an obstacle
+        lies close upstream (`gives_way`); it drifts when keeping station, which comes about
+        at cruise speed, would sweep the hull inside rho0 of a static obstacle within
+        COME_ABOUT_S and drifting keeps it farther (ocean, fuzzy PID seed 1505: in NO_PATH,
+        heading downstream 6 m short of obstacle 5, it came about into it, 17 s in contact)."""
+        if self.gives_way(pred):
+            return "give_way"
+        link = self.asking.link
+        keep = link.station_keeper()
+        if keep is None:
+            return "station"  # a stop is zeros either way
+        rho0 = self.cfg.rho0_m
+        kept = self._least_clearance(pred, keep)
+        if kept >= rho0:
+            return "station"
+        drift = self._least_clearance(pred, lambda pose: (0.0, 0.0))
+        return "drift" if drift > kept else "station"
+
+    def _least_clearance(self, pred: Prediction, command: StopCommand) -> float:
+        """The hull's least clearance from the static obstacles (m) over COME_ABOUT_S of a
+        stop commanding `command(pose)` every control period, on the response model."""
+        if self.static_field.empty:
+            return np.inf
+        link = self.asking.link
+        pose, pts = pred.at_effect, []
+        for _ in range(round(COME_ABOUT_S / link.step_s)):
+            v, w = command(pose)
+            pose = link.model.advance(pose, v, w, link.step_s)
+            pts.append(pose[:2])
+        d = self.static_field.distance(np.asarray(pts))[0]
+        return float(d.min()) - self.vehicle.radius_m
 
     def gives_way(self, pred: Prediction) -> bool:
         """Should a stop let the current carry the vehicle back, rather than keep station at

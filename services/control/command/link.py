@@ -23,6 +23,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 from common.config.controller import ControllerConfig
 from common.config.planner import PlannerConfig
@@ -46,6 +47,10 @@ STATION_GAIN_PS = 0.5
 # ... but with an obstacle close upstream it makes way at this fraction of the current only,
 # so that the current carries it back clear of the obstacle instead of holding it there
 GIVE_WAY_FRACTION = 0.5
+# how a stop holds in a current (`CommandLink.stop`): keeping station head to it, giving way
+# (an obstacle close upstream: GIVE_WAY_FRACTION of its speed), or drifting with it, no way
+# made (coming about would sweep the hull into an obstacle: planner/stopping.py)
+Hold = Literal["station", "give_way", "drift"]
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -316,29 +321,30 @@ class CommandLink:
         est: StateEstimate,
         pred: Prediction,
         *,
-        give_way: bool = False,
+        hold: Hold = "station",
     ) -> tuple[list[float], list[float]]:
         """The controller's commands (sequence) on `ref`, or a stop without a feasible path
-        (rather than drive into something; `give_way`: stop's). Every path leaves along the
+        (rather than drive into something; `hold`: stop's). Every path leaves along the
         vehicle's heading, a way out of contact included (safety/recover.py: arcs within
         R_min), so the controller follows it from the start."""
         if ref is None:
-            return self.stop(t, pred, give_way=give_way)
+            return self.stop(t, pred, hold=hold)
         return self.control(t, controller, ref, est, pred)
 
     def stop(
-        self, t: float, pred: Prediction, *, give_way: bool = False
+        self, t: float, pred: Prediction, *, hold: Hold = "station"
     ) -> tuple[list[float], list[float]]:
         """Commands that stop the vehicle over ground and keep it there over the horizon: in
         still water, zeros; in a current, station keeping (a stopped vehicle drifts with the
         current, out of its place and maybe out of the area): it turns into the current and
         makes way through the water as fast as the current flows, so it holds its ground
         (entries rolled out on the response model, as a sequence's are), once the estimate
-        tells the current from its fixes' noise (twice its standard deviation). `give_way`:
-        an obstacle lies close upstream, so it makes way at GIVE_WAY_FRACTION of the current
-        and drifts back clear of it, still heading into the current."""
+        tells the current from its fixes' noise (twice its standard deviation). `hold`
+        "give_way": an obstacle lies close upstream, so it makes way at GIVE_WAY_FRACTION of
+        the current and drifts back clear of it, still heading into the current; "drift":
+        zeros, the current carries it (coming about would sweep it into an obstacle)."""
         n = self.entries + 1
-        keep = self.station_keeper(give_way=give_way)
+        keep = None if hold == "drift" else self.station_keeper(give_way=hold == "give_way")
         if keep is None:
             zeros = [0.0] * n
             return zeros, list(zeros)
