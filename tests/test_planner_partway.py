@@ -23,10 +23,21 @@ SCENARIO = default_scenario()
 ROUTE = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 40.0]])  # 70 m with one corner
 
 
-def _request(r_min_m: float = 6.5, *, fix_goal_heading: bool = True) -> PlanRequest:
+ORIGIN = Pose2D(x=0.0, y=0.0, theta=0.0)
+CORNER_GOAL = Pose2D(x=30.0, y=40.0, theta=1.57)  # ROUTE's end, along its last leg
+GOAL_95 = Pose2D(x=95.0, y=20.0, theta=0.0)  # the default mission's goal
+
+
+def _request(
+    r_min_m: float = 6.5,
+    *,
+    fix_goal_heading: bool = True,
+    start: Pose2D = ORIGIN,
+    goal: Pose2D = CORNER_GOAL,
+) -> PlanRequest:
     return PlanRequest(
-        start=Pose2D(x=0.0, y=0.0, theta=0.0),
-        goal=Pose2D(x=30.0, y=40.0, theta=1.57),
+        start=start,
+        goal=goal,
         area=SCENARIO.world.area,
         obstacles=Obstacles(),
         vehicle_radius_m=SCENARIO.vehicle.radius_m,
@@ -97,15 +108,7 @@ def test_a_vehicle_that_overran_its_goal_comes_round_for_another_approach() -> N
     # just past the goal, heading away from it, the route to it shorter than a turn: no share
     # of it is a partway goal (configs/ocean.toml, fuzzy PID, seed 710 held here, drifting,
     # for the rest of the run); a real plan reaches the first approach point behind the goal
-    req = PlanRequest(
-        start=Pose2D(x=98.4, y=21.0, theta=math.radians(105.0)),
-        goal=Pose2D(x=95.0, y=20.0, theta=0.0),
-        area=SCENARIO.world.area,
-        obstacles=Obstacles(),
-        vehicle_radius_m=SCENARIO.vehicle.radius_m,
-        r_min_m=6.5,
-        v_ref_mps=SCENARIO.vehicle.cruise_speed_mps,
-    )
+    req = _request(start=Pose2D(x=98.4, y=21.0, theta=math.radians(105.0)), goal=GOAL_95)
     failed = dataclasses.replace(FAILED, grid_path=np.array([[98.4, 21.0], [95.0, 20.0]]))
     got = plan_partway(req, failed, lambda q: plan_path(q, SCENARIO.planner))
     assert got is not None and got.ok and got.short_of_goal, failed.reason
@@ -152,16 +155,7 @@ def test_a_vehicle_late_beside_a_goal_held_with_its_heading_goes_to_it_heading_f
     # heading 44 deg, R_min over ground 9.6 m; no curve joins the goal's heading 0 from there,
     # and the approach behind it was found only after it had passed (then held and drifted
     # to the area's edge, NO_PATH 140 times). The mission asks only to reach the goal.
-    req = PlanRequest(
-        start=Pose2D(x=91.5, y=13.9, theta=0.77),
-        goal=Pose2D(x=95.0, y=20.0, theta=0.0),
-        area=SCENARIO.world.area,
-        obstacles=Obstacles(),
-        vehicle_radius_m=SCENARIO.vehicle.radius_m,
-        r_min_m=9.6,
-        v_ref_mps=SCENARIO.vehicle.cruise_speed_mps,
-        fix_goal_heading=True,
-    )
+    req = _request(9.6, start=Pose2D(x=91.5, y=13.9, theta=0.77), goal=GOAL_95)
     got = plan_path(req, SCENARIO.planner)
     assert got.ok and got.strategy == "heading_freed" and not got.short_of_goal, got.reason
     assert "with its heading free" in got.reason
