@@ -389,8 +389,8 @@ def _fallbacks(
     if _near_a_held_goal(req):
         freed = rest(dataclasses.replace(req, fix_goal_heading=False))
         if freed.ok:
-            note = "to the goal with its heading free"
-            return _with_note(freed, failed.reason, note).coded("heading_freed", tried)
+            freed = freed.after(failed.reason, "to the goal with its heading free")
+            return freed.coded("heading_freed", tried)
         tried = (*tried, "heading_freed")
     turned = turn_then_plan(req, failed, rest, cfg.rho0_m)
     if turned.ok:
@@ -421,12 +421,6 @@ def _near_a_held_goal(req: PlanRequest) -> bool:
         req.fix_goal_heading
         and math.hypot(req.goal.x - req.start.x, req.goal.y - req.start.y) <= near
     )
-
-
-def _with_note(result: PlanResult, failed: str, note: str) -> PlanResult:
-    """An OK result of a fallback, its reason after the failure that led to it."""
-    why = f"{failed}; {note}" + (f": {result.reason}" if result.reason else "")
-    return dataclasses.replace(result, reason=why)
 
 
 def _fit_and_check(

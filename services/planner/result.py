@@ -147,6 +147,12 @@ class PlanResult:
         """This result as made by `strategy`, after the strategies `rejected`."""
         return replace(self, strategy=strategy, rejected=rejected)
 
+    def after(self, failed: str, note: str) -> PlanResult:
+        """This result of a fallback, its reason told after the failure that led to it:
+        "<failed>; <note>[: <its own reason>]"."""
+        own = f": {self.reason}" if self.reason else ""
+        return replace(self, reason=f"{failed}; {note}{own}")
+
     def curve(self) -> NurbsCurve:
         if not self.ok:
             raise ValueError(f"no curve: {self.reason}")

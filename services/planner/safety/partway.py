@@ -68,10 +68,6 @@ def plan_partway(req: PlanRequest, failed: PlanResult, plan: Plan) -> PlanResult
         part = plan(dataclasses.replace(req, goal=goal, fix_goal_heading=False))
         if part.ok:
             why = f"partway to ({x:.1f}, {y:.1f}), {where}"
-            return dataclasses.replace(
-                part,
-                reason=f"{failed.reason}; {why}" + (f": {part.reason}" if part.reason else ""),
-                short_of_goal=True,
-                partway=True,
-            )
+            part = part.after(failed.reason, why)
+            return dataclasses.replace(part, short_of_goal=True, partway=True)
     return None
