@@ -15,6 +15,7 @@ from common.config.sensor import SensorConfig
 from common.messages import NavFix, ObstacleTracks, StateEstimate, TruthState
 from common.runtime.model.core import Delivery
 from services.estimator import EstimatorCore
+from services.estimator.gate import chi2_quantile
 from services.estimator.prefilter import (
     LagFilter,
     MeanFilter,
@@ -247,3 +248,10 @@ def test_outputs_are_stamped_at_the_step() -> None:
 def test_config_validation(kw: dict[str, object], field: str) -> None:
     with pytest.raises(ValueError, match=field):
         EstimatorConfig(**kw)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 6])
+@pytest.mark.parametrize("probability", [0.5, 0.95, 0.9999])
+def test_the_gates_chi_square_quantile_is_scipys(dof: int, probability: float) -> None:
+    # two degrees of freedom in closed form (no scipy import in the estimator's start)
+    assert chi2_quantile(probability, dof) == pytest.approx(chi2.ppf(probability, dof), rel=1e-12)
