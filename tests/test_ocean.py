@@ -31,6 +31,7 @@ from services.control.command.link import (
     Prediction,
     believed_current,
     doubted_current,
+    position_std,
 )
 from services.control.controllers.base import Limits
 from services.control.controllers.nurbs_tracker import NurbsTracker
@@ -205,6 +206,15 @@ def test_a_current_told_from_the_noise_is_doubted_one_std_stronger_along_itself(
     calm = est(0.05, -0.04, 0.05)
     assert doubted_current(calm) == believed_current(calm)
     assert doubted_current(est(0.0, 0.0, 0.0)) == (0.0, 0.0)
+
+
+def test_the_position_std_is_the_covariances_larger_axis() -> None:
+    cov = np.zeros((5, 5))
+    cov[:2, :2] = [[0.05, 0.02], [0.02, 0.01]]
+    est = StateEstimate(
+        stamp=0.0, x=0.0, y=0.0, theta=0.0, v=1.0, w=0.0, covariance=tuple(cov.ravel()),
+    )  # fmt: skip
+    assert position_std(est) == pytest.approx(math.sqrt(np.linalg.eigvalsh(cov[:2, :2])[-1]))
 
 
 def test_a_stop_facing_downstream_comes_about_before_the_current_carries_it_far() -> None:

@@ -65,13 +65,14 @@ def _request(*, circles: tuple[CircleObstacleConfig, ...] = (), moving=()) -> Pl
     )
 
 
-def _flight(w0: float = 0.0, v0: float = V) -> RolloutInputs:
+def _flight(w0: float = 0.0, v0: float = V, start_std_m: float = 0.0) -> RolloutInputs:
     limits = Limits.from_vehicle(SCENARIO.vehicle, yaw_lag_lead=True)
     return RolloutInputs(
         controller=make_controller(SCENARIO.controller, limits),
         model=ResponseModel.from_vehicle(SCENARIO.vehicle),
         step_s=CFG.period_s,
         start=(5.0, 20.0, 0.0, v0, w0),
+        start_std_m=start_std_m,
         t0=0.0,
     )
 
@@ -157,6 +158,33 @@ def test_the_escape_stretch_is_not_held_to_rho0() -> None:
     assert rollout_clearance(_straight(20.0), req, _flight(), CFG).min_clearance_m < 0.25
     escaping = dataclasses.replace(_straight(20.0), escape_m=6.0)
     assert rollout_clearance(escaping, req, _flight(), CFG).min_clearance_m > 1.0
+
+
+def test_the_cushion_widens_by_the_estimates_position_std() -> None:
+    # the flight starts at the estimate, which is off the truth by about its std: default +
+    # 0.1 m/s current, fuzzy PID seeds 2202/2203, flights kept rho0 + cushion by 2 cm from an
+    # estimate 0.15-0.2 m off, and the hull passed 0.002-0.08 m inside rho0
+    gap = CFG.rho0_m + CFG.tuning.rollout_cushion_m + 0.1
+    req = _request(circles=(_circle_left_of_the_line(gap),))
+    sure = rollout_clearance(_straight(20.0), req, _flight(), CFG)
+    assert sure.short_m <= 0.0
+    assert sure.keep_m == pytest.approx(CFG.rho0_m + CFG.tuning.rollout_cushion_m)
+    doubtful = rollout_clearance(_straight(20.0), req, _flight(start_std_m=0.2), CFG)
+    sigmas = CFG.tuning.rollout_start_sigmas
+    assert doubtful.keep_m == pytest.approx(sure.keep_m + sigmas * 0.2)
+    assert doubtful.short_m > 0.0
+
+
+def test_a_turn_first_from_outside_the_margin_whose_arc_keeps_it_keeps_the_cushion() -> None:
+    # default + 0.1 m/s current, fuzzy PID seed 2203: a turn first from 4 m clear kept the
+    # margin, but its flight was held to rho0 alone for R_min past the arc (as if settling
+    # from an escape), passed rho0 by 0.12 m, and the hull came 0.08 m inside it
+    circle = _circle_left_of_the_line(CFG.rho0_m + 0.05, x=9.0)
+    req = _request(circles=(circle,))
+    turned = dataclasses.replace(_straight(20.0), escape_m=2.0, turn_rad=-0.26)
+    f = rollout_clearance(turned, req, _flight(), CFG)
+    assert f.keep_m == pytest.approx(CFG.rho0_m + CFG.tuning.rollout_cushion_m)
+    assert f.short_m > 0.0
 
 
 def test_a_turn_first_from_outside_the_margin_is_held_to_its_own_depth() -> None:
@@ -334,7 +362,10 @@ def test_just_after_an_escape_the_flight_is_held_to_rho0_without_the_cushion(
     # was adopted as made, and the vehicle passed 0.05 m inside it)
     escape_m = 2.0
     circle = _circle_left_of_the_line(CFG.rho0_m + 0.05, x=5.0 + escape_m + past_m)
-    req = _request(circles=(circle,))
+    # the escape starts inside the margin: an obstacle beside the start, on the right
+    beside = dataclasses.replace(_circle_left_of_the_line(CFG.rho0_m + 0.1, x=5.0), id=2)
+    beside = dataclasses.replace(beside, y_m=40.0 - beside.y_m)
+    req = _request(circles=(circle, beside))
     escaping = dataclasses.replace(_straight(20.0, x1=40.0), escape_m=escape_m)
     planner = _Planner()
 

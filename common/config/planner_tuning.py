@@ -23,6 +23,9 @@ class PlannerTuning:
     # a rollout must keep rho0 + this (the model knows no current and no estimation error);
     # the same cushion widens the margin a plan is made again with, past its tracking error
     rollout_cushion_m: float = 0.1
+    # a rollout starts at the estimate, which is off the truth by about its position standard
+    # deviation: the cushion it keeps widens by this many of them (the estimate's larger axis)
+    rollout_start_sigmas: float = 1.0
     # moving obstacles count over a rollout's first seconds only (their prediction a minute
     # ahead is a guess); a fleet vehicle's broadcast route counts throughout
     rollout_moving_s: float = 10.0
@@ -57,7 +60,13 @@ class PlannerTuning:
             "evade_length_step_m",
         ):
             positive(name, getattr(self, name))
-        for name in ("rollout_cushion_m", "rollout_detour_m", "evade_gain_m", "give_way_room_r"):
+        for name in (
+            "rollout_cushion_m",
+            "rollout_start_sigmas",
+            "rollout_detour_m",
+            "evade_gain_m",
+            "give_way_room_r",
+        ):
             nonneg(name, getattr(self, name))
         for name in ("rollout_curvature_factor", "rollout_slow_factor", "hold_first_factor"):
             fraction(name, getattr(self, name))

@@ -282,6 +282,7 @@ class PlanAsking:
             doubt=self.link.model.with_current(*self.link.doubted_current_mps),
             step_s=self.cfg.period_s,
             start=(here.x, here.y, here.theta, *twist),
+            start_std_m=self.link.position_std_m,
             t0=t_plan,
         )
         r_water = self.vehicle.turn_radius_min_m

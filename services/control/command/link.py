@@ -115,6 +115,7 @@ class CommandLink:
         self.model = ResponseModel.from_vehicle(vehicle)  # in the newest estimate's current
         self.current_known = False
         self.doubted_current_mps = (0.0, 0.0)  # `doubted_current` of the newest estimate
+        self.position_std_m = 0.0  # `position_std` of the newest estimate
         # the stop tail brakes at the hull's bound (sequence.py); 0: none
         self.stop_mps2 = vehicle.accel_max_mps2 if controller.sequence.stop_tail else 0.0
         self.cruise_mps = vehicle.cruise_speed_mps  # how fast a station keeper turns about
@@ -166,6 +167,7 @@ class CommandLink:
         pose: Pose = (est.x, est.y, est.theta, est.v, est.w)
         self.model = self.model.with_current(*believed_current(est))
         self.doubted_current_mps = doubted_current(est)
+        self.position_std_m = position_std(est)
         # a current is worth keeping station against once it is told from the fixes' noise
         self.current_known = current_told(est)
         t_b = basis_time(est)
@@ -424,6 +426,14 @@ def doubted_current(est: StateEstimate) -> tuple[float, float]:
     c = math.hypot(cx, cy)
     k = (c + std) / c
     return k * cx, k * cy
+
+
+def position_std(est: StateEstimate) -> float:
+    """The estimate's position standard deviation along its larger axis (m): the square root
+    of the largest eigenvalue of its 2x2 position covariance."""
+    a, b, c = est.covariance[0], est.covariance[1], est.covariance[6]
+    half = 0.5 * (a - c)
+    return math.sqrt(max(0.0, 0.5 * (a + c) + math.sqrt(half * half + b * b)))
 
 
 def current_told(est: StateEstimate) -> bool:

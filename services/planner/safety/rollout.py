@@ -12,11 +12,13 @@ controller (a copy, reset as on adoption) commands every control period, the res
 (response.py) answers, from the state the plan starts at, twist included, for the whole path
 (at most rollout_max_s), in the current believed now and again in the one the estimate may
 yet settle to (link.py `doubted_current`; the controller still believes the first). Where
-either flight comes inside rho0 of an obstacle (past the stretch the plan itself may pass
-nearer: escape_m), the flight's distance off the path there is the
+either flight comes inside rho0 + the cushion of an obstacle (past the stretch the plan itself
+may pass nearer: escape_m; the cushion is rollout_cushion_m for the model's own error plus
+rollout_start_sigmas of the estimate's position std, for the flight starts at the estimate, not
+at the truth), the flight's distance off the path there is the
 tracking error, and the plan is made again with a clearance margin that wide plus
-rollout_cushion_m, its curvature aimed rollout_curvature_factor lower; if that flight does not
-keep rho0 + rollout_cushion_m either (a squeeze at a bend can be too narrow for the wider
+the cushion, its curvature aimed rollout_curvature_factor lower; if that flight does not
+keep rho0 + the cushion either (a squeeze at a bend can be too narrow for the wider
 margin), once more around a disc
 of rollout_detour_m where the first flight came nearest a static obstacle, so the search takes
 another way; and then (that, too, near a static obstacle only) for rollout_slow_factor of the
@@ -87,6 +89,7 @@ class RolloutInputs:
     step_s: float
     start: Pose
     t0: float
+    start_std_m: float = 0.0  # how far the start may be off the truth: the estimate's std (m)
     # the model in the stronger current the estimate may yet settle to (link.py
     # `doubted_current`): a plan is flown in it too, and held to the same there
     doubt: ResponseModel | None = None
@@ -202,10 +205,13 @@ def _clearance(
     clearance = d - req.vehicle_radius_m
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
     # turning radius on, rho0 alone is kept; beyond, the cushion too (held to rho0 alone for
-    # the whole flight, a plan flown off its path well past its escape was adopted as made)
-    settling = (result.escape_m > 0.0) & (gone < result.escape_m + req.r_min_m)
+    # the whole flight, a plan flown off its path well past its escape was adopted as made).
+    # A turn first from outside the margin whose arc keeps it has nothing to settle from.
+    margin = cfg.rho0_m + cfg.clearance_margin_m
+    settles = clearance[0] < margin or result.margin_entered_m > 0.0
+    settling = settles & (result.escape_m > 0.0) & (gone < result.escape_m + req.r_min_m)
     cushion = cfg.tuning.rollout_cushion_m
-    keep = cfg.rho0_m + np.where(settling, 0.0, cushion)
+    keep = cfg.rho0_m + np.where(settling, 0.0, kept_cushion_m(fm, cfg.tuning))
     # the plan itself may pass nearer over its escape: from inside the margin, anywhere it
     # must; from outside (a turn first), as far into the margin as the plan's own arc goes,
     # and the cushion
@@ -232,6 +238,12 @@ def _clearance(
     )
 
 
+def kept_cushion_m(fm: RolloutInputs, tuning: PlannerTuning) -> float:
+    """What a rollout keeps past rho0 (m): rollout_cushion_m for the response model's own
+    error, and rollout_start_sigmas of the estimate's position std for its start's."""
+    return tuning.rollout_cushion_m + tuning.rollout_start_sigmas * fm.start_std_m
+
+
 Plan = Callable[[PlanRequest, PlannerConfig], PlanResult]
 
 
@@ -254,7 +266,7 @@ def plan_and_verify(
     wider = replace(
         cfg,
         clearance_margin_m=max(
-            cfg.clearance_margin_m, f1.off_path_m + cfg.tuning.rollout_cushion_m
+            cfg.clearance_margin_m, f1.off_path_m + kept_cushion_m(fm, cfg.tuning)
         ),
         curvature_margin=cfg.curvature_margin * cfg.tuning.rollout_curvature_factor,
     )
