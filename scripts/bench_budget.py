@@ -23,8 +23,7 @@ from pathlib import Path
 from common.config.planner import PlannerConfig
 from common.config.scenario import Scenario, load_scenario
 from common.config.work import estimate
-from common.world import World
-from services.planner.plan import Obstacles, PlanRequest, Pose2D, plan_path
+from services.planner.plan import PlanRequest, plan_path
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "configs" / "default.toml"
@@ -39,20 +38,7 @@ RUN_SETS = (
 def one_replan(res: float, connectivity: int, search: str, traced: bool) -> dict[str, float]:
     """One replan of the default field in this (fresh) process: its memory and time."""
     s, _ = load_scenario(DEFAULT)
-    w, v = s.world, s.vehicle
-    req = PlanRequest(
-        start=Pose2D(x=w.start.x_m, y=w.start.y_m, theta=w.start.theta_rad),
-        goal=Pose2D(x=w.goal.x_m, y=w.goal.y_m, theta=w.goal.theta_rad),
-        area=w.area,
-        obstacles=Obstacles(
-            circles=w.circles,
-            polygons=w.polygons,
-            moving=tuple(o for o in World(w).obstacles_at(0.0) if o.moving),
-        ),
-        vehicle_radius_m=v.radius_m,
-        r_min_m=v.turn_radius_min_m,
-        v_ref_mps=v.cruise_speed_mps,
-    )
+    req = PlanRequest.across(s.world, s.vehicle)
     cfg = PlannerConfig(resolution_m=res, connectivity=connectivity, search=search)
     rss0 = _peak_rss()
     if traced:

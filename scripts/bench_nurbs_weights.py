@@ -24,7 +24,6 @@ from scipy.optimize import minimize
 from common.config.planner import PlannerConfig
 from common.config.scenario import load_scenario
 from common.config.world import CircleObstacleConfig
-from common.world import World
 from common.world.geometry import FloatArray
 from services.planner.geometry.clearance import StaticField
 from services.planner.geometry.nurbs_curve import NurbsCurve, curvature, rational_basis
@@ -47,21 +46,11 @@ STEP = 0.05  # L-BFGS-B variable scale (m for points, log units for weights)
 def requests(n_varied: int, n_fields: int) -> list[tuple[str, PlanRequest]]:
     """The default field from its start and varied starts; random fields of 4-9 circles."""
     s, _ = load_scenario(DEFAULT_SCENARIO)
-    w, v = s.world, s.vehicle
-    moving = tuple(o for o in World(w).obstacles_at(0.0) if o.moving)
-    field = Obstacles(circles=w.circles, polygons=w.polygons, moving=moving)
-    goal = Pose2D(x=w.goal.x_m, y=w.goal.y_m, theta=w.goal.theta_rad)
+    w = s.world
+    field = PlanRequest.across(w, s.vehicle).obstacles
 
     def req(start: Pose2D, obstacles: Obstacles) -> PlanRequest:
-        return PlanRequest(
-            start=start,
-            goal=goal,
-            area=w.area,
-            obstacles=obstacles,
-            vehicle_radius_m=v.radius_m,
-            r_min_m=v.turn_radius_min_m,
-            v_ref_mps=v.cruise_speed_mps,
-        )
+        return PlanRequest.across(w, s.vehicle, start=start, obstacles=obstacles)
 
     start = Pose2D(x=w.start.x_m, y=w.start.y_m, theta=w.start.theta_rad)
     out = [("default", req(start, field))]
@@ -178,13 +167,7 @@ def compare(req: PlanRequest, cfg: PlannerConfig, max_iter: int) -> Comparison |
     grid = build_costmap(req.area, static, np.zeros((0, 3)), req.vehicle_radius_m, cfg)
     prob = fit_problem(req, cfg, static, grid, start_inside=False)
     curve = res.curve()
-    wts = RefineWeights(
-        c_d=cfg.penalty_clearance,
-        c_k=cfg.penalty_curvature,
-        clear_margin_m=cfg.clearance_margin_m,
-        k_target=cfg.curvature_margin / req.r_min_m,
-        c_r=cfg.penalty_turn,
-    )
+    wts = RefineWeights.of(cfg, req.r_min_m)
     obj = Objective(prob, curve, cfg.samples_per_span, wts)
     lay = obj.lay
     lo, hi = lay.bounds(prob.area, prob.vehicle_radius_m, 4.0 * prob.r_min_m + 10.0)

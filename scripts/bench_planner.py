@@ -10,8 +10,7 @@ import numpy as np
 
 from common.config.planner import PlannerConfig
 from common.config.scenario import load_scenario
-from common.world import World
-from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
+from services.planner.plan import PlanRequest, PlanResult, Pose2D, plan_path
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 
@@ -23,28 +22,17 @@ def main(n_replans: int, seed: int, cfg: PlannerConfig) -> list[PlanResult]:
     obstacles are taken at t = 0.
     """
     scenario, _ = load_scenario(DEFAULT_SCENARIO)
-    world, vehicle = scenario.world, scenario.vehicle
-    obstacles = Obstacles(
-        circles=world.circles,
-        polygons=world.polygons,
-        moving=tuple(o for o in World(world).obstacles_at(0.0) if o.moving),
-    )
-    goal = Pose2D(x=world.goal.x_m, y=world.goal.y_m, theta=world.goal.theta_rad)
     rng = np.random.default_rng(seed)
-    base = world.start
+    base = scenario.world.start
     requests = [
-        PlanRequest(
+        PlanRequest.across(
+            scenario.world,
+            scenario.vehicle,
             start=Pose2D(
                 x=base.x_m + float(rng.uniform(-1.0, 1.0)),
                 y=base.y_m + float(rng.uniform(-2.0, 2.0)),
                 theta=base.theta_rad + float(rng.uniform(-0.3, 0.3)),
             ),
-            goal=goal,
-            area=world.area,
-            obstacles=obstacles,
-            vehicle_radius_m=vehicle.radius_m,
-            r_min_m=vehicle.turn_radius_min_m,
-            v_ref_mps=vehicle.cruise_speed_mps,
         )
         for _ in range(n_replans)
     ]

@@ -26,6 +26,7 @@ from services.planner.obstacle_picture import ObstaclePicture, judge_tracks
 from services.planner.plan import Obstacles, PlanResult, Pose2D
 from services.planner.repeat import PathRepeat
 from services.planner.replan import ReplanDecision, ReplanPolicy
+from services.planner.result import goal_of
 from services.planner.safety.intent import FleetIntents
 from services.planner.shadow import TrackerShadow
 from services.planner.shaping.path_arc_reference import PathArcReference
@@ -69,10 +70,8 @@ class PlannerCore:
         self.loop = loop
         self.link, self.controller, self.inputs = loop.link, loop.controller, loop.inputs
         self.shadow = TrackerShadow(loop)  # onboard, the tracker's commands predicted (shadow.py)
-        g = world.goal
-        # eq. (10): theta_f imposed only when the scenario gives one (GoalConfig)
-        self.goal = Pose2D(x=g.x_m, y=g.y_m, theta=0.0 if g.theta_rad is None else g.theta_rad)
-        self.fix_goal_heading = fixed = g.theta_rad is not None
+        self.goal, fixed = goal_of(world)  # eq. (10): theta_f imposed if the scenario gives one
+        self.fix_goal_heading = fixed
         self.asking = PlanAsking(
             planner, vehicle, world, self.link, self.plans, self.goal, fix_goal_heading=fixed
         )

@@ -437,13 +437,7 @@ def _fit_and_check(
     """
     spacing = cfg.ctrl_spacing_m
     met_moving: NurbsCurve | None = None
-    wts = RefineWeights(
-        c_d=cfg.penalty_clearance,
-        c_k=cfg.penalty_curvature,
-        clear_margin_m=cfg.clearance_margin_m,
-        k_target=cfg.curvature_margin / prob.r_min_m,
-        c_r=cfg.penalty_turn,
-    )
+    wts = RefineWeights.of(cfg, prob.r_min_m)
     curve = initial_curve(prob, waypoints, spacing, cfg.nurbs_degree)
     for rnd in range(cfg.refine_rounds):
         if rnd >= 2:  # fallback: twice the control points, seeded from the last curve,

@@ -8,8 +8,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from common.config.world import AreaConfig, CircleObstacleConfig, PolygonObstacleConfig
-from common.world import ObstacleState
+from common.config.vehicle import VehicleConfig
+from common.config.world import (
+    AreaConfig,
+    CircleObstacleConfig,
+    PolygonObstacleConfig,
+    WorldConfig,
+)
+from common.world import ObstacleState, World
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.reasons import Strategy
@@ -72,6 +78,42 @@ class PlanRequest:
         """The speed over ground that converts arc length to passing time, eq. (13) (m/s):
         moving obstacles are met where they are at t = s / pace_mps."""
         return self.v_ref_mps * self.pace
+
+    @classmethod
+    def across(
+        cls,
+        world: WorldConfig,
+        vehicle: VehicleConfig,
+        *,
+        start: Pose2D | None = None,
+        obstacles: Obstacles | None = None,
+    ) -> PlanRequest:
+        """A plan across a scenario's world for its vehicle (radius, R_min, cruise speed):
+        from `start` (the world's own by default) to the world's goal, among `obstacles` (the
+        world's by default: its chart, and the moving ones where they are at t = 0)."""
+        if obstacles is None:
+            moving = tuple(o for o in World(world).obstacles_at(0.0) if o.moving)
+            obstacles = Obstacles(circles=world.circles, polygons=world.polygons, moving=moving)
+        w0 = world.start
+        goal, fixed = goal_of(world)
+        return cls(
+            start=start or Pose2D(x=w0.x_m, y=w0.y_m, theta=w0.theta_rad),
+            goal=goal,
+            area=world.area,
+            obstacles=obstacles,
+            vehicle_radius_m=vehicle.radius_m,
+            r_min_m=vehicle.turn_radius_min_m,
+            v_ref_mps=vehicle.cruise_speed_mps,
+            fix_goal_heading=fixed,
+        )
+
+
+def goal_of(world: WorldConfig) -> tuple[Pose2D, bool]:
+    """The world's goal pose, and whether its heading is imposed (eq. (10): only when the
+    scenario gives one, GoalConfig; else the pose's theta is 0 and free)."""
+    g = world.goal
+    theta = 0.0 if g.theta_rad is None else g.theta_rad
+    return Pose2D(x=g.x_m, y=g.y_m, theta=theta), g.theta_rad is not None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,6 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from common.config.planner import PlannerConfig
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve, rational_basis
 from services.planner.shaping.fit import FitProblem, Layout
@@ -47,6 +48,17 @@ class RefineWeights:
     clear_margin_m: float  # aim this far beyond the required clearance
     k_target: float  # aim at curvature <= this (1/m), below 1/R_min
     c_r: float = 0.0  # eq. (19) turning cost: metres of length per unit of F_R
+
+    @classmethod
+    def of(cls, cfg: PlannerConfig, r_min_m: float) -> RefineWeights:
+        """The planner config's penalties and targets, for a vehicle turning on r_min_m."""
+        return cls(
+            c_d=cfg.penalty_clearance,
+            c_k=cfg.penalty_curvature,
+            clear_margin_m=cfg.clearance_margin_m,
+            k_target=cfg.curvature_margin / r_min_m,
+            c_r=cfg.penalty_turn,
+        )
 
 
 @lru_cache(maxsize=16)
