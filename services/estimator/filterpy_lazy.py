@@ -35,10 +35,21 @@ def _stand_in() -> None:
     if spec is None or spec.origin is None:
         return  # filterpy missing: the import below says so
     stats = types.ModuleType("filterpy.stats", "filterpy.stats, loaded on first use")
-    stats.__path__ = [str(Path(spec.origin).parent / "stats")]  # its submodules import as usual
+    here = Path(spec.origin).parent / "stats"
+    stats.__path__ = [str(here)]  # its submodules import as usual
+    # a module's own attributes answer without loading it: a scan of sys.modules (hypothesis
+    # reads every module's __file__) loaded scipy.stats in every test process
+    stats.__file__ = str(here / "__init__.py")
     stats.logpdf = _logpdf  # type: ignore[attr-defined]
-    stats.__getattr__ = lambda name: getattr(_real_stats(), name)  # type: ignore[method-assign]
+    stats.__getattr__ = _attribute  # type: ignore[method-assign]
     sys.modules["filterpy.stats"] = stats
+
+
+def _attribute(name: str) -> Any:
+    """The stand-in's other names, from the real module; none of a module's dunder names."""
+    if name.startswith("__") and name.endswith("__"):
+        raise AttributeError(name)
+    return getattr(_real_stats(), name)
 
 
 _stand_in()
