@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.stats import chi2
 
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
@@ -189,6 +188,8 @@ def test_nees_consistent_with_30_percent_loss(kind: str, runs: int) -> None:
     time-averaged NEES, averaged over runs, within chi2(3M)/M (conservative, since time
     averaging only narrows its spread).
     """
+    from scipy.stats import chi2  # here: a second of import for every process that collects
+
     cfg = EstimatorConfig(vehicle_filter=kind)  # type: ignore[arg-type]
     checkpoints, per_run = [], []
     for seed in range(runs):
@@ -254,4 +255,6 @@ def test_config_validation(kw: dict[str, object], field: str) -> None:
 @pytest.mark.parametrize("probability", [0.5, 0.95, 0.9999])
 def test_the_gates_chi_square_quantile_is_scipys(dof: int, probability: float) -> None:
     # two degrees of freedom in closed form (no scipy import in the estimator's start)
+    from scipy.stats import chi2
+
     assert chi2_quantile(probability, dof) == pytest.approx(chi2.ppf(probability, dof), rel=1e-12)

@@ -3,18 +3,28 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
 
 from common.config.world import WorldConfig
 from common.world import World
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 COLOURS = {"nurbs": "tab:green", "backstepping": "tab:blue", "fuzzy_pid": "tab:red"}
 NAMES = {"nurbs": "NURBS method", "backstepping": "Backstepping", "fuzzy_pid": "immune fuzzy PID"}
 CONTROL_MARK_EVERY = 10  # a marker every 10th control action keeps the paper's "control points"
+
+
+def _figure(width_in: float, height_in: float) -> Figure:
+    """A figure without pyplot (no global state, PNG through Agg); matplotlib is imported
+    here, for its second of import is not worth paying in every process that loads this."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
 def load_trajectory(path: Path) -> dict[str, np.ndarray]:
@@ -24,6 +34,8 @@ def load_trajectory(path: Path) -> dict[str, np.ndarray]:
 
 def _world(ax: Axes, cfg: WorldConfig, t_end: float) -> None:
     """Static obstacles filled, moving ones as their track over the run, start and goal."""
+    from matplotlib.patches import Circle, Polygon
+
     for c in cfg.circles:
         ax.add_patch(Circle((c.x_m, c.y_m), c.radius_m, color="0.6", zorder=1))
     for p in cfg.polygons:
@@ -75,7 +87,7 @@ def trajectory_figure(
     path: Path, cfg: WorldConfig, ctrl: str, traj: dict[str, np.ndarray], title: str
 ) -> None:
     """Figures 2-4: one controller's trajectory and control points against the optimal path."""
-    fig = Figure(figsize=(10.0, 4.8), layout="constrained")
+    fig = _figure(10.0, 4.8)
     ax = fig.add_subplot()
     t_end = float(traj["truth"][-1, 0]) if len(traj["truth"]) else 0.0
     _world(ax, cfg, t_end)
@@ -90,7 +102,7 @@ def overlay_figure(
     path: Path, cfg: WorldConfig, trajs: dict[str, dict[str, np.ndarray]], title: str
 ) -> None:
     """Figure 5: the three trajectories overlaid on the optimal path."""
-    fig = Figure(figsize=(10.0, 4.8), layout="constrained")
+    fig = _figure(10.0, 4.8)
     ax = fig.add_subplot()
     t_end = max((float(t["truth"][-1, 0]) for t in trajs.values() if len(t["truth"])), default=0.0)
     _world(ax, cfg, t_end)
@@ -114,7 +126,7 @@ def distance_travelled(truth: np.ndarray) -> np.ndarray:
 
 def time_distance_figure(path: Path, trajs: dict[str, dict[str, np.ndarray]], title: str) -> None:
     """Figure 6: time against distance travelled (the slope is 1 / speed, eq. 21)."""
-    fig = Figure(figsize=(7.0, 4.5), layout="constrained")
+    fig = _figure(7.0, 4.5)
     ax = fig.add_subplot()
     for ctrl, traj in trajs.items():
         tr = traj["truth"]

@@ -5,8 +5,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from matplotlib.figure import Figure  # no pyplot: no global state, PNG through Agg
-
 from services.experiments.sweep.schema import Axis
 from services.experiments.sweep.stats import Estimate
 from services.experiments.sweep.summary import CellStats
@@ -62,6 +60,10 @@ def plot_sweep(
         name = ", ".join(c.labels[g] for g in others) or "all"
         lines.setdefault(name, []).append(c)
     styles = _styles(lines, others, dash_axis) if dash_axis in others else {}
+    # no pyplot: no global state, PNG through Agg; imported here, for a second of import is
+    # not worth paying in every process that only reads a sweep
+    from matplotlib.figure import Figure
+
     written = []
     for metric, ylabel in (PLOT_METRICS if metrics is None else metrics).items():
         if not any(_estimate(c, metric) is not None for c in cells):
