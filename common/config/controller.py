@@ -151,12 +151,13 @@ class SequenceConfig:
     # a prepared tail is reused, shifted by one period, instead of rolled out again after the
     # step, while the newest prediction agrees with it where the step's fresh entries end
     # (pose and commands within the tolerances below): a tail at most reuse_s older than
-    # the fresh entries. 0: a tail rolled out after every step (sequence.py, "Reused tails";
-    # the defaults: docs/notes/0067)
-    reuse_s: float = 3.0
-    reuse_tolerance_m: float = 0.2  # position
-    reuse_tolerance_rad: float = 0.04  # heading (rad) and yaw rate (rad/s), state and command
-    reuse_tolerance_mps: float = 0.06  # speed, state and command
+    # the fresh entries. 0: a tail rolled out after every step (sequence.py, "Reused tails").
+    # The state's bounds set how far a blind run on the tail may start off it (docs/notes/0067)
+    reuse_s: float = 1.0
+    reuse_tolerance_m: float = 0.1  # position
+    reuse_tolerance_rad: float = 0.02  # heading
+    reuse_tolerance_rate_rps: float = 0.04  # yaw rate, state and command
+    reuse_tolerance_mps: float = 0.03  # speed, state and command
 
     def __post_init__(self) -> None:
         for name in (
@@ -165,6 +166,7 @@ class SequenceConfig:
             "reuse_s",
             "reuse_tolerance_m",
             "reuse_tolerance_rad",
+            "reuse_tolerance_rate_rps",
             "reuse_tolerance_mps",
         ):
             nonneg(name, getattr(self, name))

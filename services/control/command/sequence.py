@@ -139,7 +139,8 @@ class ReuseTolerance:
     """How close the newest prediction must lie to a prepared tail for it to be reused."""
 
     position_m: float
-    angle_rad: float  # heading (rad), and yaw rate (rad/s)
+    angle_rad: float  # heading (rad)
+    rate_rps: float  # yaw rate and the yaw-rate command (rad/s)
     speed_mps: float
 
     @staticmethod
@@ -147,6 +148,7 @@ class ReuseTolerance:
         return ReuseTolerance(
             position_m=cfg.reuse_tolerance_m,
             angle_rad=cfg.reuse_tolerance_rad,
+            rate_rps=cfg.reuse_tolerance_rate_rps,
             speed_mps=cfg.reuse_tolerance_mps,
         )
 
@@ -175,9 +177,9 @@ class Prepared:
             d_xy <= tol.position_m
             and abs(wrap_angle(pose[2] - th)) <= tol.angle_rad
             and abs(pose[3] - pv) <= tol.speed_mps
-            and abs(pose[4] - pw) <= tol.angle_rad
+            and abs(pose[4] - pw) <= tol.rate_rps
             and abs(v - self.vs[k]) <= tol.speed_mps
-            and abs(w - self.ws[k]) <= tol.angle_rad
+            and abs(w - self.ws[k]) <= tol.rate_rps
         )
 
     def shifted(self, t: float) -> Prepared:
