@@ -1,12 +1,13 @@
-"""Where one tick's time goes: the default mission inproc, per service core and phase.
+"""Where one tick's time goes: a mission inproc, per service core and phase.
 
 One inproc run in this process (imports done before it), each core's step, deliver and
 prepare timed (CPU time), the planner's command sequences counted apart; then the same run
 under cProfile for its top functions. `--before DIR` runs the same measurement on another
 checkout (DIR: its root, e.g. a `git archive` of an older commit) in a child process and
-prints the two side by side.
+prints the two side by side. By default the default mission and the ocean (configs/ocean.toml:
+its current field, ocean plant and navigation) are measured, a table each.
 
-    python scripts/bench_profile.py [--before DIR] [--seed N]
+    python scripts/bench_profile.py [--before DIR] [--seed N] [--scenario TOML ...]
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = (ROOT / "configs" / "default.toml", ROOT / "configs" / "ocean.toml")
 PHASES = ("step", "deliver", "prepare")
 
 
@@ -86,6 +88,7 @@ def measure(seed: int, scenario: Path = ROOT / "configs" / "default.toml") -> di
         "phases": {k: v[0] for k, v in acc.items()},
         "top": top,
         "profiled_s": stats.total_tt,  # type: ignore[attr-defined]
+        "scenario": scenario.stem,
     }
 
 
@@ -94,7 +97,8 @@ def table(runs: dict[str, dict[str, Any]]) -> None:
     names = list(runs)
     first = runs[names[0]]
     print(
-        f"default mission inproc, seed {first['seed']}: {first['sim_s']:.1f} s simulated, "
+        f"{first.get('scenario', 'default')} mission inproc, seed {first['seed']}: "
+        f"{first['sim_s']:.1f} s simulated, "
         f"{first['ticks']} ticks; CPU ms per tick (share of the run)"
     )
     print(f"{'':24s}" + "".join(f"{n:>22s}" for n in names))
@@ -131,7 +135,8 @@ def table(runs: dict[str, dict[str, Any]]) -> None:
     tick_ms = 1e3 * here["total_s"] / here["ticks"]
     seq_ms = 1e3 * here["phases"].get("sequences", 0.0) / here["ticks"]
     print(
-        f"result: a tick of the default mission inproc costs {tick_ms:.2f} ms CPU, "
+        f"result: a tick of the {here.get('scenario', 'default')} mission inproc costs "
+        f"{tick_ms:.2f} ms CPU, "
         f"{seq_ms:.2f} ms of it in the planner's command sequences"
         + (
             f" ({1e3 * first['total_s'] / first['ticks']:.2f} ms {names[0]})"
@@ -155,24 +160,35 @@ def main() -> None:
     ap.add_argument("--before", type=Path, help="root of another checkout to measure too")
     ap.add_argument("--label", default="before", help="--before's column heading")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument(
+        "--scenario",
+        type=Path,
+        action="append",
+        help="repeatable; default configs/default.toml and configs/ocean.toml",
+    )
     ap.add_argument("--json", action="store_true", help="print this checkout's figures as JSON")
     a = ap.parse_args()
+    scenarios = [p.resolve() for p in a.scenario or SCENARIOS]
     if a.json:
-        print(json.dumps(dict(measure(a.seed), seed=a.seed)))
+        print(json.dumps(dict(measure(a.seed, scenarios[0]), seed=a.seed)))
         return
-    runs: dict[str, dict[str, Any]] = {}
-    if a.before:
-        out = subprocess.run(
-            [sys.executable, str(Path(__file__).resolve()), "--json", "--seed", str(a.seed)],
-            cwd=a.before,
-            env={**os.environ, "PYTHONPATH": str(a.before.resolve())},
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout
-        runs[a.label] = json.loads(out.splitlines()[-1])
-    runs["this checkout"] = dict(measure(a.seed), seed=a.seed)
-    table(runs)
+    for k, scenario in enumerate(scenarios):
+        if k:
+            print()
+        runs: dict[str, dict[str, Any]] = {}
+        if a.before:
+            cmd = [sys.executable, str(Path(__file__).resolve()), "--json", "--seed", str(a.seed)]
+            out = subprocess.run(
+                [*cmd, "--scenario", str(scenario)],
+                cwd=a.before,
+                env={**os.environ, "PYTHONPATH": str(a.before.resolve())},
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout
+            runs[a.label] = json.loads(out.splitlines()[-1])
+        runs["this checkout"] = dict(measure(a.seed, scenario), seed=a.seed)
+        table(runs)
 
 
 if __name__ == "__main__":
