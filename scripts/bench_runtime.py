@@ -166,6 +166,20 @@ def bench_floor() -> tuple[float, float]:
     return 1e3 * timer.loop_s / got.ticks, got.t_end / timer.loop_s
 
 
+def print_floor() -> float:
+    """Part 3: the toy loop's ms per tick against a raw round trip measured just after it;
+    returns the floor's real-time factor."""
+    floor_ms, floor_rtf = bench_floor()
+    rtt50, _ = raw_latency_us("rtt", "2000")
+    print("lockstep tick floor (toy loop, trivial cores):")
+    print(
+        f"  {floor_ms:.2f} ms per tick; raw zenoh round trip through a router p50 "
+        f"{rtt50:.0f} us; tick / round trip = {1e3 * floor_ms / rtt50:.1f}x",
+        flush=True,
+    )
+    return floor_rtf
+
+
 def raw_latency_us(*args: str) -> tuple[float, float]:
     """p50, p99 of raw zenoh-python between two processes (scripts/_raw_hop.py)."""
     code = ROOT / "scripts" / "_raw_hop.py"
@@ -394,8 +408,19 @@ def main() -> None:
         help="pairs of realtime loop runs, plain then secured, and rounds of the secured hop "
         "(0: plain loop only)",
     )
+    p.add_argument(
+        "--floor-only",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run part 3 alone (the lockstep tick floor against the raw round trip), N times",
+    )
     a = p.parse_args()
     _find_the_test_loop()
+    if a.floor_only:
+        for _ in range(a.floor_only):
+            print_floor()
+        return
     seeds = range(1, a.seeds + 1)
     # imports, the fork server and the planner's first set-up are not what is compared
     cold = bench_lockstep(a.seeds + 1)
@@ -448,13 +473,7 @@ def main() -> None:
             f"  {rt:<25} {wall[rt]:6.2f} s   real-time factor {mission_s / wall[rt]:6.1f}x"
             + (f"   ratio to inproc {wall[rt] / wall['inproc']:.2f}x" if rt != "inproc" else "")
         )
-    floor_ms, floor_rtf = bench_floor()
-    rtt50, _ = raw_latency_us("rtt", "2000")
-    print("lockstep tick floor (toy loop, trivial cores):")
-    print(
-        f"  {floor_ms:.2f} ms per tick; raw zenoh round trip through a router p50 "
-        f"{rtt50:.0f} us; tick / round trip = {1e3 * floor_ms / rtt50:.1f}x"
-    )
+    floor_rtf = print_floor()
     print(
         f"result: tick-loop real-time factor (lockstep, toy loop: the runtime's own cost) "
         f"{floor_rtf:.0f}x (target >= {RTF_GOAL:g}x) {'OK' if floor_rtf >= RTF_GOAL else 'MISSED'};"

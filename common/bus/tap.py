@@ -53,6 +53,9 @@ class WatchTap:
         self.keys = keys
         self._lock = threading.Lock()
         self._taken = threading.Condition(self._lock)  # notified per frame (see caught_up)
+        # threads in caught_up: a frame notifies only when there is one (the lockstep
+        # coordinator feeds every frame on its tick's path, and a notify is Python code)
+        self._waiting = 0
         self._n = 0
         self._latest: dict[str, RawFrame] = {}  # latest key -> frame as a query reply
         self._latest_n: dict[str, int] = {}
@@ -86,7 +89,11 @@ class WatchTap:
         the tap then would leave that frame out of every watcher's and recorder's view.
         """
         with self._taken:
-            return self._taken.wait_for(lambda: self._n >= count, timeout_s)
+            self._waiting += 1
+            try:
+                return self._taken.wait_for(lambda: self._n >= count, timeout_s)
+            finally:
+                self._waiting -= 1
 
     def _take(self, f: RawFrame) -> None:
         service, stream = self.keys.split(f.key)
@@ -105,7 +112,8 @@ class WatchTap:
                 out = self._outlets[(service, stream)] = self._outlet(service, stream)
             latest, name, pub = out
             self._n += 1
-            self._taken.notify_all()
+            if self._waiting:
+                self._taken.notify_all()
             n, wall = self._n, time.time()
             att = encode_watch(wall, n, attachment)
             self._latest[latest] = RawFrame(latest, payload, att)
