@@ -49,9 +49,10 @@ def _compile_common_test(cls: type) -> Callable[[Any], bool]:
 
     Generated once per class, the way dataclasses generate __init__: one sum over the fields
     by plain attribute access is about ten times cheaper than a loop of getattr calls, and
-    every message pays it when built and when decoded (and its envelope when stamped). x - x is 0.0 for a finite sum
-    and NaN otherwise. A sum can also overflow to inf with every item finite: the caller's
-    field-by-field pass (_name_the_problem) then finds nothing wrong and lets it through.
+    every message pays it when built, when stamped (codec.encode) and when decoded. x - x is
+    0.0 for a finite sum and NaN otherwise. A sum can also overflow to inf with every item
+    finite: the caller's field-by-field pass (_name_the_problem) then finds nothing wrong and
+    lets it through.
     """
     hints = typing.get_type_hints(cls)
     names = [f.name for f in msgspec.structs.fields(cls)]
@@ -113,8 +114,9 @@ class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_field
     build, encode and decode-with-type-checks in C (a frozen dataclass's __init__ alone costs
     more than our whole encode, see scripts/bench_bus.py). Every record is checked when it is
     built *and* when it is decoded from another process's bytes: no float may be NaN or
-    infinite, and `validate` enforces the class's own ranges. `gc=False`: records hold only numbers, strings and containers of
-    them, never a reference cycle, so the cycle collector need not track them.
+    infinite, and `validate` enforces the class's own ranges. `gc=False`: records hold only
+    numbers, strings and containers of them, never a reference cycle, so the cycle collector
+    need not track them.
     """
 
     def __post_init__(self) -> None:
