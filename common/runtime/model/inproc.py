@@ -55,17 +55,20 @@ def run_inproc(scenario: Scenario) -> RunResult:
     record = mission_record(mission)
     max_us = round(mission.max_time_s * 1e6)
     tick, t_us, reason = 0, 0, "max_time"
+    ordered = [(name, hosts[name]) for name in sorted(hosts)]
+    events = [h.next_event_us() for _, h in ordered]  # each host's, in that order
     while True:
         # only hosts with something due take part (lockstep wakes exactly the same ones)
-        due = [n for n in sorted(hosts) if hosts[n].next_event_us() <= t_us]
-        for name in due:
-            route(hosts[name].run_tick(tick, t_us), name, tick, hosts, record)
-            hosts[name].prepare()  # as the distributed runtimes do, once the outputs are out
+        for (name, host), event_us in zip(ordered, events, strict=True):
+            if event_us <= t_us:
+                route(host.run_tick(tick, t_us), name, tick, hosts, record)
+                host.prepare()  # as the distributed runtimes do, once the outputs are out
         end = mission.observe(record)
         if end is not None:
             reason = end
             break
-        nxt = min(h.next_event_us() for h in hosts.values())
+        events = [h.next_event_us() for _, h in ordered]
+        nxt = min(events)
         if nxt > max_us or nxt >= NEVER:
             break
         t_us, tick = nxt, tick + 1
