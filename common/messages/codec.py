@@ -8,6 +8,7 @@ type and field in our words. This module is the only place that names the codec.
 
 from __future__ import annotations
 
+import copy
 import re
 import threading
 from collections.abc import Mapping
@@ -82,7 +83,7 @@ def _stamped(msg: Message, source: str | None, seq: int | None, sent: float | No
     would refuse it: only the shared checks (finite floats, seq in range) can fail, as a
     message type's `validate` never reads the envelope (Message) and `msg` passed it when
     built; running it again cost more than the rest of a publish."""
-    out = msg.__copy__()  # a C-level copy: no __post_init__
+    out = copy.copy(msg)  # msgspec's C-level copy: no __post_init__
     if source is not None:
         msgspec.structs.force_setattr(out, "source", source)
     if seq is not None:
