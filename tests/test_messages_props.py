@@ -45,7 +45,9 @@ from common.messages import (
     WireError,
     WireRecord,
     decode,
+    decode_own,
     encode,
+    replace,
 )
 
 S = st.SearchStrategy
@@ -498,3 +500,71 @@ def test_encode_rejects_a_foreign_class() -> None:
 def test_the_valid_frame_used_above_decodes() -> None:
     # the error cases differ from a valid message only in what they name
     assert decode(_packed(_nav_frame())) == one_of_each()[0]
+
+
+# --- stamping and decoding what this process encoded (the inproc runtime's wire) ----------------
+
+SAMPLES = [*one_of_each(), *variants().values()]
+
+
+class _NoEnvelope:
+    """A message's fields for `validate`, failing on the envelope's (source, seq, sent)."""
+
+    def __init__(self, msg: Message) -> None:
+        self._msg = msg
+
+    def __getattr__(self, name: str) -> object:
+        assert name not in ("source", "seq", "sent"), f"validate read the envelope's {name}"
+        return getattr(self._msg, name)
+
+
+@pytest.mark.parametrize("msg", SAMPLES, ids=lambda m: type(m).__name__)
+def test_validate_never_reads_the_envelope(msg: Message) -> None:
+    # what lets encode stamp a checked message with only the shared checks (codec._stamped)
+    type(msg).validate(_NoEnvelope(msg))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("msg", SAMPLES, ids=lambda m: type(m).__name__)
+@pytest.mark.parametrize(
+    "envelope",
+    [
+        {"seq": -1},
+        {"seq": 2**63},
+        {"sent": math.nan},
+        {"sent": -math.inf, "seq": 4},
+        {"source": "x", "seq": 7, "sent": 1.5},
+    ],
+    ids=str,
+)
+def test_encode_stamps_an_envelope_as_replace_would(msg: Message, envelope: dict[str, Any]) -> None:
+    try:
+        expected: bytes | str = encode(replace(msg, **envelope))
+    except WireError as exc:
+        expected = str(exc)
+    try:
+        got: bytes | str = encode(msg, **envelope)
+    except WireError as exc:
+        got = str(exc)
+    assert got == expected
+
+
+@pytest.mark.parametrize("msg", SAMPLES, ids=lambda m: type(m).__name__)
+def test_decode_own_gives_what_decode_gives(msg: Message) -> None:
+    wire = encode(msg)
+    assert decode_own(wire) == decode(wire) == msg
+
+
+def test_decode_own_leaves_the_checks_on() -> None:
+    with pytest.raises(WireError):
+        decode_own(b"\x92\x0c")  # a refused frame: the checks come back on all the same
+    with pytest.raises(WireError, match="std_xy"):
+        NavFix(
+            stamp=0.0,
+            x=0.0,
+            y=0.0,
+            heading=0.0,
+            speed=0.0,
+            std_xy=-1.0,
+            std_heading=0.0,
+            std_speed=0.0,
+        )

@@ -3,6 +3,7 @@
 from common.messages.base import WIRE_VERSION, Message, WireError, WireRecord
 from common.messages.codec import (
     decode,
+    decode_own,
     decode_routing,
     decode_watch,
     encode,
@@ -75,6 +76,7 @@ __all__ = [
     "WireError",
     "WireRecord",
     "decode",
+    "decode_own",
     "decode_routing",
     "decode_watch",
     "encode",

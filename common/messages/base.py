@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import typing
 from collections.abc import Callable
 from typing import Any
@@ -48,9 +49,10 @@ def _compile_common_test(cls: type) -> Callable[[Any], bool]:
 
     Generated once per class, the way dataclasses generate __init__: one sum over the fields
     by plain attribute access is about ten times cheaper than a loop of getattr calls, and
-    every message pays it twice (when built and when decoded). x - x is 0.0 for a finite sum
-    and NaN otherwise. A sum can also overflow to inf with every item finite: the caller's
-    field-by-field pass (_name_the_problem) then finds nothing wrong and lets it through.
+    every message pays it when built, when stamped (codec.encode) and when decoded. x - x is
+    0.0 for a finite sum and NaN otherwise. A sum can also overflow to inf with every item
+    finite: the caller's field-by-field pass (_name_the_problem) then finds nothing wrong and
+    lets it through.
     """
     hints = typing.get_type_hints(cls)
     names = [f.name for f in msgspec.structs.fields(cls)]
@@ -83,23 +85,44 @@ def _name_the_problem(rec: Any) -> None:
 _COMMON: dict[type, Callable[[Any], bool]] = {}
 
 
+def check_common(rec: Any) -> None:
+    """Raise WireError if `rec` fails the checks every record shares (finite floats, seq in
+    range); the class's own `validate` is not run."""
+    ok = _COMMON.get(type(rec))
+    if ok is None:
+        ok = _COMMON[type(rec)] = _compile_common_test(type(rec))
+    if not ok(rec):
+        _name_the_problem(rec)
+
+
+class _Checked(threading.local):
+    """Per thread: whether the records being built now passed their checks already, as
+    records built from bytes this process encoded from checked records do (codec.decode_own:
+    the same numbers, so the same verdict; msgspec's type checks still run, in C)."""
+
+    on = False
+
+
+# thread-local: a realtime service decodes on several threads, and only decode_own sets it
+CHECKED = _Checked()
+
+
 class WireRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
     """A frozen, keyword-only, typed record that can travel on the wire.
 
     msgspec's C structs rather than dataclasses: they are frozen, slotted and typed alike, but
     build, encode and decode-with-type-checks in C (a frozen dataclass's __init__ alone costs
     more than our whole encode, see scripts/bench_bus.py). Every record is checked when it is
-    built *and* when it is decoded: no float may be NaN or infinite, and `validate` enforces
-    the class's own ranges. `gc=False`: records hold only numbers, strings and containers of
-    them, never a reference cycle, so the cycle collector need not track them.
+    built *and* when it is decoded from another process's bytes: no float may be NaN or
+    infinite, and `validate` enforces the class's own ranges. `gc=False`: records hold only
+    numbers, strings and containers of them, never a reference cycle, so the cycle collector
+    need not track them.
     """
 
     def __post_init__(self) -> None:
-        ok = _COMMON.get(type(self))
-        if ok is None:
-            ok = _COMMON[type(self)] = _compile_common_test(type(self))
-        if not ok(self):
-            _name_the_problem(self)
+        if CHECKED.on:  # built by codec.decode_own: checked already
+            return
+        check_common(self)
         self.validate()
 
     def validate(self) -> None:
@@ -111,7 +134,9 @@ class Message(WireRecord, frozen=True, kw_only=True, tag=True):
 
     `stamp` is the time the content refers to (sampling time of a measurement, validity time
     of an estimate or command), in seconds on the runtime clock. The envelope fields
-    `source`, `seq` and `sent` are filled in by the runtime when it publishes.
+    `source`, `seq` and `sent` are filled in by the runtime when it publishes: a subclass's
+    `validate` checks its content, never the envelope, so stamping a checked message needs
+    only the shared checks again (codec.encode).
     """
 
     stamp: float

@@ -320,7 +320,9 @@ def _path_metrics(
     errs = np.full(end + 1, np.nan)
     for i, p in enumerate(ok):
         sel = np.flatnonzero(which == i)
-        if len(sel):
+        if len(sel) and p is first:  # the same points against the same samples: xte's values
+            errs[sel] = xte[sel]
+        elif len(sel):
             errs[sel] = nearest_distances(np.column_stack([x[sel], y[sel]]), path_points(p))
     errs = errs[~np.isnan(errs)]
     if len(errs):
@@ -381,13 +383,23 @@ def _tracking_metrics(
         return {}
     now: list[float] = []
     ahead: list[float] = []
+    # the obstacles by id at a time: a track's `later` is mostly a later track's `now` (tracks
+    # come every 0.1 s, TRACK_AHEAD_S after one is nearly always another's stamp exactly)
+    known: dict[float, dict[int, ObstacleState]] = {}
+
+    def obstacles_at(t_s: float) -> dict[int, ObstacleState]:
+        got = known.get(t_s)
+        if got is None:
+            got = known[t_s] = {o.id: o for o in world.moving_at(t_s)}
+        return got
+
     for msg in _typed(record, estimator, "tracks", ObstacleTracks):
         mine = [k for k in msg.tracks if k.id in moving]
         if not mine or not t[0] <= msg.stamp <= t[-1]:
             continue
-        truth = {o.id: o for o in world.moving_at(msg.stamp)}
+        truth = obstacles_at(msg.stamp)
         later_t = msg.stamp + TRACK_AHEAD_S
-        later = {o.id: o for o in world.moving_at(later_t)} if later_t <= t[-1] else {}
+        later = obstacles_at(later_t) if later_t <= t[-1] else {}
         for k in mine:
             now.append(math.hypot(k.x - truth[k.id].x, k.y - truth[k.id].y))
             if later:

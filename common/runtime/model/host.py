@@ -102,6 +102,8 @@ class Host:
         }
         self._seq: dict[str, int] = {o.stream: 0 for o in service.outputs}
         self._seq[STATS_STREAM] = 0
+        # per stream published, who receives it (looked up for every message published)
+        self._receivers = {s: flow.receivers.get((name, s), ()) for s in self._seq}
         # per input, a heap of deliveries not yet due (or sent in the current tick)
         self._pending: dict[tuple[str, str], list[Pending]] = {k: [] for k in self._inputs}
         self._wake = tuple(k for k, i in self._inputs.items() if i.wake)
@@ -305,16 +307,16 @@ class Host:
         return self._publish(STATS_STREAM, self.link_stats(t_us / 1e6), tick, t_us)
 
     def _publish(self, stream: str, msg: Message, tick: int, t_us: int) -> Outgoing:
-        if stream not in self._seq:
+        receivers = self._receivers.get(stream)
+        if receivers is None:
             raise ValueError(f"{self.name}: emitted on undeclared stream {stream!r}")
-        self._seq[stream] += 1
-        seq = self._seq[stream]
+        seq = self._seq[stream] = self._seq[stream] + 1
         t = t_us / 1e6
         data = encode(msg, source=self.name, seq=seq, sent=t)
         if isinstance(msg, TruthState):  # the vehicle's own host ranges from its own truth
             self.net.observe_vehicle(msg.x, msg.y)
         schedule: dict[str, tuple[int, ...]] = {}
-        for receiver, spec in self.flow.receivers.get((self.name, stream), ()):
+        for receiver, spec in receivers:
             if spec.tap:  # a simulation tap is no link: handed over at the next tick
                 schedule[receiver] = (t_us,)
                 continue
@@ -331,7 +333,7 @@ class Host:
         lockstep coordinator must know before the receivers themselves have seen them."""
         best: dict[str, int] = {}
         for o in out:
-            for receiver, spec in self.flow.receivers.get((self.name, o.stream), ()):
+            for receiver, spec in self._receivers[o.stream]:
                 times = o.schedule.get(receiver)
                 if spec.wake and times:
                     best[receiver] = min(best.get(receiver, NEVER), times[0])

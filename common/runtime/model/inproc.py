@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 
 from common.config.scenario import Scenario
-from common.messages import decode
+from common.messages import decode_own
 from common.netmodel import NetworkModel
 from common.runtime.model.dataflow import Dataflow
 from common.runtime.model.host import NEVER, Host, Outgoing
@@ -38,8 +38,9 @@ def route(
 ) -> None:
     """Record what a host published and queue each message at its receivers."""
     for o in out:
-        # decoded from the bytes, exactly what a Zenoh subscriber would see
-        msg = decode(o.data)
+        # decoded from the bytes, exactly what a Zenoh subscriber would see (decode_own: the
+        # host encoded them from a message checked when it was built, so not checked again)
+        msg = decode_own(o.data)
         record.add(source, o.stream, msg)
         for receiver, times in o.schedule.items():
             if times:
@@ -54,17 +55,20 @@ def run_inproc(scenario: Scenario) -> RunResult:
     record = mission_record(mission)
     max_us = round(mission.max_time_s * 1e6)
     tick, t_us, reason = 0, 0, "max_time"
+    ordered = [(name, hosts[name]) for name in sorted(hosts)]
+    events = [h.next_event_us() for _, h in ordered]  # each host's, in that order
     while True:
         # only hosts with something due take part (lockstep wakes exactly the same ones)
-        due = [n for n in sorted(hosts) if hosts[n].next_event_us() <= t_us]
-        for name in due:
-            route(hosts[name].run_tick(tick, t_us), name, tick, hosts, record)
-            hosts[name].prepare()  # as the distributed runtimes do, once the outputs are out
+        for (name, host), event_us in zip(ordered, events, strict=True):
+            if event_us <= t_us:
+                route(host.run_tick(tick, t_us), name, tick, hosts, record)
+                host.prepare()  # as the distributed runtimes do, once the outputs are out
         end = mission.observe(record)
         if end is not None:
             reason = end
             break
-        nxt = min(h.next_event_us() for h in hosts.values())
+        events = [h.next_event_us() for _, h in ordered]
+        nxt = min(events)
         if nxt > max_us or nxt >= NEVER:
             break
         t_us, tick = nxt, tick + 1
