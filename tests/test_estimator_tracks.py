@@ -235,6 +235,30 @@ def test_kf_predict_is_filterpys_predict_bit_for_bit(ca: bool) -> None:
         got_x, got_P = kf_predict(x, P, F, Q)
         assert np.array_equal(got_x, kf.x)
         assert np.array_equal(got_P, kf.P)
+        # stacked with another belief and model (the IMM predicts its two modes so)
+        F2, Q2 = transition(2.0 * dt, not ca), process_noise(2.0 * dt, not ca, 0.7)
+        xs, Ps = np.stack((rng.normal(size=6), x)), np.stack((P + np.eye(6), P))
+        sx, sP = kf_predict(xs, Ps, np.stack((F2, F)), np.stack((Q2, Q)))
+        assert np.array_equal(sx[1], kf.x) and np.array_equal(sP[1], kf.P)
+        one_x, one_P = kf_predict(xs[0], Ps[0], F2, Q2)
+        assert np.array_equal(sx[0], one_x) and np.array_equal(sP[0], one_P)
+
+
+def test_mix_is_combine_per_mode_bit_for_bit() -> None:
+    # mix forms both modes' initial beliefs at once; each is combine's with weights w[:, j]
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        xs = rng.normal(size=(2, 6))
+        A = rng.normal(size=(2, 6, 6))
+        Ps = A @ np.swapaxes(A, 1, 2)
+        mu = np.array([rng.uniform(0.0, 1.0), 0.0])
+        mu[1] = 1.0 - mu[0]
+        M = switch_matrix(rng.uniform(0.01, 3.0), 100.0, 2.0)
+        x0s, P0s, cbar = mix(xs, Ps, mu, M)
+        w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)
+        for j in range(2):
+            x, P = combine(xs, Ps, w[:, j])
+            assert np.array_equal(x0s[j], x) and np.array_equal(P0s[j], P)
 
 
 @pytest.mark.parametrize("ca", [False, True])

@@ -5,6 +5,12 @@ holds the acceleration at zero. Mixing and combination follow Bar-Shalom's IMM; 
 per-mode update runs through filterpy's KalmanFilter, the per-mode predict through
 `kf_predict`, the same equations as filterpy's KalmanFilter.predict without its object
 overhead (the estimator predicts every track to every publish time: the hot path).
+
+The two modes are held stacked, xs (2, 6) and Ps (2, 6, 6), and predicted together: each
+operation is then one numpy call for both (a call's overhead, ~1 us, is most of its cost on
+6 x 6 arrays). Entry by entry the arithmetic is the per-mode one: elementwise operations
+broadcast, and a stacked matmul hands each mode's matrices to the same BLAS routine, with
+the same arguments, as np.dot does (tests/test_estimator_tracks.py holds them equal).
 """
 
 from __future__ import annotations
@@ -24,10 +30,10 @@ H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection se
 
 class Modes(NamedTuple):
     """An IMM belief: each mode's mean xs[j] (6,) and covariance Ps[j] (6, 6), modes (CV, CA),
-    and the mode probabilities mu (2,)."""
+    stacked (xs: (2, 6), Ps: (2, 6, 6)), and the mode probabilities mu (2,)."""
 
-    xs: tuple[FloatArray, ...]
-    Ps: tuple[FloatArray, ...]
+    xs: FloatArray
+    Ps: FloatArray
     mu: FloatArray
 
 
@@ -85,8 +91,10 @@ def _white_noise_blocks(dim: int, dt: float) -> list[list[float]]:
 def kf_predict(
     x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit)."""
-    return np.dot(F, x), np.dot(np.dot(F, P), F.T) + Q
+    """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit),
+    of one belief (x: (6,), P, F, Q: (6, 6)) or of a stack of them (x: (k, 6), the others
+    (k, 6, 6)): matmul runs BLAS's gemv and gemm on each, as np.dot does on one."""
+    return np.matmul(F, x[..., None])[..., 0], np.matmul(F, P) @ np.swapaxes(F, -1, -2) + Q
 
 
 def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatArray:
@@ -98,9 +106,7 @@ def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatA
     return np.array([[1.0 - p, p], [q, 1.0 - q]])
 
 
-def combine(
-    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+def combine(xs: FloatArray, Ps: FloatArray, mu: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Moment-matched mixture of the two modes: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx'),
     whose spread term is mu_0 mu_1 (x_0 - x_1)(x_0 - x_1)' for two components.
     """
@@ -111,17 +117,23 @@ def combine(
 
 
 def mix(
-    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, M: FloatArray
-) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
-    """IMM interaction: each mode's initial (x0_j, P0_j) and predicted probabilities cbar."""
+    xs: FloatArray, Ps: FloatArray, mu: FloatArray, M: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """IMM interaction: each mode's initial (x0_j, P0_j), stacked ((2, 6), (2, 6, 6)), and
+    the predicted probabilities cbar (2,).
+
+    (x0_j, P0_j) is `combine` of the two modes with the weights w[:, j]; both are formed at
+    once (broadcast over j), the same products and sums entry by entry, and the spread
+    (x_0 - x_1)(x_0 - x_1)' they share is formed once."""
     cbar = mu @ M  # cbar_j = sum_i M_ij mu_i
     w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)  # w[i, j] = mu_{i|j}
-    x0s, P0s = [], []
-    for j in range(len(xs)):
-        x0, P0 = combine(xs, Ps, w[:, j])
-        x0s.append(x0)
-        P0s.append(P0)
-    return tuple(x0s), tuple(P0s), cbar
+    w0, w1 = w[0][:, None], w[1][:, None]  # (2, 1): mode 0's and mode 1's weight, per j
+    d = xs[0] - xs[1]
+    spread = d[:, None] * d
+    x0s = w0 * xs[0] + w1 * xs[1]  # (2, 6): row j is x0_j
+    w0, w1 = w0[:, :, None], w1[:, :, None]  # (2, 1, 1)
+    P0s = w0 * Ps[0] + w1 * Ps[1] + (w0 * w1) * spread  # (2, 6, 6): P0s[j] is P0_j
+    return x0s, P0s, cbar
 
 
 class ImmFilter:
@@ -134,22 +146,20 @@ class ImmFilter:
         self._sojourn = (sojourn_cv_s, sojourn_ca_s)
         self._kf = KalmanFilter(dim_x=6, dim_z=2)
         self._kf.H = H_POS
-        # the switch matrix and (F, Q) per mode, by dt: steps repeat (scan and publish
-        # periods), and building them dominates the cost otherwise; cached arrays are never
-        # written to
-        self._models: dict[float, tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]]
-        self._models = {}
+        # the switch matrix and (F, Q) of both modes stacked, by dt: steps repeat (scan and
+        # publish periods), and building them dominates the cost otherwise; cached arrays are
+        # never written to
+        self._models: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
-    def _model(self, dt: float) -> tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]:
+    def _model(self, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         model = self._models.get(dt)
         if model is None:
             if len(self._models) >= 256:
                 self._models.clear()
-            per_mode = tuple(
-                (transition(dt, ca), process_noise(dt, ca, self._psd[j]))
-                for j, ca in enumerate((False, True))
-            )
-            model = (switch_matrix(dt, *self._sojourn), per_mode)
+            cv, ca = self._psd
+            F = np.stack((transition(dt, False), transition(dt, True)))
+            Q = np.stack((process_noise(dt, False, cv), process_noise(dt, True, ca)))
+            model = (switch_matrix(dt, *self._sojourn), F, Q)
             self._models[dt] = model
         return model
 
@@ -157,32 +167,29 @@ class ImmFilter:
         """Mix, then predict each mode dt ahead (mu: the predicted mode probabilities)."""
         if dt <= 0.0:
             return m
-        M, models = self._model(dt)
+        M, F, Q = self._model(dt)
         x0s, P0s, cbar = mix(*m, M)
-        out_x, out_P = [], []
-        for j, (F, Q) in enumerate(models):
-            x, P = kf_predict(x0s[j], P0s[j], F, Q)
-            out_x.append(x)
-            out_P.append(0.5 * (P + P.T))
-        return Modes(tuple(out_x), tuple(out_P), cbar)
+        x, P = kf_predict(x0s, P0s, F, Q)
+        return Modes(x, 0.5 * (P + np.swapaxes(P, 1, 2)), cbar)
 
     def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
         """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities
         follow their likelihoods."""
         kf = self._kf
-        out_x, out_P, loglik = [], [], []
-        for xj, Pj in zip(m.xs, m.Ps, strict=True):
+        xs, Ps = np.empty_like(m.xs), np.empty_like(m.Ps)
+        loglik = []
+        for j, (xj, Pj) in enumerate(zip(m.xs, m.Ps, strict=True)):
             y, S = innovation(xj, Pj, z, R)
             _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
             loglik.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
-            kf.x, kf.P = xj.copy(), Pj.copy()
+            kf.x, kf.P = xj, Pj  # read only: update assigns new arrays to kf.x, kf.P
             kf.update(z, R=R)
-            out_x.append(kf.x.copy())
-            out_P.append(0.5 * (kf.P + kf.P.T))
+            xs[j] = kf.x
+            Ps[j] = 0.5 * (kf.P + kf.P.T)
         ll = np.array(loglik)
         post = m.mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
         total = float(post.sum())
         if not (total > 0.0 and np.isfinite(total)):
             # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
-            return Modes(tuple(out_x), tuple(out_P), m.mu)
-        return Modes(tuple(out_x), tuple(out_P), post / total)
+            return Modes(xs, Ps, m.mu)
+        return Modes(xs, Ps, post / total)
