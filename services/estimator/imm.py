@@ -6,16 +6,18 @@ per-mode update runs through filterpy's KalmanFilter, the per-mode predict throu
 `kf_predict`, the same equations as filterpy's KalmanFilter.predict without its object
 overhead (the estimator predicts every track to every publish time: the hot path).
 
-The two modes are held stacked, xs (2, 6) and Ps (2, 6, 6), and predicted together: each
-operation is then one numpy call for both (a call's overhead, ~1 us, is most of its cost on
-6 x 6 arrays). Entry by entry the arithmetic is the per-mode one: elementwise operations
-broadcast, and a stacked matmul hands each mode's matrices to the same BLAS routine, with
-the same arguments, as np.dot does (tests/test_estimator_tracks.py holds them equal).
+The two modes are held stacked, xs (2, 6) and Ps (2, 6, 6), and predicted together, and the
+tracks published at one time are predicted together too (`predict_many`): each operation is
+then one numpy call for all (a call's overhead, ~1 us, is most of its cost on 6 x 6 arrays).
+Entry by entry the arithmetic is the one-by-one one: elementwise operations broadcast, and a
+stacked matmul hands each matrix to the same BLAS routine, with the same arguments, as np.dot
+does on one (tests/test_estimator_tracks.py holds them equal bit for bit).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -94,7 +96,7 @@ def kf_predict(
     """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit),
     of one belief (x: (6,), P, F, Q: (6, 6)) or of a stack of them (x: (k, 6), the others
     (k, 6, 6)): matmul runs BLAS's gemv and gemm on each, as np.dot does on one."""
-    return np.matmul(F, x[..., None])[..., 0], np.matmul(F, P) @ np.swapaxes(F, -1, -2) + Q
+    return np.matmul(F, x[..., None])[..., 0], np.matmul(F, P) @ F.swapaxes(-1, -2) + Q
 
 
 def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatArray:
@@ -109,30 +111,33 @@ def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatA
 def combine(xs: FloatArray, Ps: FloatArray, mu: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Moment-matched mixture of the two modes: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx'),
     whose spread term is mu_0 mu_1 (x_0 - x_1)(x_0 - x_1)' for two components.
+
+    xs: (..., 2, 6), Ps: (..., 2, 6, 6), mu: (..., 2) -> x: (..., 6), P: (..., 6, 6), over any
+    leading (broadcast) dimensions: a stack of beliefs, or of weights for one belief (`mix`).
     """
-    m0, m1 = float(mu[0]), float(mu[1])
-    d = xs[0] - xs[1]
+    m0, m1 = mu[..., 0, None], mu[..., 1, None]  # (..., 1)
+    x0, x1 = xs[..., 0, :], xs[..., 1, :]
+    d = x0 - x1
+    x = m0 * x0 + m1 * x1
+    m0, m1 = m0[..., None], m1[..., None]  # (..., 1, 1)
     # np.outer(d, d) is this product (d[:, None] * d[None, :]), without its argument handling
-    return m0 * xs[0] + m1 * xs[1], m0 * Ps[0] + m1 * Ps[1] + (m0 * m1) * (d[:, None] * d)
+    spread = d[..., :, None] * d[..., None, :]
+    return x, m0 * Ps[..., 0, :, :] + m1 * Ps[..., 1, :, :] + (m0 * m1) * spread
 
 
 def mix(
     xs: FloatArray, Ps: FloatArray, mu: FloatArray, M: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """IMM interaction: each mode's initial (x0_j, P0_j), stacked ((2, 6), (2, 6, 6)), and
-    the predicted probabilities cbar (2,).
+    """IMM interaction: each mode's initial (x0_j, P0_j), stacked ((..., 2, 6), (..., 2, 6,
+    6)), and the predicted probabilities cbar (..., 2), of one belief (xs: (2, 6), Ps: (2, 6,
+    6), mu: (2,), M: (2, 2)) or a stack of them (a leading dimension on each).
 
-    (x0_j, P0_j) is `combine` of the two modes with the weights w[:, j]; both are formed at
-    once (broadcast over j), the same products and sums entry by entry, and the spread
-    (x_0 - x_1)(x_0 - x_1)' they share is formed once."""
-    cbar = mu @ M  # cbar_j = sum_i M_ij mu_i
-    w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)  # w[i, j] = mu_{i|j}
-    w0, w1 = w[0][:, None], w[1][:, None]  # (2, 1): mode 0's and mode 1's weight, per j
-    d = xs[0] - xs[1]
-    spread = d[:, None] * d
-    x0s = w0 * xs[0] + w1 * xs[1]  # (2, 6): row j is x0_j
-    w0, w1 = w0[:, :, None], w1[:, :, None]  # (2, 1, 1)
-    P0s = w0 * Ps[0] + w1 * Ps[1] + (w0 * w1) * spread  # (2, 6, 6): P0s[j] is P0_j
+    (x0_j, P0_j) is `combine` of the two modes with the weights w[:, j]: one call for both j
+    (broadcast over them; the spread they share is formed once)."""
+    cbar = (mu[..., None, :] @ M)[..., 0, :]  # cbar_j = sum_i M_ij mu_i
+    # w[i, j] = mu_{i|j}
+    w = (M * mu[..., :, None]) / np.maximum(cbar, 1e-300)[..., None, :]
+    x0s, P0s = combine(xs[..., None, :, :], Ps[..., None, :, :, :], w.swapaxes(-1, -2))
     return x0s, P0s, cbar
 
 
@@ -167,10 +172,23 @@ class ImmFilter:
         """Mix, then predict each mode dt ahead (mu: the predicted mode probabilities)."""
         if dt <= 0.0:
             return m
-        M, F, Q = self._model(dt)
+        return self._predicted(m, *self._model(dt))
+
+    def predict_many(self, ms: Sequence[Modes], dts: Sequence[float]) -> Modes:
+        """`predict` of each belief ms[k] dt[k] > 0 ahead, stacked: xs (k, 2, 6), Ps (k, 2, 6,
+        6), mu (k, 2), the same floats as one by one (every operation acts on each belief
+        alone), for a numpy call's overhead per operation, not per belief."""
+        models = [self._model(dt) for dt in dts]
+        # np.array of a list of equal arrays stacks them, at a fraction of np.stack's cost
+        m = Modes(*(np.array([mk[i] for mk in ms]) for i in range(3)))
+        return self._predicted(m, *(np.array([mod[i] for mod in models]) for i in range(3)))
+
+    @staticmethod
+    def _predicted(m: Modes, M: FloatArray, F: FloatArray, Q: FloatArray) -> Modes:
+        """Mix, then predict each mode with its F, Q ((..., 2, 6, 6)); M (..., 2, 2)."""
         x0s, P0s, cbar = mix(*m, M)
         x, P = kf_predict(x0s, P0s, F, Q)
-        return Modes(x, 0.5 * (P + np.swapaxes(P, 1, 2)), cbar)
+        return Modes(x, 0.5 * (P + P.swapaxes(-1, -2)), cbar)
 
     def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
         """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -157,6 +157,18 @@ class ObstacleTracker:
         """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
         return combine(*self._imm.predict(b.modes, t - b.stamp))
 
+    def predict_all(
+        self, beliefs: Sequence[TrackBelief], t: float
+    ) -> list[tuple[FloatArray, FloatArray]]:
+        """`predict` of each track to t, those before t together (ImmFilter.predict_many: the
+        same floats, one numpy call per operation for all of them)."""
+        ahead = [b for b in beliefs if t - b.stamp > 0.0]
+        if len(ahead) < 2:
+            return [self.predict(b, t) for b in beliefs]
+        modes = self._imm.predict_many([b.modes for b in ahead], [t - b.stamp for b in ahead])
+        together = iter(zip(*combine(*modes), strict=True))
+        return [next(together) if t - b.stamp > 0.0 else self.predict(b, t) for b in beliefs]
+
     def tracks_at(
         self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
     ) -> tuple[Track, ...]:
@@ -165,12 +177,12 @@ class ObstacleTracker:
         predicted to t as wire tracks ([x, y, vx, vy, ax, ay] covariance); the others are
         dropped."""
         out: list[Track] = []
-        for oid in sorted(state.tracks):
-            b = state.tracks[oid]
+        kept = [
+            (oid, b) for oid, b in sorted(state.tracks.items()) if t - b.stamp <= self._memory_s
+        ]
+        predicted = self.predict_all([b for _, b in kept], t)
+        for (oid, b), (x, P) in zip(kept, predicted, strict=True):
             age = t - b.stamp
-            if age > self._memory_s:
-                continue
-            x, P = self.predict(b, t)
             if not healthy(x, P):
                 continue  # never publish a non-finite track (its next detection restarts it)
             if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
