@@ -27,6 +27,8 @@ from services.estimator.filterpy_lazy import KalmanFilter
 
 FloatArray = NDArray[np.float64]
 
+# (switch matrix, F, Q) kept by dt, at most (ImmFilter._model)
+MAX_MODELS = 1024
 H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection sees x, y
 
 
@@ -153,17 +155,19 @@ class ImmFilter:
         self._kf.H = H_POS
         # the switch matrix and (F, Q) of both modes stacked, by dt: steps repeat (scan and
         # publish periods), and building them dominates the cost otherwise; cached arrays are
-        # never written to
+        # never written to. A mission asks a few hundred distinct dt (coasting tracks, float
+        # noise in t - stamp): MAX_MODELS keeps them all (~1 KB each)
         self._models: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
     def _model(self, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         model = self._models.get(dt)
         if model is None:
-            if len(self._models) >= 256:
+            if len(self._models) >= MAX_MODELS:
                 self._models.clear()
             cv, ca = self._psd
-            F = np.stack((transition(dt, False), transition(dt, True)))
-            Q = np.stack((process_noise(dt, False, cv), process_noise(dt, True, ca)))
+            # np.array of a list of equal arrays stacks them, at a fraction of np.stack's cost
+            F = np.array((transition(dt, False), transition(dt, True)))
+            Q = np.array((process_noise(dt, False, cv), process_noise(dt, True, ca)))
             model = (switch_matrix(dt, *self._sojourn), F, Q)
             self._models[dt] = model
         return model
