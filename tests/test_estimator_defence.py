@@ -280,6 +280,38 @@ def test_no_input_makes_the_estimator_raise_hang_or_publish_non_finite_values(
     assert all(n > 0 for n in core.inputs_rejected.values())
 
 
+entries = st.one_of(
+    st.floats(-2e12, 2e12), st.sampled_from([math.nan, math.inf, -math.inf, 1e12, -0.0])
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    n=st.integers(1, 9),
+    values=st.lists(entries, min_size=90, max_size=90),
+    sparse=st.booleans(),
+)
+def test_healthy_is_its_numpy_definition(n: int, values: list[float], sparse: bool) -> None:
+    # health.py checks on Python floats what these numpy reductions say: every entry finite,
+    # every variance in [0, MAX_VARIANCE]
+    from services.estimator.health import MAX_VARIANCE, healthy
+
+    a = np.array(values[: n + n * n])
+    if sparse:  # mostly healthy beliefs, one bad entry at most
+        tame = np.abs(np.nan_to_num(a, nan=1.0, posinf=1.0, neginf=1.0)) % 10.0
+        a = np.where(np.isfinite(a) & (np.arange(a.size) != a.size // 2), tame, a)
+    x, P = a[:n], a[n:].reshape(n, n)
+    d = np.diagonal(P)
+    want = bool(
+        np.isfinite(x).all()
+        and np.isfinite(P).all()
+        and (d >= 0.0).all()
+        and (d <= MAX_VARIANCE).all()
+    )
+    assert healthy(x, P) is want
+    assert healthy(x, P.T) is want  # not contiguous
+
+
 def test_the_replay_buffer_keeps_at_most_max_entries() -> None:
     buf: ReplayBuffer[int, int] = ReplayBuffer(0, lambda s, m: s + m, 100.0, max_entries=4)
     for k in range(10):

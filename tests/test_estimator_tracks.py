@@ -15,6 +15,8 @@ from common.runtime.model.core import Delivery
 from common.world import World
 from services.estimator import EstimatorCore
 from services.estimator.imm import (
+    ImmFilter,
+    Modes,
     combine,
     kf_predict,
     mix,
@@ -209,8 +211,8 @@ def test_imm_pieces() -> None:
     assert M[0, 1] == pytest.approx(1 - math.exp(-0.002)) and M[1, 0] == pytest.approx(
         1 - math.exp(-0.1)
     )
-    xs = (np.arange(6.0), np.arange(6.0) + 1.0)
-    Ps = (np.eye(6), 2.0 * np.eye(6))
+    xs = np.stack((np.arange(6.0), np.arange(6.0) + 1.0))  # the modes stacked (imm.Modes)
+    Ps = np.stack((np.eye(6), 2.0 * np.eye(6)))
     x, P = combine(xs, Ps, np.array([0.25, 0.75]))
     np.testing.assert_allclose(x, np.arange(6.0) + 0.75, atol=1e-15)
     # 0.25 * 1 + 0.75 * 2 + spread 0.25 * 0.75 on every entry
@@ -235,6 +237,30 @@ def test_kf_predict_is_filterpys_predict_bit_for_bit(ca: bool) -> None:
         got_x, got_P = kf_predict(x, P, F, Q)
         assert np.array_equal(got_x, kf.x)
         assert np.array_equal(got_P, kf.P)
+        # stacked with another belief and model (the IMM predicts its two modes so)
+        F2, Q2 = transition(2.0 * dt, not ca), process_noise(2.0 * dt, not ca, 0.7)
+        xs, Ps = np.stack((rng.normal(size=6), x)), np.stack((P + np.eye(6), P))
+        sx, sP = kf_predict(xs, Ps, np.stack((F2, F)), np.stack((Q2, Q)))
+        assert np.array_equal(sx[1], kf.x) and np.array_equal(sP[1], kf.P)
+        one_x, one_P = kf_predict(xs[0], Ps[0], F2, Q2)
+        assert np.array_equal(sx[0], one_x) and np.array_equal(sP[0], one_P)
+
+
+def test_mix_is_combine_per_mode_bit_for_bit() -> None:
+    # mix forms both modes' initial beliefs at once; each is combine's with weights w[:, j]
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        xs = rng.normal(size=(2, 6))
+        A = rng.normal(size=(2, 6, 6))
+        Ps = A @ np.swapaxes(A, 1, 2)
+        mu = np.array([rng.uniform(0.0, 1.0), 0.0])
+        mu[1] = 1.0 - mu[0]
+        M = switch_matrix(rng.uniform(0.01, 3.0), 100.0, 2.0)
+        x0s, P0s, cbar = mix(xs, Ps, mu, M)
+        w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)
+        for j in range(2):
+            x, P = combine(xs, Ps, w[:, j])
+            assert np.array_equal(x0s[j], x) and np.array_equal(P0s[j], P)
 
 
 @pytest.mark.parametrize("ca", [False, True])
@@ -250,3 +276,24 @@ def test_process_noise_is_filterpys_white_noise_bit_for_bit(ca: bool) -> None:
             q2 = Q_discrete_white_noise(dim=2, dt=dt, var=psd / dt)
             want[0:2, 0:2] = want[3:5, 3:5] = q2
         assert np.array_equal(process_noise(dt, ca, psd), want)
+
+
+def test_tracks_predicted_together_are_each_predicted_bit_for_bit() -> None:
+    # tracks_at predicts every track in one stack (ImmFilter.predict_many, ObstacleTracker.
+    # predict_all): each belief comes out as predicted alone, whatever the others
+    rng = np.random.default_rng(11)
+    imm = ImmFilter(0.05, 0.4, 60.0, 3.0)
+    ms, dts = [], []
+    for _ in range(6):
+        A = rng.normal(size=(2, 6, 6))
+        p = rng.uniform(0.0, 1.0)
+        ms.append(Modes(rng.normal(size=(2, 6)), A @ A.swapaxes(1, 2), np.array([p, 1.0 - p])))
+        dts.append(float(rng.choice([0.1, 0.35, rng.uniform(0.01, 12.0)])))
+    together = imm.predict_many(ms, dts)
+    for k, (m, dt) in enumerate(zip(ms, dts, strict=True)):
+        alone = imm.predict(m, dt)
+        for a, b in zip(alone, together, strict=True):
+            assert np.array_equal(a, b[k])
+        x, P = combine(*alone)
+        xs, Ps = combine(*together)
+        assert np.array_equal(x, xs[k]) and np.array_equal(P, Ps[k])

@@ -14,9 +14,18 @@ from common.config.vehicle import VehicleConfig
 from common.config.world import AreaConfig
 from common.messages import TruthState, VehicleStatus, VelocityCommand
 from common.runtime.model.core import Delivery
-from common.world.current import CurrentField
+from common.scalar import clamp
+from common.world.current import CurrentField, CurrentFn
 from services.vehicle.core import VehicleCore
-from services.vehicle.dynamics import PlantParams, drag_n, friction_coefficient, rk4_step
+from services.vehicle.dynamics import (
+    PlantParams,
+    State,
+    derivatives,
+    drag_n,
+    friction_coefficient,
+    make_rk4_step,
+    rk4_step,
+)
 
 
 def _water(x_mps: float, y_mps: float, seed: int = 1, **gusts: float) -> CurrentField:
@@ -207,6 +216,76 @@ def test_the_vehicle_truth_never_turns_tighter_than_r_min(
             assert abs(tr.w) <= tr.v / cfg.turn_radius_min_m * (1.0 + 1e-12) + 1e-15
         t += gap
         _cmd(core, t, v, w)
+
+
+def _reference_rk4(
+    s: State,
+    h: float,
+    v_cmd: float,
+    w_cmd: float,
+    p: PlantParams,
+    t: float,
+    water: CurrentFn | None,
+) -> State:
+    """RK4 composed of `derivatives` as written (make_rk4_step writes it out for speed)."""
+    ff = drag_n(v_cmd, p)
+    hh = 0.5 * h
+
+    def f(q: State, tq: float) -> State:
+        c = (0.0, 0.0) if water is None else water(q[0], q[1], tq)
+        return derivatives(q, v_cmd, w_cmd, ff, c[0], c[1], p)
+
+    def axpy(a: float, k: State) -> State:
+        x, y, th, v, w, z = (si + a * ki for si, ki in zip(s, k, strict=True))
+        return x, y, th, v, w, z
+
+    k1 = f(s, t)
+    k2 = f(axpy(hh, k1), t + hh)
+    k3 = f(axpy(hh, k2), t + hh)
+    k4 = f(axpy(h, k3), t + h)
+    h6 = h / 6.0
+    x, y, th, v, w, z = (
+        si + h6 * (a + 2.0 * b + 2.0 * c + d)
+        for si, a, b, c, d in zip(s, k1, k2, k3, k4, strict=True)
+    )
+    v = clamp(v, 0.0, p.v_max)
+    w_room = v / p.r_min
+    return x, y, th, v, clamp(w, max(p.w_min, -w_room), min(p.w_max, w_room)), z
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    s=st.tuples(
+        st.floats(-100.0, 100.0),
+        st.floats(-100.0, 100.0),
+        st.floats(-10.0, 10.0),
+        st.floats(-0.5, 2.5),
+        st.floats(-1.0, 1.0),
+        st.floats(-5.0, 5.0),
+    ),
+    cmds=st.lists(st.tuples(st.floats(-3.0, 3.0), st.floats(-2.0, 2.0)), min_size=1, max_size=4),
+    h=st.floats(1e-6, 0.05),
+    still=st.booleans(),
+)
+def test_the_bound_rk4_step_is_derivatives_bit_for_bit(
+    s: State, cmds: list[tuple[float, float]], h: float, still: bool
+) -> None:
+    # make_rk4_step (p read once, the model written out, the feed-forward kept) gives the
+    # very floats of RK4 over `derivatives`, in still water and in a varying current, also
+    # when a command repeats (its kept feed-forward) or is 0.0 after -0.0
+    p = PlantParams.from_config(VehicleConfig())
+    water: CurrentFn | None = None
+    if not still:
+        water = lambda x, y, t: (0.1 + 0.001 * x, -0.2 + 0.01 * t)  # noqa: E731
+    step = make_rk4_step(p)
+    a = b = s
+    t = 0.0
+    for v_cmd, w_cmd in [*cmds, *cmds, (-0.0, 0.0), (0.0, 0.0)]:
+        for _ in range(3):
+            a = step(a, h, v_cmd, w_cmd, t, water)
+            b = _reference_rk4(b, h, v_cmd, w_cmd, p, t, water)
+            assert [x.hex() for x in a] == [x.hex() for x in b]
+            t += h
 
 
 def _trajectory(

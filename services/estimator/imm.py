@@ -5,11 +5,19 @@ holds the acceleration at zero. Mixing and combination follow Bar-Shalom's IMM; 
 per-mode update runs through filterpy's KalmanFilter, the per-mode predict through
 `kf_predict`, the same equations as filterpy's KalmanFilter.predict without its object
 overhead (the estimator predicts every track to every publish time: the hot path).
+
+The two modes are held stacked, xs (2, 6) and Ps (2, 6, 6), and predicted together, and the
+tracks published at one time are predicted together too (`predict_many`): each operation is
+then one numpy call for all (a call's overhead, ~1 us, is most of its cost on 6 x 6 arrays).
+Entry by entry the arithmetic is the one-by-one one: elementwise operations broadcast, and a
+stacked matmul hands each matrix to the same BLAS routine, with the same arguments, as np.dot
+does on one (tests/test_estimator_tracks.py holds them equal bit for bit).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -19,15 +27,17 @@ from services.estimator.filterpy_lazy import KalmanFilter
 
 FloatArray = NDArray[np.float64]
 
+# (switch matrix, F, Q) kept by dt, at most (ImmFilter._model)
+MAX_MODELS = 1024
 H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection sees x, y
 
 
 class Modes(NamedTuple):
     """An IMM belief: each mode's mean xs[j] (6,) and covariance Ps[j] (6, 6), modes (CV, CA),
-    and the mode probabilities mu (2,)."""
+    stacked (xs: (2, 6), Ps: (2, 6, 6)), and the mode probabilities mu (2,)."""
 
-    xs: tuple[FloatArray, ...]
-    Ps: tuple[FloatArray, ...]
+    xs: FloatArray
+    Ps: FloatArray
     mu: FloatArray
 
 
@@ -85,8 +95,10 @@ def _white_noise_blocks(dim: int, dt: float) -> list[list[float]]:
 def kf_predict(
     x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit)."""
-    return np.dot(F, x), np.dot(np.dot(F, P), F.T) + Q
+    """Kalman predict: x = F x, P = F P F' + Q (filterpy's KalmanFilter.predict, bit for bit),
+    of one belief (x: (6,), P, F, Q: (6, 6)) or of a stack of them (x: (k, 6), the others
+    (k, 6, 6)): matmul runs BLAS's gemv and gemm on each, as np.dot does on one."""
+    return np.matmul(F, x[..., None])[..., 0], np.matmul(F, P) @ F.swapaxes(-1, -2) + Q
 
 
 def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatArray:
@@ -98,30 +110,37 @@ def switch_matrix(dt: float, sojourn_cv_s: float, sojourn_ca_s: float) -> FloatA
     return np.array([[1.0 - p, p], [q, 1.0 - q]])
 
 
-def combine(
-    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+def combine(xs: FloatArray, Ps: FloatArray, mu: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Moment-matched mixture of the two modes: x = sum mu_j x_j, P = sum mu_j (P_j + dx dx'),
     whose spread term is mu_0 mu_1 (x_0 - x_1)(x_0 - x_1)' for two components.
+
+    xs: (..., 2, 6), Ps: (..., 2, 6, 6), mu: (..., 2) -> x: (..., 6), P: (..., 6, 6), over any
+    leading (broadcast) dimensions: a stack of beliefs, or of weights for one belief (`mix`).
     """
-    m0, m1 = float(mu[0]), float(mu[1])
-    d = xs[0] - xs[1]
+    m0, m1 = mu[..., 0, None], mu[..., 1, None]  # (..., 1)
+    x0, x1 = xs[..., 0, :], xs[..., 1, :]
+    d = x0 - x1
+    x = m0 * x0 + m1 * x1
+    m0, m1 = m0[..., None], m1[..., None]  # (..., 1, 1)
     # np.outer(d, d) is this product (d[:, None] * d[None, :]), without its argument handling
-    return m0 * xs[0] + m1 * xs[1], m0 * Ps[0] + m1 * Ps[1] + (m0 * m1) * (d[:, None] * d)
+    spread = d[..., :, None] * d[..., None, :]
+    return x, m0 * Ps[..., 0, :, :] + m1 * Ps[..., 1, :, :] + (m0 * m1) * spread
 
 
 def mix(
-    xs: tuple[FloatArray, ...], Ps: tuple[FloatArray, ...], mu: FloatArray, M: FloatArray
-) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...], FloatArray]:
-    """IMM interaction: each mode's initial (x0_j, P0_j) and predicted probabilities cbar."""
-    cbar = mu @ M  # cbar_j = sum_i M_ij mu_i
-    w = (M * mu[:, None]) / np.maximum(cbar, 1e-300)  # w[i, j] = mu_{i|j}
-    x0s, P0s = [], []
-    for j in range(len(xs)):
-        x0, P0 = combine(xs, Ps, w[:, j])
-        x0s.append(x0)
-        P0s.append(P0)
-    return tuple(x0s), tuple(P0s), cbar
+    xs: FloatArray, Ps: FloatArray, mu: FloatArray, M: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """IMM interaction: each mode's initial (x0_j, P0_j), stacked ((..., 2, 6), (..., 2, 6,
+    6)), and the predicted probabilities cbar (..., 2), of one belief (xs: (2, 6), Ps: (2, 6,
+    6), mu: (2,), M: (2, 2)) or a stack of them (a leading dimension on each).
+
+    (x0_j, P0_j) is `combine` of the two modes with the weights w[:, j]: one call for both j
+    (broadcast over them; the spread they share is formed once)."""
+    cbar = (mu[..., None, :] @ M)[..., 0, :]  # cbar_j = sum_i M_ij mu_i
+    # w[i, j] = mu_{i|j}
+    w = (M * mu[..., :, None]) / np.maximum(cbar, 1e-300)[..., None, :]
+    x0s, P0s = combine(xs[..., None, :, :], Ps[..., None, :, :, :], w.swapaxes(-1, -2))
+    return x0s, P0s, cbar
 
 
 class ImmFilter:
@@ -134,22 +153,22 @@ class ImmFilter:
         self._sojourn = (sojourn_cv_s, sojourn_ca_s)
         self._kf = KalmanFilter(dim_x=6, dim_z=2)
         self._kf.H = H_POS
-        # the switch matrix and (F, Q) per mode, by dt: steps repeat (scan and publish
-        # periods), and building them dominates the cost otherwise; cached arrays are never
-        # written to
-        self._models: dict[float, tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]]
-        self._models = {}
+        # the switch matrix and (F, Q) of both modes stacked, by dt: steps repeat (scan and
+        # publish periods), and building them dominates the cost otherwise; cached arrays are
+        # never written to. A mission asks a few hundred distinct dt (coasting tracks, float
+        # noise in t - stamp): MAX_MODELS keeps them all (~1 KB each)
+        self._models: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
-    def _model(self, dt: float) -> tuple[FloatArray, tuple[tuple[FloatArray, FloatArray], ...]]:
+    def _model(self, dt: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         model = self._models.get(dt)
         if model is None:
-            if len(self._models) >= 256:
+            if len(self._models) >= MAX_MODELS:
                 self._models.clear()
-            per_mode = tuple(
-                (transition(dt, ca), process_noise(dt, ca, self._psd[j]))
-                for j, ca in enumerate((False, True))
-            )
-            model = (switch_matrix(dt, *self._sojourn), per_mode)
+            cv, ca = self._psd
+            # np.array of a list of equal arrays stacks them, at a fraction of np.stack's cost
+            F = np.array((transition(dt, False), transition(dt, True)))
+            Q = np.array((process_noise(dt, False, cv), process_noise(dt, True, ca)))
+            model = (switch_matrix(dt, *self._sojourn), F, Q)
             self._models[dt] = model
         return model
 
@@ -157,32 +176,42 @@ class ImmFilter:
         """Mix, then predict each mode dt ahead (mu: the predicted mode probabilities)."""
         if dt <= 0.0:
             return m
-        M, models = self._model(dt)
+        return self._predicted(m, *self._model(dt))
+
+    def predict_many(self, ms: Sequence[Modes], dts: Sequence[float]) -> Modes:
+        """`predict` of each belief ms[k] dt[k] > 0 ahead, stacked: xs (k, 2, 6), Ps (k, 2, 6,
+        6), mu (k, 2), the same floats as one by one (every operation acts on each belief
+        alone), for a numpy call's overhead per operation, not per belief."""
+        models = [self._model(dt) for dt in dts]
+        # np.array of a list of equal arrays stacks them, at a fraction of np.stack's cost
+        m = Modes(*(np.array([mk[i] for mk in ms]) for i in range(3)))
+        return self._predicted(m, *(np.array([mod[i] for mod in models]) for i in range(3)))
+
+    @staticmethod
+    def _predicted(m: Modes, M: FloatArray, F: FloatArray, Q: FloatArray) -> Modes:
+        """Mix, then predict each mode with its F, Q ((..., 2, 6, 6)); M (..., 2, 2)."""
         x0s, P0s, cbar = mix(*m, M)
-        out_x, out_P = [], []
-        for j, (F, Q) in enumerate(models):
-            x, P = kf_predict(x0s[j], P0s[j], F, Q)
-            out_x.append(x)
-            out_P.append(0.5 * (P + P.T))
-        return Modes(tuple(out_x), tuple(out_P), cbar)
+        x, P = kf_predict(x0s, P0s, F, Q)
+        return Modes(x, 0.5 * (P + P.swapaxes(-1, -2)), cbar)
 
     def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
         """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities
         follow their likelihoods."""
         kf = self._kf
-        out_x, out_P, loglik = [], [], []
-        for xj, Pj in zip(m.xs, m.Ps, strict=True):
+        xs, Ps = np.empty_like(m.xs), np.empty_like(m.Ps)
+        loglik = []
+        for j, (xj, Pj) in enumerate(zip(m.xs, m.Ps, strict=True)):
             y, S = innovation(xj, Pj, z, R)
             _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
             loglik.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
-            kf.x, kf.P = xj.copy(), Pj.copy()
+            kf.x, kf.P = xj, Pj  # read only: update assigns new arrays to kf.x, kf.P
             kf.update(z, R=R)
-            out_x.append(kf.x.copy())
-            out_P.append(0.5 * (kf.P + kf.P.T))
+            xs[j] = kf.x
+            Ps[j] = 0.5 * (kf.P + kf.P.T)
         ll = np.array(loglik)
         post = m.mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
         total = float(post.sum())
         if not (total > 0.0 and np.isfinite(total)):
             # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
-            return Modes(tuple(out_x), tuple(out_P), m.mu)
-        return Modes(tuple(out_x), tuple(out_P), post / total)
+            return Modes(xs, Ps, m.mu)
+        return Modes(xs, Ps, post / total)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,9 +20,9 @@ from services.estimator.imm import ImmFilter, Modes, combine, innovation
 FloatArray = NDArray[np.float64]
 
 # filter state [x, vx, ax, y, vy, ay]; published as Track fields and covariance in the
-# order [x, y, vx, vy, ax, ay]
+# order [x, y, vx, vy, ax, ay]: the covariance's entries, row-major, at these flat indices
 _TO_MSG = np.array([0, 3, 1, 4, 2, 5])
-_TO_MSG_2D = np.ix_(_TO_MSG, _TO_MSG)
+_TO_MSG_FLAT = (_TO_MSG[:, None] * 6 + _TO_MSG).ravel()
 # a coasting track is dropped once its predicted centre is this many standard deviations
 # inside the sonar's sector and still not detected (ObstacleTracker._seen_there)
 VIEW_SIGMAS = 2.0
@@ -82,7 +82,7 @@ class ObstacleTracker:
         P = np.diag(axis * 2)
         return TrackBelief(
             id=oid,
-            modes=Modes((x, x.copy()), (P, P.copy()), np.array([0.5, 0.5])),
+            modes=Modes(np.stack((x, x)), np.stack((P, P)), np.array([0.5, 0.5])),
             stamp=stamp,
             radius=r,
             radius_var=r_var,
@@ -146,13 +146,28 @@ class ObstacleTracker:
             return True
         # a missed detection says the obstacle is gone only where the sonar would surely see
         # it: its predicted centre VIEW_SIGMAS standard deviations inside the sector's edges
-        pos = P[np.ix_((0, 3), (0, 3))]
+        ox, oy = float(x[0]), float(x[3])
+        if not self.sonar.sees(*pose, ox, oy, radius):
+            return False  # not even its centre: no margin (>= 0) can make the sonar see it
+        pos = P[::3, ::3]  # the covariance of (x, y): rows and columns 0 and 3
         sigma = math.sqrt(max(0.0, float(np.linalg.eigvalsh(pos)[-1])))
-        return self.sonar.sees(*pose, float(x[0]), float(x[3]), radius, VIEW_SIGMAS * sigma)
+        return self.sonar.sees(*pose, ox, oy, radius, VIEW_SIGMAS * sigma)
 
     def predict(self, b: TrackBelief, t: float) -> tuple[FloatArray, FloatArray]:
         """The combined Gaussian of track b at time t, state order [x, vx, ax, y, vy, ay]."""
         return combine(*self._imm.predict(b.modes, t - b.stamp))
+
+    def predict_all(
+        self, beliefs: Sequence[TrackBelief], t: float
+    ) -> list[tuple[FloatArray, FloatArray]]:
+        """`predict` of each track to t, those before t together (ImmFilter.predict_many: the
+        same floats, one numpy call per operation for all of them)."""
+        ahead = [b for b in beliefs if t - b.stamp > 0.0]
+        if len(ahead) < 2:
+            return [self.predict(b, t) for b in beliefs]
+        modes = self._imm.predict_many([b.modes for b in ahead], [t - b.stamp for b in ahead])
+        together = iter(zip(*combine(*modes), strict=True))
+        return [next(together) if t - b.stamp > 0.0 else self.predict(b, t) for b in beliefs]
 
     def tracks_at(
         self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
@@ -162,28 +177,28 @@ class ObstacleTracker:
         predicted to t as wire tracks ([x, y, vx, vy, ax, ay] covariance); the others are
         dropped."""
         out: list[Track] = []
-        for oid in sorted(state.tracks):
-            b = state.tracks[oid]
+        kept = [
+            (oid, b) for oid, b in sorted(state.tracks.items()) if t - b.stamp <= self._memory_s
+        ]
+        predicted = self.predict_all([b for _, b in kept], t)
+        for (oid, b), (x, P) in zip(kept, predicted, strict=True):
             age = t - b.stamp
-            if age > self._memory_s:
-                continue
-            x, P = self.predict(b, t)
-            if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
-                continue  # where the sonar would see it, and does not: gone
             if not healthy(x, P):
                 continue  # never publish a non-finite track (its next detection restarts it)
-            xm, Pm = x[_TO_MSG], P[_TO_MSG_2D]
+            if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
+                continue  # where the sonar would see it, and does not: gone
+            px, pvx, pax, py, pvy, pay = x.tolist()
             out.append(
                 Track(
                     id=oid,
-                    x=float(xm[0]),
-                    y=float(xm[1]),
-                    vx=float(xm[2]),
-                    vy=float(xm[3]),
-                    ax=float(xm[4]),
-                    ay=float(xm[5]),
+                    x=px,
+                    y=py,
+                    vx=pvx,
+                    vy=pvy,
+                    ax=pax,
+                    ay=pay,
                     radius=max(0.0, b.radius),
-                    covariance=tuple(Pm.ravel().tolist()),  # Python floats, row-major
+                    covariance=tuple(P.take(_TO_MSG_FLAT).tolist()),  # Python floats, row-major
                 )
             )
         return tuple(out)

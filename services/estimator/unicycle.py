@@ -60,16 +60,28 @@ def fx(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
 
 def jacobian_f(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
     """d fx / d s at s: (9, 9)."""
+    return jacobian_at(jacobian_fixed(dt, sway_tau_s), s, dt)
+
+
+def jacobian_fixed(dt: float, sway_tau_s: float = 2.0) -> FloatArray:
+    """The entries of jacobian_f that depend on dt alone (the state's, `jacobian_at`, zero):
+    a filter keeps them for each sub-step length."""
+    F = np.eye(DIM_X)
+    F[0, 5] = F[1, 6] = F[2, 4] = dt
+    F[SWAY, SWAY] = math.exp(-dt / sway_tau_s)
+    return F
+
+
+def jacobian_at(F: FloatArray, s: FloatArray, dt: float) -> FloatArray:
+    """jacobian_f at s: its entries that depend on the state written into F (9, 9), which
+    holds jacobian_fixed(dt) (a copy: it is modified and returned)."""
     th, v, w, vs = s[2], s[3], s[4], s[SWAY]
     mid = th + 0.5 * w * dt
     c, sn = math.cos(mid), math.sin(mid)
     dx_dth, dy_dth = (-v * sn - vs * c) * dt, (v * c - vs * sn) * dt
-    F = np.eye(DIM_X)
-    F[0, 2], F[0, 3], F[0, 4], F[0, 5] = dx_dth, dt * c, 0.5 * dt * dx_dth, dt
-    F[1, 2], F[1, 3], F[1, 4], F[1, 6] = dy_dth, dt * sn, 0.5 * dt * dy_dth, dt
+    F[0, 2], F[0, 3], F[0, 4] = dx_dth, dt * c, 0.5 * dt * dx_dth
+    F[1, 2], F[1, 3], F[1, 4] = dy_dth, dt * sn, 0.5 * dt * dy_dth
     F[0, SWAY], F[1, SWAY] = -dt * sn, dt * c
-    F[2, 4] = dt
-    F[SWAY, SWAY] = math.exp(-dt / sway_tau_s)
     return F
 
 
@@ -93,12 +105,26 @@ def process_noise(
     sub-steps, to first order). Heading-to-position coupling within one step is
     O(v q dt^4) and left to the Jacobian of the next steps.
     """
-    th, w = s[2], s[4]
-    h = np.array([math.cos(th + 0.5 * w * dt), math.sin(th + 0.5 * w * dt)])
+    fixed = process_noise_fixed(
+        dt, q_accel, q_yaw_accel, q_current, q_position, sway_std_mps, sway_tau_s
+    )
+    return process_noise_at(fixed, s, dt, q_accel)
+
+
+def process_noise_fixed(
+    dt: float,
+    q_accel: float,
+    q_yaw_accel: float,
+    q_current: float,
+    q_position: float,
+    sway_std_mps: float = 0.0,
+    sway_tau_s: float = 2.0,
+) -> FloatArray:
+    """The entries of process_noise that do not depend on the state (the surge noise along
+    the heading, `process_noise_at`, zero; the position's own walk on its diagonal): a filter
+    keeps them for each sub-step length."""
     d2, d3 = dt * dt / 2.0, dt**3 / 3.0
     Q = np.zeros((DIM_X, DIM_X))
-    Q[0:2, 0:2] = q_accel * d3 * (h[:, None] * h)  # np.outer(h, h), without its overhead
-    Q[0:2, 3] = Q[3, 0:2] = q_accel * d2 * h
     Q[3, 3] = q_accel * dt
     Q[2, 2], Q[2, 4], Q[4, 2], Q[4, 4] = (
         q_yaw_accel * d3,
@@ -107,11 +133,26 @@ def process_noise(
         (q_yaw_accel * dt),
     )
     for i, j in ((0, 5), (1, 6)):  # the current, a random walk the position integrates
-        Q[i, i] += q_current * d3 + q_position * dt
+        Q[i, i] = q_current * d3 + q_position * dt
         Q[i, j] = Q[j, i] = q_current * d2
         Q[j, j] = q_current * dt
     Q[BIAS, BIAS] = Q_BIAS * dt
     Q[SWAY, SWAY] = sway_std_mps**2 * (1.0 - math.exp(-2.0 * dt / sway_tau_s))
+    return Q
+
+
+def process_noise_at(Q: FloatArray, s: FloatArray, dt: float, q_accel: float) -> FloatArray:
+    """process_noise at s: the white surge acceleration along the heading at mid-step, h =
+    (cos, sin), added into Q (9, 9), which holds process_noise_fixed(dt, ...) (a copy: it is
+    modified and returned): q_accel dt^3/3 h h' on the position, q_accel dt^2/2 h with v."""
+    th, w = s[2], s[4]
+    c, sn = math.cos(th + 0.5 * w * dt), math.sin(th + 0.5 * w * dt)
+    a3, a2 = q_accel * (dt**3 / 3.0), q_accel * (dt * dt / 2.0)
+    Q[0, 0] = a3 * (c * c) + Q[0, 0]  # plus the walk of process_noise_fixed
+    Q[1, 1] = a3 * (sn * sn) + Q[1, 1]
+    Q[0, 1], Q[1, 0] = a3 * (c * sn), a3 * (sn * c)
+    Q[0, 3] = Q[3, 0] = a2 * c
+    Q[1, 3] = Q[3, 1] = a2 * sn
     return Q
 
 

@@ -21,8 +21,10 @@ from services.estimator.unicycle import (
     DIM_X,
     circular_mean,
     fx,
-    jacobian_f,
-    process_noise,
+    jacobian_at,
+    jacobian_fixed,
+    process_noise_at,
+    process_noise_fixed,
     residual_x,
 )
 
@@ -32,6 +34,8 @@ FloatArray = NDArray[np.float64]
 # prediction stays bounded (the estimator never predicts further than 60 s, 600 default
 # sub-steps); beyond this the sub-steps just get longer.
 MAX_SUBSTEPS = 1000
+# Sub-step lengths whose fixed model parts a filter keeps (_SubstepPredict.fixed)
+MAX_SUBSTEP_LENGTHS = 256
 
 
 class VehicleFilter(Protocol):
@@ -87,6 +91,19 @@ class _SubstepPredict:
         )
         self._tau = cfg.sway_tau_s
         self._max_dt = cfg.max_predict_dt_s
+        # the Jacobian's and Q's entries that depend on h alone, by h: a mission's sub-steps
+        # take a few tens of lengths (fix periods split, with float noise); never written to
+        self._fixed: dict[float, tuple[FloatArray, FloatArray]] = {}
+
+    def fixed(self, h: float) -> tuple[FloatArray, FloatArray]:
+        """(jacobian_fixed, process_noise_fixed) of a sub-step of h seconds, kept."""
+        got = self._fixed.get(h)
+        if got is None:
+            if len(self._fixed) >= MAX_SUBSTEP_LENGTHS:
+                self._fixed.clear()
+            got = (jacobian_fixed(h, self._tau), process_noise_fixed(h, *self._q))
+            self._fixed[h] = got
+        return got
 
     def predict(self, x: FloatArray, P: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
         if dt <= 0.0:
@@ -115,9 +132,12 @@ class EkfVehicleFilter(_SubstepPredict):
         ekf = self._ekf
         ekf.x, ekf.P = x, P
         ekf.step_dt = h
+        F0, Q0 = self.fixed(h)
+        q_accel = self._q[0]
         for _ in range(n):
-            ekf.F = jacobian_f(ekf.x, h, self._tau)  # P = F P F' + Q, linearised at the prior
-            ekf.Q = process_noise(ekf.x, h, *self._q)
+            # P = F P F' + Q, F = jacobian_f and Q = process_noise linearised at the prior
+            ekf.F = jacobian_at(F0.copy(), ekf.x, h)
+            ekf.Q = process_noise_at(Q0.copy(), ekf.x, h, q_accel)
             ekf.predict()
         return _tidy(ekf.x, ekf.P)
 
@@ -154,8 +174,9 @@ class UkfVehicleFilter(_SubstepPredict):
     ) -> tuple[FloatArray, FloatArray]:
         ukf = self._ukf
         ukf.x, ukf.P = x, P
+        Q0 = self.fixed(h)[1]
         for _ in range(n):
-            ukf.Q = process_noise(ukf.x, h, *self._q)
+            ukf.Q = process_noise_at(Q0.copy(), ukf.x, h, self._q[0])  # process_noise
             ukf.predict(dt=h)
             ukf.x, ukf.P = _tidy(ukf.x, ukf.P)
         return ukf.x.copy(), ukf.P.copy()

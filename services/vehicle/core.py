@@ -260,14 +260,16 @@ class VehicleCore:
 
     def _integrate(self, state: PlantState, t_a: float, t_b: float) -> PlantState:
         """RK4 over [t_a, t_b] inside one grid cell, split where the applied (v, w) changes."""
-        cands = {start for start, _ in self._pieces}
-        for _, sc in self._pieces:
-            cands.update(sc.transitions_between(t_a, t_b))
-        seg_a, cur = t_a, self._applied_vw(t_a)
         # a change within float noise of the cell's end takes effect at the end, as a delivery
         # there does (_commit's tolerance): so a command's next entry acts exactly as the same
         # command delivered at that entry's start time would
-        for c in sorted(x for x in cands if t_a < x < t_b - _GRID_TOL_S):
+        hi = t_b - _GRID_TOL_S
+        cands = [start for start, _ in self._pieces if t_a < start < hi]
+        for _, sc in self._pieces:  # its changes in (t_a, t_b)
+            cands += [x for x in sc.transitions_between(t_a, t_b) if x < hi]
+        seg_a, cur = t_a, self._applied_vw(t_a)
+        # a time listed twice changes nothing the second time (the value is already cur)
+        for c in sorted(cands):
             val = self._applied_vw(c)
             if val != cur:
                 state = self._rk4(state, seg_a, c, cur)

@@ -14,6 +14,7 @@ kappa < 1 / R_min, the controllers their commands within it; the plant enforces 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from common.config.vehicle import VehicleConfig
@@ -124,6 +125,10 @@ def derivatives(
     return dx, dy, w, dv, dw, dz
 
 
+# (s, h, v_cmd, w_cmd, t, current) -> the state h seconds later (make_rk4_step)
+Rk4Step = Callable[[State, float, float, float, float, CurrentFn | None], State]
+
+
 def rk4_step(
     s: State,
     h: float,
@@ -141,44 +146,95 @@ def rk4_step(
     projected onto their eq. (11) bounds (v never reverses), and w onto the turning-radius
     bound |w| <= v / R_min at the new speed (the yaw loop follows a command already limited
     to it, so the projection only trims what a stage overshot or what a falling speed took
-    away).
+    away). A plant stepping often binds p once instead (`make_rk4_step`).
     """
-    ff = drag_n(v_cmd, p)
-    hh = 0.5 * h
-    if current is None:
-        k1 = derivatives(s, v_cmd, w_cmd, ff, 0.0, 0.0, p)
-        k2 = derivatives(_axpy(s, hh, k1), v_cmd, w_cmd, ff, 0.0, 0.0, p)
-        k3 = derivatives(_axpy(s, hh, k2), v_cmd, w_cmd, ff, 0.0, 0.0, p)
-        k4 = derivatives(_axpy(s, h, k3), v_cmd, w_cmd, ff, 0.0, 0.0, p)
-    else:
-        k1 = derivatives(s, v_cmd, w_cmd, ff, *current(s[0], s[1], t), p)
-        s2 = _axpy(s, hh, k1)
-        k2 = derivatives(s2, v_cmd, w_cmd, ff, *current(s2[0], s2[1], t + hh), p)
-        s3 = _axpy(s, hh, k2)
-        k3 = derivatives(s3, v_cmd, w_cmd, ff, *current(s3[0], s3[1], t + hh), p)
-        s4 = _axpy(s, h, k3)
-        k4 = derivatives(s4, v_cmd, w_cmd, ff, *current(s4[0], s4[1], t + h), p)
-    h6 = h / 6.0
-    # s + h/6 (k1 + 2 k2 + 2 k3 + k4), component by component (a generator over zip cost
-    # as much as a stage)
-    x = s[0] + h6 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-    y = s[1] + h6 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-    theta = s[2] + h6 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-    v = s[3] + h6 * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
-    w = s[4] + h6 * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4])
-    z = s[5] + h6 * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5])
-    v = clamp(v, 0.0, p.v_max)
-    w_room = v / p.r_min
-    return x, y, theta, v, clamp(w, max(p.w_min, -w_room), min(p.w_max, w_room)), z
+    return make_rk4_step(p)(s, h, v_cmd, w_cmd, t, current)
 
 
-def _axpy(s: State, h: float, k: State) -> State:
-    """s + h k for the 6-element state (an RK4 stage point)."""
-    return (
-        s[0] + h * k[0],
-        s[1] + h * k[1],
-        s[2] + h * k[2],
-        s[3] + h * k[3],
-        s[4] + h * k[4],
-        s[5] + h * k[5],
-    )
+def make_rk4_step(p: PlantParams) -> Rk4Step:
+    """rk4_step with p bound: step(s, h, v_cmd, w_cmd, t, current) -> the state h later.
+
+    The vehicle's hot loop (~8000 steps a mission): `derivatives`, `thrust_n`, `drag_n` and
+    `clamp` are written out here with p's fields read once, in the same expressions and
+    operation order, so the floats are theirs bit for bit (tests/test_vehicle_dynamics.py
+    holds the two equal); the drag feed-forward of the last v_cmd is kept (a command is
+    held over many steps)."""
+    half_rho_s, length_m, nu_m2ps = p.half_rho_s, p.length_m, p.nu_m2ps
+    delta_cf, c_pv, mass_eff_kg = p.delta_cf, p.c_pv, p.mass_eff_kg
+    t_min, t_max, kp, ki, int_band = p.thrust_min_n, p.thrust_max_n, p.kp, p.ki, p.int_band
+    accel_max, yaw_tau_s, yaw_accel_max = p.accel_max, p.yaw_tau_s, p.yaw_accel_max
+    v_max, w_min, w_max, r_min = p.v_max, p.w_min, p.w_max, p.r_min
+    exp, cos, sin, log10 = math.exp, math.cos, math.sin, math.log10
+    ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
+
+    def drag(v: float) -> float:
+        # drag_n and friction_coefficient
+        re = abs(v) * length_m / nu_m2ps
+        if re < RE_MIN:  # max(re, RE_MIN): RE_MIN when equal too, the same float
+            re = RE_MIN
+        cf = 0.075 / (log10(re) - 2.0) ** 2
+        return half_rho_s * v * abs(v) * (cf + delta_cf + c_pv)
+
+    def rates(
+        v: float, w: float, z: float, v_cmd: float, w_cmd: float, ff: float
+    ) -> tuple[float, float, float]:
+        # derivatives' dv, dw and dz (thrust_n's): the clamps are common.scalar.clamp's
+        # expression written out
+        e = v_cmd - v
+        t_raw = ff + kp * e + ki * z
+        t = t_min if t_raw < t_min else t_max if t_raw > t_max else t_raw
+        x = e / int_band
+        dz = exp(-x * x) * (e + (t - t_raw) / kp)
+        dv = (t - drag(v)) / mass_eff_kg
+        dv = -accel_max if dv < -accel_max else accel_max if dv > accel_max else dv
+        w_room = abs(v) / r_min
+        wc = -w_room if w_cmd < -w_room else w_room if w_cmd > w_room else w_cmd
+        dw = (wc - w) / yaw_tau_s
+        dw = -yaw_accel_max if dw < -yaw_accel_max else yaw_accel_max if dw > yaw_accel_max else dw
+        return dv, dw, dz
+
+    def step(
+        s: State, h: float, v_cmd: float, w_cmd: float, t: float, current: CurrentFn | None
+    ) -> State:
+        if ff_of[0] != v_cmd or v_cmd == 0.0:  # equal and nonzero: the same float, bit for bit
+            ff_of[0], ff_of[1] = v_cmd, drag(v_cmd)
+        ff = ff_of[1]
+        hh = 0.5 * h
+        x0, y0, th0, v0, w0, z0 = s
+        # stage 1 at s; then stages 2, 3 at s + h/2 k and 4 at s + h k3 (_axpy)
+        c1x, c1y = (0.0, 0.0) if current is None else current(x0, y0, t)
+        k1x, k1y = v0 * cos(th0) + c1x, v0 * sin(th0) + c1y
+        k1v, k1w, k1z = rates(v0, w0, z0, v_cmd, w_cmd, ff)
+        x, y, th = x0 + hh * k1x, y0 + hh * k1y, th0 + hh * w0
+        v, w, z = v0 + hh * k1v, w0 + hh * k1w, z0 + hh * k1z
+        c2x, c2y = (0.0, 0.0) if current is None else current(x, y, t + hh)
+        k2x, k2y, k2t = v * cos(th) + c2x, v * sin(th) + c2y, w
+        k2v, k2w, k2z = rates(v, w, z, v_cmd, w_cmd, ff)
+        x, y, th = x0 + hh * k2x, y0 + hh * k2y, th0 + hh * k2t
+        v, w, z = v0 + hh * k2v, w0 + hh * k2w, z0 + hh * k2z
+        c3x, c3y = (0.0, 0.0) if current is None else current(x, y, t + hh)
+        k3x, k3y, k3t = v * cos(th) + c3x, v * sin(th) + c3y, w
+        k3v, k3w, k3z = rates(v, w, z, v_cmd, w_cmd, ff)
+        x, y, th = x0 + h * k3x, y0 + h * k3y, th0 + h * k3t
+        v, w, z = v0 + h * k3v, w0 + h * k3w, z0 + h * k3z
+        c4x, c4y = (0.0, 0.0) if current is None else current(x, y, t + h)
+        k4x, k4y, k4t = v * cos(th) + c4x, v * sin(th) + c4y, w
+        k4v, k4w, k4z = rates(v, w, z, v_cmd, w_cmd, ff)
+        h6 = h / 6.0
+        # s + h/6 (k1 + 2 k2 + 2 k3 + k4), component by component
+        v = v0 + h6 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        w = w0 + h6 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
+        v = 0.0 if v < 0.0 else v_max if v > v_max else v
+        w_room = v / r_min
+        lo = -w_room if -w_room > w_min else w_min  # max(w_min, -w_room), written out
+        hi = w_room if w_room < w_max else w_max  # min(w_max, w_room)
+        return (
+            x0 + h6 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
+            y0 + h6 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y),
+            th0 + h6 * (w0 + 2.0 * k2t + 2.0 * k3t + k4t),
+            v,
+            lo if w < lo else hi if w > hi else w,
+            z0 + h6 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z),
+        )
+
+    return step

@@ -189,21 +189,31 @@ class FossenPlant:
     ) -> FossenState:
         """Right-hand side under a commanded surge speed through the water v_cmd (m/s) and yaw
         rate w_cmd (rad/s), in a current (cx, cy) (world frame, m/s) at the vehicle."""
+        vc = min(max(v_cmd, 0.0), self.v_max_mps)
+        return self._closed_loop(s, vc, self.drag_n(vc), w_cmd, cx, cy)
+
+    def _closed_loop(
+        self, s: FossenState, vc: float, ff: float, w_cmd: float, cx: float, cy: float
+    ) -> FossenState:
+        """`derivatives` for the speed command vc already bounded and its drag feed-forward ff
+        (both held over an RK4 step: `step` forms them once). min(max(x, lo), hi) is written
+        out (max(a, b) is b if b > a else a, min(a, b) b if b < a else a: the same floats)."""
         kp_u, ki_u, band_u, eps_u, kp_r, ki_r, band_r, eps_r, u_ref, u_min = self._ap
         t_min, t_max, d_max = self._sat
         u = s[3]
         # speed autopilot: drag feed-forward + PI
-        vc = min(max(v_cmd, 0.0), self.v_max_mps)
         e_u = vc - u
-        t_raw = self.drag_n(vc) + kp_u * e_u + ki_u * s[8]
-        t_dem = min(max(t_raw, t_min), t_max)
+        t_raw = ff + kp_u * e_u + ki_u * s[8]
+        t_dem = t_min if t_min > t_raw else t_raw
+        t_dem = t_max if t_max < t_dem else t_dem
         # yaw-rate autopilot: steady-turn feed-forward + PI scheduled with the fin lift ~ u^2
-        u_s = max(u, u_min)
+        u_s = u_min if u_min > u else u
         g = u_ref / u_s
         g *= g
         e_r = w_cmd - s[5]
         d_raw = self.steady_rudder_rad(w_cmd / u_s) + g * (kp_r * e_r + ki_r * s[9])
-        d_dem = min(max(d_raw, -d_max), d_max)
+        d_dem = -d_max if -d_max > d_raw else d_raw
+        d_dem = d_max if d_max < d_dem else d_dem
         dz_u = _integrand(e_u, band_u, t_raw - t_dem, eps_u)
         dz_r = _integrand(e_r, band_r, d_raw - d_dem, eps_r)
         d = self._rhs(s, t_dem, d_dem, cx, cy)
@@ -273,19 +283,24 @@ class FossenPlant:
     ) -> FossenState:
         """One classical RK4 step of length h from time t0 under a held (v_cmd, w_cmd);
         current(x, y, t) is evaluated at each stage's position and time."""
-        f = self.derivatives
+        f = self._closed_loop
+        vc = min(max(v_cmd, 0.0), self.v_max_mps)
+        ff = self.drag_n(vc)  # the speed autopilot's feed-forward, held over the step
         hh = 0.5 * h
-        k1 = f(s, v_cmd, w_cmd, *current(s[0], s[1], t0))
+        k1 = f(s, vc, ff, w_cmd, *current(s[0], s[1], t0))
         s2 = _axpy(s, hh, k1)
-        k2 = f(s2, v_cmd, w_cmd, *current(s2[0], s2[1], t0 + hh))
+        k2 = f(s2, vc, ff, w_cmd, *current(s2[0], s2[1], t0 + hh))
         s3 = _axpy(s, hh, k2)
-        k3 = f(s3, v_cmd, w_cmd, *current(s3[0], s3[1], t0 + hh))
+        k3 = f(s3, vc, ff, w_cmd, *current(s3[0], s3[1], t0 + hh))
         s4 = _axpy(s, h, k3)
-        k4 = f(s4, v_cmd, w_cmd, *current(s4[0], s4[1], t0 + h))
+        k4 = f(s4, vc, ff, w_cmd, *current(s4[0], s4[1], t0 + h))
         h6 = h / 6.0
+        # a list comprehension, not a generator: tuple() of a generator costs twice as much
         return tuple(
-            a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
+            [
+                a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+                for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
+            ]
         )
 
     @staticmethod
@@ -309,4 +324,4 @@ def _integrand(e: float, band: float, excess: float, eps: float) -> float:
 
 def _axpy(s: FossenState, h: float, k: FossenState) -> FossenState:
     """s + h k (an RK4 stage point)."""
-    return tuple(a + h * b for a, b in zip(s, k, strict=True))
+    return tuple([a + h * b for a, b in zip(s, k, strict=True)])

@@ -18,7 +18,7 @@ from typing import Protocol
 
 from common.config.vehicle import VehicleConfig
 from common.world.current import CurrentFn
-from services.vehicle.dynamics import PlantParams, drag_n, rk4_step, thrust_n
+from services.vehicle.dynamics import PlantParams, drag_n, make_rk4_step, thrust_n
 from services.vehicle.fossen import FossenPlant
 
 PlantState = tuple[float, ...]
@@ -59,6 +59,7 @@ class UnicyclePlant:
     def __init__(self, cfg: VehicleConfig, current: CurrentFn | None = None) -> None:
         self.p = PlantParams.from_config(cfg)
         self.current = current  # None: still water (rk4_step then makes no call at all)
+        self._step = make_rk4_step(self.p)
 
     def initial(
         self, x: float, y: float, theta: float, v: float = 0.0, sway: float = 0.0, w: float = 0.0
@@ -67,7 +68,7 @@ class UnicyclePlant:
 
     def step(self, s: PlantState, h: float, t0: float, v_cmd: float, w_cmd: float) -> PlantState:
         x, y, th, v, w, z = s
-        return rk4_step((x, y, th, v, w, z), h, v_cmd, w_cmd, self.p, t=t0, current=self.current)
+        return self._step((x, y, th, v, w, z), h, v_cmd, w_cmd, t0, self.current)
 
     def motion(self, s: PlantState) -> Motion:
         return s[0], s[1], s[2], s[3], 0.0, s[4]
