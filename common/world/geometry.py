@@ -151,18 +151,64 @@ def polygon_signed_distance(v: FloatArray, px: ArrayLike, py: ArrayLike) -> Floa
     return PolygonEdges.of([v]).signed_distance(pts)[0].reshape(bx.shape)
 
 
-def nearest_distances(points: FloatArray, to: FloatArray, *, block: int = 256) -> FloatArray:
+def nearest_distances(
+    points: FloatArray, to: FloatArray, *, block: int = 256, leaf: int = 64
+) -> FloatArray:
     """For each of `points` (N, 2), the distance (m) to the nearest of `to` (M, 2, M >= 1):
-    (N,). Exact (every pair, `block` rows at a time: N x M of a run's track against a path's
-    samples is a few million pairs), without scipy.spatial's KD-tree, whose import cost a
-    launch or a run more than its queries save."""
+    (N,). Exact: the very floats of comparing every pair (`_nearest_every_pair`), pruned.
+
+    `to` is cut into runs of `leaf` consecutive samples (a path's samples lie along it, so a
+    run is compact), each with its bounding box. A box's distance to a point, computed with
+    the pair's own operations on the box's edges, is no more than any of its samples' squared
+    distance as computed (IEEE subtraction, squaring and addition are monotone), so only the
+    runs whose box beats the best found so far are compared in full, and the minimum over
+    those is the minimum over all. `block` rows at a time bound the memory. scipy.spatial's
+    KD-tree is not used: its import costs a launch or a run more than its queries save.
+    """
+    if len(to) <= 2 * leaf or not (np.isfinite(points).all() and np.isfinite(to).all()):
+        return _nearest_every_pair(points, to, block=block)  # nothing to prune, or NaN/inf
+    runs = -(-len(to) // leaf)
+    # the last run padded with its last sample: a repeated sample changes no minimum
+    padded = np.concatenate([to, np.repeat(to[-1:], runs * leaf - len(to), axis=0)])
+    rx, ry = padded[:, 0].reshape(runs, leaf), padded[:, 1].reshape(runs, leaf)
+    x_lo, x_hi, y_lo, y_hi = rx.min(axis=1), rx.max(axis=1), ry.min(axis=1), ry.max(axis=1)
     out = np.empty(len(points))
-    qx, qy = to[:, 0], to[:, 1]
     for i in range(0, len(points), block):
-        dx = points[i : i + block, 0, None] - qx
-        dy = points[i : i + block, 1, None] - qy
+        px, py = points[i : i + block, 0, None], points[i : i + block, 1, None]
+        # squared distance to each run's box (b, runs): 0 along an axis the point is within
+        dx = np.maximum(np.maximum(x_lo - px, px - x_hi), 0.0)
+        dy = np.maximum(np.maximum(y_lo - py, py - y_hi), 0.0)
         dx *= dx
         dy *= dy
         dx += dy
-        out[i : i + block] = dx.min(axis=1)
+        # the best so far: every sample of the run whose box is nearest
+        first = np.argmin(dx, axis=1)
+        best = _squared_min(px, py, rx[first], ry[first])
+        # then every other run whose box could hold a nearer sample, point by point
+        dx[np.arange(len(first)), first] = np.inf
+        pi, ri = np.nonzero(dx < best[:, None])
+        if len(pi):
+            d2 = _squared_min(px[pi], py[pi], rx[ri], ry[ri])
+            np.minimum.at(best, pi, d2)
+        out[i : i + block] = best
     return np.sqrt(out)
+
+
+def _nearest_every_pair(points: FloatArray, to: FloatArray, *, block: int) -> FloatArray:
+    """nearest_distances by comparing every pair, `block` rows of points at a time."""
+    out = np.empty(len(points))
+    for i in range(0, len(points), block):
+        out[i : i + block] = _squared_min(
+            points[i : i + block, 0, None], points[i : i + block, 1, None], to[:, 0], to[:, 1]
+        )
+    return np.sqrt(out)
+
+
+def _squared_min(px: FloatArray, py: FloatArray, qx: FloatArray, qy: FloatArray) -> FloatArray:
+    """min over each row of (px - qx)^2 + (py - qy)^2: px, py (b, 1); qx, qy (m,) or (b, m)."""
+    dx = px - qx
+    dy = py - qy
+    dx *= dx
+    dy *= dy
+    dx += dy
+    return dx.min(axis=1)
