@@ -43,12 +43,21 @@ class ObstacleState:
         `accel_horizon_s`: a tracked acceleration extrapolated for a minute would fling the
         obstacle across the area, so past the horizon it keeps the velocity it has reached.
         """
+        if isinstance(t_s, float):  # one time: plain floats, numpy's per-call cost avoided
+            return np.array(self._centre(t_s, accel_horizon_s))
         t = np.asarray(t_s, dtype=np.float64)
         ta = np.minimum(t, accel_horizon_s)
         quad = 0.5 * ta * ta + ta * (t - ta)  # integral of min(t, T_a): acceleration term
         x = self.x + self.vx * t + self.ax * quad
         y = self.y + self.vy * t + self.ay * quad
         return np.stack([x, y], axis=-1)
+
+    def _centre(self, t: float, accel_horizon_s: float) -> tuple[float, float]:
+        """centre_at at one time, as floats: the same operations in the same order (min
+        differs from np.minimum only in the sign of a zero ta, which leaves quad +0.0)."""
+        ta = min(t, accel_horizon_s)
+        quad = 0.5 * ta * ta + ta * (t - ta)
+        return self.x + self.vx * t + self.ax * quad, self.y + self.vy * t + self.ay * quad
 
     @classmethod
     def of_motion(cls, oid: int, radius: float, pos: Vec2, vel: Vec2, acc: Vec2) -> ObstacleState:
@@ -66,11 +75,11 @@ class ObstacleState:
 
     def advanced(self, dt_s: float) -> ObstacleState:
         """The same obstacle with its state extrapolated dt_s ahead (acceleration held)."""
-        p = self.centre_at(dt_s)
+        x, y = self._centre(dt_s, math.inf)
         return dataclasses.replace(
             self,
-            x=float(p[0]),
-            y=float(p[1]),
+            x=float(x),  # (a numpy dt_s makes numpy scalars: the fields stay floats)
+            y=float(y),
             vx=self.vx + self.ax * dt_s,
             vy=self.vy + self.ay * dt_s,
         )
@@ -108,26 +117,25 @@ class World:
         self._moving: list[tuple[int, float, Trajectory]] = [
             (m.id, m.radius_m, make_trajectory(m)) for m in cfg.moving
         ]
-        ids = self._circle_ids + tuple(p.id for p in self._polygons)
-        self.obstacle_ids: tuple[int, ...] = tuple(sorted(ids + tuple(m[0] for m in self._moving)))
+        # the static obstacles' states are the same at every time (and immutable): built once
+        self._static: tuple[ObstacleState, ...] = tuple(
+            _static(cid, cx, cy, cr) for cid, cx, cy, cr in self._circles
+        ) + tuple(_static(p.id, p.cx, p.cy, p.circumradius) for p in self._polygons)
+        # obstacles_at's order, static then moving stably sorted by id, as positions in that list
+        ids = [o.id for o in self._static] + [m[0] for m in self._moving]
+        self._by_id = sorted(range(len(ids)), key=ids.__getitem__)
+        self.obstacle_ids: tuple[int, ...] = tuple(ids[i] for i in self._by_id)
 
     def obstacles_at(self, t: float) -> tuple[ObstacleState, ...]:
         """Every obstacle at time t (s), sorted by id."""
-        out: list[ObstacleState] = []
-        for i, cid in enumerate(self._circle_ids):
-            x, y = float(self._cxy[i, 0]), float(self._cxy[i, 1])
-            out.append(_static(cid, x, y, float(self._cr[i])))
-        for p in self._polygons:
-            out.append(_static(p.id, p.cx, p.cy, p.circumradius))
-        out.extend(self.moving_at(t))
-        return tuple(sorted(out, key=lambda o: o.id))
+        out = self._static + self.moving_at(t)
+        return tuple([out[i] for i in self._by_id])
 
     def moving_at(self, t: float) -> tuple[ObstacleState, ...]:
         """The moving obstacles at time t (s), in their configured order: obstacles_at's
         moving ones, without building the static ones."""
-        return tuple(
-            ObstacleState.of_motion(mid, r, *traj.state(t)) for mid, r, traj in self._moving
-        )
+        t = float(t)  # a numpy time would make every field a numpy scalar
+        return tuple([_moving(mid, r, *traj.motion_at(t)) for mid, r, traj in self._moving])
 
     def clearance(self, x: float, y: float, r_vehicle: float, t: float) -> float:
         """eq. (12): min_k ||x - alpha_k(t)|| - (r + r_k); negative means collision.
@@ -157,8 +165,8 @@ class World:
             if d < best:
                 best, who = d, p.id
         for mid, rk, traj in self._moving if moving else ():
-            pos, _, _ = traj.state(t)
-            d = math.hypot(x - float(pos[0]), y - float(pos[1])) - (r_vehicle + rk)
+            px, py = traj.position_at(t)
+            d = math.hypot(x - px, y - py) - (r_vehicle + rk)
             if d < best:
                 best, who = d, mid
         return who, best
@@ -185,3 +193,10 @@ class World:
 
 def _static(oid: int, x: float, y: float, r: float) -> ObstacleState:
     return ObstacleState(id=oid, x=x, y=y, vx=0.0, vy=0.0, ax=0.0, ay=0.0, radius=r, moving=False)
+
+
+def _moving(
+    oid: int, r: float, x: float, y: float, vx: float, vy: float, ax: float, ay: float
+) -> ObstacleState:
+    """The moving obstacle of radius r (m) with a trajectory's motion at one time."""
+    return ObstacleState(id=oid, x=x, y=y, vx=vx, vy=vy, ax=ax, ay=ay, radius=r, moving=True)
