@@ -1,6 +1,6 @@
 """The world's one-time paths hold the vectorised computation's floats bit for bit: a
-trajectory's state, the obstacles at a time, an extrapolated centre (random inputs; bits
-compared, so a -0.0 for a +0.0 fails too)."""
+trajectory's state, the obstacles at a time, an extrapolated centre, a polygon's distance
+without its gradient (random inputs; bits compared, so a -0.0 for a +0.0 fails too)."""
 
 from __future__ import annotations
 
@@ -20,11 +20,13 @@ from common.config.world import (
     WorldConfig,
 )
 from common.world import ObstacleState, World
+from common.world.geometry import FloatArray, PolygonEdges, polygon_signed_distance
 from common.world.trajectory import make_trajectory
 
 _coord = st.floats(-500.0, 500.0, allow_nan=False)
 _speed = st.floats(0.05, 3.0).flatmap(lambda s: st.sampled_from([s, -s]))
 _time = st.floats(0.0, 2000.0) | st.integers(0, 2000).map(float)
+_AREA = AreaConfig(x_min_m=-560.0, x_max_m=560.0, y_min_m=-560.0, y_max_m=560.0)
 
 
 def _bits(*values: object) -> bytes:
@@ -88,7 +90,7 @@ def test_obstacles_at_are_the_states_built_from_each_trajectory(
     )
     order = ids[: 2 + len(moving)]  # ids in no particular order: obstacles_at sorts them
     cfg = WorldConfig(
-        area=AreaConfig(x_min_m=-520.0, x_max_m=520.0, y_min_m=-520.0, y_max_m=520.0),
+        area=_AREA,
         circles=(dataclasses.replace(circle, id=order[0]),),
         polygons=(dataclasses.replace(square, id=order[1]),),
         moving=tuple(dataclasses.replace(m, id=i) for m, i in zip(moving, order[2:], strict=True)),
@@ -132,3 +134,43 @@ def test_one_times_centre_is_the_vectorised_centre(
     assert o.centre_at(t, horizon).tobytes() == want.tobytes()
     later = o.advanced(t)
     assert _bits(later.x, later.y) == o.centre_at(np.array([t]))[0].tobytes()
+
+
+@st.composite
+def _star(draw: st.DrawFn) -> FloatArray:
+    """A star-shaped polygon (simple): 3 to 9 vertices at increasing angles about a centre."""
+    n = draw(st.integers(3, 9))
+    cx, cy = draw(_coord), draw(_coord)
+    radii = np.array(draw(st.lists(st.floats(0.5, 30.0), min_size=n, max_size=n)))
+    ang = 2.0 * np.pi * np.arange(n) / n
+    return np.column_stack([cx + radii * np.cos(ang), cy + radii * np.sin(ang)])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    polys=st.lists(_star(), min_size=1, max_size=3),
+    pts=st.lists(st.tuples(_coord, _coord), min_size=1, max_size=20),
+    r=st.floats(0.0, 2.0),
+)
+def test_polygon_distances_without_gradient_are_signed_distances_floats(
+    polys: list[FloatArray], pts: list[tuple[float, float]], r: float
+) -> None:
+    p = np.array(pts)
+    many = PolygonEdges.of(polys)
+    best, _ = many.signed_distance(p)
+    each = many.signed_distances(p)
+    assert each[np.arange(len(p)), np.argmin(each, axis=1)].tobytes() == best.tobytes()
+    for v in polys:
+        alone, _ = PolygonEdges.of([v]).signed_distance(p)
+        assert polygon_signed_distance(v, p[:, 0], p[:, 1]).tobytes() == alone.tobytes()
+    # the plant's clearance to one polygon: the general signed distance's float, minus r
+    w = World(WorldConfig(area=_AREA, polygons=(_polygon_config(polys[0]),)))
+    x, y = pts[0]
+    want = float(PolygonEdges.of([polys[0]]).signed_distance(p[:1])[0][0]) - r
+    got = w.nearest(x, y, r, 0.0)
+    assert got[0] == 1 and _bits(got[1]) == _bits(want)
+
+
+def _polygon_config(v: FloatArray) -> PolygonObstacleConfig:
+    """Polygon 1 with vertices v (n, 2)."""
+    return PolygonObstacleConfig(id=1, vertices_m=tuple(float(c) for c in v.ravel()))

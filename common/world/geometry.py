@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 
 def vertices_array(flat: Sequence[float]) -> FloatArray:
@@ -110,6 +111,26 @@ class PolygonEdges:
     def signed_distance(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Distance (m,) from points (m, 2) to the nearest polygon's boundary, negative inside,
         and its gradient (m, 2) w.r.t. the point (the unit normal of the nearest edge)."""
+        signed, inside, d2, diff = self._per_polygon(pts)
+        rows = np.arange(len(pts))
+        kp = np.argmin(signed, axis=1)
+        best = signed[rows, kp]
+        # the nearest edge of the chosen polygon gives the gradient direction
+        d2_masked = np.where(self.edge_poly[None, :] == kp[:, None], d2, np.inf)
+        ke = np.argmin(d2_masked, axis=1)
+        g = diff[rows, ke]
+        g = g / np.maximum(np.sqrt(d2[rows, ke]), 1e-12)[:, None]
+        g = np.where(inside[rows, kp][:, None], -g, g)
+        return best, g
+
+    def signed_distances(self, pts: FloatArray) -> FloatArray:
+        """Each polygon's signed distance (m, npoly) from points (m, 2): signed_distance's
+        floats before the least is taken, without the gradient's cost."""
+        return self._per_polygon(pts)[0]
+
+    def _per_polygon(self, pts: FloatArray) -> tuple[FloatArray, BoolArray, FloatArray, FloatArray]:
+        """Signed distance (m, npoly) and inside (m, npoly) per polygon; each edge's squared
+        distance (m, ne) and point minus closest point (m, ne, 2)."""
         a, b = self.a, self.b
         ab = b - a  # (ne, 2)
         ap = pts[:, None, :] - a[None, :, :]  # (m, ne, 2)
@@ -125,20 +146,10 @@ class PolygonEdges:
         dy = np.where(by == ay, 1.0, by - ay)
         x_cross = a[None, :, 0] + (py - ay) * ab[None, :, 0] / dy
         crosses = (straddle & (pts[:, 0:1] < x_cross)).astype(np.int64)
-        rows = np.arange(len(pts))
         inside = np.add.reduceat(crosses, self.starts, axis=1) % 2 == 1  # (m, npoly)
         d2_poly = np.minimum.reduceat(d2, self.starts, axis=1)
         dist = np.sqrt(d2_poly)
-        signed = np.where(inside, -dist, dist)
-        kp = np.argmin(signed, axis=1)
-        best = signed[rows, kp]
-        # the nearest edge of the chosen polygon gives the gradient direction
-        d2_masked = np.where(self.edge_poly[None, :] == kp[:, None], d2, np.inf)
-        ke = np.argmin(d2_masked, axis=1)
-        g = diff[rows, ke]
-        g = g / np.maximum(np.sqrt(d2[rows, ke]), 1e-12)[:, None]
-        g = np.where(inside[rows, kp][:, None], -g, g)
-        return best, g
+        return np.where(inside, -dist, dist), inside, d2, diff
 
 
 def polygon_signed_distance(v: FloatArray, px: ArrayLike, py: ArrayLike) -> FloatArray:
@@ -148,7 +159,7 @@ def polygon_signed_distance(v: FloatArray, px: ArrayLike, py: ArrayLike) -> Floa
     """
     bx, by = np.broadcast_arrays(np.asarray(px, np.float64), np.asarray(py, np.float64))
     pts = np.stack([bx.ravel(), by.ravel()], axis=1)
-    return PolygonEdges.of([v]).signed_distance(pts)[0].reshape(bx.shape)
+    return PolygonEdges.of([v]).signed_distances(pts)[:, 0].reshape(bx.shape)
 
 
 def nearest_distances(

@@ -11,7 +11,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from common.config.world import WorldConfig
 from common.messages import Track
-from common.world.geometry import polygon_centroid, polygon_signed_distance, vertices_array
+from common.world.geometry import (
+    PolygonEdges,
+    polygon_centroid,
+    polygon_signed_distance,
+    vertices_array,
+)
 from common.world.trajectory import Trajectory, make_trajectory
 
 FloatArray = NDArray[np.float64]
@@ -92,6 +97,7 @@ class _Polygon:
     cx: float
     cy: float
     circumradius: float
+    edges: PolygonEdges  # its edges, stacked once for the exact distance
 
 
 class World:
@@ -113,7 +119,11 @@ class World:
             v = vertices_array(p.vertices_m)
             cx, cy = polygon_centroid(v)
             rc = float(np.max(np.hypot(v[:, 0] - cx, v[:, 1] - cy)))
-            self._polygons.append(_Polygon(id=p.id, vertices=v, cx=cx, cy=cy, circumradius=rc))
+            self._polygons.append(
+                _Polygon(
+                    id=p.id, vertices=v, cx=cx, cy=cy, circumradius=rc, edges=PolygonEdges.of([v])
+                )
+            )
         self._moving: list[tuple[int, float, Trajectory]] = [
             (m.id, m.radius_m, make_trajectory(m)) for m in cfg.moving
         ]
@@ -161,7 +171,7 @@ class World:
             # nearer than the best so far, the exact distance cannot change the minimum
             if math.hypot(x - p.cx, y - p.cy) - p.circumradius - r_vehicle >= best:
                 continue
-            d = float(polygon_signed_distance(p.vertices, np.array(x), np.array(y))) - r_vehicle
+            d = float(p.edges.signed_distances(np.array([[x, y]]))[0, 0]) - r_vehicle
             if d < best:
                 best, who = d, p.id
         for mid, rk, traj in self._moving if moving else ():
