@@ -148,7 +148,8 @@ def build_costmap(
         if sy.start >= sy.stop or sx.start >= sx.stop:
             continue
         gx, gy = np.meshgrid(xs[sx], ys[sy])
-        d, _ = static.polygon(p).signed_distance(np.stack([gx.ravel(), gy.ravel()], axis=1))
+        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        d = static.polygon(p).signed_distances(pts)[:, 0]  # one polygon: no gradient needed
         clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
     static_clear = clear.copy()
     for cx, cy, cr in np.asarray(extra_discs, dtype=np.float64).reshape(-1, 3).tolist():

@@ -26,7 +26,7 @@ def intercept_time(
     """Earliest t with |alpha_k(t) - start| = v_ref t: a straight dash reaching the obstacle."""
     t = 0.0
     for _ in range(8):  # fixed point; converges while the obstacle is slower than the vehicle
-        p = obs.centre_at(np.array([t]), accel_horizon_s)[0]
+        p = obs.centre_at(float(t), accel_horizon_s)
         t_new = min(float(np.hypot(p[0] - start.x, p[1] - start.y)) / v_ref, t_max)
         if abs(t_new - t) < 1e-3:
             return t_new
