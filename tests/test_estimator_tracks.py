@@ -15,9 +15,11 @@ from common.runtime.model.core import Delivery
 from common.world import World
 from services.estimator import EstimatorCore
 from services.estimator.imm import (
+    H_POS,
     ImmFilter,
     Modes,
     combine,
+    innovation,
     kf_predict,
     mix,
     process_noise,
@@ -261,6 +263,32 @@ def test_mix_is_combine_per_mode_bit_for_bit() -> None:
         for j in range(2):
             x, P = combine(xs, Ps, w[:, j])
             assert np.array_equal(x0s[j], x) and np.array_equal(P0s[j], P)
+
+
+def test_the_modes_likelihoods_formed_together_are_each_alone_bit_for_bit() -> None:
+    # ImmFilter.update forms both modes' innovations, log-determinants and S^-1 y in one
+    # stack; each is what the mode's own (2,)- and (2, 2)-sized calls give
+    rng = np.random.default_rng(5)
+    imm = ImmFilter(0.05, 0.4, 60.0, 3.0)
+    for _ in range(50):
+        A = rng.normal(size=(2, 6, 6))
+        p = rng.uniform(0.0, 1.0)
+        m = Modes(rng.normal(size=(2, 6)), A @ A.swapaxes(1, 2), np.array([p, 1.0 - p]))
+        z, R = rng.normal(size=2), np.eye(2) * rng.uniform(0.01, 1.0)
+        ys, Ss = innovation(m.xs, m.Ps, z, R)
+        _, logdets = np.linalg.slogdet(2.0 * math.pi * Ss)
+        sols = np.linalg.solve(Ss, ys[..., None])[..., 0]
+        loglik = []
+        for j in range(2):
+            y, S = z - H_POS @ m.xs[j], H_POS @ m.Ps[j] @ H_POS.T + R  # one mode, as written
+            assert np.array_equal(ys[j], y) and np.array_equal(Ss[j], S)
+            _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
+            sol = np.linalg.solve(S, y)
+            assert logdets[j] == logdet and np.array_equal(sols[j], sol)
+            loglik.append(-0.5 * (float(y @ sol) + logdet))
+        ll = np.array(loglik)
+        post = m.mu * np.exp(ll - ll.max())
+        assert np.array_equal(imm.update(m, z, R).mu, post / float(post.sum()))
 
 
 @pytest.mark.parametrize("ca", [False, True])

@@ -18,11 +18,13 @@ import timeit
 from collections.abc import Callable
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import fsolve
 
 from common.config.errors import ConfigValueError
 from common.config.fossen import FossenConfig
-from services.vehicle.fossen import FossenPlant, FossenState
+from services.vehicle.fossen import FossenPlant, FossenState, _integrand
 
 CFG = FossenConfig()
 V_MAX = 2.0
@@ -259,6 +261,162 @@ def test_rk4_step_halving_converges() -> None:
         a = _closed_loop(p, s0, 0.01, 10.0, 1.5, w, water)[-1]
         b = _closed_loop(p, s0, 0.005, 10.0, 1.5, w, water)[-1]
         assert math.hypot(a[0] - b[0], a[1] - b[1]) < 1e-6
+
+
+def _reference_rhs(
+    p: FossenPlant, s: FossenState, t_dem: float, d_dem: float, cx: float, cy: float
+) -> FossenState:
+    """The plant's right-hand side as written before its constants were bound (fossen.py's
+    _bind_rhs writes the same expressions in a closure)."""
+    (
+        inv_m11, x_vr, x_rr, x_uu, du0, dv0, dr0, fade,
+        y_vv, y_rr, y_uv, y_ur_m, y_d,
+        n_vv, n_rr, n_uv, n_ur, n_d,
+        mi_vv, mi_vr, mi_rv, mi_rr,
+        _t_min, _t_max, inv_tau_t, t_rate, d_max, inv_tau_d, d_rate,
+    ) = p._p  # fmt: skip
+    _, _, psi, u, v, r, thrust, rudder = s[:8]
+    c = math.cos(psi)
+    sn = math.sin(psi)
+    au = abs(u)
+    av = abs(v)
+    ar = abs(r)
+    lin = math.exp(-fade * math.sqrt(u * u + v * v))
+    dl = d_max if rudder > d_max else -d_max if rudder < -d_max else rudder
+    fin = u * au * dl
+    du = (x_uu * u * au + x_vr * v * r + x_rr * r * r - du0 * lin * u + thrust) * inv_m11
+    fy = y_vv * v * av + y_rr * r * ar + y_uv * u * v + y_ur_m * u * r - dv0 * lin * v
+    fy += y_d * fin
+    fn = n_vv * v * av + n_rr * r * ar + n_uv * u * v + n_ur * u * r - dr0 * lin * r
+    fn += n_d * fin
+    dt = t_rate * math.tanh((t_dem - thrust) * inv_tau_t / t_rate)
+    dd = d_rate * math.tanh((d_dem - rudder) * inv_tau_d / d_rate)
+    return (
+        u * c - v * sn + cx,
+        u * sn + v * c + cy,
+        r,
+        du,
+        mi_vv * fy + mi_vr * fn,
+        mi_rv * fy + mi_rr * fn,
+        dt,
+        dd,
+    )
+
+
+def _reference_steady_rudder(p: FossenPlant, kappa: float) -> float:
+    """steady_rudder_rad as written before its constants were bound."""
+    na, nb, c2, c1, y_vv, y_rr, y_uv, y_ur_m, y_d = p._ff
+    k = -(c2 * kappa * abs(kappa) + c1 * kappa)
+    kk = abs(k)
+    a_abs = 2.0 * kk / (nb + math.sqrt(nb * nb + 4.0 * na * kk))
+    a = -a_abs if k > 0.0 else a_abs
+    return -(y_vv * a * abs(a) + y_rr * kappa * abs(kappa) + y_uv * a + y_ur_m * kappa) / y_d
+
+
+def _reference_closed_loop(
+    p: FossenPlant, s: FossenState, vc: float, ff: float, w_cmd: float, cx: float, cy: float
+) -> FossenState:
+    """The autopilots' right-hand side as written before its constants were bound."""
+    kp_u, ki_u, band_u, eps_u, kp_r, ki_r, band_r, eps_r, u_ref, u_min = p._ap
+    t_min, t_max, d_max = p._sat
+    u = s[3]
+    e_u = vc - u
+    t_raw = ff + kp_u * e_u + ki_u * s[8]
+    t_dem = min(max(t_raw, t_min), t_max)
+    u_s = max(u, u_min)
+    g = u_ref / u_s
+    g *= g
+    e_r = w_cmd - s[5]
+    d_raw = _reference_steady_rudder(p, w_cmd / u_s) + g * (kp_r * e_r + ki_r * s[9])
+    d_dem = min(max(d_raw, -d_max), d_max)
+    dz_u = _integrand(e_u, band_u, t_raw - t_dem, eps_u)
+    dz_r = _integrand(e_r, band_r, d_raw - d_dem, eps_r)
+    return (*_reference_rhs(p, s, t_dem, d_dem, cx, cy), dz_u, dz_r)
+
+
+def _reference_step(
+    p: FossenPlant,
+    s: FossenState,
+    h: float,
+    t0: float,
+    v_cmd: float,
+    w_cmd: float,
+    current: Callable[[float, float, float], tuple[float, float]],
+) -> FossenState:
+    """RK4 over the reference right-hand side, stage points and sum over zip."""
+    vc = min(max(v_cmd, 0.0), p.v_max_mps)
+    ff = p.drag_n(vc)
+    hh = 0.5 * h
+
+    def f(q: FossenState, t: float) -> FossenState:
+        return _reference_closed_loop(p, q, vc, ff, w_cmd, *current(q[0], q[1], t))
+
+    def axpy(a: float, k: FossenState) -> FossenState:
+        return tuple(si + a * ki for si, ki in zip(s, k, strict=True))
+
+    k1 = f(s, t0)
+    k2 = f(axpy(hh, k1), t0 + hh)
+    k3 = f(axpy(hh, k2), t0 + hh)
+    k4 = f(axpy(h, k3), t0 + h)
+    h6 = h / 6.0
+    return tuple(
+        si + h6 * (a + 2.0 * b + 2.0 * c + d)
+        for si, a, b, c, d in zip(s, k1, k2, k3, k4, strict=True)
+    )
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    s=st.tuples(
+        st.floats(-100.0, 100.0),
+        st.floats(-100.0, 100.0),
+        st.floats(-10.0, 10.0),
+        st.floats(-0.5, 3.0),
+        st.floats(-1.0, 1.0),
+        st.floats(-1.0, 1.0),
+        st.floats(-30.0, 60.0),
+        st.floats(-0.5, 0.5),
+        st.floats(-5.0, 5.0),
+        st.floats(-1.0, 1.0),
+    ),
+    cmds=st.lists(st.tuples(st.floats(-1.0, 3.0), st.floats(-1.0, 1.0)), min_size=1, max_size=3),
+    h=st.floats(1e-6, 0.05),
+    demands=st.tuples(st.floats(-100.0, 100.0), st.floats(-1.0, 1.0)),
+)
+def test_the_bound_plant_is_the_written_model_bit_for_bit(
+    s: FossenState,
+    cmds: list[tuple[float, float]],
+    h: float,
+    demands: tuple[float, float],
+) -> None:
+    # the plant's constants bound once in closures, RK4's stage points and sum written out
+    # (fossen.py's _bind_*), give the very floats of the model as written with them read at
+    # each call, in a current varying in space and time, with commands out of their bounds
+    p = _plant()
+
+    def water(x: float, y: float, t: float) -> tuple[float, float]:
+        return 0.1 + 0.001 * x, -0.2 + 0.01 * t + 0.002 * y
+
+    assert p.steady_rudder_rad(s[5]).hex() == _reference_steady_rudder(p, s[5]).hex()
+    t_dem, d_dem = demands
+    open_loop = p.derivatives_open_loop(s, t_dem, d_dem, 0.1, -0.2)
+    t_min, t_max, d_max = p._sat
+    ref = _reference_rhs(
+        p, s, min(max(t_dem, t_min), t_max), min(max(d_dem, -d_max), d_max), 0.1, -0.2
+    )
+    assert [x.hex() for x in open_loop] == [x.hex() for x in (*ref, 0.0, 0.0)]
+    a = b = s
+    t = 0.0
+    for v_cmd, w_cmd in cmds:
+        vc = min(max(v_cmd, 0.0), V_MAX)
+        d = p.derivatives(a, v_cmd, w_cmd, 0.1, -0.2)
+        ref = _reference_closed_loop(p, a, vc, p.drag_n(vc), w_cmd, 0.1, -0.2)
+        assert [x.hex() for x in d] == [x.hex() for x in ref]
+        for _ in range(3):
+            a = p.step(a, h, t, v_cmd, w_cmd, water)
+            b = _reference_step(p, b, h, t, v_cmd, w_cmd, water)
+            assert [x.hex() for x in a] == [x.hex() for x in b]
+            t += h
 
 
 def test_time_per_derivatives_call() -> None:

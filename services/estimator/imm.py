@@ -44,8 +44,11 @@ class Modes(NamedTuple):
 def innovation(
     x: FloatArray, P: FloatArray, z: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """A detection z (2,) against the Gaussian (x, P): y = z - H x (2,), S = H P H' + R (2, 2)."""
-    return z - H_POS @ x, H_POS @ P @ H_POS.T + R
+    """A detection z (2,) against the Gaussian (x, P): y = z - H x (2,), S = H P H' + R (2, 2);
+    of one (x: (6,), P: (6, 6)) or of a stack of them (x: (k, 6), P: (k, 6, 6); y: (k, 2),
+    S: (k, 2, 2)). H picks x and y out of the state: H x and H P H' are those entries,
+    exactly, however the products are summed (so a stack's are the ones formed alone)."""
+    return z - np.matmul(H_POS, x[..., None])[..., 0], np.matmul(H_POS, P) @ H_POS.T + R
 
 
 def transition(dt: float, constant_acceleration: bool) -> FloatArray:
@@ -117,6 +120,13 @@ def combine(xs: FloatArray, Ps: FloatArray, mu: FloatArray) -> tuple[FloatArray,
     xs: (..., 2, 6), Ps: (..., 2, 6, 6), mu: (..., 2) -> x: (..., 6), P: (..., 6, 6), over any
     leading (broadcast) dimensions: a stack of beliefs, or of weights for one belief (`mix`).
     """
+    if xs.ndim == 2 and mu.ndim == 1:
+        # one belief (a track gated or predicted alone): the same products and sums as the
+        # broadcast form below, without its indexing (~2 us of ~11 a call)
+        w0, w1 = mu.tolist()
+        x0, x1 = xs
+        d = x0 - x1
+        return w0 * x0 + w1 * x1, w0 * Ps[0] + w1 * Ps[1] + (w0 * w1) * (d[:, None] * d)
     m0, m1 = mu[..., 0, None], mu[..., 1, None]  # (..., 1)
     x0, x1 = xs[..., 0, :], xs[..., 1, :]
     d = x0 - x1
@@ -199,11 +209,14 @@ class ImmFilter:
         follow their likelihoods."""
         kf = self._kf
         xs, Ps = np.empty_like(m.xs), np.empty_like(m.Ps)
+        # both modes' innovations, log-determinants and S^-1 y at once: numpy's linalg runs
+        # the same LAPACK routine on each matrix of a stack as on one alone
+        ys, Ss = innovation(m.xs, m.Ps, z, R)
+        _, logdets = np.linalg.slogdet(2.0 * math.pi * Ss)
+        sols = np.linalg.solve(Ss, ys[..., None])[..., 0]
         loglik = []
         for j, (xj, Pj) in enumerate(zip(m.xs, m.Ps, strict=True)):
-            y, S = innovation(xj, Pj, z, R)
-            _, logdet = np.linalg.slogdet(2.0 * math.pi * S)
-            loglik.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
+            loglik.append(-0.5 * (float(ys[j] @ sols[j]) + logdets[j]))
             kf.x, kf.P = xj, Pj  # read only: update assigns new arrays to kf.x, kf.P
             kf.update(z, R=R)
             xs[j] = kf.x

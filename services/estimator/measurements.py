@@ -75,13 +75,13 @@ def of_fix(fix: NavFix, z: FloatArray) -> Observation:
 
 
 def _odometry_h(s: FloatArray) -> FloatArray:
-    _, _, th, v, w, cx, cy, b, vs = s
+    _, _, th, v, w, cx, cy, b, vs = s.tolist()  # Python floats: cheaper, the same operations
     c, sn = math.cos(th), math.sin(th)
     return np.array([wrap_angle(th + b), w, v, v + cx * c + cy * sn, vs - cx * sn + cy * c])
 
 
 def _odometry_jacobian(s: FloatArray) -> FloatArray:
-    _, _, th, _, _, cx, cy, _, _ = s
+    _, _, th, _, _, cx, cy, _, _ = s.tolist()
     c, sn = math.cos(th), math.sin(th)
     H = np.zeros((5, DIM_X))
     H[0, 2] = H[0, BIAS] = 1.0

@@ -75,6 +75,14 @@ from common.config.fossen import FossenConfig
 # not wrapped), velocity through the water in the body frame (m/s, m/s, rad/s), the actual
 # propeller thrust (N) and rudder angle (rad), the speed and yaw-rate autopilots' integrators
 FossenState = tuple[float, ...]
+# (s, t_dem, d_dem, cx, cy, dz_u, dz_r) -> s' for saturated demands (_bind_rhs)
+_Rhs = Callable[[FossenState, float, float, float, float, float, float], FossenState]
+# (s, vc, ff, w_cmd, cx, cy) -> s' under the autopilots (_bind_closed_loop)
+_ClosedLoop = Callable[[FossenState, float, float, float, float, float], FossenState]
+# current(x, y, t) -> the water's velocity (cx, cy) (world frame, m/s)
+_Current = Callable[[float, float, float], tuple[float, float]]
+# (s, h, t0, v_cmd, w_cmd, current) -> the state h later (_bind_step)
+_Step = Callable[[FossenState, float, float, float, float, _Current], FossenState]
 
 
 class FossenPlant:
@@ -152,6 +160,11 @@ class FossenPlant:
             1.0 / cfg.rudder_time_constant_s,
             cfg.rudder_rate_max_rps,
         )
+        # the right-hand side with these constants bound once (~25k calls an ocean mission)
+        self._rhs = _bind_rhs(self._p)
+        self._steady_rudder = _bind_steady_rudder(self._ff)
+        self._closed_loop = _bind_closed_loop(self._ap, self._sat, self._steady_rudder, self._rhs)
+        self._step = _bind_step(self._closed_loop, v_max_mps, self.drag_n)
 
     def initial(
         self, x: float, y: float, psi: float, u: float = 0.0, v: float = 0.0, r: float = 0.0
@@ -175,14 +188,7 @@ class FossenPlant:
     def steady_rudder_rad(self, kappa: float) -> float:
         """Rudder angle of this model's steady turn of path curvature kappa = r / u (1/m),
         u > 0, low-speed linear damping neglected (unsaturated: may exceed rudder_max_rad)."""
-        na, nb, c2, c1, y_vv, y_rr, y_uv, y_ur_m, y_d = self._ff
-        k = -(c2 * kappa * abs(kappa) + c1 * kappa)  # = A a|a| + B a, decreasing in a
-        kk = abs(k)
-        # |a| solves na a^2 + nb a = |k| (rationalised root: exact for na = 0 too)
-        a_abs = 2.0 * kk / (nb + math.sqrt(nb * nb + 4.0 * na * kk))
-        a = -a_abs if k > 0.0 else a_abs
-        # sway balance: Y_vv a|a| + Y_rr k|k| + Y_uv a + (Y_ur - m) k + Y_d delta = 0
-        return -(y_vv * a * abs(a) + y_rr * kappa * abs(kappa) + y_uv * a + y_ur_m * kappa) / y_d
+        return self._steady_rudder(kappa)
 
     def derivatives(
         self, s: FossenState, v_cmd: float, w_cmd: float, cx: float, cy: float
@@ -192,14 +198,116 @@ class FossenPlant:
         vc = min(max(v_cmd, 0.0), self.v_max_mps)
         return self._closed_loop(s, vc, self.drag_n(vc), w_cmd, cx, cy)
 
-    def _closed_loop(
-        self, s: FossenState, vc: float, ff: float, w_cmd: float, cx: float, cy: float
+    def derivatives_open_loop(
+        self, s: FossenState, thrust_n: float, rudder_rad: float, cx: float, cy: float
     ) -> FossenState:
-        """`derivatives` for the speed command vc already bounded and its drag feed-forward ff
-        (both held over an RK4 step: `step` forms them once). min(max(x, lo), hi) is written
-        out (max(a, b) is b if b > a else a, min(a, b) b if b < a else a: the same floats)."""
-        kp_u, ki_u, band_u, eps_u, kp_r, ki_r, band_r, eps_r, u_ref, u_min = self._ap
+        """Right-hand side with the actuators commanded directly (autopilots bypassed, their
+        integrators frozen); the demands still saturate and pass the actuator dynamics."""
         t_min, t_max, d_max = self._sat
+        t_dem = min(max(thrust_n, t_min), t_max)
+        d_dem = min(max(rudder_rad, -d_max), d_max)
+        return self._rhs(s, t_dem, d_dem, cx, cy, 0.0, 0.0)
+
+    def step(
+        self,
+        s: FossenState,
+        h: float,
+        t0: float,
+        v_cmd: float,
+        w_cmd: float,
+        current: _Current,
+    ) -> FossenState:
+        """One classical RK4 step of length h from time t0 under a held (v_cmd, w_cmd);
+        current(x, y, t) is evaluated at each stage's position and time."""
+        return self._step(s, h, t0, v_cmd, w_cmd, current)
+
+    @staticmethod
+    def pose(s: FossenState) -> tuple[float, float, float, float, float, float]:
+        """(x, y, psi, u, v, r) of a state."""
+        return s[0], s[1], s[2], s[3], s[4], s[5]
+
+
+def _bind_step(f: _ClosedLoop, v_max: float, drag_n: Callable[[float], float]) -> _Step:
+    """FossenPlant.step over the bound right-hand side f: the speed command's bound and drag
+    feed-forward formed once a step, the stage points and the sum written out component by
+    component (as s + h k and a sum over zip form them, tuple by tuple: the same floats,
+    without the loops), min(max(v_cmd, 0.0), v_max) as the conditionals it is."""
+
+    def step(
+        s: FossenState, h: float, t0: float, v_cmd: float, w_cmd: float, current: _Current
+    ) -> FossenState:
+        vc = 0.0 if 0.0 > v_cmd else v_cmd
+        vc = v_max if v_max < vc else vc
+        ff = drag_n(vc)  # the speed autopilot's feed-forward, held over the step
+        hh = 0.5 * h
+        # s0..s9 the state (x, y, psi, u, v, r, thrust, rudder, z_u, z_r); a, b, c, d the
+        # components of k1..k4 in that order
+        s0, s1, s2, s3, s4, s5, s6, s7, s8, s9 = s
+        a0, a1, a2, a3, a4, a5, a6, a7, a8, a9 = f(s, vc, ff, w_cmd, *current(s0, s1, t0))
+        x, y = s0 + hh * a0, s1 + hh * a1
+        q = (x, y, s2 + hh * a2, s3 + hh * a3, s4 + hh * a4, s5 + hh * a5, s6 + hh * a6,
+             s7 + hh * a7, s8 + hh * a8, s9 + hh * a9)  # fmt: skip
+        b0, b1, b2, b3, b4, b5, b6, b7, b8, b9 = f(q, vc, ff, w_cmd, *current(x, y, t0 + hh))
+        x, y = s0 + hh * b0, s1 + hh * b1
+        q = (x, y, s2 + hh * b2, s3 + hh * b3, s4 + hh * b4, s5 + hh * b5, s6 + hh * b6,
+             s7 + hh * b7, s8 + hh * b8, s9 + hh * b9)  # fmt: skip
+        c0, c1, c2, c3, c4, c5, c6, c7, c8, c9 = f(q, vc, ff, w_cmd, *current(x, y, t0 + hh))
+        x, y = s0 + h * c0, s1 + h * c1
+        q = (x, y, s2 + h * c2, s3 + h * c3, s4 + h * c4, s5 + h * c5, s6 + h * c6,
+             s7 + h * c7, s8 + h * c8, s9 + h * c9)  # fmt: skip
+        d0, d1, d2, d3, d4, d5, d6, d7, d8, d9 = f(q, vc, ff, w_cmd, *current(x, y, t0 + h))
+        h6 = h / 6.0
+        # s + h/6 (k1 + 2 k2 + 2 k3 + k4)
+        return (
+            s0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0),
+            s1 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
+            s2 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2),
+            s3 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + d3),
+            s4 + h6 * (a4 + 2.0 * b4 + 2.0 * c4 + d4),
+            s5 + h6 * (a5 + 2.0 * b5 + 2.0 * c5 + d5),
+            s6 + h6 * (a6 + 2.0 * b6 + 2.0 * c6 + d6),
+            s7 + h6 * (a7 + 2.0 * b7 + 2.0 * c7 + d7),
+            s8 + h6 * (a8 + 2.0 * b8 + 2.0 * c8 + d8),
+            s9 + h6 * (a9 + 2.0 * b9 + 2.0 * c9 + d9),
+        )
+
+    return step
+
+
+def _bind_steady_rudder(ff: tuple[float, ...]) -> Callable[[float], float]:
+    """FossenPlant.steady_rudder_rad with its feed-forward constants ff bound once."""
+    na, nb, c2, c1, y_vv, y_rr, y_uv, y_ur_m, y_d = ff
+    sqrt = math.sqrt
+
+    def steady_rudder(kappa: float) -> float:
+        k = -(c2 * kappa * abs(kappa) + c1 * kappa)  # = A a|a| + B a, decreasing in a
+        kk = abs(k)
+        # |a| solves na a^2 + nb a = |k| (rationalised root: exact for na = 0 too)
+        a_abs = 2.0 * kk / (nb + sqrt(nb * nb + 4.0 * na * kk))
+        a = -a_abs if k > 0.0 else a_abs
+        # sway balance: Y_vv a|a| + Y_rr k|k| + Y_uv a + (Y_ur - m) k + Y_d delta = 0
+        return -(y_vv * a * abs(a) + y_rr * kappa * abs(kappa) + y_uv * a + y_ur_m * kappa) / y_d
+
+    return steady_rudder
+
+
+def _bind_closed_loop(
+    ap: tuple[float, ...],
+    sat: tuple[float, float, float],
+    steady_rudder: Callable[[float], float],
+    rhs: _Rhs,
+) -> _ClosedLoop:
+    """`derivatives` for the speed command vc already bounded and its drag feed-forward ff
+    (both held over an RK4 step: `step` forms them once), the autopilots' gains ap and the
+    saturations sat bound once. min(max(x, lo), hi) is written out (max(a, b) is b if b > a
+    else a, min(a, b) b if b < a else a: the same floats)."""
+    kp_u, ki_u, band_u, eps_u, kp_r, ki_r, band_r, eps_r, u_ref, u_min = ap
+    t_min, t_max, d_max = sat
+    d_min = -d_max  # negation is exact: the same float as -d_max formed at each call
+
+    def closed_loop(
+        s: FossenState, vc: float, ff: float, w_cmd: float, cx: float, cy: float
+    ) -> FossenState:
         u = s[3]
         # speed autopilot: drag feed-forward + PI
         e_u = vc - u
@@ -211,43 +319,38 @@ class FossenPlant:
         g = u_ref / u_s
         g *= g
         e_r = w_cmd - s[5]
-        d_raw = self.steady_rudder_rad(w_cmd / u_s) + g * (kp_r * e_r + ki_r * s[9])
-        d_dem = -d_max if -d_max > d_raw else d_raw
+        d_raw = steady_rudder(w_cmd / u_s) + g * (kp_r * e_r + ki_r * s[9])
+        d_dem = d_min if d_min > d_raw else d_raw
         d_dem = d_max if d_max < d_dem else d_dem
         dz_u = _integrand(e_u, band_u, t_raw - t_dem, eps_u)
         dz_r = _integrand(e_r, band_r, d_raw - d_dem, eps_r)
-        d = self._rhs(s, t_dem, d_dem, cx, cy)
-        return (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], dz_u, dz_r)
+        return rhs(s, t_dem, d_dem, cx, cy, dz_u, dz_r)
 
-    def derivatives_open_loop(
-        self, s: FossenState, thrust_n: float, rudder_rad: float, cx: float, cy: float
+    return closed_loop
+
+
+def _bind_rhs(p: tuple[float, ...]) -> _Rhs:
+    """Kinematics, rigid body + hydrodynamics and actuators for saturated demands (t_dem,
+    d_dem), the integrators' rates (dz_u, dz_r) passed through, FossenPlant._p bound once."""
+    (
+        inv_m11, x_vr, x_rr, x_uu, du0, dv0, dr0, fade,
+        y_vv, y_rr, y_uv, y_ur_m, y_d,
+        n_vv, n_rr, n_uv, n_ur, n_d,
+        mi_vv, mi_vr, mi_rv, mi_rr,
+        _t_min, _t_max, inv_tau_t, t_rate, d_max, inv_tau_d, d_rate,
+    ) = p  # fmt: skip
+    cos, sin, exp, sqrt, tanh = math.cos, math.sin, math.exp, math.sqrt, math.tanh
+
+    def rhs(
+        s: FossenState, t_dem: float, d_dem: float, cx: float, cy: float, dz_u: float, dz_r: float
     ) -> FossenState:
-        """Right-hand side with the actuators commanded directly (autopilots bypassed, their
-        integrators frozen); the demands still saturate and pass the actuator dynamics."""
-        t_min, t_max, d_max = self._sat
-        t_dem = min(max(thrust_n, t_min), t_max)
-        d_dem = min(max(rudder_rad, -d_max), d_max)
-        d = self._rhs(s, t_dem, d_dem, cx, cy)
-        return (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], 0.0, 0.0)
-
-    def _rhs(
-        self, s: FossenState, t_dem: float, d_dem: float, cx: float, cy: float
-    ) -> tuple[float, float, float, float, float, float, float, float]:
-        """Kinematics, rigid body + hydrodynamics and actuators for saturated demands."""
-        (
-            inv_m11, x_vr, x_rr, x_uu, du0, dv0, dr0, fade,
-            y_vv, y_rr, y_uv, y_ur_m, y_d,
-            n_vv, n_rr, n_uv, n_ur, n_d,
-            mi_vv, mi_vr, mi_rv, mi_rr,
-            _t_min, _t_max, inv_tau_t, t_rate, d_max, inv_tau_d, d_rate,
-        ) = self._p  # fmt: skip
-        _, _, psi, u, v, r, thrust, rudder = s[:8]
-        c = math.cos(psi)
-        sn = math.sin(psi)
+        _, _, psi, u, v, r, thrust, rudder, _, _ = s
+        c = cos(psi)
+        sn = sin(psi)
         au = abs(u)
         av = abs(v)
         ar = abs(r)
-        lin = math.exp(-fade * math.sqrt(u * u + v * v))
+        lin = exp(-fade * sqrt(u * u + v * v))
         # the actual rudder, held to its limit (an RK4 stage may overshoot it slightly)
         dl = d_max if rudder > d_max else -d_max if rudder < -d_max else rudder
         fin = u * au * dl
@@ -259,8 +362,8 @@ class FossenPlant:
         fn = n_vv * v * av + n_rr * r * ar + n_uv * u * v + n_ur * u * r - dr0 * lin * r
         fn += n_d * fin
         # actuators: first-order lags whose rates saturate smoothly (no corner for RK4)
-        dt = t_rate * math.tanh((t_dem - thrust) * inv_tau_t / t_rate)
-        dd = d_rate * math.tanh((d_dem - rudder) * inv_tau_d / d_rate)
+        dt = t_rate * tanh((t_dem - thrust) * inv_tau_t / t_rate)
+        dd = d_rate * tanh((d_dem - rudder) * inv_tau_d / d_rate)
         return (
             u * c - v * sn + cx,  # eta' = R(psi) nu_r + current
             u * sn + v * c + cy,
@@ -270,43 +373,11 @@ class FossenPlant:
             mi_rv * fy + mi_rr * fn,
             dt,
             dd,
+            dz_u,
+            dz_r,
         )
 
-    def step(
-        self,
-        s: FossenState,
-        h: float,
-        t0: float,
-        v_cmd: float,
-        w_cmd: float,
-        current: Callable[[float, float, float], tuple[float, float]],
-    ) -> FossenState:
-        """One classical RK4 step of length h from time t0 under a held (v_cmd, w_cmd);
-        current(x, y, t) is evaluated at each stage's position and time."""
-        f = self._closed_loop
-        vc = min(max(v_cmd, 0.0), self.v_max_mps)
-        ff = self.drag_n(vc)  # the speed autopilot's feed-forward, held over the step
-        hh = 0.5 * h
-        k1 = f(s, vc, ff, w_cmd, *current(s[0], s[1], t0))
-        s2 = _axpy(s, hh, k1)
-        k2 = f(s2, vc, ff, w_cmd, *current(s2[0], s2[1], t0 + hh))
-        s3 = _axpy(s, hh, k2)
-        k3 = f(s3, vc, ff, w_cmd, *current(s3[0], s3[1], t0 + hh))
-        s4 = _axpy(s, h, k3)
-        k4 = f(s4, vc, ff, w_cmd, *current(s4[0], s4[1], t0 + h))
-        h6 = h / 6.0
-        # a list comprehension, not a generator: tuple() of a generator costs twice as much
-        return tuple(
-            [
-                a + h6 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-                for a, b1, b2, b3, b4 in zip(s, k1, k2, k3, k4, strict=True)
-            ]
-        )
-
-    @staticmethod
-    def pose(s: FossenState) -> tuple[float, float, float, float, float, float]:
-        """(x, y, psi, u, v, r) of a state."""
-        return s[0], s[1], s[2], s[3], s[4], s[5]
+    return rhs
 
 
 def _integrand(e: float, band: float, excess: float, eps: float) -> float:
@@ -320,8 +391,3 @@ def _integrand(e: float, band: float, excess: float, eps: float) -> float:
         x = excess / eps
         return rate / (1.0 + x * x)
     return rate
-
-
-def _axpy(s: FossenState, h: float, k: FossenState) -> FossenState:
-    """s + h k (an RK4 stage point)."""
-    return tuple([a + h * b for a, b in zip(s, k, strict=True)])
