@@ -59,14 +59,9 @@ def fx(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
     )
 
 
-def jacobian_f(s: FloatArray, dt: float, sway_tau_s: float = 2.0) -> FloatArray:
-    """d fx / d s at s: (9, 9)."""
-    return jacobian_at(jacobian_fixed(dt, sway_tau_s), s, dt)
-
-
 def jacobian_fixed(dt: float, sway_tau_s: float = 2.0) -> FloatArray:
-    """The entries of jacobian_f that depend on dt alone (the state's, `jacobian_at`, zero):
-    a filter keeps them for each sub-step length."""
+    """The entries of d fx / d s (9, 9) that depend on dt alone (the state's, `jacobian_at`,
+    zero): a filter keeps them for each sub-step length."""
     F = np.eye(DIM_X)
     F[0, 5] = F[1, 6] = F[2, 4] = dt
     F[SWAY, SWAY] = math.exp(-dt / sway_tau_s)
@@ -74,7 +69,7 @@ def jacobian_fixed(dt: float, sway_tau_s: float = 2.0) -> FloatArray:
 
 
 def jacobian_at(F: FloatArray, s: FloatArray, dt: float) -> FloatArray:
-    """jacobian_f at s: its entries that depend on the state written into F (9, 9), which
+    """d fx / d s at s: its entries that depend on the state written into F (9, 9), which
     holds jacobian_fixed(dt) (a copy: it is modified and returned)."""
     _, _, th, v, w, _, _, _, vs = s.tolist()  # Python floats, as in fx
     mid = th + 0.5 * w * dt
@@ -86,8 +81,7 @@ def jacobian_at(F: FloatArray, s: FloatArray, dt: float) -> FloatArray:
     return F
 
 
-def process_noise(
-    s: FloatArray,
+def process_noise_fixed(
     dt: float,
     q_accel: float,
     q_yaw_accel: float,
@@ -105,25 +99,11 @@ def process_noise(
     sub-steps does not change the injected noise (the sway's exact discretisation is, over
     sub-steps, to first order). Heading-to-position coupling within one step is
     O(v q dt^4) and left to the Jacobian of the next steps.
+
+    These are its entries that do not depend on the state (the surge noise along the heading,
+    `process_noise_at`, zero; the position's own walk on its diagonal): a filter keeps them
+    for each sub-step length.
     """
-    fixed = process_noise_fixed(
-        dt, q_accel, q_yaw_accel, q_current, q_position, sway_std_mps, sway_tau_s
-    )
-    return process_noise_at(fixed, s, dt, q_accel)
-
-
-def process_noise_fixed(
-    dt: float,
-    q_accel: float,
-    q_yaw_accel: float,
-    q_current: float,
-    q_position: float,
-    sway_std_mps: float = 0.0,
-    sway_tau_s: float = 2.0,
-) -> FloatArray:
-    """The entries of process_noise that do not depend on the state (the surge noise along
-    the heading, `process_noise_at`, zero; the position's own walk on its diagonal): a filter
-    keeps them for each sub-step length."""
     d2, d3 = dt * dt / 2.0, dt**3 / 3.0
     Q = np.zeros((DIM_X, DIM_X))
     Q[3, 3] = q_accel * dt
@@ -143,7 +123,7 @@ def process_noise_fixed(
 
 
 def process_noise_at(Q: FloatArray, s: FloatArray, dt: float, q_accel: float) -> FloatArray:
-    """process_noise at s: the white surge acceleration along the heading at mid-step, h =
+    """Q at s: the white surge acceleration along the heading at mid-step, h =
     (cos, sin), added into Q (9, 9), which holds process_noise_fixed(dt, ...) (a copy: it is
     modified and returned): q_accel dt^3/3 h h' on the position, q_accel dt^2/2 h with v."""
     _, _, th, _, w, _, _, _, _ = s.tolist()  # Python floats, as in fx

@@ -135,7 +135,7 @@ class EkfVehicleFilter(_SubstepPredict):
         F0, Q0 = self.fixed(h)
         q_accel = self._q[0]
         for _ in range(n):
-            # P = F P F' + Q, F = jacobian_f and Q = process_noise linearised at the prior
+            # P = F P F' + Q, F = d fx / d s and Q (unicycle.py) linearised at the prior
             ekf.F = jacobian_at(F0.copy(), ekf.x, h)
             ekf.Q = process_noise_at(Q0.copy(), ekf.x, h, q_accel)
             ekf.predict()
