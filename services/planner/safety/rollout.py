@@ -102,6 +102,11 @@ class RolloutInputs:
     doubt_flown: list[tuple[PlanResult, float, PlannerTuning, Rollout]] = field(
         default_factory=list, compare=False, repr=False
     )
+    # the reference of the last plan flown, with its speed: shared with the doubted inputs
+    # (`doubted`), which fly the same plan next; a flight only reads it (never `stop_at`)
+    last_ref: list[tuple[PlanResult, float, PathArcReference]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
     def doubted(self) -> RolloutInputs | None:
         """These inputs in the doubted current (None without one, or when it is the believed
@@ -142,7 +147,7 @@ def roll_out(
 
 def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning) -> Rollout:
     """roll_out's flight, flown."""
-    ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
+    ref = _reference(result, req.v_ref_mps, fm)
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as the loop resets it when a new path is put in force (adoption.py)
     pose = fm.start
@@ -164,6 +169,18 @@ def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: Planne
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
     return Rollout(ref=ref, pts=pts, t=t, dist=np.asarray(dist), last=pose)
+
+
+def _reference(result: PlanResult, v_ref_mps: float, fm: RolloutInputs) -> PathArcReference:
+    """The arc-length reference of an OK plan at v_ref_mps: the last one built from these
+    inputs (or the believed ones of these doubted ones) if it was for the same plan and speed."""
+    if fm.last_ref:
+        plan, v, ref = fm.last_ref[0]
+        if plan is result and v == v_ref_mps:
+            return ref
+    ref = PathArcReference(PlannedPath(result.curve()), v_ref_mps)
+    fm.last_ref[:] = [(result, v_ref_mps, ref)]
+    return ref
 
 
 def rollout_clearance(
