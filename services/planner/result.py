@@ -19,6 +19,7 @@ from common.world import ObstacleState, World
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.reasons import Strategy
+from services.planner.shaping.planned_path import PlannedPath
 
 PlanStatus = Literal["OK", "NO_PATH"]
 
@@ -174,6 +175,13 @@ class PlanResult:
     flown_short_m: float = 0.0
     flown_short_at_s: float = math.inf
     timing: PlanTiming = field(default_factory=PlanTiming)
+    # the plan's PlannedPath once built (`planned_path`), with the arrays it was built from:
+    # a result made from this one by dataclasses.replace (coded, its reason or speed given)
+    # shares it, so its flights and its adoption tabulate the curve once; one with other
+    # arrays builds its own
+    _path: list[tuple[int, FloatArray, FloatArray, FloatArray, PlannedPath]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
     @property
     def ok(self) -> bool:
@@ -199,6 +207,21 @@ class PlanResult:
         if not self.ok:
             raise ValueError(f"no curve: {self.reason}")
         return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)
+
+    def planned_path(self) -> PlannedPath:
+        """The curve with its arc-length table (an OK plan's), built once for the curve."""
+        if self._path:
+            degree, ctrl, weights, knots, built = self._path[0]
+            if (
+                degree == self.degree
+                and ctrl is self.control_points
+                and weights is self.weights
+                and knots is self.knots
+            ):
+                return built
+        built = PlannedPath(self.curve())
+        self._path[:] = [(self.degree, self.control_points, self.weights, self.knots, built)]
+        return built
 
     @staticmethod
     def of_curve(curve: NurbsCurve, **fields: Any) -> PlanResult:

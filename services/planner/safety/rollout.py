@@ -51,7 +51,6 @@ from services.planner.reasons import Strategy
 from services.planner.result import PlanRequest, PlanResult
 from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -178,7 +177,7 @@ def _reference(result: PlanResult, v_ref_mps: float, fm: RolloutInputs) -> PathA
         plan, v, ref = fm.last_ref[0]
         if plan is result and v == v_ref_mps:
             return ref
-    ref = PathArcReference(PlannedPath(result.curve()), v_ref_mps)
+    ref = PathArcReference(result.planned_path(), v_ref_mps)
     fm.last_ref[:] = [(result, v_ref_mps, ref)]
     return ref
 
