@@ -150,20 +150,22 @@ def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: Planne
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as the loop resets it when a new path is put in force (adoption.py)
     pose = fm.start
-    end = ref.point_at_s(ref.length)
+    ex, ey = ref.point_at_s(ref.length)
     n = max(1, math.ceil(min(tuning.rollout_max_s, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
     xs, ys, dist = [pose[0]], [pose[1]], [0.0]
+    # the loop's constants read once: it runs every control period of the flight (~500 times)
+    command, advance, t0, step_s = ctrl.command, fm.model.advance, fm.t0, fm.step_s
+    arrived_mps, arrived_m, hypot = tuning.arrived_mps, tuning.arrived_m, math.hypot
+    gone = 0.0
     for k in range(n):
-        v, w = ctrl.command(fm.t0 + k * fm.step_s, pose, ref)
-        nxt = fm.model.advance(pose, v, w, fm.step_s)
-        dist.append(dist[-1] + math.hypot(nxt[0] - pose[0], nxt[1] - pose[1]))
+        v, w = command(t0 + k * step_s, pose, ref)
+        nxt = advance(pose, v, w, step_s)
+        gone += hypot(nxt[0] - pose[0], nxt[1] - pose[1])
+        dist.append(gone)
         pose = nxt
         xs.append(pose[0])
         ys.append(pose[1])
-        if (
-            pose[3] < tuning.arrived_mps
-            and math.hypot(pose[0] - end[0], pose[1] - end[1]) < tuning.arrived_m
-        ):
+        if pose[3] < arrived_mps and hypot(pose[0] - ex, pose[1] - ey) < arrived_m:
             break
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
