@@ -179,7 +179,7 @@ class PlanResult:
     # a result made from this one by dataclasses.replace (coded, its reason or speed given)
     # shares it, so its flights and its adoption tabulate the curve once; one with other
     # arrays builds its own
-    _path: list[tuple[int, FloatArray, FloatArray, FloatArray, PlannedPath]] = field(
+    _path: list[tuple[tuple[int, FloatArray, FloatArray, FloatArray], PlannedPath]] = field(
         default_factory=list, compare=False, repr=False
     )
 
@@ -208,19 +208,22 @@ class PlanResult:
             raise ValueError(f"no curve: {self.reason}")
         return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)
 
+    def same_curve(self, other: PlanResult) -> bool:
+        """Whether `other` carries this very curve (the same arrays: made from this result by
+        dataclasses.replace, or this result itself)."""
+        return _same_arrays(self._curve_of(), other._curve_of())
+
+    def _curve_of(self) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+        return self.degree, self.control_points, self.weights, self.knots
+
     def planned_path(self) -> PlannedPath:
         """The curve with its arc-length table (an OK plan's), built once for the curve."""
         if self._path:
-            degree, ctrl, weights, knots, built = self._path[0]
-            if (
-                degree == self.degree
-                and ctrl is self.control_points
-                and weights is self.weights
-                and knots is self.knots
-            ):
+            of, built = self._path[0]
+            if _same_arrays(of, self._curve_of()):
                 return built
         built = PlannedPath(self.curve())
-        self._path[:] = [(self.degree, self.control_points, self.weights, self.knots, built)]
+        self._path[:] = [(self._curve_of(), built)]
         return built
 
     @staticmethod
@@ -234,3 +237,11 @@ class PlanResult:
             knots=curve.knots,
             **fields,
         )
+
+
+def _same_arrays(
+    a: tuple[int, FloatArray, FloatArray, FloatArray],
+    b: tuple[int, FloatArray, FloatArray, FloatArray],
+) -> bool:
+    """Whether two (degree, control points, weights, knots) are the same degree and arrays."""
+    return a[0] == b[0] and a[1] is b[1] and a[2] is b[2] and a[3] is b[3]

@@ -132,10 +132,11 @@ def roll_out(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning
 ) -> Rollout:
     """An OK plan flown (see the module docstring) at req.v_ref_mps: the flight of the last
-    call if it was for the same plan, speed and tuning (its arrays read-only)."""
+    call if it was for the same curve (the plan, or one made from it: coded, given its reason),
+    speed and tuning (its arrays read-only)."""
     if fm.last_flown:
         plan, v, tun, flown = fm.last_flown[0]
-        if plan is result and v == req.v_ref_mps and tun is tuning:
+        if plan.same_curve(result) and v == req.v_ref_mps and tun is tuning:
             return flown
     flown = _fly(result, req, fm, tuning)
     for a in (flown.pts, flown.t, flown.dist):
@@ -174,10 +175,10 @@ def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: Planne
 
 def _reference(result: PlanResult, v_ref_mps: float, fm: RolloutInputs) -> PathArcReference:
     """The arc-length reference of an OK plan at v_ref_mps: the last one built from these
-    inputs (or the believed ones of these doubted ones) if it was for the same plan and speed."""
+    inputs (or the believed ones of these doubted ones) if it was for the same curve and speed."""
     if fm.last_ref:
         plan, v, ref = fm.last_ref[0]
-        if plan is result and v == v_ref_mps:
+        if plan.same_curve(result) and v == v_ref_mps:
             return ref
     ref = PathArcReference(result.planned_path(), v_ref_mps)
     fm.last_ref[:] = [(result, v_ref_mps, ref)]
