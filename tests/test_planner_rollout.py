@@ -113,6 +113,13 @@ def test_a_plan_made_from_one_flown_is_not_flown_again_nor_its_curve_tabulated()
     in_doubt = roll_out(coded, req, doubted, CFG.tuning)
     assert in_doubt is not flown and in_doubt.ref is flown.ref
     assert coded.planned_path() is first.planned_path() is flown.ref.path
+    # measured when verified and again (soon) for contact: among the same obstacles, once
+    rollout_clearance(first, req, fm, CFG)
+    measured = flown.measured[0]
+    soon = rollout_clearance(coded, req, fm, CFG, within_s=5.0)
+    assert flown.measured[0] is measured
+    assert soon.t_s <= 5.0  # its own horizon: the distances beyond it masked on a copy
+    assert np.isfinite(measured[4]).all()
     other = dataclasses.replace(first, control_points=first.control_points.copy())
     assert roll_out(other, req, fm, CFG.tuning) is not flown
     assert other.planned_path() is not first.planned_path()

@@ -48,7 +48,7 @@ from services.control.command.response import Pose, ResponseModel
 from services.control.controllers.base import Controller
 from services.planner.geometry.clearance import StaticField, moving_distance
 from services.planner.reasons import Strategy
-from services.planner.result import PlanRequest, PlanResult
+from services.planner.result import Obstacles, PlanRequest, PlanResult
 from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
 
@@ -126,6 +126,11 @@ class Rollout:
     t: FloatArray
     dist: FloatArray
     last: Pose
+    # its distances to the obstacles and what they were measured among (`_distances`): a plan
+    # is measured when it is verified and again when checked for contact soon after adoption
+    measured: list[tuple[Obstacles, float, float, FloatArray, FloatArray]] = field(
+        default_factory=list, repr=False
+    )
 
 
 def roll_out(
@@ -207,19 +212,10 @@ def _clearance(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig, within_s: float
 ) -> RolloutClearance:
     """rollout_clearance of one flight."""
-    accel_horizon_s = cfg.accel_horizon_s
     f = roll_out(result, req, fm, cfg.tuning)
     ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
-    obs = req.obstacles
-    d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
-    d = d_static.copy()
-    # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
-    # flight, where a head-on pass tens of seconds on is decided (the rest: rollout_moving_s)
-    intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
-    guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
-    soon = t <= cfg.tuning.rollout_moving_s
-    d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
-    d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
+    d_static, d = _distances(f, req.obstacles, cfg)
+    d = d.copy()
     d[t > within_s] = math.inf
     clearance = d - req.vehicle_radius_m
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
@@ -255,6 +251,30 @@ def _clearance(
         static=bool(d_static[j] <= d[j]),
         first_short_s=float(t[int(np.argmax(short))]) if short.any() else math.inf,
     )
+
+
+def _distances(f: Rollout, obs: Obstacles, cfg: PlannerConfig) -> tuple[FloatArray, FloatArray]:
+    """A flight's centre distances (N,) to the static obstacles, and to the nearest obstacle
+    of all (read-only): those measured before if among the same obstacles and horizons."""
+    accel_horizon_s, moving_s = cfg.accel_horizon_s, cfg.tuning.rollout_moving_s
+    if f.measured:
+        among, accel, soon_s, d_static, d = f.measured[0]
+        if among is obs and accel == accel_horizon_s and soon_s == moving_s:
+            return d_static, d
+    pts, t = f.pts, f.t
+    d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
+    d = d_static.copy()
+    # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
+    # flight, where a head-on pass tens of seconds on is decided (the rest: rollout_moving_s)
+    intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
+    guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
+    soon = t <= moving_s
+    d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
+    d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
+    for a in (d_static, d):
+        a.setflags(write=False)
+    f.measured[:] = [(obs, accel_horizon_s, moving_s, d_static, d)]
+    return d_static, d
 
 
 def kept_cushion_m(fm: RolloutInputs, tuning: PlannerTuning) -> float:
