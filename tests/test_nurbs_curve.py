@@ -145,3 +145,20 @@ def test_projection_respects_a_parameter_window() -> None:
     path = PlannedPath(_circle_quarter(3.0))
     u, _ = path.closest_u(np.array([3.0, 0.0]), u_lo=0.5, u_hi=1.0)
     assert 0.5 <= u <= 1.0 and abs(u - 0.5) < 1e-9
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_table=st.integers(2, 3000))
+def test_the_table_derivatives_are_those_of_a_lower_order_evaluation(
+    seed: int, n_table: int
+) -> None:
+    # PlannedPath evaluates its table once with two derivatives and answers the points,
+    # headings and curvatures on it from that: the floats of evaluating each on its own
+    c = _random_curve(np.random.default_rng(seed))
+    path = PlannedPath(c, n_table=n_table)
+    u = path.u_table.copy()  # not the table itself: evaluated afresh
+    for k in (0, 1):
+        assert np.array_equal(c.evaluate(u, k), c.evaluate(u, 2)[: k + 1])
+    for fn in ("point_at_u", "heading_at_u", "curvature_at_u", "signed_curvature_at_u"):
+        table, fresh = getattr(path, fn)(path.u_table), getattr(path, fn)(u)
+        assert table.tobytes() == fresh.tobytes(), fn

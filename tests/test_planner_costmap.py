@@ -139,3 +139,23 @@ def test_moving_discs_block_cells_and_prediction_holds_acceleration_to_the_horiz
     ix, iy = cmap.cell_of(30.0, 20.0)
     assert cmap.blocked[iy, ix] and not cmap.blocked[0 + 10, 0 + 10]
     assert np.all(cmap.static_clearance > 4.0)  # the static grid stays free of moving discs
+
+
+def test_a_cost_map_on_a_field_used_before_is_the_one_built_afresh() -> None:
+    # the static clearance grid is built once per field and grid (StaticField.grids) and the
+    # field once per chart: a map built after others, with other discs, is the same floats
+    obs = default_obstacles()
+    circles, polys = obs.circles, obs.polygons
+    discs = np.array([[20.0, 10.0, 2.0], [35.0, 18.0, 1.5]])
+    cfg = PlannerConfig()
+    field = StaticField.build(circles, polys)
+    assert StaticField.build(circles, polys) is field
+    first = build_costmap(AREA, field, NO_DISCS, R_VEH, cfg)
+    again = build_costmap(AREA, field, discs, R_VEH, cfg)
+    StaticField.build.cache_clear()
+    afresh = build_costmap(AREA, StaticField.build(circles, polys), discs, R_VEH, cfg)
+    assert StaticField.build(circles, polys) is not field
+    for name in ("clearance", "static_clearance", "blocked", "cost"):
+        assert getattr(again, name).tobytes() == getattr(afresh, name).tobytes(), name
+    assert first.static_clearance is again.static_clearance
+    assert not again.static_clearance.flags.writeable

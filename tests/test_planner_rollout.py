@@ -24,6 +24,7 @@ from services.planner.safety.intent import IntentObstacle
 from services.planner.safety.rollout import (
     RolloutInputs,
     plan_and_verify,
+    roll_out,
     rollout_clearance,
 )
 
@@ -96,6 +97,32 @@ def test_a_flight_on_its_path_clears_what_the_path_clears() -> None:
     assert f.off_path_m < 0.02
     assert abs(f.min_clearance_m - gap) < 0.02
     assert abs(f.x - 12.0) < 0.2 and abs(f.t_s - 7.0 / V) < 1.0
+
+
+def test_a_plan_made_from_one_flown_is_not_flown_again_nor_its_curve_tabulated() -> None:
+    # coded or given its reason (dataclasses.replace), a plan carries the same curve: its
+    # flight, reference and PlannedPath are those of the plan it was made from, in both currents
+    first, req = _straight(20.0), _request()
+    model = ResponseModel.from_vehicle(SCENARIO.vehicle)
+    fm = dataclasses.replace(_flight(), doubt=model.with_current(0.3, 0.1))
+    flown = roll_out(first, req, fm, CFG.tuning)
+    coded = dataclasses.replace(first.coded("remade_wider"), reason="flown")
+    assert roll_out(coded, req, fm, CFG.tuning) is flown
+    doubted = fm.doubted()
+    assert doubted is not None
+    in_doubt = roll_out(coded, req, doubted, CFG.tuning)
+    assert in_doubt is not flown and in_doubt.ref is flown.ref
+    assert coded.planned_path() is first.planned_path() is flown.ref.path
+    # measured when verified and again (soon) for contact: among the same obstacles, once
+    rollout_clearance(first, req, fm, CFG)
+    measured = flown.measured[0]
+    soon = rollout_clearance(coded, req, fm, CFG, within_s=5.0)
+    assert flown.measured[0] is measured
+    assert soon.t_s <= 5.0  # its own horizon: the distances beyond it masked on a copy
+    assert np.isfinite(measured[4]).all()
+    other = dataclasses.replace(first, control_points=first.control_points.copy())
+    assert roll_out(other, req, fm, CFG.tuning) is not flown
+    assert other.planned_path() is not first.planned_path()
 
 
 def test_a_vehicle_turning_the_other_way_flies_the_start_of_its_path_wide() -> None:

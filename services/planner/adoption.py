@@ -13,7 +13,6 @@ from services.planner.reasons import PLANS_DECLINED
 from services.planner.replan import ReplanPolicy
 from services.planner.result import PlanResult, PlanStatus, Pose2D
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 
 
 class Adoption:
@@ -88,7 +87,7 @@ class Adoption:
         if result.status != self.path_status:
             self.path_status, self.status_since = result.status, t
         v_ref = self.speed_of(result)
-        self.loop.take(PathArcReference(PlannedPath(result.curve()), v_ref) if result.ok else None)
+        self.loop.take(PathArcReference(result.planned_path(), v_ref) if result.ok else None)
         return path_message(
             result,
             stamp=t,

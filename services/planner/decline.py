@@ -20,7 +20,6 @@ from services.planner.asking import Asked
 from services.planner.replan import ReplanPolicy, deviation_near_start
 from services.planner.result import PlanResult, Pose2D
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 
 log = logging.getLogger("tidelink.planner")
 
@@ -63,7 +62,7 @@ def overtaken(
     if not result.ok or t <= t_plan:
         return None
     x, y, theta, v = pred.at_effect[:4]
-    ref = PathArcReference(PlannedPath(result.curve()), v_ref)
+    ref = PathArcReference(result.planned_path(), v_ref)
     s_then = min(max(v, 0.0) * (pred.effect_t - t_plan), ref.length)
     s_near = ref.closest_s(x, y, s_then)
     px, py = ref.point_at_s(s_near)

@@ -283,11 +283,15 @@ class ReplanPolicy:
         self.last_check_t = t
         lo = self.s_now - 2.0
         hi = self.s_now + 2.0 * self.v_ref * dt + 10.0
-        win = np.flatnonzero((self.s >= lo) & (self.s <= hi))
-        d = np.hypot(self.pts[win, 0] - pose.x, self.pts[win, 1] - pose.y)
-        k = int(win[int(np.argmin(d))])
+        # the samples with lo <= s <= hi: a slice, for s (a cumulative sum of lengths) never
+        # decreases
+        i0 = int(np.searchsorted(self.s, lo, side="left"))
+        i1 = int(np.searchsorted(self.s, hi, side="right"))
+        d = np.hypot(self.pts[i0:i1, 0] - pose.x, self.pts[i0:i1, 1] - pose.y)
+        j = int(np.argmin(d))
+        k = i0 + j
         self.s_now = max(self.s_now, float(self.s[k]))
-        dev = float(d.min())
+        dev = float(d[j])
         if k == 0:
             tx, ty = self.pts[1] - self.pts[0]
             dev = deviation_near_start(pose, (self.pts[0, 0], self.pts[0, 1]), (tx, ty), dev)
@@ -304,10 +308,12 @@ class ReplanPolicy:
         # farther than both from the path ahead is that far at every sample (its gap bound
         # stands for its gaps; a fleet's vehicles are mostly far from each other's paths)
         far = max(self.cfg.rho0_m, self.cfg.corridor_halfwidth_m)
-        box = Box.of(ahead[:, 0], ahead[:, 1]) if len(ahead) else None
+        box: Box | None = None  # the path ahead's, once a route asks for it
         gaps = []
         for o in obstacles.moving:
-            if box is not None and isinstance(o, IntentObstacle):
+            if len(ahead) and isinstance(o, IntentObstacle):
+                if box is None:
+                    box = Box.of(ahead[:, 0], ahead[:, 1])
                 least = box.distance(o.route_box) - o.radius - self.r
                 if least >= far:
                     gaps.append(np.full(len(ahead), least))

@@ -19,6 +19,7 @@ from common.world import ObstacleState, World
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve
 from services.planner.reasons import Strategy
+from services.planner.shaping.planned_path import PlannedPath
 
 PlanStatus = Literal["OK", "NO_PATH"]
 
@@ -174,6 +175,13 @@ class PlanResult:
     flown_short_m: float = 0.0
     flown_short_at_s: float = math.inf
     timing: PlanTiming = field(default_factory=PlanTiming)
+    # the plan's PlannedPath once built (`planned_path`), with the arrays it was built from:
+    # a result made from this one by dataclasses.replace (coded, its reason or speed given)
+    # shares it, so its flights and its adoption tabulate the curve once; one with other
+    # arrays builds its own
+    _path: list[tuple[tuple[int, FloatArray, FloatArray, FloatArray], PlannedPath]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
     @property
     def ok(self) -> bool:
@@ -200,6 +208,24 @@ class PlanResult:
             raise ValueError(f"no curve: {self.reason}")
         return NurbsCurve(self.degree, self.control_points, self.weights, self.knots)
 
+    def same_curve(self, other: PlanResult) -> bool:
+        """Whether `other` carries this very curve (the same arrays: made from this result by
+        dataclasses.replace, or this result itself)."""
+        return _same_arrays(self._curve_of(), other._curve_of())
+
+    def _curve_of(self) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+        return self.degree, self.control_points, self.weights, self.knots
+
+    def planned_path(self) -> PlannedPath:
+        """The curve with its arc-length table (an OK plan's), built once for the curve."""
+        if self._path:
+            of, built = self._path[0]
+            if _same_arrays(of, self._curve_of()):
+                return built
+        built = PlannedPath(self.curve())
+        self._path[:] = [(self._curve_of(), built)]
+        return built
+
     @staticmethod
     def of_curve(curve: NurbsCurve, **fields: Any) -> PlanResult:
         """An OK plan of `curve`, with the rest of its fields as given."""
@@ -211,3 +237,11 @@ class PlanResult:
             knots=curve.knots,
             **fields,
         )
+
+
+def _same_arrays(
+    a: tuple[int, FloatArray, FloatArray, FloatArray],
+    b: tuple[int, FloatArray, FloatArray, FloatArray],
+) -> bool:
+    """Whether two (degree, control points, weights, knots) are the same degree and arrays."""
+    return a[0] == b[0] and a[1] is b[1] and a[2] is b[2] and a[3] is b[3]

@@ -8,6 +8,7 @@ world's one signed distance (common.world.geometry.PolygonEdges).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -28,18 +29,29 @@ class StaticField:
     circ: FloatArray  # (nc, 3): x, y, radius
     edges: PolygonEdges  # every polygon's edges, polygons contiguous
     bbox: FloatArray = field(repr=False)  # (nobs, 4): x_min, y_min, x_max, y_max per obstacle
+    # the cost map's static clearance grids on this field, by grid (costmap.py): one ask
+    # builds a cost map for every plan it makes (remade, recovered), all on one chart
+    grids: dict[tuple[object, ...], FloatArray] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @staticmethod
+    @lru_cache(maxsize=8)
     def build(
         circles: tuple[CircleObstacleConfig, ...], polygons: tuple[PolygonObstacleConfig, ...]
     ) -> StaticField:
+        """The field of a chart's circles and polygons: one (read-only) per chart, for the
+        chart stays the same from plan to plan."""
         circ = np.array([(c.x_m, c.y_m, c.radius_m) for c in circles], dtype=np.float64)
         circ = circ.reshape(-1, 3)
         verts = [vertices_array(p.vertices_m) for p in polygons]
         boxes = [(x - r, y - r, x + r, y + r) for x, y, r in circ.tolist()]
         boxes += [(*v.min(axis=0), *v.max(axis=0)) for v in verts]
         bbox = np.array(boxes, dtype=np.float64).reshape(-1, 4)
-        return StaticField(circ, PolygonEdges.of(verts), bbox)
+        edges = PolygonEdges.of(verts)
+        for a in (circ, bbox, edges.a, edges.b, edges.starts, edges.edge_poly):
+            a.setflags(write=False)
+        return StaticField(circ, edges, bbox)
 
     @property
     def empty(self) -> bool:

@@ -48,10 +48,9 @@ from services.control.command.response import Pose, ResponseModel
 from services.control.controllers.base import Controller
 from services.planner.geometry.clearance import StaticField, moving_distance
 from services.planner.reasons import Strategy
-from services.planner.result import PlanRequest, PlanResult
+from services.planner.result import Obstacles, PlanRequest, PlanResult
 from services.planner.safety.intent import IntentObstacle
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -102,6 +101,11 @@ class RolloutInputs:
     doubt_flown: list[tuple[PlanResult, float, PlannerTuning, Rollout]] = field(
         default_factory=list, compare=False, repr=False
     )
+    # the reference of the last plan flown, with its speed: shared with the doubted inputs
+    # (`doubted`), which fly the same plan next; a flight only reads it (never `stop_at`)
+    last_ref: list[tuple[PlanResult, float, PathArcReference]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
     def doubted(self) -> RolloutInputs | None:
         """These inputs in the doubted current (None without one, or when it is the believed
@@ -122,16 +126,22 @@ class Rollout:
     t: FloatArray
     dist: FloatArray
     last: Pose
+    # its distances to the obstacles and what they were measured among (`_distances`): a plan
+    # is measured when it is verified and again when checked for contact soon after adoption
+    measured: list[tuple[Obstacles, float, float, FloatArray, FloatArray]] = field(
+        default_factory=list, repr=False
+    )
 
 
 def roll_out(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning
 ) -> Rollout:
     """An OK plan flown (see the module docstring) at req.v_ref_mps: the flight of the last
-    call if it was for the same plan, speed and tuning (its arrays read-only)."""
+    call if it was for the same curve (the plan, or one made from it: coded, given its reason),
+    speed and tuning (its arrays read-only)."""
     if fm.last_flown:
         plan, v, tun, flown = fm.last_flown[0]
-        if plan is result and v == req.v_ref_mps and tun is tuning:
+        if plan.same_curve(result) and v == req.v_ref_mps and tun is tuning:
             return flown
     flown = _fly(result, req, fm, tuning)
     for a in (flown.pts, flown.t, flown.dist):
@@ -142,28 +152,42 @@ def roll_out(
 
 def _fly(result: PlanResult, req: PlanRequest, fm: RolloutInputs, tuning: PlannerTuning) -> Rollout:
     """roll_out's flight, flown."""
-    ref = PathArcReference(PlannedPath(result.curve()), req.v_ref_mps)
+    ref = _reference(result, req.v_ref_mps, fm)
     ctrl = copy.deepcopy(fm.controller)
     ctrl.reset()  # as the loop resets it when a new path is put in force (adoption.py)
     pose = fm.start
-    end = ref.point_at_s(ref.length)
+    ex, ey = ref.point_at_s(ref.length)
     n = max(1, math.ceil(min(tuning.rollout_max_s, 3.0 * ref.length / req.v_ref_mps) / fm.step_s))
     xs, ys, dist = [pose[0]], [pose[1]], [0.0]
+    # the loop's constants read once: it runs every control period of the flight (~500 times)
+    command, advance, t0, step_s = ctrl.command, fm.model.advance, fm.t0, fm.step_s
+    arrived_mps, arrived_m, hypot = tuning.arrived_mps, tuning.arrived_m, math.hypot
+    gone = 0.0
     for k in range(n):
-        v, w = ctrl.command(fm.t0 + k * fm.step_s, pose, ref)
-        nxt = fm.model.advance(pose, v, w, fm.step_s)
-        dist.append(dist[-1] + math.hypot(nxt[0] - pose[0], nxt[1] - pose[1]))
+        v, w = command(t0 + k * step_s, pose, ref)
+        nxt = advance(pose, v, w, step_s)
+        gone += hypot(nxt[0] - pose[0], nxt[1] - pose[1])
+        dist.append(gone)
         pose = nxt
         xs.append(pose[0])
         ys.append(pose[1])
-        if (
-            pose[3] < tuning.arrived_mps
-            and math.hypot(pose[0] - end[0], pose[1] - end[1]) < tuning.arrived_m
-        ):
+        if pose[3] < arrived_mps and hypot(pose[0] - ex, pose[1] - ey) < arrived_m:
             break
     pts = np.column_stack([xs, ys])
     t = fm.step_s * np.arange(len(pts), dtype=np.float64)
     return Rollout(ref=ref, pts=pts, t=t, dist=np.asarray(dist), last=pose)
+
+
+def _reference(result: PlanResult, v_ref_mps: float, fm: RolloutInputs) -> PathArcReference:
+    """The arc-length reference of an OK plan at v_ref_mps: the last one built from these
+    inputs (or the believed ones of these doubted ones) if it was for the same curve and speed."""
+    if fm.last_ref:
+        plan, v, ref = fm.last_ref[0]
+        if plan.same_curve(result) and v == v_ref_mps:
+            return ref
+    ref = PathArcReference(result.planned_path(), v_ref_mps)
+    fm.last_ref[:] = [(result, v_ref_mps, ref)]
+    return ref
 
 
 def rollout_clearance(
@@ -188,19 +212,10 @@ def _clearance(
     result: PlanResult, req: PlanRequest, fm: RolloutInputs, cfg: PlannerConfig, within_s: float
 ) -> RolloutClearance:
     """rollout_clearance of one flight."""
-    accel_horizon_s = cfg.accel_horizon_s
     f = roll_out(result, req, fm, cfg.tuning)
     ref, pts, t, gone = f.ref, f.pts, f.t, f.dist
-    obs = req.obstacles
-    d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
-    d = d_static.copy()
-    # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
-    # flight, where a head-on pass tens of seconds on is decided (the rest: rollout_moving_s)
-    intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
-    guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
-    soon = t <= cfg.tuning.rollout_moving_s
-    d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
-    d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
+    d_static, d = _distances(f, req.obstacles, cfg)
+    d = d.copy()
     d[t > within_s] = math.inf
     clearance = d - req.vehicle_radius_m
     # an escape ends at rho0 + 1 cm and the plan leaves the margin gradually after it: for a
@@ -236,6 +251,30 @@ def _clearance(
         static=bool(d_static[j] <= d[j]),
         first_short_s=float(t[int(np.argmax(short))]) if short.any() else math.inf,
     )
+
+
+def _distances(f: Rollout, obs: Obstacles, cfg: PlannerConfig) -> tuple[FloatArray, FloatArray]:
+    """A flight's centre distances (N,) to the static obstacles, and to the nearest obstacle
+    of all (read-only): those measured before if among the same obstacles and horizons."""
+    accel_horizon_s, moving_s = cfg.accel_horizon_s, cfg.tuning.rollout_moving_s
+    if f.measured:
+        among, accel, soon_s, d_static, d = f.measured[0]
+        if among is obs and accel == accel_horizon_s and soon_s == moving_s:
+            return d_static, d
+    pts, t = f.pts, f.t
+    d_static = StaticField.build(obs.circles, obs.polygons).distance(pts)[0]
+    d = d_static.copy()
+    # another vehicle's broadcast route is its plan, not a guess: it counts over the whole
+    # flight, where a head-on pass tens of seconds on is decided (the rest: rollout_moving_s)
+    intents = tuple(o for o in obs.moving if isinstance(o, IntentObstacle))
+    guessed = tuple(o for o in obs.moving if not isinstance(o, IntentObstacle))
+    soon = t <= moving_s
+    d[soon] = np.minimum(d[soon], moving_distance(guessed, pts[soon], t[soon], accel_horizon_s)[0])
+    d = np.minimum(d, moving_distance(intents, pts, t, accel_horizon_s)[0])
+    for a in (d_static, d):
+        a.setflags(write=False)
+    f.measured[:] = [(obs, accel_horizon_s, moving_s, d_static, d)]
+    return d_static, d
 
 
 def kept_cushion_m(fm: RolloutInputs, tuning: PlannerTuning) -> float:

@@ -139,19 +139,28 @@ def build_costmap(
             d = np.hypot(xs[None, sx] - cx, ys[sy, None] - cy) - cr
             grid[sy, sx] = np.minimum(grid[sy, sx], d)
 
-    for cx, cy, cr in static.circ.tolist():
-        add_disc(clear, cx, cy, cr)
-    n_circ = len(static.circ)
-    for p in range(len(static.edges.starts)):
-        box = static.bbox[n_circ + p]
-        sy, sx = window(*box)
-        if sy.start >= sy.stop or sx.start >= sx.stop:
-            continue
-        gx, gy = np.meshgrid(xs[sx], ys[sy])
-        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-        d = static.polygon(p).signed_distances(pts)[:, 0]  # one polygon: no gradient needed
-        clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
-    static_clear = clear.copy()
+    # the static obstacles' part: built once per chart and grid (StaticField.grids), for an
+    # ask builds a cost map for every plan it makes, and the chart stays the same
+    grid_key = (area, res, reach)
+    static_clear = static.grids.get(grid_key)
+    if static_clear is None:
+        for cx, cy, cr in static.circ.tolist():
+            add_disc(clear, cx, cy, cr)
+        n_circ = len(static.circ)
+        for p in range(len(static.edges.starts)):
+            box = static.bbox[n_circ + p]
+            sy, sx = window(*box)
+            if sy.start >= sy.stop or sx.start >= sx.stop:
+                continue
+            gx, gy = np.meshgrid(xs[sx], ys[sy])
+            pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+            d = static.polygon(p).signed_distances(pts)[:, 0]  # one polygon: no gradient needed
+            clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
+        static_clear = clear.copy()
+        static_clear.setflags(write=False)
+        static.grids[grid_key] = static_clear
+    else:
+        clear = static_clear.copy()
     for cx, cy, cr in np.asarray(extra_discs, dtype=np.float64).reshape(-1, 3).tolist():
         add_disc(clear, cx, cy, cr)
 

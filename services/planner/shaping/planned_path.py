@@ -35,7 +35,12 @@ class PlannedPath:
         self.curve = curve
         u = np.linspace(curve.u_min, curve.u_max, n_table)
         self.u_table = u
-        self.xy_table = curve.evaluate(u, n_ders=0)[0]
+        # the points with their first two derivatives in one evaluation: the reference asks
+        # for heading and curvature on this very table (path_arc_reference.py), and a lower
+        # derivative comes out the same floats whatever n_ders (the Cox-de Boor triangle and
+        # the quotient rule compute it alike)
+        self._table_ders = curve.evaluate(u, n_ders=2)
+        self.xy_table = self._table_ders[0]
         # arc length between consecutive table parameters by Gauss-Legendre, eq. (16)/(18)
         h = np.diff(u)
         uq = (u[:-1, None] + h[:, None] * _GL_X[None, :]).ravel()
@@ -54,21 +59,28 @@ class PlannedPath:
     def u_at_s(self, s: FloatArray | float) -> FloatArray:
         return np.asarray(np.interp(s, self.s_table, self.u_table), dtype=np.float64)
 
+    def _ders_at(self, u: FloatArray | float, n_ders: int) -> FloatArray:
+        """The curve's points and derivatives (at least n_ders + 1, m, 2) at u: those
+        evaluated with the table when u is the table itself."""
+        if u is self.u_table:
+            return self._table_ders
+        return self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=n_ders)
+
     def point_at_u(self, u: FloatArray | float) -> FloatArray:
-        return self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=0)[0]
+        return self._ders_at(u, 0)[0]
 
     def heading_at_u(self, u: FloatArray | float) -> FloatArray:
-        d1 = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=1)[1]
+        d1 = self._ders_at(u, 1)[1]
         return np.arctan2(d1[:, 1], d1[:, 0])
 
     def curvature_at_u(self, u: FloatArray | float) -> FloatArray:
         """Unsigned curvature at u (eq. (20))."""
-        d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
+        d = self._ders_at(u, 2)
         return curvature(d[1], d[2])
 
     def signed_curvature_at_u(self, u: FloatArray | float) -> FloatArray:
         """Curvature with sign (> 0 turning left), as a path-following controller feeds forward."""
-        d = self.curve.evaluate(np.atleast_1d(np.asarray(u, dtype=np.float64)), n_ders=2)
+        d = self._ders_at(u, 2)
         cross = d[1][:, 0] * d[2][:, 1] - d[1][:, 1] * d[2][:, 0]
         speed3 = np.maximum(np.hypot(d[1][:, 0], d[1][:, 1]) ** 3, 1e-300)
         return np.asarray(cross / speed3)

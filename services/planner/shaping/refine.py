@@ -274,18 +274,22 @@ def levenberg_marquardt(
     f, g, h = obj(x, hessian=True)
     lam = 1.0
     eye = np.eye(len(x))
+    # the damping's matrix and -g change only with a step kept: a rejected step (a third of
+    # them) retries the same with a larger lam
+    damp, neg_g = np.diag(np.diag(h)) + 1e-6 * eye, -g
     for _ in range(max_iter):
-        step = np.linalg.solve(h + lam * (np.diag(np.diag(h)) + 1e-6 * eye), -g)
+        step = np.linalg.solve(h + lam * damp, neg_g)
         xn = np.minimum(np.maximum(x + step, lo), hi)
         at = obj.value(xn)  # the derivatives only for a step that is kept
         fn = at.f
         if fn < f:
             done = f - fn < 1e-6 * abs(f)
-            gn, hn = obj.derivatives(at, hessian=True)
-            x, f, g, h = xn, fn, gn, hn
+            gn, h = obj.derivatives(at, hessian=True)
+            x, f = xn, fn
             lam = max(lam / 3.0, 1e-9)
             if done:
                 break
+            damp, neg_g = np.diag(np.diag(h)) + 1e-6 * eye, -gn
         else:
             lam *= 8.0
             if lam > 1e6:
