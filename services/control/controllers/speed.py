@@ -27,11 +27,12 @@ preview and the stop anticipate them, and the hull brakes within its own acceler
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from common.config.controller import SpeedConfig
 from common.scalar import clamp
 from services.control.controllers.arc_reference import ArcLengthReference
-from services.control.controllers.base import Limits
+from services.control.controllers.base import Limits, copied_state
 
 _PREVIEW_SAMPLES = 7  # curvature samples over the preview window (incl. both ends)
 _PREVIEW_STEPS = tuple(range(_PREVIEW_SAMPLES))
@@ -112,6 +113,16 @@ class SpeedProfile:
         # the last command before the last reset, and its time (None: none yet)
         self._carried: tuple[float, float] | None = None
         self.reset()
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> SpeedProfile:
+        """A copy with a ramp of its own, sharing the frozen configuration and limits (a
+        command sequence copies the controller it rolls out: PathFollower.__deepcopy__)."""
+        for frozen in (self.cfg, self.limits):
+            memo.setdefault(id(frozen), frozen)
+        twin = SpeedProfile.__new__(SpeedProfile)
+        memo[id(self)] = twin
+        twin.__dict__.update(copied_state(self.__dict__, memo))
+        return twin
 
     def reset(self) -> None:
         """A path is taken: the ramp starts afresh from the vehicle's speed, or carries on
