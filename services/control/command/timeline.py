@@ -90,12 +90,15 @@ class CommandTimeline:
             self._arrivals = sorted(enumerate(self.sent), key=lambda e: e[1].arrival)
         return self._arrivals
 
-    def predict(self, pose: Pose, t_a: float, t_b: float, model: ResponseModel) -> Pose:
-        """The state at t_b from `pose` at t_a, the vehicle applying the commands sent."""
+    def predict(
+        self, pose: Pose, t_a: float, t_b: float, model: ResponseModel, twist_only: bool = False
+    ) -> Pose:
+        """The state at t_b from `pose` at t_a, the vehicle applying the commands sent;
+        `twist_only`: its twist alone (ResponseModel.advance)."""
         # one sweep over the commands by arrival, rather than `_in_force` and a scan of every
         # command sent for each command in force (a prediction passes ~30 of them): the same
         # commands in force, from the same times
-        order = self._by_arrival()
+        order, advance = self._by_arrival(), model.advance
         n, p = len(order), 0  # order[:p]: arrived by t
         cur: Sent | None = None
         cur_i = -1  # cur's index in `sent`
@@ -122,6 +125,6 @@ class CommandTimeline:
             # within, the applied command changes only at the schedule's own transitions
             for c in sorted({end, *sched.transitions_between(t, end)}):
                 v, w = sched.vw_at(t)
-                pose = model.advance(pose, v, w, c - t)
+                pose = advance(pose, v, w, c - t, twist_only)
                 t = c
         return pose
