@@ -81,9 +81,14 @@ def _target(
     # a reference that bounds its curvature over a stretch (the planner's path) lets the
     # samples be skipped where even the bound leaves v_curv above v: the same v, at a
     # fraction of the cost on straights and gentle curves (the rollout of a command sequence
-    # asks this at every entry)
+    # asks this at every entry); and one that bounds it over the whole path (curvature_max)
+    # lets the stretch's bound be skipped where even the path's leaves v_curv above v: on
+    # most paths everywhere, one number read instead of a range query per entry
+    k_path = getattr(ref, "curvature_max", None)
     bound = getattr(ref, "curvature_bound", None)
-    if bound is None or bound(s, horizon) * v > w_room:
+    if (k_path is None or k_path * v > w_room) and (
+        bound is None or bound(s, horizon) * v > w_room
+    ):
         curvature_at_s, span = ref.curvature_at_s, horizon - s
         k_max = 0.0
         for i in _PREVIEW_STEPS:
