@@ -75,11 +75,18 @@ def test_the_curvature_bound_holds_over_every_stretch_and_leaves_the_speed_uncha
         bound = ref.curvature_bound(s0, s1)
         worst = max(abs(ref.curvature_at_s(float(s))) for s in np.linspace(s0, s1, 41))
         assert worst <= bound <= worst + 0.05, (s0, s1)
+        assert bound <= ref.curvature_max  # the whole path's bound holds over every stretch
         for cfg in (gentle, tight_budget):
             v = target_speed(ref, s0, cfg, limits)
             assert v == target_speed(Sampled(), s0, cfg, limits)  # type: ignore[arg-type]
             tight += v < min(ref.v_ref, limits.v_max) and ref.length - s0 > 10.0
     assert tight > 0  # the bends do slow the profile somewhere: both branches were compared
+    # the gentle budget leaves v_curv above the cruise speed on the whole path (no stretch's
+    # bound asked), the tight one does not (a bound asked at every s)
+    w_path = ref.curvature_max * min(ref.v_ref, limits.v_max)  # its fastest turn at cruise
+    w_max = min(limits.w_max, -limits.w_min)
+    assert w_path <= gentle.curvature_budget * w_max
+    assert w_path > tight_budget.curvature_budget * w_max
 
 
 def test_a_stop_short_of_the_end_brakes_the_speed_profile_there() -> None:

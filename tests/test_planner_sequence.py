@@ -131,11 +131,66 @@ def test_forgetting_what_is_superseded_changes_no_prediction() -> None:
     assert tl.predict(start, 3.0, 4.5, MODEL) == full
 
 
+def _predicted_command_by_command(
+    tl: CommandTimeline, pose: tuple[float, ...], t_a: float, t_b: float
+) -> tuple[float, ...]:
+    """CommandTimeline.predict as first written (the oracle of its sweep): the command in
+    force looked up afresh, and every command sent scanned, for each command in force."""
+    t = t_a
+    while t < t_b:
+        sched = tl.schedule_at(t)
+        newer = -math.inf if sched.stamp is None else sched.stamp
+        end = min([t_b] + [s.arrival for s in tl.sent if t < s.arrival < t_b and s.stamp > newer])
+        for c in sorted({end, *sched.transitions_between(t, end)}):
+            pose = MODEL.advance(pose, *sched.vw_at(t), c - t)  # type: ignore[arg-type]
+            t = c
+    return pose
+
+
+def test_a_prediction_applies_the_commands_in_force_one_after_another() -> None:
+    rng = np.random.default_rng(7)
+    for _ in range(30):
+        tl = _timeline()
+        stamps = np.round(np.cumsum(rng.choice([0.0, 0.05, 0.1], size=25)), 2)
+        for k, t in enumerate(stamps):  # repeated stamps; arrivals out of order, some tied
+            arrival = float(t + rng.choice([0.1, 0.15, 0.3, 0.6]))
+            n = int(rng.integers(1, 8))
+            tl.add(float(t), arrival, 0.05, [0.5 + 0.01 * k] * n, [0.02 * (k % 5 - 2)] * n)
+        start = (0.0, 0.0, 0.0, 1.0, 0.0)
+        t_a = float(rng.uniform(0.0, stamps[-1]))
+        t_b = t_a + float(rng.uniform(0.0, 3.0))
+        expected = _predicted_command_by_command(tl, start, t_a, t_b)
+        assert tl.predict(start, t_a, t_b, MODEL) == expected
+
+
+def test_the_twist_alone_is_the_same_floats_as_the_whole_state() -> None:
+    pose = (3.0, -2.0, 0.7, 0.4, -0.05)
+    for v_c, w_c, dt in [(1.5, 0.3, 0.05), (0.2, -0.4, 0.73), (0.0, 0.0, 0.02)]:
+        whole = MODEL.advance(pose, v_c, w_c, dt)
+        alone = MODEL.advance(pose, v_c, w_c, dt, True)
+        assert alone[:3] == pose[:3] and alone[3:] == whole[3:]
+
+
 # --- command sequences (sequence.py) ----------------------------------------------------------
 
 
 CIRCLE = Circle(cx=0.0, cy=10.0, radius=10.0, phase0=-0.5 * math.pi, turns=1.0)
 LIMITS = Limits.from_vehicle(SCENARIO.vehicle)
+
+
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_a_controllers_copy_has_a_state_of_its_own(kind: str) -> None:
+    ctrl, witness = (make_controller(ControllerConfig(kind=kind), LIMITS) for _ in range(2))
+    pose = (0.5, -0.3, 0.1, 1.2, 0.05)
+    for k in range(5):  # the same history: integrals, a virtual reference, a ramp
+        assert ctrl.command(0.1 * k, pose, CIRCLE) == witness.command(0.1 * k, pose, CIRCLE)
+    twin = copy.deepcopy(ctrl)
+    assert _state(twin) == _state(ctrl)
+    for k in range(5, 9):  # the copy driven on alone, elsewhere
+        twin.command(0.1 * k, (0.7, -0.2, 0.2, 1.0, -0.1), CIRCLE)
+    assert _state(ctrl) == _state(witness)  # ... the controller has not seen it
+    for k in range(5, 9):
+        assert ctrl.command(0.1 * k, pose, CIRCLE) == witness.command(0.1 * k, pose, CIRCLE)
 
 
 @pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])

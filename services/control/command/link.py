@@ -181,7 +181,8 @@ class CommandLink:
         # the yaw rate there: the filter's is noisy (a differenced compass), so the yaw loop is
         # run over the commands of the last YAW_SETTLE_TAUS time constants from it (left with
         # e^-3 of its error; docs/notes/planner-yaw-rate-from-commands.md)
-        w = self.timeline.predict(pose, t_b - settle, t_b, self.model)[4]
+        # (the twist alone: the pose predicted along would be thrown away)
+        w = self.timeline.predict(pose, t_b - settle, t_b, self.model, True)[4]
         now = self.timeline.predict((x, y, th, v, w), t_b, t, self.model)
         effect_t = t + self.downlink_s
         at_effect = self.timeline.predict(now, t, effect_t, self.model)

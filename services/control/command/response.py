@@ -67,8 +67,11 @@ class ResponseModel:
             return self
         return replace(self, current_mps=(cx, cy))
 
-    def advance(self, pose: Pose, v_c: float, w_c: float, dt: float) -> Pose:
-        """The state dt seconds on under the command (v_c, w_c) held throughout."""
+    def advance(
+        self, pose: Pose, v_c: float, w_c: float, dt: float, twist_only: bool = False
+    ) -> Pose:
+        """The state dt seconds on under the command (v_c, w_c) held throughout; `twist_only`:
+        its twist alone (x, y, theta left as they are: the twist's steps do not read them)."""
         n = math.ceil(dt / MAX_STEP_S - 1e-9)
         if n <= 0:
             return pose
@@ -100,6 +103,9 @@ class ResponseModel:
             hi = room if room < w_hi else w_hi
             w1 = w + h * dw
             w1 = lo if w1 < lo else hi if w1 > hi else w1
+            if twist_only:
+                v, w = v1, w1
+                continue
             # eq. (7) along the arc of the step's mean twist
             vm, wm = 0.5 * (v + v1), 0.5 * (w + w1)
             dth = wm * h

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 from common.config.vehicle import VehicleConfig
 from common.scalar import clamp, wrap_angle
@@ -15,6 +16,9 @@ Pose = tuple[float, float, float, float, float]  # x, y, theta, v, w (estimate o
 # crab_angle: the largest heading offset into a current, and the least speed it assumes
 MAX_CRAB_RAD = math.radians(45.0)
 CRAB_MIN_SPEED_MPS = 0.5
+
+# the types a copy of a controller's state shares with it (immutable; tuples of them too)
+_IMMUTABLE = (float, int, bool, str, type(None))
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)
@@ -141,3 +145,18 @@ def path_errors(
     hp = ref.heading_at_s(s)
     e_y = -math.sin(hp) * (x - px) + math.cos(hp) * (y - py)
     return e_y, wrap_angle(theta - hp)
+
+
+def copied_state(state: dict[str, Any], memo: dict[int, Any]) -> dict[str, Any]:
+    """The attributes `state` of an object for its deep copy (copy.deepcopy's `memo`): the
+    immutable values and the tuples of them shared, the rest deep-copied. A command sequence
+    rolls a copy of the controller out (sequence.py): its state is floats and tuples of
+    floats, and deepcopy's dispatch on each of them was most of a copy's cost."""
+    out: dict[str, Any] = {}
+    for key, value in state.items():
+        kind = type(value)
+        if kind in _IMMUTABLE or (kind is tuple and all(type(e) in _IMMUTABLE for e in value)):
+            out[key] = value
+        else:
+            out[key] = copy.deepcopy(value, memo)
+    return out

@@ -21,14 +21,13 @@ speed through the water over R_min, as the hull turns.
 
 from __future__ import annotations
 
-import copy
 import math
 from typing import Any, Generic, TypeVar
 
 from common.config.controller import SpeedConfig
 from common.scalar import wrap_angle
 from services.control.controllers.arc_reference import ArcLengthReference
-from services.control.controllers.base import Limits, Pose, predict_pose
+from services.control.controllers.base import Limits, Pose, copied_state, predict_pose
 from services.control.controllers.speed import SpeedProfile
 
 # over_ground takes the vehicle as moving at least this fast through the water (m/s): at
@@ -90,7 +89,7 @@ class PathFollower(Generic[G]):
             memo.setdefault(id(frozen), frozen)
         twin = type(self).__new__(type(self))
         memo[id(self)] = twin
-        twin.__dict__.update(copy.deepcopy(self.__dict__, memo))
+        twin.__dict__.update(copied_state(self.__dict__, memo))
         return twin
 
     def reset(self) -> None:

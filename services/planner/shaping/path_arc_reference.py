@@ -42,7 +42,10 @@ class PathArcReference:
         self._yl: list[float] = self._y.tolist()
         self._headingl: list[float] = self._heading.tolist()
         self._kl: list[float] = self._k.tolist()
-        self._k_max = _range_max_table(np.abs(self._k))
+        k_abs = np.abs(self._k)
+        self._k_max = _range_max_table(k_abs)
+        # curvature_bound over the whole path (its margin likewise)
+        self.curvature_max = float(k_abs.max()) * (1.0 + 1e-9)
         self._length = path.length
         self._stop_s = path.length
 
