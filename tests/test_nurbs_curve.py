@@ -17,7 +17,7 @@ from services.planner.geometry.nurbs_curve import (
     curvature,
     rational_basis,
 )
-from services.planner.shaping.planned_path import PlannedPath
+from services.planner.geometry.planned_path import PlannedPath
 
 
 def _random_curve(rng: np.random.Generator) -> NurbsCurve:

@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from services.planner.geometry.nurbs_curve import NurbsCurve, clamped_uniform_knots
+from services.planner.geometry.planned_path import PlannedPath
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 
 
 def _path() -> PlannedPath:

@@ -24,9 +24,9 @@ from common.world.check import check_scenario
 from services.control.command.link import Prediction
 from services.control.loop import CommandLoop
 from services.planner.geometry.nurbs_curve import NurbsCurve, clamped_uniform_knots
+from services.planner.geometry.planned_path import PlannedPath
 from services.planner.shadow import TrackerShadow
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath
 from services.tracker.core import TrackerCore
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"

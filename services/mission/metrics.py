@@ -29,8 +29,8 @@ from services.mission.dataflow import commander
 from services.mission.outcome import classify
 from services.mission.records import AuvMetrics, build
 from services.mission.reentry import reentries
+from services.planner.geometry.planned_path import curve_of
 from services.planner.reasons import PLANS_DECLINED
-from services.planner.shaping.planned_path import curve_of
 
 # A control action counts as "on the optimal path" (paper §4.1) when the true vehicle is
 # within this distance of the first planned path at the moment the command is issued.

@@ -16,14 +16,15 @@ The pipeline, stage by stage, with the sub-package that holds each (paper equati
         |
     check               shaping/check.py       eq. (12)-(13) clearance, eq. (20) curvature
         |                                      (plan.py runs these stages: a PlanResult)
-    planned path        shaping/planned_path.py, shaping/path_arc_reference.py (on s)
+    planned path        geometry/planned_path.py, shaping/path_arc_reference.py (on s)
         |
     controller          services/control/      NURBS tracker, Backstepping, immune fuzzy PID
         |
     command sequence    services/control/      predicted over the measured delays, sent
 
     Layers, one way down: geometry/ (clearance.py, the exact distances every stage uses;
-    nurbs_curve.py), then search/, shaping/, plan.py and the safety monitor (safety/):
+    nurbs_curve.py and planned_path.py, the curve and its arc-length table), then search/,
+    shaping/, plan.py and the safety monitor (safety/):
     recover.py and escape.py, ways out near or in contact; rollout.py, a plan flown on the
     response model before it is adopted; intent.py, the other vehicles of a fleet as
     obstacles with known trajectories. evade.py, stepping aside or holding first, plans again.

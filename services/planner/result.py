@@ -18,8 +18,8 @@ from common.config.world import (
 from common.world import ObstacleState, World
 from common.world.geometry import FloatArray
 from services.planner.geometry.nurbs_curve import NurbsCurve
+from services.planner.geometry.planned_path import PlannedPath
 from services.planner.reasons import Strategy
-from services.planner.shaping.planned_path import PlannedPath
 
 PlanStatus = Literal["OK", "NO_PATH"]
 

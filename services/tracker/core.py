@@ -16,8 +16,8 @@ from common.guard import first_reason
 from common.messages import PathAck, PathMsg
 from common.runtime.model.core import Delivery, Emit
 from services.control.loop import CommandLoop
+from services.planner.geometry.planned_path import PlannedPath, curve_of
 from services.planner.shaping.path_arc_reference import PathArcReference
-from services.planner.shaping.planned_path import PlannedPath, curve_of
 
 
 class TrackerCore:

@@ -1,1 +1,2 @@
-"""Planner geometry every stage uses: clearances to obstacles and the NURBS curve."""
+"""Planner geometry every stage uses: clearances to obstacles, the NURBS curve and its
+arc-length table (the planned path)."""

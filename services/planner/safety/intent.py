@@ -37,7 +37,7 @@ import numpy as np
 from common.messages import Message, PathMsg, StateEstimate
 from common.world import ObstacleState
 from common.world.geometry import Box, FloatArray
-from services.planner.shaping.planned_path import curve_of
+from services.planner.geometry.planned_path import curve_of
 
 # samples of a broadcast path: a route polyline fine enough for rho0 at the fleet's sizes
 ROUTE_SAMPLES = 400

@@ -15,7 +15,7 @@ from bisect import bisect_left, bisect_right
 
 import numpy as np
 
-from services.planner.shaping.planned_path import PlannedPath
+from services.planner.geometry.planned_path import PlannedPath
 
 _TWO_PI = 2.0 * math.pi
 
