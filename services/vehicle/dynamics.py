@@ -151,21 +151,18 @@ def rk4_step(
     return make_rk4_step(p)(s, h, v_cmd, w_cmd, t, current)
 
 
-def make_rk4_step(p: PlantParams) -> Rk4Step:
-    """rk4_step with p bound: step(s, h, v_cmd, w_cmd, t, current) -> the state h later.
+RatesFn = Callable[[float, float, float, float, float, float], tuple[float, float, float]]
 
-    The vehicle's hot loop (~8000 steps a mission): `derivatives`, `thrust_n`, `drag_n` and
-    `clamp` are written out here with p's fields read once, in the same expressions and
-    operation order, so the floats are theirs bit for bit (tests/test_vehicle_dynamics.py
-    holds the two equal); the drag feed-forward of the last v_cmd is kept (a command is
-    held over many steps)."""
+
+def _bind_rates(p: PlantParams) -> tuple[Callable[[float], float], RatesFn]:
+    """drag_n(v) and derivatives' (dv, dw, dz) at (v, w, z) under (v_cmd, w_cmd) with the
+    drag feed-forward ff, p's fields read once: make_rk4_step's stages."""
     half_rho_s, length_m, nu_m2ps = p.half_rho_s, p.length_m, p.nu_m2ps
     delta_cf, c_pv, mass_eff_kg = p.delta_cf, p.c_pv, p.mass_eff_kg
     t_min, t_max, kp, ki, int_band = p.thrust_min_n, p.thrust_max_n, p.kp, p.ki, p.int_band
     accel_max, yaw_tau_s, yaw_accel_max = p.accel_max, p.yaw_tau_s, p.yaw_accel_max
-    v_max, w_min, w_max, r_min = p.v_max, p.w_min, p.w_max, p.r_min
-    exp, cos, sin, log10 = math.exp, math.cos, math.sin, math.log10
-    ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
+    r_min = p.r_min
+    exp, log10 = math.exp, math.log10
 
     def drag(v: float) -> float:
         # drag_n and friction_coefficient
@@ -192,6 +189,22 @@ def make_rk4_step(p: PlantParams) -> Rk4Step:
         dw = (wc - w) / yaw_tau_s
         dw = -yaw_accel_max if dw < -yaw_accel_max else yaw_accel_max if dw > yaw_accel_max else dw
         return dv, dw, dz
+
+    return drag, rates
+
+
+def make_rk4_step(p: PlantParams) -> Rk4Step:
+    """rk4_step with p bound: step(s, h, v_cmd, w_cmd, t, current) -> the state h later.
+
+    The vehicle's hot loop (~8000 steps a mission): `derivatives`, `thrust_n`, `drag_n` and
+    `clamp` are written out here with p's fields read once, in the same expressions and
+    operation order, so the floats are theirs bit for bit (tests/test_vehicle_dynamics.py
+    holds the two equal); the drag feed-forward of the last v_cmd is kept (a command is
+    held over many steps)."""
+    v_max, w_min, w_max, r_min = p.v_max, p.w_min, p.w_max, p.r_min
+    cos, sin = math.cos, math.sin
+    drag, rates = _bind_rates(p)
+    ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
 
     def step(
         s: State, h: float, v_cmd: float, w_cmd: float, t: float, current: CurrentFn | None

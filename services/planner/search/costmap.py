@@ -118,55 +118,16 @@ def build_costmap(
     would not be a safe lower bound for the final check.
     """
     res = cfg.resolution_m
-    nx, ny = grid_shape(area, res)
-    reach = vehicle_radius_m + cfg.rho_m + res  # farthest distance that still matters
-    # cells outside every window are farther than `reach` from all obstacles: the cap is a
-    # lower bound of the true clearance, which the final check relies on
-    clear = np.full((ny, nx), reach)
-    xs = area.x_min_m + (np.arange(nx) + 0.5) * res
-    ys = area.y_min_m + (np.arange(ny) + 0.5) * res
-
-    def window(x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice]:
-        i0 = max(0, int((x0 - reach - area.x_min_m) / res))
-        i1 = min(nx, int((x1 + reach - area.x_min_m) / res) + 2)
-        j0 = max(0, int((y0 - reach - area.y_min_m) / res))
-        j1 = min(ny, int((y1 + reach - area.y_min_m) / res) + 2)
-        return slice(j0, j1), slice(i0, i1)
-
-    def add_disc(grid: FloatArray, cx: float, cy: float, cr: float) -> None:
-        sy, sx = window(cx - cr, cy - cr, cx + cr, cy + cr)
-        if sy.start < sy.stop and sx.start < sx.stop:
-            d = np.hypot(xs[None, sx] - cx, ys[sy, None] - cy) - cr
-            grid[sy, sx] = np.minimum(grid[sy, sx], d)
-
-    # the static obstacles' part: built once per chart and grid (StaticField.grids), for an
-    # ask builds a cost map for every plan it makes, and the chart stays the same
-    grid_key = (area, res, reach)
-    static_clear = static.grids.get(grid_key)
-    if static_clear is None:
-        for cx, cy, cr in static.circ.tolist():
-            add_disc(clear, cx, cy, cr)
-        n_circ = len(static.circ)
-        for p in range(len(static.edges.starts)):
-            box = static.bbox[n_circ + p]
-            sy, sx = window(*box)
-            if sy.start >= sy.stop or sx.start >= sx.stop:
-                continue
-            gx, gy = np.meshgrid(xs[sx], ys[sy])
-            pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-            d = static.polygon(p).signed_distances(pts)[:, 0]  # one polygon: no gradient needed
-            clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
-        static_clear = clear.copy()
-        static_clear.setflags(write=False)
-        static.grids[grid_key] = static_clear
-    else:
-        clear = static_clear.copy()
+    grid = _Grid(area, res, vehicle_radius_m + cfg.rho_m + res)
+    static_clear = _static_clearance(static, grid)
+    clear = static_clear.copy()
     for cx, cy, cr in np.asarray(extra_discs, dtype=np.float64).reshape(-1, 3).tolist():
-        add_disc(clear, cx, cy, cr)
+        grid.add_disc(clear, cx, cy, cr)
 
     rho = clear - vehicle_radius_m  # eq. (5): surface-to-surface distance
     blocked = rho < cfg.rho0_m  # inflated by r + rho0 -> occupied
     # the vehicle body must stay inside the area X (eq. (10))
+    xs, ys = grid.xs, grid.ys
     edge_gap = np.minimum.outer(
         np.minimum(ys - area.y_min_m, area.y_max_m - ys),
         np.minimum(xs - area.x_min_m, area.x_max_m - xs),
@@ -182,10 +143,63 @@ def build_costmap(
     return CostMap(
         area=area,
         resolution_m=res,
-        nx=nx,
-        ny=ny,
+        nx=grid.nx,
+        ny=grid.ny,
         clearance=clear,
         static_clearance=static_clear,
         blocked=blocked,
         cost=cost,
     )
+
+
+class _Grid:
+    """The cost map's cell centres (xs (nx,), ys (ny,)) and the window of cells within
+    `reach` (m) of a box: the farthest distance that still matters."""
+
+    def __init__(self, area: AreaConfig, res: float, reach: float) -> None:
+        self.area, self.res, self.reach = area, res, reach
+        self.nx, self.ny = grid_shape(area, res)
+        self.xs = area.x_min_m + (np.arange(self.nx) + 0.5) * res
+        self.ys = area.y_min_m + (np.arange(self.ny) + 0.5) * res
+
+    def window(self, x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice]:
+        a, res, reach = self.area, self.res, self.reach
+        i0 = max(0, int((x0 - reach - a.x_min_m) / res))
+        i1 = min(self.nx, int((x1 + reach - a.x_min_m) / res) + 2)
+        j0 = max(0, int((y0 - reach - a.y_min_m) / res))
+        j1 = min(self.ny, int((y1 + reach - a.y_min_m) / res) + 2)
+        return slice(j0, j1), slice(i0, i1)
+
+    def add_disc(self, clear: FloatArray, cx: float, cy: float, cr: float) -> None:
+        """Lower `clear` (ny, nx) to each cell's distance to the disc (cx, cy, cr)."""
+        sy, sx = self.window(cx - cr, cy - cr, cx + cr, cy + cr)
+        if sy.start < sy.stop and sx.start < sx.stop:
+            d = np.hypot(self.xs[None, sx] - cx, self.ys[sy, None] - cy) - cr
+            clear[sy, sx] = np.minimum(clear[sy, sx], d)
+
+
+def _static_clearance(static: StaticField, grid: _Grid) -> FloatArray:
+    """Each cell's clearance (ny, nx) to the static obstacles, capped at grid.reach, read-only:
+    built once per chart and grid (StaticField.grids), for an ask builds a cost map for every
+    plan it makes, and the chart stays the same."""
+    key = (grid.area, grid.res, grid.reach)
+    kept = static.grids.get(key)
+    if kept is not None:
+        return kept
+    # cells outside every window are farther than `reach` from all obstacles: the cap is a
+    # lower bound of the true clearance, which the final check relies on
+    clear = np.full((grid.ny, grid.nx), grid.reach)
+    for cx, cy, cr in static.circ.tolist():
+        grid.add_disc(clear, cx, cy, cr)
+    n_circ = len(static.circ)
+    for p in range(len(static.edges.starts)):
+        sy, sx = grid.window(*static.bbox[n_circ + p])
+        if sy.start >= sy.stop or sx.start >= sx.stop:
+            continue
+        gx, gy = np.meshgrid(grid.xs[sx], grid.ys[sy])
+        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        d = static.polygon(p).signed_distances(pts)[:, 0]  # one polygon: no gradient needed
+        clear[sy, sx] = np.minimum(clear[sy, sx], d.reshape(gx.shape))
+    clear.setflags(write=False)
+    static.grids[key] = clear
+    return clear
