@@ -19,7 +19,8 @@ DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "default.toml"
 SHORT = DEFAULT.parent / "experiments" / "scenarios" / "short.toml"
 
 
-@pytest.mark.heavy
+# three whole missions, which no load can change: beside the wall-clock tests (scripts/test)
+@pytest.mark.background
 @pytest.mark.parametrize("controller", ["nurbs", "backstepping", "fuzzy_pid"])
 def test_every_controller_reaches_the_goal_without_collision(controller: str) -> None:
     s, _ = load_scenario(DEFAULT, [f'controller.kind="{controller}"'])
