@@ -31,8 +31,6 @@ def test_ruff_is_clean() -> None:
 
 
 @pytest.mark.heavy  # ~15 s of a cold cache
-# CPU-bound, and no load can change its verdict: beside the wall-clock tests (scripts/test)
-@pytest.mark.background
 def test_mypy_is_clean() -> None:
     res = _run("mypy")  # packages and options from [tool.mypy]
     print(res.stdout, res.stderr)
