@@ -206,6 +206,21 @@ def make_rk4_step(p: PlantParams) -> Rk4Step:
     drag, rates = _bind_rates(p)
     ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
 
+    def slope(
+        s: State, t: float, v_cmd: float, w_cmd: float, ff: float, current: CurrentFn | None
+    ) -> State:
+        # derivatives' at s and t, with the water's velocity added to the kinematics
+        x, y, th, v, w, z = s
+        cx, cy = (0.0, 0.0) if current is None else current(x, y, t)
+        dv, dw, dz = rates(v, w, z, v_cmd, w_cmd, ff)
+        return v * cos(th) + cx, v * sin(th) + cy, w, dv, dw, dz
+
+    def ahead(s: State, a: float, k: State) -> State:
+        # s + a k: the point a stage is evaluated at
+        x, y, th, v, w, z = s
+        kx, ky, kt, kv, kw, kz = k
+        return x + a * kx, y + a * ky, th + a * kt, v + a * kv, w + a * kw, z + a * kz
+
     def step(
         s: State, h: float, v_cmd: float, w_cmd: float, t: float, current: CurrentFn | None
     ) -> State:
@@ -213,28 +228,18 @@ def make_rk4_step(p: PlantParams) -> Rk4Step:
             ff_of[0], ff_of[1] = v_cmd, drag(v_cmd)
         ff = ff_of[1]
         hh = 0.5 * h
-        x0, y0, th0, v0, w0, z0 = s
-        # stage 1 at s; then stages 2, 3 at s + h/2 k and 4 at s + h k3 (_axpy)
-        c1x, c1y = (0.0, 0.0) if current is None else current(x0, y0, t)
-        k1x, k1y = v0 * cos(th0) + c1x, v0 * sin(th0) + c1y
-        k1v, k1w, k1z = rates(v0, w0, z0, v_cmd, w_cmd, ff)
-        x, y, th = x0 + hh * k1x, y0 + hh * k1y, th0 + hh * w0
-        v, w, z = v0 + hh * k1v, w0 + hh * k1w, z0 + hh * k1z
-        c2x, c2y = (0.0, 0.0) if current is None else current(x, y, t + hh)
-        k2x, k2y, k2t = v * cos(th) + c2x, v * sin(th) + c2y, w
-        k2v, k2w, k2z = rates(v, w, z, v_cmd, w_cmd, ff)
-        x, y, th = x0 + hh * k2x, y0 + hh * k2y, th0 + hh * k2t
-        v, w, z = v0 + hh * k2v, w0 + hh * k2w, z0 + hh * k2z
-        c3x, c3y = (0.0, 0.0) if current is None else current(x, y, t + hh)
-        k3x, k3y, k3t = v * cos(th) + c3x, v * sin(th) + c3y, w
-        k3v, k3w, k3z = rates(v, w, z, v_cmd, w_cmd, ff)
-        x, y, th = x0 + h * k3x, y0 + h * k3y, th0 + h * k3t
-        v, w, z = v0 + h * k3v, w0 + h * k3w, z0 + h * k3z
-        c4x, c4y = (0.0, 0.0) if current is None else current(x, y, t + h)
-        k4x, k4y, k4t = v * cos(th) + c4x, v * sin(th) + c4y, w
-        k4v, k4w, k4z = rates(v, w, z, v_cmd, w_cmd, ff)
+        # classical RK4: k1 at s, k2 and k3 at s + h/2 k (the stage before), k4 at s + h k3
+        k1 = slope(s, t, v_cmd, w_cmd, ff, current)
+        k2 = slope(ahead(s, hh, k1), t + hh, v_cmd, w_cmd, ff, current)
+        k3 = slope(ahead(s, hh, k2), t + hh, v_cmd, w_cmd, ff, current)
+        k4 = slope(ahead(s, h, k3), t + h, v_cmd, w_cmd, ff, current)
         h6 = h / 6.0
         # s + h/6 (k1 + 2 k2 + 2 k3 + k4), component by component
+        x0, y0, th0, v0, w0, z0 = s
+        k1x, k1y, _, k1v, k1w, k1z = k1
+        k2x, k2y, k2t, k2v, k2w, k2z = k2
+        k3x, k3y, k3t, k3v, k3w, k3z = k3
+        k4x, k4y, k4t, k4v, k4w, k4z = k4
         v = v0 + h6 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         w = w0 + h6 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
         v = 0.0 if v < 0.0 else v_max if v > v_max else v
