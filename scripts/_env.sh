@@ -12,16 +12,19 @@ if ! "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>
 fi
 if [ ! -x "$VENV/bin/python" ]; then
   echo "== creating virtual environment in .venv"
-  "$PY" -m venv "$VENV"
+  # without pip (ensurepip takes seconds): uv installs into it, pip only if uv cannot
+  "$PY" -m venv --without-pip "$VENV"
 fi
 if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
   echo "== installing tidelink and its dependencies into .venv"
   # uv (from PyPI) fetches and installs the wheels in parallel, in seconds where pip takes
-  # half a minute; pip does it if uv cannot
-  if ! { "$VENV/bin/python" -m pip install --quiet uv &&
-         "$VENV/bin/python" -m uv pip install --quiet --compile-bytecode --python "$VENV/bin/python" \
-           -e "$ROOT[dev]"; }; then
+  # half a minute. No bytecode is compiled ahead: Python compiles (and caches) the modules a
+  # run imports, a fraction of the environment's, on first import
+  if ! { "$PY" -m pip --python "$VENV/bin/python" install --quiet uv &&
+         "$VENV/bin/python" -m uv pip install --quiet --python "$VENV/bin/python" -e "$ROOT[dev]"; }
+  then
     echo "== uv could not install; installing with pip"
+    "$VENV/bin/python" -m ensurepip --upgrade >/dev/null
     "$VENV/bin/python" -m pip install --quiet -e "$ROOT[dev]"
   fi
   touch "$STAMP"
