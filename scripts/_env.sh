@@ -10,6 +10,9 @@ if ! "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>
   echo "tidelink needs Python >= 3.11 (found: $("$PY" --version 2>&1)); set PYTHON=/path/to/python3.11" >&2
   exit 1
 fi
+# a run starts dozens of Python processes (services, routers, tools, test workers): each one
+# compiled every module from source again where the environment forbids bytecode caches
+unset PYTHONDONTWRITEBYTECODE
 if [ ! -x "$VENV/bin/python" ]; then
   echo "== creating virtual environment in .venv"
   # without pip (ensurepip takes seconds): uv installs into it, pip only if uv cannot
@@ -27,12 +30,15 @@ if [ ! -f "$STAMP" ] || [ "$ROOT/pyproject.toml" -nt "$STAMP" ]; then
     "$VENV/bin/python" -m ensurepip --upgrade >/dev/null
     "$VENV/bin/python" -m pip install --quiet -e "$ROOT[dev]"
   fi
+  # compile (and cache) what a run imports once, here: left to the first run, every process
+  # it starts at once (test workers, services) compiled the same modules again
+  "$VENV/bin/python" -c 'import importlib, services.cli, matplotlib.pyplot
+from common.runtime.processes.forkserver import PRELOAD
+for m in (*PRELOAD, "services.experiments", "services.monitor", "services.foxglove"):
+    importlib.import_module(m)'
   touch "$STAMP"
 fi
 export PATH="$VENV/bin:$PATH"
-# a run starts dozens of Python processes (services, routers, tools, test workers): each one
-# compiled every module from source again where the environment forbids bytecode caches
-unset PYTHONDONTWRITEBYTECODE
 # one BLAS thread per process (common/__init__.py), also for the benchmarks that load numpy
 # before tidelink; a setting of the user's own wins
 export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
