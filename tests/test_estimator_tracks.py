@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
@@ -21,6 +23,7 @@ from services.estimator.imm import (
     combine,
     innovation,
     kf_predict,
+    kf_update,
     mix,
     process_noise,
     switch_matrix,
@@ -325,3 +328,33 @@ def test_tracks_predicted_together_are_each_predicted_bit_for_bit() -> None:
         x, P = combine(*alone)
         xs, Ps = combine(*together)
         assert np.array_equal(x, xs[k]) and np.array_equal(P, Ps[k])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    xs=st.lists(st.floats(-100.0, 100.0), min_size=12, max_size=12),
+    a=st.lists(st.floats(-3.0, 3.0), min_size=72, max_size=72),
+    z=st.lists(st.floats(-100.0, 100.0), min_size=2, max_size=2),
+    var=st.floats(1e-12, 4.0),
+    p=st.floats(0.0, 1.0),
+)
+def test_the_modes_updated_together_are_filterpys_update_bit_for_bit(
+    xs: list[float], a: list[float], z: list[float], var: float, p: float
+) -> None:
+    # ImmFilter.update updates both modes in one stack (kf_update): each mode is what
+    # filterpy's KalmanFilter.update makes of it alone, symmetrised
+    from filterpy.kalman import KalmanFilter
+
+    A = np.array(a).reshape(2, 6, 6)
+    m = Modes(np.array(xs).reshape(2, 6), A @ A.swapaxes(1, 2), np.array([p, 1.0 - p]))
+    zz, R = np.array(z), np.eye(2) * var
+    got = ImmFilter(0.05, 0.4, 60.0, 3.0).update(m, zz, R)
+    ys, _ = innovation(m.xs, m.Ps, zz, R)
+    x2, P2 = kf_update(m.xs, m.Ps, ys, R)
+    kf = KalmanFilter(dim_x=6, dim_z=2)
+    kf.H = H_POS
+    for j in range(2):
+        kf.x, kf.P = m.xs[j], m.Ps[j]
+        kf.update(zz, R=R)
+        assert np.array_equal(x2[j], kf.x) and np.array_equal(P2[j], kf.P)
+        assert np.array_equal(got.xs[j], kf.x) and np.array_equal(got.Ps[j], 0.5 * (kf.P + kf.P.T))
