@@ -21,12 +21,15 @@ def healthy(x: FloatArray, P: FloatArray) -> bool:
     healthy could not even be published.
     """
     # checked on Python floats: every track and every vehicle belief is checked each step,
-    # and on arrays this small numpy's isfinite/all calls cost five times as much
+    # and on arrays this small numpy's isfinite/all calls cost five times as much. A sum is
+    # finite only if every term is (an inf or a NaN absorbs every later addition): one sum
+    # says so for all entries; only a sum that is not (or overflowed) asks each entry
     isfinite = math.isfinite
+    xs, ps = x.tolist(), P.ravel().tolist()
     d = P.diagonal().tolist()
     return (
-        all(map(isfinite, x.tolist()))
-        and all(map(isfinite, P.ravel().tolist()))
+        (isfinite(sum(xs)) or all(map(isfinite, xs)))
+        and (isfinite(sum(ps)) or all(map(isfinite, ps)))
         and min(d) >= 0.0
         and max(d) <= MAX_VARIANCE
     )
