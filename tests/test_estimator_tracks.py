@@ -358,3 +358,29 @@ def test_the_modes_updated_together_are_filterpys_update_bit_for_bit(
         kf.update(zz, R=R)
         assert np.array_equal(x2[j], kf.x) and np.array_equal(P2[j], kf.P)
         assert np.array_equal(got.xs[j], kf.x) and np.array_equal(got.Ps[j], 0.5 * (kf.P + kf.P.T))
+
+
+def test_a_scans_tracks_predicted_together_fuse_as_one_by_one_bit_for_bit() -> None:
+    # ObstacleTracker.fuse predicts the tracks a scan updates together (_priors): the tracks
+    # come out as predicted one by one, an id detected twice in a scan (the second detection
+    # fuses into the first's posterior), a gated-out and a new id included
+    rng = np.random.default_rng(13)
+    together, alone = ObstacleTracker(EstimatorConfig()), ObstacleTracker(EstimatorConfig())
+    alone._priors = lambda *_: {}  # type: ignore[method-assign]
+    states = [TrackerState(tracks={}), TrackerState(tracks={})]
+    for k in range(40):
+        t = 0.2 * k + 0.01 * rng.uniform()
+        z = rng.standard_normal((6, 2)) * 0.2
+        ids = [1, 2, 3, 3] if k % 7 else [1, 2, 4]
+        dets = [_det(i, 10.0 * i + 0.5 * t + z[j, 0], 8.0 + z[j, 1]) for j, i in enumerate(ids)]
+        if k == 20:
+            dets.append(_det(2, 500.0, 500.0))  # far outside the gate
+        scan = ObstacleDetections(stamp=t, detections=tuple(dets))
+        states = [tr.fuse(s, scan) for tr, s in zip((together, alone), states, strict=True)]
+        a, b = states
+        assert a.tracks.keys() == b.tracks.keys() and a.gated_out == b.gated_out
+        for oid, ta in a.tracks.items():
+            tb = b.tracks[oid]
+            assert (ta.stamp, ta.radius, ta.radius_var) == (tb.stamp, tb.radius, tb.radius_var)
+            assert all(np.array_equal(u, v) for u, v in zip(ta.modes, tb.modes, strict=True))
+    assert states[0].gated_out == 1

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
 from common.guard import MAX_ITEMS
-from common.messages import ObstacleDetections, Track
+from common.messages import Detection, ObstacleDetections, Track
 from services.estimator.gate import ChiSquareGate
 from services.estimator.health import healthy
 from services.estimator.imm import ImmFilter, Modes, combine, innovation
@@ -88,6 +88,26 @@ class ObstacleTracker:
             radius_var=r_var,
         )
 
+    def _priors(
+        self, tracks: Mapping[int, TrackBelief], detections: Sequence[Detection], stamp: float
+    ) -> dict[int, tuple[TrackBelief, Modes]]:
+        """The tracks these detections update, each predicted to the scan's stamp, by id (with
+        the belief predicted): all together (ImmFilter.predict_many: the same floats as one
+        by one, for one numpy call per operation), those at least two that a scan predicts."""
+        timeout = self.cfg.track_timeout_s
+        ahead = {}
+        for det in detections:
+            b = tracks.get(det.id)
+            if b is not None and 0.0 < stamp - b.stamp <= timeout:
+                ahead[det.id] = b
+        if len(ahead) < 2:
+            return {}
+        beliefs = list(ahead.values())
+        m = self._imm.predict_many([b.modes for b in beliefs], [stamp - b.stamp for b in beliefs])
+        return {
+            oid: (b, Modes(m.xs[k], m.Ps[k], m.mu[k])) for k, (oid, b) in enumerate(ahead.items())
+        }
+
     def _gates(self, m: Modes, z: FloatArray, R: FloatArray) -> bool:
         """Whether detection z falls in the track's gate: the combined belief's, or any one
         mode's. A manoeuvre starts where the steady mode, which dominates the mixture, is
@@ -103,7 +123,9 @@ class ObstacleTracker:
         # forget tracks that can never be published again (t >= msg.stamp from now on)
         out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= self._memory_s}
         gated_out, refused, resets = state.gated_out, state.refused, state.resets
-        for det in sorted(msg.detections, key=lambda d: d.id):
+        detections = sorted(msg.detections, key=lambda d: d.id)
+        priors = self._priors(out, detections, msg.stamp)
+        for det in detections:
             z = np.array([det.x, det.y])
             var = max(det.std_xy**2, 1e-12)
             r_var = max(det.std_radius**2, 1e-12)
@@ -116,7 +138,12 @@ class ObstacleTracker:
                     continue
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
                 continue
-            prior = self._imm.predict(b.modes, msg.stamp - b.stamp)
+            # predicted with the scan's others, unless this id was updated by the scan already
+            ahead = priors.get(det.id)
+            if ahead is not None and ahead[0] is b:
+                prior = ahead[1]
+            else:
+                prior = self._imm.predict(b.modes, msg.stamp - b.stamp)
             R = np.eye(2) * var
             if not self._gates(prior, z, R):
                 gated_out += 1
