@@ -296,7 +296,7 @@ entries = st.one_of(
 def test_healthy_is_its_numpy_definition(n: int, values: list[float], sparse: bool) -> None:
     # health.py checks on Python floats what these numpy reductions say: every entry finite,
     # every variance in [0, MAX_VARIANCE]
-    from services.estimator.health import MAX_VARIANCE, healthy
+    from services.estimator.health import MAX_VARIANCE, healthy, healthy_entries
 
     a = np.array(values[: n + n * n])
     if sparse:  # mostly healthy beliefs, one bad entry at most
@@ -312,6 +312,9 @@ def test_healthy_is_its_numpy_definition(n: int, values: list[float], sparse: bo
     )
     assert healthy(x, P) is want
     assert healthy(x, P.T) is want  # not contiguous
+    # on Python floats, P's rows and columns permuted alike (tracks.py: the wire's order)
+    back = np.arange(n)[::-1]
+    assert healthy_entries(x.tolist(), P[np.ix_(back, back)].ravel().tolist()) is want
 
 
 def test_healthy_when_the_sum_of_finite_entries_overflows() -> None:

@@ -14,7 +14,7 @@ from common.config.sensor import SensorConfig
 from common.guard import MAX_ITEMS
 from common.messages import Detection, ObstacleDetections, Track
 from services.estimator.gate import ChiSquareGate
-from services.estimator.health import healthy
+from services.estimator.health import healthy, healthy_entries
 from services.estimator.imm import ImmFilter, Modes, combine, innovation
 
 FloatArray = NDArray[np.float64]
@@ -210,11 +210,13 @@ class ObstacleTracker:
         predicted = self.predict_all([b for _, b in kept], t)
         for (oid, b), (x, P) in zip(kept, predicted, strict=True):
             age = t - b.stamp
-            if not healthy(x, P):
+            # Python floats, the covariance row-major in the wire's order (as healthy as P)
+            state, covariance = x.tolist(), P.take(_TO_MSG_FLAT).tolist()
+            if not healthy_entries(state, covariance):
                 continue  # never publish a non-finite track (its next detection restarts it)
             if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
                 continue  # where the sonar would see it, and does not: gone
-            px, pvx, pax, py, pvy, pay = x.tolist()
+            px, pvx, pax, py, pvy, pay = state
             out.append(
                 Track(
                     id=oid,
@@ -225,7 +227,7 @@ class ObstacleTracker:
                     ax=pax,
                     ay=pay,
                     radius=max(0.0, b.radius),
-                    covariance=tuple(P.take(_TO_MSG_FLAT).tolist()),  # Python floats, row-major
+                    covariance=tuple(covariance),
                 )
             )
         return tuple(out)
