@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -203,31 +203,45 @@ class ImmFilter:
 
     def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
         """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities
-        follow their likelihoods."""
-        # both modes' innovations, log-determinants and S^-1 y at once: numpy's linalg runs
+        follow their likelihoods. Of one belief, or of a stack of them (xs (k, 2, 6), Ps (k,
+        2, 6, 6), mu (k, 2); z (k, 2), R (k, 2, 2)): the same floats as one by one."""
+        # every mode's innovations, log-determinants and S^-1 y at once: numpy's linalg runs
         # the same LAPACK routine on each matrix of a stack as on one alone
-        ys, Ss = innovation(m.xs, m.Ps, z, R)
+        Rs = R[..., None, :, :]  # the detection's noise, for each mode
+        ys, Ss = innovation(m.xs, m.Ps, z[..., None, :], Rs)
         _, logdets = np.linalg.slogdet(2.0 * math.pi * Ss)
         sols = np.linalg.solve(Ss, ys[..., None])[..., 0]
-        xs, Ps = kf_update(m.xs, m.Ps, ys, R)
-        loglik = [-0.5 * (float(ys[j] @ sols[j]) + logdets[j]) for j in range(len(ys))]
-        ll = np.array(loglik)
-        post = m.mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
-        total = float(post.sum())
+        xs, Ps = kf_update(m.xs, m.Ps, ys, Rs)
         Ps = 0.5 * (Ps + Ps.swapaxes(-1, -2))
-        if not (total > 0.0 and np.isfinite(total)):
-            # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
-            return Modes(xs, Ps, m.mu)
-        return Modes(xs, Ps, post / total)
+        if m.mu.ndim == 1:
+            return Modes(xs, Ps, _posterior_mu(m.mu, ys, sols, logdets))
+        mus = [_posterior_mu(*one) for one in zip(m.mu, ys, sols, logdets, strict=True)]
+        return Modes(xs, Ps, np.array(mus))
+
+
+def _posterior_mu(
+    mu: FloatArray, ys: FloatArray, sols: NDArray[np.floating[Any]], logdets: FloatArray
+) -> FloatArray:
+    """The mode probabilities mu (2,) after a detection: each mode's likelihood from its
+    innovation ys[j], S^-1 ys[j] (sols[j]) and log det(2 pi S) (logdets[j])."""
+    loglik = [-0.5 * (float(ys[j] @ sols[j]) + logdets[j]) for j in range(len(ys))]
+    ll = np.array(loglik)
+    post = mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
+    total = float(post.sum())
+    if not (total > 0.0 and np.isfinite(total)):
+        # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
+        return mu
+    return post / total
 
 
 def kf_update(
     xs: FloatArray, Ps: FloatArray, ys: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Kalman update of each belief of a stack (xs: (k, 6), Ps: (k, 6, 6)) with its
-    innovation ys (k, 2) = z - H x of a detection of noise R (2, 2), H = H_POS: filterpy's
-    KalmanFilter.update, Joseph form, bit for bit (matmul runs BLAS's gemv and gemm on each
-    belief, as np.dot does on one; numpy's inv the same LAPACK routine)."""
+    innovation ys (k, 2) = z - H x of a detection of noise R ((2, 2), or one per belief),
+    H = H_POS: filterpy's KalmanFilter.update, Joseph form, bit for bit (matmul runs BLAS's
+    gemv and gemm on each belief, as np.dot does on one; numpy's inv the same LAPACK
+    routine)."""
     HT = H_POS.T
     PHT = np.matmul(Ps, HT)
     K = np.matmul(PHT, np.linalg.inv(np.matmul(H_POS, PHT) + R))  # K = P H' S^-1
