@@ -280,12 +280,14 @@ def test_no_input_makes_the_estimator_raise_hang_or_publish_non_finite_values(
     assert all(n > 0 for n in core.inputs_rejected.values())
 
 
+# finite entries whose sum overflows too (1.7e308: health.py sums the entries first)
 entries = st.one_of(
-    st.floats(-2e12, 2e12), st.sampled_from([math.nan, math.inf, -math.inf, 1e12, -0.0])
+    st.floats(-2e12, 2e12),
+    st.sampled_from([math.nan, math.inf, -math.inf, 1e12, -0.0, 1.7e308, -1.7e308]),
 )
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(
     n=st.integers(1, 9),
     values=st.lists(entries, min_size=90, max_size=90),
@@ -294,7 +296,7 @@ entries = st.one_of(
 def test_healthy_is_its_numpy_definition(n: int, values: list[float], sparse: bool) -> None:
     # health.py checks on Python floats what these numpy reductions say: every entry finite,
     # every variance in [0, MAX_VARIANCE]
-    from services.estimator.health import MAX_VARIANCE, healthy
+    from services.estimator.health import MAX_VARIANCE, healthy, healthy_entries
 
     a = np.array(values[: n + n * n])
     if sparse:  # mostly healthy beliefs, one bad entry at most
@@ -310,6 +312,19 @@ def test_healthy_is_its_numpy_definition(n: int, values: list[float], sparse: bo
     )
     assert healthy(x, P) is want
     assert healthy(x, P.T) is want  # not contiguous
+    # on Python floats, P's rows and columns permuted alike (tracks.py: the wire's order)
+    back = np.arange(n)[::-1]
+    assert healthy_entries(x.tolist(), P[np.ix_(back, back)].ravel().tolist()) is want
+
+
+def test_healthy_when_the_sum_of_finite_entries_overflows() -> None:
+    from services.estimator.health import healthy
+
+    big = np.full(3, 1.7e308)  # finite, their sum is not
+    P = np.eye(3)
+    assert healthy(big, P)
+    assert healthy(np.zeros(3), np.where(P > 0.0, 1.0, 1.7e308))  # the off-diagonal sum
+    assert not healthy(np.array([1.7e308, 1.7e308, math.nan]), P)
 
 
 def test_the_replay_buffer_keeps_at_most_max_entries() -> None:

@@ -258,3 +258,130 @@ def test_the_gates_chi_square_quantile_is_scipys(dof: int, probability: float) -
     from scipy.stats import chi2
 
     assert chi2_quantile(probability, dof) == pytest.approx(chi2.ppf(probability, dof), rel=1e-12)
+
+
+def _filterpy_ekf(cfg: EstimatorConfig) -> object:
+    """The vehicle EKF as it was written over filterpy's ExtendedKalmanFilter: the reference
+    EkfVehicleFilter holds to bit for bit."""
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    from services.estimator.unicycle import fx, jacobian_at, process_noise_at
+    from services.estimator.vehicle_filter import EkfVehicleFilter, _tidy
+
+    class Unicycle(ExtendedKalmanFilter):
+        x: np.ndarray
+        step_dt = 0.0
+
+        def predict_x(self, u: object = 0) -> None:
+            self.x = fx(self.x, self.step_dt, cfg.sway_tau_s)
+
+    class Reference(EkfVehicleFilter):
+        def __init__(self) -> None:
+            super().__init__(cfg)
+            self._ekf = Unicycle(dim_x=9, dim_z=4)
+
+        def advance(self, x, P, n, h):  # type: ignore[no-untyped-def]
+            ekf = self._ekf
+            ekf.x, ekf.P, ekf.step_dt = x, P, h
+            F0, Q0 = self.fixed(h)
+            for _ in range(n):
+                ekf.F = jacobian_at(F0.copy(), ekf.x, h)
+                ekf.Q = process_noise_at(Q0.copy(), ekf.x, h, self._q[0])
+                ekf.predict()
+            return _tidy(ekf.x, ekf.P)
+
+        def update(self, x, P, obs):  # type: ignore[no-untyped-def]
+            ekf = self._ekf
+            ekf.x, ekf.P = x.copy(), P.copy()
+            ekf.update(obs.z, obs.H, obs.hx, R=obs.R, residual=obs.residual)
+            return _tidy(ekf.x, ekf.P)
+
+    return Reference()
+
+
+_finite = st.floats(-50.0, 50.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    s=st.lists(_finite, min_size=9, max_size=9),
+    a=st.lists(st.floats(-3.0, 3.0), min_size=81, max_size=81),
+    dt=st.sampled_from([0.0, 0.01, 0.1, 0.1000000000000001, 0.35, 2.7]),
+    kind=st.sampled_from(["fix", "odometry", "dvl", "position"]),
+    z=st.lists(_finite, min_size=5, max_size=5),
+    std=st.floats(0.0, 2.0),
+)
+def test_ekf_is_filterpys_ekf_bit_for_bit(
+    s: list[float], a: list[float], dt: float, kind: str, z: list[float], std: float
+) -> None:
+    # EkfVehicleFilter runs filterpy's EKF equations without its object: the same floats
+    from common.messages import Odometry, PositionFix
+    from services.estimator.measurements import of_fix, of_odometry, of_position
+    from services.estimator.vehicle_filter import EkfVehicleFilter
+
+    cfg = EstimatorConfig()
+    x = np.array(s)
+    A = np.array(a).reshape(9, 9)
+    P = A @ A.T + 1e-6 * np.eye(9)
+    if kind == "fix":
+        fix = NavFix(
+            stamp=1.0,
+            seq=1,
+            x=z[0],
+            y=z[1],
+            heading=z[2] / 16.0,
+            speed=z[3],
+            std_xy=std,
+            std_heading=std / 10.0,
+            std_speed=std,
+        )
+        obs = of_fix(fix, np.array([fix.x, fix.y, fix.heading, fix.speed]))
+    elif kind == "position":
+        obs = of_position(PositionFix(stamp=1.0, seq=1, x=z[0], y=z[1], std_xy=std))
+    else:
+        obs = of_odometry(
+            Odometry(
+                stamp=1.0,
+                seq=1,
+                heading=z[0] / 16.0,
+                yaw_rate=z[1] / 50.0,
+                water_speed=z[2],
+                bottom_lock=kind == "dvl",
+                u_ground=z[3],
+                v_ground=z[4],
+                std_heading=std / 10.0,
+                std_yaw_rate=std / 10.0,
+                std_water_speed=std,
+                std_velocity=std,
+            )
+        )
+    ours, ref = EkfVehicleFilter(cfg), _filterpy_ekf(cfg)
+    want = ref.predict(x, P, dt)  # type: ignore[attr-defined]
+    got = ours.predict(x, P, dt)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+    try:
+        want = ref.update(*want, obs)  # type: ignore[attr-defined]
+    except (ArithmeticError, ValueError) as e:
+        with pytest.raises(type(e)):
+            ours.update(*got, obs)
+        return
+    got = ours.update(*got, obs)
+    assert all(np.array_equal(g, w, equal_nan=True) for g, w in zip(got, want, strict=True))
+
+
+def test_ekf_refuses_a_non_finite_innovation_as_filterpys() -> None:
+    # scipy's check made filterpy's update raise ValueError on a non-finite S; ours too
+    from services.estimator.measurements import of_fix
+    from services.estimator.vehicle_filter import EkfVehicleFilter
+
+    cfg = EstimatorConfig()
+    fix = NavFix(
+        stamp=1.0, x=1.0, y=2.0, heading=0.1, speed=1.0, std_xy=0.5, std_heading=0.05, std_speed=0.1
+    )
+    obs = of_fix(fix, np.array([1.0, 2.0, 0.1, 1.0]))
+    for bad in (math.inf, -math.inf, math.nan):
+        P = np.eye(9)
+        P[1, 1] = bad
+        for f in (EkfVehicleFilter(cfg), _filterpy_ekf(cfg)):
+            with pytest.raises(ValueError):
+                f.update(np.zeros(9), P, obs)  # type: ignore[attr-defined]

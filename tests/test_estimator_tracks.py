@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
@@ -21,6 +23,7 @@ from services.estimator.imm import (
     combine,
     innovation,
     kf_predict,
+    kf_update,
     mix,
     process_noise,
     switch_matrix,
@@ -325,3 +328,92 @@ def test_tracks_predicted_together_are_each_predicted_bit_for_bit() -> None:
         x, P = combine(*alone)
         xs, Ps = combine(*together)
         assert np.array_equal(x, xs[k]) and np.array_equal(P, Ps[k])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    xs=st.lists(st.floats(-100.0, 100.0), min_size=12, max_size=12),
+    a=st.lists(st.floats(-3.0, 3.0), min_size=72, max_size=72),
+    z=st.lists(st.floats(-100.0, 100.0), min_size=2, max_size=2),
+    var=st.floats(1e-12, 4.0),
+    p=st.floats(0.0, 1.0),
+)
+def test_the_modes_updated_together_are_filterpys_update_bit_for_bit(
+    xs: list[float], a: list[float], z: list[float], var: float, p: float
+) -> None:
+    # ImmFilter.update updates both modes in one stack (kf_update): each mode is what
+    # filterpy's KalmanFilter.update makes of it alone, symmetrised
+    from filterpy.kalman import KalmanFilter
+
+    A = np.array(a).reshape(2, 6, 6)
+    m = Modes(np.array(xs).reshape(2, 6), A @ A.swapaxes(1, 2), np.array([p, 1.0 - p]))
+    zz, R = np.array(z), np.eye(2) * var
+    got = ImmFilter(0.05, 0.4, 60.0, 3.0).update(m, zz, R)
+    ys, _ = innovation(m.xs, m.Ps, zz, R)
+    x2, P2 = kf_update(m.xs, m.Ps, ys, R)
+    kf = KalmanFilter(dim_x=6, dim_z=2)
+    kf.H = H_POS
+    for j in range(2):
+        kf.x, kf.P = m.xs[j], m.Ps[j]
+        kf.update(zz, R=R)
+        assert np.array_equal(x2[j], kf.x) and np.array_equal(P2[j], kf.P)
+        assert np.array_equal(got.xs[j], kf.x) and np.array_equal(got.Ps[j], 0.5 * (kf.P + kf.P.T))
+
+
+def test_a_scans_tracks_fused_together_fuse_as_one_by_one_bit_for_bit() -> None:
+    # ObstacleTracker.fuse predicts, gates and updates the tracks a scan updates together
+    # (_fused_together): the tracks come out as fused one by one, an id detected twice in a
+    # scan (the second detection fuses into the first's posterior), a gated-out and a new id
+    # included
+    rng = np.random.default_rng(13)
+    together, alone = ObstacleTracker(EstimatorConfig()), ObstacleTracker(EstimatorConfig())
+    alone._fused_together = lambda *_: {}  # type: ignore[method-assign]
+    states = [TrackerState(tracks={}), TrackerState(tracks={})]
+    for k in range(40):
+        t = 0.2 * k + 0.01 * rng.uniform()
+        z = rng.standard_normal((6, 2)) * 0.2
+        ids = [1, 2, 3, 3] if k % 7 else [1, 2, 4]
+        dets = [_det(i, 10.0 * i + 0.5 * t + z[j, 0], 8.0 + z[j, 1]) for j, i in enumerate(ids)]
+        if k == 20:  # far outside the gate: alone (fused together) and a second detection
+            dets[0] = _det(1, 500.0, 500.0)
+            dets.append(_det(2, 500.0, 500.0))
+        scan = ObstacleDetections(stamp=t, detections=tuple(dets))
+        states = [tr.fuse(s, scan) for tr, s in zip((together, alone), states, strict=True)]
+        a, b = states
+        assert a.tracks.keys() == b.tracks.keys() and a.gated_out == b.gated_out
+        for oid, ta in a.tracks.items():
+            tb = b.tracks[oid]
+            assert (ta.stamp, ta.radius, ta.radius_var) == (tb.stamp, tb.radius, tb.radius_var)
+            assert all(np.array_equal(u, v) for u, v in zip(ta.modes, tb.modes, strict=True))
+    assert states[0].gated_out == 2
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    xs=st.lists(st.floats(-100.0, 100.0), min_size=36, max_size=36),
+    a=st.lists(st.floats(-3.0, 3.0), min_size=216, max_size=216),
+    z=st.lists(st.floats(-100.0, 100.0), min_size=6, max_size=6),
+    var=st.lists(st.floats(1e-12, 4.0), min_size=3, max_size=3),
+    p=st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
+)
+def test_tracks_gated_and_updated_together_are_each_alone_bit_for_bit(
+    xs: list[float], a: list[float], z: list[float], var: list[float], p: list[float]
+) -> None:
+    # ObstacleTracker._distances and ImmFilter.update on a stack of three tracks: each track
+    # gets the floats the one-track arithmetic gives it (the gate as ChiSquareGate.accepts
+    # forms it, on the combined belief and on each mode)
+    A = np.array(a).reshape(3, 2, 6, 6)
+    mu = np.array([[q, 1.0 - q] for q in p])
+    m = Modes(np.array(xs).reshape(3, 2, 6), A @ A.swapaxes(-1, -2), mu)
+    zs, Rs = np.array(z).reshape(3, 2), np.eye(2) * np.array(var)[:, None, None]
+    distances = ObstacleTracker._distances(m, zs, Rs)
+    imm = ImmFilter(0.05, 0.4, 60.0, 3.0)
+    post = imm.update(m, zs, Rs)
+    for k in range(3):
+        one = Modes(m.xs[k].copy(), m.Ps[k].copy(), m.mu[k].copy())
+        beliefs = (combine(*one), *zip(one.xs, one.Ps, strict=True))
+        for d, (xj, Pj) in zip(distances[k], beliefs, strict=True):
+            y, S = innovation(xj, Pj, zs[k].copy(), Rs[k].copy())
+            assert d == float(y @ np.linalg.solve(S, y))
+        alone = imm.update(one, zs[k].copy(), Rs[k].copy())
+        assert all(np.array_equal(u[k], v) for u, v in zip(post, alone, strict=True))

@@ -22,11 +22,19 @@ def healthy(x: FloatArray, P: FloatArray) -> bool:
     """
     # checked on Python floats: every track and every vehicle belief is checked each step,
     # and on arrays this small numpy's isfinite/all calls cost five times as much
+    return healthy_entries(x.tolist(), P.ravel().tolist())
+
+
+def healthy_entries(x: list[float], P: list[float]) -> bool:
+    """`healthy` of x (n,) and P (n * n,), row-major, as Python floats; P's rows and columns
+    may be permuted alike (the answer is the same: a caller reuses a reordered P)."""
+    # A sum is finite only if every term is (an inf or a NaN absorbs every later addition):
+    # one sum says so for all entries; only a sum that is not (or overflowed) asks each entry
     isfinite = math.isfinite
-    d = P.diagonal().tolist()
+    d = P[:: len(x) + 1]  # the diagonal
     return (
-        all(map(isfinite, x.tolist()))
-        and all(map(isfinite, P.ravel().tolist()))
+        (isfinite(sum(x)) or all(map(isfinite, x)))
+        and (isfinite(sum(P)) or all(map(isfinite, P)))
         and min(d) >= 0.0
         and max(d) <= MAX_VARIANCE
     )

@@ -2,9 +2,9 @@
 
 Both modes share the state [x, vx, ax, y, vy, ay] (filterpy's order_by_dim); the CV mode
 holds the acceleration at zero. Mixing and combination follow Bar-Shalom's IMM; the
-per-mode update runs through filterpy's KalmanFilter, the per-mode predict through
-`kf_predict`, the same equations as filterpy's KalmanFilter.predict without its object
-overhead (the estimator predicts every track to every publish time: the hot path).
+per-mode predict and update run through `kf_predict` and `kf_update`, the same equations as
+filterpy's KalmanFilter.predict and .update without its object overhead (the estimator
+predicts every track to every publish time: the hot path).
 
 The two modes are held stacked, xs (2, 6) and Ps (2, 6, 6), and predicted together, and the
 tracks published at one time are predicted together too (`predict_many`): each operation is
@@ -18,18 +18,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-
-from services.estimator.filterpy_lazy import KalmanFilter
 
 FloatArray = NDArray[np.float64]
 
 # (switch matrix, F, Q) kept by dt, at most (ImmFilter._model)
 MAX_MODELS = 1024
 H_POS = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0]])  # a detection sees x, y
+_I6 = np.eye(6)
 
 
 class Modes(NamedTuple):
@@ -154,15 +153,13 @@ def mix(
 
 
 class ImmFilter:
-    """Predict / update of the two-mode IMM through one filterpy KalmanFilter (no state)."""
+    """Predict / update of the two-mode IMM (no state; the models kept by dt)."""
 
     def __init__(
         self, cv_accel_psd: float, ca_jerk_psd: float, sojourn_cv_s: float, sojourn_ca_s: float
     ) -> None:
         self._psd = (cv_accel_psd, ca_jerk_psd)
         self._sojourn = (sojourn_cv_s, sojourn_ca_s)
-        self._kf = KalmanFilter(dim_x=6, dim_z=2)
-        self._kf.H = H_POS
         # the switch matrix and (F, Q) of both modes stacked, by dt: steps repeat (scan and
         # publish periods), and building them dominates the cost otherwise; cached arrays are
         # never written to. A mission asks a few hundred distinct dt (coasting tracks, float
@@ -206,25 +203,50 @@ class ImmFilter:
 
     def update(self, m: Modes, z: FloatArray, R: FloatArray) -> Modes:
         """Update every mode with the detection z (2,), noise R (2, 2); mode probabilities
-        follow their likelihoods."""
-        kf = self._kf
-        xs, Ps = np.empty_like(m.xs), np.empty_like(m.Ps)
-        # both modes' innovations, log-determinants and S^-1 y at once: numpy's linalg runs
+        follow their likelihoods. Of one belief, or of a stack of them (xs (k, 2, 6), Ps (k,
+        2, 6, 6), mu (k, 2); z (k, 2), R (k, 2, 2)): the same floats as one by one."""
+        # every mode's innovations, log-determinants and S^-1 y at once: numpy's linalg runs
         # the same LAPACK routine on each matrix of a stack as on one alone
-        ys, Ss = innovation(m.xs, m.Ps, z, R)
+        Rs = R[..., None, :, :]  # the detection's noise, for each mode
+        ys, Ss = innovation(m.xs, m.Ps, z[..., None, :], Rs)
         _, logdets = np.linalg.slogdet(2.0 * math.pi * Ss)
         sols = np.linalg.solve(Ss, ys[..., None])[..., 0]
-        loglik = []
-        for j, (xj, Pj) in enumerate(zip(m.xs, m.Ps, strict=True)):
-            loglik.append(-0.5 * (float(ys[j] @ sols[j]) + logdets[j]))
-            kf.x, kf.P = xj, Pj  # read only: update assigns new arrays to kf.x, kf.P
-            kf.update(z, R=R)
-            xs[j] = kf.x
-            Ps[j] = 0.5 * (kf.P + kf.P.T)
-        ll = np.array(loglik)
-        post = m.mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
-        total = float(post.sum())
-        if not (total > 0.0 and np.isfinite(total)):
-            # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
-            return Modes(xs, Ps, m.mu)
-        return Modes(xs, Ps, post / total)
+        xs, Ps = kf_update(m.xs, m.Ps, ys, Rs)
+        Ps = 0.5 * (Ps + Ps.swapaxes(-1, -2))
+        if m.mu.ndim == 1:
+            return Modes(xs, Ps, _posterior_mu(m.mu, ys, sols, logdets))
+        mus = [_posterior_mu(*one) for one in zip(m.mu, ys, sols, logdets, strict=True)]
+        return Modes(xs, Ps, np.array(mus))
+
+
+def _posterior_mu(
+    mu: FloatArray, ys: FloatArray, sols: NDArray[np.floating[Any]], logdets: FloatArray
+) -> FloatArray:
+    """The mode probabilities mu (2,) after a detection: each mode's likelihood from its
+    innovation ys[j], S^-1 ys[j] (sols[j]) and log det(2 pi S) (logdets[j])."""
+    loglik = [-0.5 * (float(ys[j] @ sols[j]) + logdets[j]) for j in range(len(ys))]
+    ll = np.array(loglik)
+    post = mu * np.exp(ll - ll.max())  # log-sum-exp guard against underflow
+    total = float(post.sum())
+    if not (total > 0.0 and np.isfinite(total)):
+        # every mode's likelihood underflowed (or was NaN): keep the prior probabilities
+        return mu
+    return post / total
+
+
+def kf_update(
+    xs: FloatArray, Ps: FloatArray, ys: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman update of each belief of a stack (xs: (k, 6), Ps: (k, 6, 6)) with its
+    innovation ys (k, 2) = z - H x of a detection of noise R ((2, 2), or one per belief),
+    H = H_POS: filterpy's KalmanFilter.update, Joseph form, bit for bit (matmul runs BLAS's
+    gemv and gemm on each belief, as np.dot does on one; numpy's inv the same LAPACK
+    routine)."""
+    HT = H_POS.T
+    PHT = np.matmul(Ps, HT)
+    K = np.matmul(PHT, np.linalg.inv(np.matmul(H_POS, PHT) + R))  # K = P H' S^-1
+    x = xs + np.matmul(K, ys[..., None])[..., 0]
+    I_KH = _I6 - np.matmul(K, H_POS)
+    # P = (I - K H) P (I - K H)' + K R K'
+    KT = K.swapaxes(-1, -2)
+    return x, np.matmul(np.matmul(I_KH, Ps), I_KH.swapaxes(-1, -2)) + np.matmul(K @ R, KT)

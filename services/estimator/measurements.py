@@ -11,6 +11,7 @@ Three kinds reach the vehicle filter (services/estimator/unicycle.py's 7-state s
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -56,9 +57,14 @@ class Observation:
         return self.residual(self.z, self.hx(x)), H @ P @ H.T + self.R
 
 
+@functools.lru_cache(maxsize=64)
 def _diag(*stds: float) -> FloatArray:
+    """The diagonal covariance of these standard deviations (variances at least 1e-12),
+    read-only and kept: a sensor's noise figures repeat in every message of a mission."""
     s = np.asarray(stds, dtype=np.float64)
-    return np.diag(np.maximum(s * s, 1e-12))
+    R = np.diag(np.maximum(s * s, 1e-12))
+    R.flags.writeable = False
+    return R
 
 
 def fix_noise(fix: NavFix) -> FloatArray:

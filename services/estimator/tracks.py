@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -12,9 +13,9 @@ from numpy.typing import NDArray
 from common.config.estimator import EstimatorConfig
 from common.config.sensor import SensorConfig
 from common.guard import MAX_ITEMS
-from common.messages import ObstacleDetections, Track
+from common.messages import Detection, ObstacleDetections, Track
 from services.estimator.gate import ChiSquareGate
-from services.estimator.health import healthy
+from services.estimator.health import healthy, healthy_entries
 from services.estimator.imm import ImmFilter, Modes, combine, innovation
 
 FloatArray = NDArray[np.float64]
@@ -50,6 +51,11 @@ class TrackerState:
     gated_out: int = 0
     refused: int = 0
     resets: int = 0
+
+
+def _variance(std: float) -> float:
+    """A detection's position variance (std^2, at least 1e-12: R stays invertible)."""
+    return max(std**2, 1e-12)
 
 
 class ObstacleTracker:
@@ -88,14 +94,69 @@ class ObstacleTracker:
             radius_var=r_var,
         )
 
-    def _gates(self, m: Modes, z: FloatArray, R: FloatArray) -> bool:
-        """Whether detection z falls in the track's gate: the combined belief's, or any one
-        mode's. A manoeuvre starts where the steady mode, which dominates the mixture, is
-        surest: a gate on the mixture alone would refuse the very detections that tell the
-        manoeuvring mode it is right, and the track would coast on its old velocity.
+    def _fused_together(
+        self, tracks: Mapping[int, TrackBelief], detections: Sequence[Detection], stamp: float
+    ) -> dict[int, tuple[TrackBelief, Modes | None]]:
+        """The scan's detections of tracks it updates (one detection each, the track
+        0 < age <= track_timeout_s), fused together, by id: (the track's belief, its
+        posterior, None if gated out). Each step of `_fused` is then one numpy call per
+        operation for all of them, the same floats as one by one; nothing for fewer than two.
         """
-        beliefs = (combine(*m), *zip(m.xs, m.Ps, strict=True))
-        return any(self.gate.accepts(*innovation(xj, Pj, z, R)) for xj, Pj in beliefs)
+        timeout = self.cfg.track_timeout_s
+        times = Counter(det.id for det in detections)
+        ahead = [
+            (det, b)
+            for det in detections
+            if times[det.id] == 1
+            and (b := tracks.get(det.id)) is not None
+            and 0.0 < stamp - b.stamp <= timeout
+        ]
+        if len(ahead) < 2:
+            return {}
+        m = self._imm.predict_many([b.modes for _, b in ahead], [stamp - b.stamp for _, b in ahead])
+        z = np.array([[det.x, det.y] for det, _ in ahead])
+        R = np.eye(2) * np.array([_variance(det.std_xy) for det, _ in ahead])[:, None, None]
+        inside = np.flatnonzero(self._gates(m, z, R))
+        out: dict[int, tuple[TrackBelief, Modes | None]] = {det.id: (b, None) for det, b in ahead}
+        if len(inside):
+            post = self._imm.update(Modes(*(a[inside] for a in m)), z[inside], R[inside])
+            for k, i in enumerate(inside.tolist()):
+                det, b = ahead[i]
+                out[det.id] = (b, Modes(post.xs[k], post.Ps[k], post.mu[k]))
+        return out
+
+    def _fused(self, modes: Modes, dt: float, z: FloatArray, R: FloatArray) -> Modes | None:
+        """One track's IMM belief predicted dt ahead and updated with detection z (2,) of
+        noise R (2, 2); None if z is outside its gate."""
+        prior = self._imm.predict(modes, dt)
+        one = Modes(prior.xs[None], prior.Ps[None], prior.mu[None])
+        if not self._gates(one, z[None], R[None])[0]:
+            return None
+        return self._imm.update(prior, z, R)
+
+    def _gates(self, m: Modes, z: FloatArray, R: FloatArray) -> list[bool]:
+        """Whether each detection z[k] (k, 2) of noise R[k] (k, 2, 2) falls in the gate of
+        track k (m: stacked (k, ...)): of its combined belief, or of any one mode's. A
+        manoeuvre starts where the steady mode, which dominates the mixture, is surest: a
+        gate on the mixture alone would refuse the very detections that tell the manoeuvring
+        mode it is right, and the track would coast on its old velocity.
+        """
+        return [any(d <= self.gate.threshold for d in one) for one in self._distances(m, z, R)]
+
+    @staticmethod
+    def _distances(m: Modes, z: FloatArray, R: FloatArray) -> list[list[float]]:
+        """For each track k of the stack m, the squared Mahalanobis distances y' S^-1 y of
+        detection z[k] (k, 2), noise R[k] (k, 2, 2), from its combined belief and each mode
+        (ChiSquareGate.accepts' arithmetic, every belief of the stack at once)."""
+        x, P = combine(*m)
+        xs = np.concatenate((x[:, None], m.xs), axis=1)  # (k, 3, 6): the mixture, each mode
+        Ps = np.concatenate((P[:, None], m.Ps), axis=1)
+        ys, Ss = innovation(xs, Ps, z[:, None, :], R[:, None])
+        sols = np.linalg.solve(Ss, ys[..., None])[..., 0]
+        return [
+            [float(y @ s) for y, s in zip(yk, sk, strict=True)]
+            for yk, sk in zip(ys, sols, strict=True)
+        ]
 
     def fuse(self, state: TrackerState, msg: ObstacleDetections) -> TrackerState:
         """The tracks after one scan (stamped msg.stamp, fused in id order)."""
@@ -103,9 +164,11 @@ class ObstacleTracker:
         # forget tracks that can never be published again (t >= msg.stamp from now on)
         out = {k: b for k, b in state.tracks.items() if msg.stamp - b.stamp <= self._memory_s}
         gated_out, refused, resets = state.gated_out, state.refused, state.resets
-        for det in sorted(msg.detections, key=lambda d: d.id):
+        detections = sorted(msg.detections, key=lambda d: d.id)
+        together = self._fused_together(out, detections, msg.stamp)
+        for det in detections:
             z = np.array([det.x, det.y])
-            var = max(det.std_xy**2, 1e-12)
+            var = _variance(det.std_xy)
             r_var = max(det.std_radius**2, 1e-12)
             b = out.get(det.id)
             # a detection of a forgotten id, or of one coasting past track_timeout_s (its
@@ -116,12 +179,14 @@ class ObstacleTracker:
                     continue
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
                 continue
-            prior = self._imm.predict(b.modes, msg.stamp - b.stamp)
-            R = np.eye(2) * var
-            if not self._gates(prior, z, R):
+            fused = together.get(det.id)
+            if fused is not None and fused[0] is b:
+                post = fused[1]
+            else:
+                post = self._fused(b.modes, msg.stamp - b.stamp, z, np.eye(2) * var)
+            if post is None:
                 gated_out += 1
                 continue
-            post = self._imm.update(prior, z, R)
             if not all(healthy(x, P) for x, P in zip(post.xs, post.Ps, strict=True)):
                 resets += 1
                 out[det.id] = self._start(det.id, msg.stamp, z, var, det.radius, r_var)
@@ -183,11 +248,13 @@ class ObstacleTracker:
         predicted = self.predict_all([b for _, b in kept], t)
         for (oid, b), (x, P) in zip(kept, predicted, strict=True):
             age = t - b.stamp
-            if not healthy(x, P):
+            # Python floats, the covariance row-major in the wire's order (as healthy as P)
+            mean, covariance = x.tolist(), P.take(_TO_MSG_FLAT).tolist()
+            if not healthy_entries(mean, covariance):
                 continue  # never publish a non-finite track (its next detection restarts it)
             if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
                 continue  # where the sonar would see it, and does not: gone
-            px, pvx, pax, py, pvy, pay = x.tolist()
+            px, pvx, pax, py, pvy, pay = mean
             out.append(
                 Track(
                     id=oid,
@@ -198,7 +265,7 @@ class ObstacleTracker:
                     ax=pax,
                     ay=pay,
                     radius=max(0.0, b.radius),
-                    covariance=tuple(P.take(_TO_MSG_FLAT).tolist()),  # Python floats, row-major
+                    covariance=tuple(covariance),
                 )
             )
         return tuple(out)

@@ -7,15 +7,12 @@ import math
 from typing import Protocol
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from common.config.estimator import EstimatorConfig
 from common.scalar import wrap_angle
-from services.estimator.filterpy_lazy import (
-    ExtendedKalmanFilter,
-    MerweScaledSigmaPoints,
-    UnscentedKalmanFilter,
-)
+from services.estimator.filterpy_lazy import MerweScaledSigmaPoints, UnscentedKalmanFilter
 from services.estimator.measurements import Observation
 from services.estimator.unicycle import (
     DIM_X,
@@ -65,17 +62,6 @@ def _tidy(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
     return x, 0.5 * (P + P.T)
 
 
-class _UnicycleEKF(ExtendedKalmanFilter):
-    """filterpy's EKF with the nonlinear unicycle state propagation."""
-
-    x: FloatArray
-    step_dt: float = 0.0
-    sway_tau_s: float = 2.0
-
-    def predict_x(self, u: object = 0) -> None:
-        self.x = fx(self.x, self.step_dt, self.sway_tau_s)
-
-
 class _SubstepPredict:
     """The predict both filters share: the belief unchanged (a copy) for dt <= 0, else what
     the filter's `advance` makes of a copy in n equal sub-steps of h (_substeps)."""
@@ -119,35 +105,49 @@ class _SubstepPredict:
 
 
 class EkfVehicleFilter(_SubstepPredict):
-    """Extended Kalman filter (filterpy.kalman.ExtendedKalmanFilter)."""
+    """Extended Kalman filter: filterpy's ExtendedKalmanFilter equations (predict with the
+    nonlinear unicycle fx, update in Joseph form), the same numpy calls in the same order
+    without its object: the filter saves no prior or posterior copies, no deepcopy of z, and
+    its scipy inverse skips scipy's input checks for one of its own (`_inverse`).
+    tests/test_estimator_filters.py holds both to filterpy's bit for bit."""
 
     def __init__(self, cfg: EstimatorConfig) -> None:
         super().__init__(cfg)
-        self._ekf = _UnicycleEKF(dim_x=DIM_X, dim_z=4)
-        self._ekf.sway_tau_s = cfg.sway_tau_s
+        self._I = np.eye(DIM_X)
 
     def advance(
         self, x: FloatArray, P: FloatArray, n: int, h: float
     ) -> tuple[FloatArray, FloatArray]:
-        ekf = self._ekf
-        ekf.x, ekf.P = x, P
-        ekf.step_dt = h
         F0, Q0 = self.fixed(h)
-        q_accel = self._q[0]
+        q_accel, tau = self._q[0], self._tau
         for _ in range(n):
             # P = F P F' + Q, F = d fx / d s and Q (unicycle.py) linearised at the prior
-            ekf.F = jacobian_at(F0.copy(), ekf.x, h)
-            ekf.Q = process_noise_at(Q0.copy(), ekf.x, h, q_accel)
-            ekf.predict()
-        return _tidy(ekf.x, ekf.P)
+            F = jacobian_at(F0.copy(), x, h)
+            Q = process_noise_at(Q0.copy(), x, h, q_accel)
+            x = fx(x, h, tau)
+            P = np.dot(F, P).dot(F.T) + Q
+        return _tidy(x, P)
 
     def update(
         self, x: FloatArray, P: FloatArray, obs: Observation
     ) -> tuple[FloatArray, FloatArray]:
-        ekf = self._ekf
-        ekf.x, ekf.P = x.copy(), P.copy()
-        ekf.update(obs.z, obs.H, obs.hx, R=obs.R, residual=obs.residual)
-        return _tidy(ekf.x, ekf.P)
+        R = obs.R
+        H = obs.H(x)
+        PHT = np.dot(P, H.T)
+        K = PHT.dot(_inverse(np.dot(H, PHT) + R))  # K = P H' S^-1, S = H P H' + R
+        x = x + np.dot(K, obs.residual(obs.z, obs.hx(x)))
+        # P = (I - K H) P (I - K H)' + K R K' (Joseph form)
+        I_KH = self._I - np.dot(K, H)
+        return _tidy(x, np.dot(I_KH, P).dot(I_KH.T) + np.dot(K, R).dot(K.T))
+
+
+def _inverse(S: FloatArray) -> FloatArray:
+    """scipy.linalg.inv(S) (filterpy's EKF inverse): the same LAPACK result, the same
+    ValueError on a non-finite S, its finiteness checked here on Python floats (scipy's own
+    check costs more than the inverse of a 5 x 5)."""
+    if not all(map(math.isfinite, S.ravel().tolist())):
+        raise ValueError("array must not contain infs or NaNs")
+    return scipy.linalg.inv(S, check_finite=False)
 
 
 class UkfVehicleFilter(_SubstepPredict):
