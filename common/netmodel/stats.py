@@ -76,17 +76,22 @@ class LinkStatsAccumulator:
                 self.max_loss_burst = self._run
             return
         self._run = 0
-        if cause == "outage":
-            self.dropped_outage += 1
-        elif cause == "queue":
-            self.dropped_queue += 1
+        if cause is not None:
+            if cause == "outage":
+                self.dropped_outage += 1
+            elif cause == "queue":
+                self.dropped_queue += 1
         if not delivered_at:
             return
         self.delivered += 1
-        if len(delivered_at) > 1:
+        if len(delivered_at) == 1:  # nearly always: no min() over one copy
+            d = delivered_at[0] - send_time
+        else:
             self.duplicated += 1
-        # >= 0 up to the us rounding of delivery times (exact when send_time is on the us grid)
-        self.delays.record(max(0.0, min(delivered_at) - send_time))
+            d = min(delivered_at) - send_time
+        # >= 0 up to the us rounding of delivery times (exact when send_time is on the us
+        # grid); max(0.0, d) without the call
+        self.delays.record(d if d > 0.0 else 0.0)
 
     def percentile(self, q: float) -> float:
         """Nearest-rank q-quantile (0 < q <= 1) of the first-copy delay, to 0.5 %; 0 if empty."""
@@ -133,7 +138,14 @@ class DurationHistogram:
         self._sum += d
         if d > self.max:
             self.max = d
-        b = _bin_of(d)
+        # the bin (module head), computed here rather than by a function: every message of
+        # a link, and every delivery to a host, records one
+        if d < _D0_S:
+            b = 0
+        else:
+            b = 1 + int(math.log(d / _D0_S) / _LOG_RATIO)
+            if b >= _N_BINS:  # the last bin holds every larger duration
+                b = _N_BINS - 1
         n = self._bins.get(b)
         if n is None:
             insort(self._filled, b)
@@ -169,8 +181,3 @@ class DurationHistogram:
                 out.append(min(mid, self.max))
         return tuple(out)
 
-
-def _bin_of(delay_s: float) -> int:
-    if delay_s < _D0_S:
-        return 0
-    return min(_N_BINS - 1, 1 + int(math.log(delay_s / _D0_S) / _LOG_RATIO))
