@@ -196,18 +196,20 @@ class Host:
                 later.append(item)
                 continue
             d_us, src, stream, _seq, copy, _tick, _arrival, msg = item
-            inp = self._inputs[(src, stream)]
+            key = (src, stream)
+            inp = self._inputs[key]
             if isinstance(msg, TruthState):  # where the vehicle is: acoustic ranges
                 self.net.observe_vehicle(msg.x, msg.y)
                 if inp.tap:
                     continue
-            d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
+            t = d_us / 1e6
+            d = Delivery(source=src, stream=stream, msg=msg, t=t)
             self.delivered += 1
             if copy == 0:
-                acc = self._measured.get((src, stream))
+                acc = self._measured.get(key)
                 if acc is None:
-                    acc = self._measured[(src, stream)] = LinkStatsAccumulator()
-                acc.record(msg.sent, (d.t,), None)
+                    acc = self._measured[key] = LinkStatsAccumulator()
+                acc.record(msg.sent, (t,), None)
             if inp.wake:
                 emits.extend(self.core.deliver(d))
             else:
@@ -312,15 +314,18 @@ class Host:
             raise ValueError(f"{self.name}: emitted on undeclared stream {stream!r}")
         seq = self._seq[stream] = self._seq[stream] + 1
         t = t_us / 1e6
-        data = encode(msg, source=self.name, seq=seq, sent=t)
+        name = self.name
+        data = encode(msg, source=name, seq=seq, sent=t)
+        net = self.net
         if isinstance(msg, TruthState):  # the vehicle's own host ranges from its own truth
-            self.net.observe_vehicle(msg.x, msg.y)
+            net.observe_vehicle(msg.x, msg.y)
+        size = len(data)
         schedule: dict[str, tuple[int, ...]] = {}
         for receiver, spec in receivers:
             if spec.tap:  # a simulation tap is no link: handed over at the next tick
                 schedule[receiver] = (t_us,)
                 continue
-            times = self.net.decide(self.name, stream, receiver, seq, t, len(data)).delivered_at
+            times = net.decide(name, stream, receiver, seq, t, size).delivered_at
             # one copy, or none, nearly always: no generator for it (a fleet's truth goes to
             # every vehicle's sensor)
             schedule[receiver] = (

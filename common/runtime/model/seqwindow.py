@@ -50,13 +50,15 @@ class SeqWindow:
 
     def take(self, seq: int) -> None:
         """Count a plausible `seq` as seen (a repeat changes nothing)."""
-        if self.seen(seq):
+        # seen(), inline: a record takes every message of a run
+        if seq <= self.prefix or seq in self._ahead:
             return
-        self.highest = max(self.highest, seq)
+        if seq > self.highest:
+            self.highest = seq
         if seq != self.prefix + 1:
             self._ahead.add(seq)
             return
         self.prefix = seq
-        while self.prefix + 1 in self._ahead:
+        while self._ahead and self.prefix + 1 in self._ahead:  # (none, but after a hole)
             self.prefix += 1
             self._ahead.discard(self.prefix)
