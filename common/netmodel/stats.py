@@ -180,4 +180,3 @@ class DurationHistogram:
                 mid = _D0_S * _RATIO ** (i - 0.5)  # geometric centre of the bin
                 out.append(min(mid, self.max))
         return tuple(out)
-
