@@ -249,6 +249,8 @@ class Host:
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
         """NEWEST inputs keep their last delivery; the others their last max_queued."""
+        if len(ready) < 2:  # every policy keeps one delivery (max_queued >= 1, Dataflow)
+            return ready
         by_input: dict[tuple[str, str], list[int]] = {}
         for i, d in enumerate(ready):
             by_input.setdefault((d.source, d.stream), []).append(i)
