@@ -46,7 +46,8 @@ def check_non_negative(rec: Any, prefix: str, *names: str) -> None:
     """Reject any of the named fields of `rec` below 0 (named `prefix + name`)."""
     for name in names:
         value = getattr(rec, name)
-        check_range(prefix + name, value, 0.0 if isinstance(value, float) else 0)
+        if value < 0:  # only then the name and bound are made (every record built checks)
+            check_range(prefix + name, value, 0.0 if isinstance(value, float) else 0)
 
 
 def _compile_common_test(cls: type) -> Callable[[Any], bool]:
