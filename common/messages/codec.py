@@ -8,6 +8,7 @@ type and field in our words. This module is the only place that names the codec.
 
 from __future__ import annotations
 
+import copy
 import re
 import threading
 from collections.abc import Mapping
@@ -90,7 +91,7 @@ def _stamped(msg: Message, source: str | None, seq: int | None, sent: float | No
     finite, in that order, as check_common names them) can fail, as a message type's
     `validate` never reads the envelope (Message) and `msg`'s other fields passed every check
     when it was built; running them again cost more than the rest of a publish."""
-    out = msg.__copy__()  # msgspec's C-level copy (no __post_init__), without copy.copy's lookup
+    out = copy.copy(msg)  # msgspec's C-level copy: no __post_init__
     if source is not None:
         msgspec.structs.force_setattr(out, "source", source)
     if seq is not None:
