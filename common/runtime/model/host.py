@@ -251,21 +251,35 @@ class Host:
         """NEWEST inputs keep their last delivery; the others their last max_queued."""
         if len(ready) < 2:  # every policy keeps one delivery (max_queued >= 1, Dataflow)
             return ready
-        by_input: dict[tuple[str, str], list[int]] = {}
-        for i, d in enumerate(ready):
-            by_input.setdefault((d.source, d.stream), []).append(i)
-        older: set[int] = set()
-        for (src, stream), idx in by_input.items():
-            inp = self._inputs[(src, stream)]
+        # deliveries per input, then how many of each input's oldest go: counts rather than
+        # lists of indices and a set of them (a step that drops nothing, nearly every one,
+        # builds one small dict)
+        per_input: dict[tuple[str, str], int] = {}
+        for d in ready:
+            key = (d.source, d.stream)
+            per_input[key] = per_input.get(key, 0) + 1
+        excess: dict[tuple[str, str], int] = {}
+        for key, count in per_input.items():
+            inp = self._inputs[key]
             newest = inp.policy is QueuePolicy.NEWEST
-            n = len(idx) - (1 if newest else inp.max_queued)
+            n = count - (1 if newest else inp.max_queued)
             if n > 0:
-                older.update(idx[:n])
+                excess[key] = n
                 if newest:
                     self.superseded += n
                 else:
-                    self.count_dropped(src, stream, n, "queue full at the step")
-        return [d for i, d in enumerate(ready) if i not in older] if older else ready
+                    self.count_dropped(*key, n, "queue full at the step")
+        if not excess:
+            return ready
+        kept = []
+        for d in ready:  # in delivery order: each input's first `n` are its oldest
+            key = (d.source, d.stream)
+            n = excess.get(key, 0)
+            if n:
+                excess[key] = n - 1
+            else:
+                kept.append(d)
+        return kept
 
     # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
     def join_clock(self, t_us: int) -> bool:
