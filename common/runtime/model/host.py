@@ -34,7 +34,7 @@ from common.messages import (
     encode,
 )
 from common.netmodel import NetworkModel
-from common.netmodel.stats import LinkStatsAccumulator
+from common.netmodel.stats import DurationHistogram
 from common.runtime.model.core import (
     CountsForStats,
     Delivery,
@@ -109,8 +109,10 @@ class Host:
         self._wake = tuple(k for k, i in self._inputs.items() if i.wake)
         self._arrival = itertools.count()
         self._ready: list[Delivery] = []
-        # delays measured on incoming links (hand-over time - sent), by link name
-        self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
+        # delays measured on incoming links (hand-over time - sent), by input: a histogram
+        # (its count is the deliveries measured), not a whole link's counters, as it is
+        # updated at every delivery and the statistics carry only these (MeasuredDelay)
+        self._measured: dict[tuple[str, str], DurationHistogram] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
         # the core prepares its next step once a step's outputs are out (core.Prepares); the
@@ -206,10 +208,11 @@ class Host:
             d = Delivery(source=src, stream=stream, msg=msg, t=t)
             self.delivered += 1
             if copy == 0:
-                acc = self._measured.get(key)
-                if acc is None:
-                    acc = self._measured[key] = LinkStatsAccumulator()
-                acc.record(msg.sent, (t,), None)
+                hist = self._measured.get(key)
+                if hist is None:
+                    hist = self._measured[key] = DurationHistogram()
+                delay = t - msg.sent  # >= 0 but across clocks (realtime): clipped at 0
+                hist.record(delay if delay > 0.0 else 0.0)
             if inp.wake:
                 emits.extend(self.core.deliver(d))
             else:
@@ -364,16 +367,15 @@ class Host:
         """Last seq published per output stream."""
         return dict(self._seq)
 
-    def _measured_delay(self, key: tuple[str, str], m: LinkStatsAccumulator) -> MeasuredDelay:
-        """The delays measured on the incoming link of input `key`, as the wire record: the
-        two quantiles it carries, not a whole snapshot (the p99 and mean it never sends)."""
-        p50, p95 = m.quantiles(0.5, 0.95)
+    def _measured_delay(self, key: tuple[str, str], h: DurationHistogram) -> MeasuredDelay:
+        """The delays measured on the incoming link of input `key`, as the wire record."""
+        p50, p95 = h.quantiles(0.5, 0.95)
         return MeasuredDelay(
             link=link_name(*key, self.name),
-            delivered=m.delivered,
+            delivered=h.count,
             delay_p50=p50,
             delay_p95=p95,
-            delay_max=m.delays.max,
+            delay_max=h.max,
         )
 
     def link_stats(self, t: float) -> LinkStats:
@@ -389,7 +391,7 @@ class Host:
             )
             for name, s in self.net.snapshots().items()
         )
-        # (keys are unique: sorting the items never compares two accumulators)
+        # (keys are unique: sorting the items never compares two histograms)
         measured = tuple(self._measured_delay(k, a) for k, a in sorted(self._measured.items()))
         core = self.core
         return LinkStats(
