@@ -123,16 +123,17 @@ class DurationHistogram:
         self.count = 0
         self._sum = 0.0
         self.max = 0.0
-        # only the non-empty bins: a link's delays fill a few of the ~2300 bins, and a host
-        # reads the percentiles of every outgoing link each second (a fleet of 16: ~30 links
-        # a host; a pass over every bin was the fleet's largest per-vehicle cost growing with N)
-        # - the non-empty bins in order, kept as they appear (rarely, once a link's delays
-        # have spread), so a snapshot's quantiles sort nothing: ~200 bins of a jittered link,
-        # sorted and summed in Python, were most of a host's statistics each second;
+        # Only the non-empty bins are kept: a link's delays fill a few of the ~2300 bins, and
+        # a host reads the percentiles of every outgoing link each second (a fleet of 16: ~30
+        # links a host; a pass over every bin was the fleet's largest per-vehicle cost growing
+        # with N). They are kept in order as they appear (rarely, once a link's delays have
+        # spread), so a snapshot's quantiles sort nothing (~200 bins of a jittered link, sorted
+        # and summed in Python, were most of a host's statistics each second), and their
+        # counts beside them in the same order, so a snapshot sums that list as it is (a count
+        # looked up by bin in a dict, bin after bin, took twice as long; a record finds its
+        # bin by bisection as fast as in the dict).
         self._filled: list[int] = []
-        # - the count of each, in the same order: a snapshot sums the list as it is (a dict by
-        # bin, looked up for each bin in order, took twice as long; found by bisection as fast)
-        self._counts: list[int] = []
+        self._counts: list[int] = []  # _counts[i]: durations in bin _filled[i]
 
     def record(self, d: float) -> None:
         """Count one duration d >= 0 (s)."""

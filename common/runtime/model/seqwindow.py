@@ -50,8 +50,7 @@ class SeqWindow:
 
     def take(self, seq: int) -> None:
         """Count a plausible `seq` as seen (a repeat changes nothing)."""
-        # seen(), inline: a record takes every message of a run
-        if seq <= self.prefix or seq in self._ahead:
+        if self.seen(seq):
             return
         if seq > self.highest:
             self.highest = seq
