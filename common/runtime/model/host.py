@@ -34,7 +34,7 @@ from common.messages import (
     encode,
 )
 from common.netmodel import NetworkModel
-from common.netmodel.stats import LinkStatsAccumulator
+from common.netmodel.stats import DurationHistogram
 from common.runtime.model.core import (
     CountsForStats,
     Delivery,
@@ -109,8 +109,10 @@ class Host:
         self._wake = tuple(k for k, i in self._inputs.items() if i.wake)
         self._arrival = itertools.count()
         self._ready: list[Delivery] = []
-        # delays measured on incoming links (hand-over time - sent), by link name
-        self._measured: dict[tuple[str, str], LinkStatsAccumulator] = {}
+        # delays measured on incoming links (hand-over time - sent), by input: a histogram
+        # (its count is the deliveries measured), not a whole link's counters, as it is
+        # updated at every delivery and the statistics carry only these (MeasuredDelay)
+        self._measured: dict[tuple[str, str], DurationHistogram] = {}
         self.delivered = 0
         self.superseded = 0  # deliveries a NEWEST input dropped for a newer one
         # the core prepares its next step once a step's outputs are out (core.Prepares); the
@@ -196,18 +198,21 @@ class Host:
                 later.append(item)
                 continue
             d_us, src, stream, _seq, copy, _tick, _arrival, msg = item
-            inp = self._inputs[(src, stream)]
+            key = (src, stream)
+            inp = self._inputs[key]
             if isinstance(msg, TruthState):  # where the vehicle is: acoustic ranges
                 self.net.observe_vehicle(msg.x, msg.y)
                 if inp.tap:
                     continue
-            d = Delivery(source=src, stream=stream, msg=msg, t=d_us / 1e6)
+            t = d_us / 1e6
+            d = Delivery(source=src, stream=stream, msg=msg, t=t)
             self.delivered += 1
             if copy == 0:
-                acc = self._measured.get((src, stream))
-                if acc is None:
-                    acc = self._measured[(src, stream)] = LinkStatsAccumulator()
-                acc.record(msg.sent, (d.t,), None)
+                hist = self._measured.get(key)
+                if hist is None:
+                    hist = self._measured[key] = DurationHistogram()
+                delay = t - msg.sent  # >= 0 but across clocks (realtime): clipped at 0
+                hist.record(delay if delay > 0.0 else 0.0)
             if inp.wake:
                 emits.extend(self.core.deliver(d))
             else:
@@ -247,21 +252,37 @@ class Host:
 
     def _policy(self, ready: list[Delivery]) -> list[Delivery]:
         """NEWEST inputs keep their last delivery; the others their last max_queued."""
-        by_input: dict[tuple[str, str], list[int]] = {}
-        for i, d in enumerate(ready):
-            by_input.setdefault((d.source, d.stream), []).append(i)
-        older: set[int] = set()
-        for (src, stream), idx in by_input.items():
-            inp = self._inputs[(src, stream)]
+        if len(ready) < 2:  # every policy keeps one delivery (max_queued >= 1, Dataflow)
+            return ready
+        # deliveries per input, then how many of each input's oldest go: counts rather than
+        # lists of indices and a set of them (a step that drops nothing, nearly every one,
+        # builds one small dict)
+        per_input: dict[tuple[str, str], int] = {}
+        for d in ready:
+            key = (d.source, d.stream)
+            per_input[key] = per_input.get(key, 0) + 1
+        excess: dict[tuple[str, str], int] = {}
+        for key, count in per_input.items():
+            inp = self._inputs[key]
             newest = inp.policy is QueuePolicy.NEWEST
-            n = len(idx) - (1 if newest else inp.max_queued)
+            n = count - (1 if newest else inp.max_queued)
             if n > 0:
-                older.update(idx[:n])
+                excess[key] = n
                 if newest:
                     self.superseded += n
                 else:
-                    self.count_dropped(src, stream, n, "queue full at the step")
-        return [d for i, d in enumerate(ready) if i not in older] if older else ready
+                    self.count_dropped(*key, n, "queue full at the step")
+        if not excess:
+            return ready
+        kept = []
+        for d in ready:  # in delivery order: each input's first `n` are its oldest
+            key = (d.source, d.stream)
+            n = excess.get(key, 0)
+            if n:
+                excess[key] = n - 1
+            else:
+                kept.append(d)
+        return kept
 
     # -- the clock, for runtimes that join or fall behind it (realtime) ----------------------
     def join_clock(self, t_us: int) -> bool:
@@ -312,15 +333,18 @@ class Host:
             raise ValueError(f"{self.name}: emitted on undeclared stream {stream!r}")
         seq = self._seq[stream] = self._seq[stream] + 1
         t = t_us / 1e6
-        data = encode(msg, source=self.name, seq=seq, sent=t)
+        name = self.name
+        data = encode(msg, source=name, seq=seq, sent=t)
+        net = self.net
         if isinstance(msg, TruthState):  # the vehicle's own host ranges from its own truth
-            self.net.observe_vehicle(msg.x, msg.y)
+            net.observe_vehicle(msg.x, msg.y)
+        size = len(data)
         schedule: dict[str, tuple[int, ...]] = {}
         for receiver, spec in receivers:
             if spec.tap:  # a simulation tap is no link: handed over at the next tick
                 schedule[receiver] = (t_us,)
                 continue
-            times = self.net.decide(self.name, stream, receiver, seq, t, len(data)).delivered_at
+            times = net.decide(name, stream, receiver, seq, t, size).delivered_at
             # one copy, or none, nearly always: no generator for it (a fleet's truth goes to
             # every vehicle's sensor)
             schedule[receiver] = (
@@ -343,6 +367,17 @@ class Host:
         """Last seq published per output stream."""
         return dict(self._seq)
 
+    def _measured_delay(self, key: tuple[str, str], h: DurationHistogram) -> MeasuredDelay:
+        """The delays measured on the incoming link of input `key`, as the wire record."""
+        p50, p95 = h.quantiles(0.5, 0.95)
+        return MeasuredDelay(
+            link=link_name(*key, self.name),
+            delivered=h.count,
+            delay_p50=p50,
+            delay_p95=p95,
+            delay_max=h.max,
+        )
+
     def link_stats(self, t: float) -> LinkStats:
         """Counters of every outgoing link so far, as the wire message."""
         links = tuple(
@@ -356,16 +391,8 @@ class Host:
             )
             for name, s in self.net.snapshots().items()
         )
-        measured = tuple(
-            MeasuredDelay(
-                link=link_name(src, stream, self.name),
-                delivered=m.delivered,
-                delay_p50=m.delay_p50_s,
-                delay_p95=m.delay_p95_s,
-                delay_max=m.delay_max_s,
-            )
-            for (src, stream), m in sorted((k, a.snapshot()) for k, a in self._measured.items())
-        )
+        # (keys are unique: sorting the items never compares two histograms)
+        measured = tuple(self._measured_delay(k, a) for k, a in sorted(self._measured.items()))
         core = self.core
         return LinkStats(
             stamp=t,

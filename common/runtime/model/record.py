@@ -54,20 +54,23 @@ class Record:
             return self._refuse("wrong_source", key, msg)
         if latest_s is not None and msg.stamp > latest_s:
             return self._refuse("future", key, msg)
+        seq = msg.seq
         window = self._windows.get(key)
         if window is None:
             window = self._windows[key] = SeqWindow(self._max_seq_gap)
-        if not window.plausible(msg.seq):
+        if not window.plausible(seq):
             return self._refuse("seq_jump", key, msg)
-        bucket = self._streams.setdefault(key, {})
-        old = bucket.get(msg.seq)
+        bucket = self._streams.get(key)  # (not setdefault: no empty dict built per message)
+        if bucket is None:
+            bucket = self._streams[key] = {}
+        old = bucket.get(seq)
         if old is not None:
             return None if old == msg else self._refuse("conflict", key, msg)
-        bucket[msg.seq] = msg
-        window.take(msg.seq)
+        bucket[seq] = msg
+        window.take(seq)
         self.count += 1
         last = self._last.get(key)
-        if last is None or msg.seq > last.seq:
+        if last is None or seq > last.seq:
             self._last[key] = msg
         return None
 

@@ -52,11 +52,12 @@ class SeqWindow:
         """Count a plausible `seq` as seen (a repeat changes nothing)."""
         if self.seen(seq):
             return
-        self.highest = max(self.highest, seq)
+        if seq > self.highest:
+            self.highest = seq
         if seq != self.prefix + 1:
             self._ahead.add(seq)
             return
         self.prefix = seq
-        while self.prefix + 1 in self._ahead:
+        while self._ahead and self.prefix + 1 in self._ahead:  # (none, but after a hole)
             self.prefix += 1
             self._ahead.discard(self.prefix)
