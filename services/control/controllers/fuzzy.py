@@ -28,6 +28,8 @@ steady-state error and a Kd that depends on how fast the error moves.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -90,11 +92,17 @@ _GRID_MU3 = np.ascontiguousarray(_GRID_MU[:, None, :])  # (7, 1, 121): the terms
 def _active(x: float) -> list[tuple[int, float]]:
     """The terms (index 0..6, membership > 0) at x: memberships() without the zeros."""
     xc = min(max(float(x), -3.0), 3.0)
-    out = []
-    for i in range(7):
-        mu = 1.0 - abs(xc - (i - 3.0))
-        if mu > 0.0:
-            out.append((i, mu))
+    out: list[tuple[int, float]] = []
+    if xc != xc:  # NaN: no term holds
+        return out
+    # a term is non-zero within 1 of its centre: only the centres either side of xc can be
+    # (each |xc - c| >= 1 of the others rounds to >= 1 as well), tried in the same order
+    below = math.floor(xc)
+    for c in (below, below + 1):
+        if c <= 3:
+            mu = 1.0 - abs(xc - float(c))
+            if mu > 0.0:
+                out.append((c + 3, mu))
     return out
 
 
@@ -114,9 +122,11 @@ class MamdaniTables:
         # (the others fire with 0, which the max over non-negative strengths ignores)
         strength = np.zeros((len(self._rules), 7))
         terms_de = _active(de_n)
+        fired = False
         for i, a in _active(e_n):
             for j, b in terms_de:
                 w = min(a, b)
+                fired = True
                 for n, table in enumerate(self._rules):
                     k = table[i][j]
                     if w > strength[n, k]:
@@ -124,5 +134,8 @@ class MamdaniTables:
         # clipped consequents, aggregated by max: (7 terms, n, 121) reduced over the terms
         agg = np.maximum.reduce(np.minimum(strength.T[:, :, None], _GRID_MU3), axis=0)
         den = agg.sum(axis=1)
-        out: FloatArray = (agg @ _GRID) / np.where(den > 0.0, den, 1.0)
+        # a rule that fires (w > 0) leaves min(w, 1) at its consequent's centre, a grid point,
+        # in every table: each den > 0, and the guard against 0 / 0 (no rule fires: a NaN
+        # input) is needed only then
+        out: FloatArray = (agg @ _GRID) / (den if fired else np.where(den > 0.0, den, 1.0))
         return out
