@@ -369,6 +369,8 @@ def test_ekf_is_filterpys_ekf_bit_for_bit(
     assert all(np.array_equal(g, w, equal_nan=True) for g, w in zip(got, want, strict=True))
 
 
+# numpy warns of the NaN it makes from inf in P H' (filterpy's update too): the test's input
+@pytest.mark.filterwarnings("ignore:invalid value encountered in dot:RuntimeWarning")
 def test_ekf_refuses_a_non_finite_innovation_as_filterpys() -> None:
     # scipy's check made filterpy's update raise ValueError on a non-finite S; ours too
     from services.estimator.measurements import of_fix
