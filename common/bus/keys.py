@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cached_property
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 # a service name may be a fleet vehicle's ("auv2.planner", common/runtime/model/dataflow.py)
@@ -39,9 +40,20 @@ class Keys:
         """The keys of one run and vehicle, or of any (None: a wildcard), for selectors."""
         return cls(run or ANY, vehicle or ANY)
 
-    @property
+    @cached_property
     def root(self) -> str:
+        """tidelink/<run>/<vehicle>: built once, as a coordinator tests every ack's key."""
         return f"tidelink/{self.run}/{self.vehicle}"
+
+    @cached_property
+    def _tick_prefix(self) -> str:
+        """What every tick key of this run starts with (is_tick)."""
+        return f"{self.root}/{CLOCK}/tick/"
+
+    @cached_property
+    def _ack_prefix(self) -> str:
+        """What every ack key of this run starts with (acked_by)."""
+        return f"{self.root}/{CLOCK}/ack/"
 
     def stream(self, service: str, stream: str) -> str:
         """The key of one service's output stream, e.g. tidelink/demo/auv1/sensor/nav."""
@@ -68,7 +80,7 @@ class Keys:
 
     def is_tick(self, key: str) -> bool:
         """Is `key` one of this run's clock tick keys (whatever its recipients)?"""
-        return key.startswith(f"{self.root}/{CLOCK}/tick/")
+        return key.startswith(self._tick_prefix)
 
     def ack(self, service: str) -> str:
         """The key of a service's lockstep acknowledgements: .../runtime/ack/<service> (the
@@ -81,7 +93,7 @@ class Keys:
 
     def acked_by(self, key: str) -> str | None:
         """The service whose acknowledgement key `key` is, or None for any other key."""
-        prefix = f"{self.root}/{CLOCK}/ack/"
+        prefix = self._ack_prefix
         return key[len(prefix) :] if key.startswith(prefix) else None
 
     def alive(self, service: str) -> str:
