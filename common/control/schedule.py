@@ -97,6 +97,62 @@ class Schedule:
             out.extend(self.starts[i : bisect_left(self.starts, t_b)])
         return out
 
+    def pieces_between(self, t_a: float, t_b: float) -> list[tuple[float, float, float]]:
+        """The pieces of [t_a, t_b) over which the command is constant, as (end, v, w) in turn
+        (the first from t_a, each next from the previous end): split at the sorted, distinct
+        transitions_between(t_a, t_b), with (v, w) = vw_at(start of the piece), the same
+        floats; one call per span for the planner's predictions, with the entry in force
+        carried along the (sorted) starts rather than looked up by a bisect per piece."""
+        starts, t_hold, t_fail = self.starts, self.t_hold, self.t_fail
+        if not starts:
+            return [(t_b, self.idle_v, 0.0)]
+        vs, ws = self.vs, self.ws
+        n = len(starts)
+        # the common span: within RUN throughout (neither HOLD nor FAILSAFE in (t_a, t_b))
+        run = t_a < t_b <= t_hold and t_b <= t_fail
+        if n == 1 and run:
+            return [(t_b, vs[0], ws[0])]
+        k = 0
+        if n > 1:
+            i = bisect_right(starts, t_a)
+            k = i - 1 if i else 0  # vw_at(t_a)'s entry
+            lo = i or 1  # entries 1..n only
+            hi = bisect_left(starts, t_b, lo)
+            if run:
+                # cut at the starts in (t_a, t_b) alone (the common span): those are
+                # sorted, so dropping repeats is what sorted(set(...)) did, and the entry in
+                # force from a cut is the last one starting there
+                out: list[tuple[float, float, float]] = []
+                s = t_a
+                for m in range(lo, hi):
+                    c = starts[m]
+                    if c != s:
+                        out.append((c, vs[k], ws[k]))
+                        s = c
+                    k = m
+                out.append((t_b, vs[k], ws[k]))
+                return out
+        # transitions_between's cuts, in its order
+        cuts = [x for x in (t_hold, t_fail) if t_a < x < t_b]
+        if n > 1:
+            cuts.extend(starts[lo:hi])
+        if len(cuts) > 1:
+            cuts = sorted(set(cuts))
+        cuts.append(t_b)
+        out = []
+        s = t_a
+        for c in cuts:
+            if s < t_hold:
+                # the piece starts s only grow: the last entry started by s is found by
+                # stepping on from the previous piece's (bisect_right - 1 on sorted starts)
+                while k + 1 < n and starts[k + 1] <= s:
+                    k += 1
+                out.append((c, vs[k], ws[k]))
+            else:
+                out.append((c, self._held_v(s), 0.0))
+            s = c
+        return out
+
     @classmethod
     def of_command(
         cls,

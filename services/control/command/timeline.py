@@ -136,14 +136,8 @@ class CommandTimeline:
                     break
             sched = idle if cur is None else cur.schedule
             # within, the applied command changes only at the schedule's own transitions
-            # (all before `end`: most spans have none or one, sorted without a set)
-            inner = sched.transitions_between(t, end)
-            if len(inner) > 1:
-                inner = sorted(set(inner))
-            inner.append(end)
-            vw_at = sched.vw_at
-            for c in inner:
-                v, w = vw_at(t)
+            # (all before `end`): one call for the span's pieces, not one per piece
+            for c, v, w in sched.pieces_between(t, end):
                 pose = advance(pose, v, w, c - t, twist_only)
                 t = c
         return pose
