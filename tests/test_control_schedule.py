@@ -51,7 +51,7 @@ def _schedules(draw: st.DrawFn) -> Schedule:
     )
 
 
-@settings(max_examples=600, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(sched=_schedules(), t_a=_time, t_b=_time)
 def test_pieces_between_is_transitions_between_then_vw_at_to_the_bit(
     sched: Schedule, t_a: float, t_b: float
