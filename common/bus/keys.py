@@ -46,14 +46,10 @@ class Keys:
         return f"tidelink/{self.run}/{self.vehicle}"
 
     @cached_property
-    def _tick_prefix(self) -> str:
-        """What every tick key of this run starts with (is_tick)."""
-        return f"{self.root}/{CLOCK}/tick/"
-
-    @cached_property
-    def _ack_prefix(self) -> str:
-        """What every ack key of this run starts with (acked_by)."""
-        return f"{self.root}/{CLOCK}/ack/"
+    def _clock_prefixes(self) -> tuple[str, str]:
+        """What every tick key and every ack key of this run start with (is_tick, acked_by)."""
+        clock = f"{self.root}/{CLOCK}"
+        return f"{clock}/tick/", f"{clock}/ack/"
 
     def stream(self, service: str, stream: str) -> str:
         """The key of one service's output stream, e.g. tidelink/demo/auv1/sensor/nav."""
@@ -80,7 +76,7 @@ class Keys:
 
     def is_tick(self, key: str) -> bool:
         """Is `key` one of this run's clock tick keys (whatever its recipients)?"""
-        return key.startswith(self._tick_prefix)
+        return key.startswith(self._clock_prefixes[0])
 
     def ack(self, service: str) -> str:
         """The key of a service's lockstep acknowledgements: .../runtime/ack/<service> (the
@@ -93,7 +89,7 @@ class Keys:
 
     def acked_by(self, key: str) -> str | None:
         """The service whose acknowledgement key `key` is, or None for any other key."""
-        prefix = self._ack_prefix
+        prefix = self._clock_prefixes[1]
         return key[len(prefix) :] if key.startswith(prefix) else None
 
     def alive(self, service: str) -> str:
