@@ -287,7 +287,7 @@ entries = st.one_of(
 )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     n=st.integers(1, 9),
     values=st.lists(entries, min_size=90, max_size=90),
