@@ -7,6 +7,7 @@ import copy
 import itertools
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from common.config.controller import ControllerConfig
 from common.config.scenario import load_scenario
 from common.messages import StateEstimate, VehicleStatus, VelocityCommand, encode
 from common.runtime.model.core import Delivery
-from services.control.command.response import ResponseModel
+from services.control.command.response import Pose, ResponseModel
 from services.control.command.sequence import command_sequence
 from services.control.command.timeline import CommandTimeline
 from services.control.controllers import Circle, Limits, make_controller
@@ -239,6 +240,51 @@ def test_the_first_entries_are_the_same_floats_whatever_is_computed_after_them(k
         k = min(last, 30) + 1
         assert part == (whole[0][:k], whole[1][:k])
     assert whole[0][-1] == 0.0  # the stop tail brakes to rest by the horizon's end
+
+
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_past_fine_the_controller_is_asked_every_mth_entry_and_its_answer_held(kind: str) -> None:
+    # coarse far entries: up to `fine` the entries of a sequence asked at every entry, bit for
+    # bit; past it the controller's answer for the state carried entry by entry under what
+    # is held, asked at fine + m, fine + 2m, ... and held (the stop tail still capping v)
+    pose = (0.5, -0.3, 0.1, 1.6, 0.05)
+    tl = _timeline()
+    tl.add(0.2, 0.45, 0.1, [1.0] * 10, [0.08] * 10)
+    ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
+    args: dict[str, Any] = dict(
+        n=30, step_s=0.1, arrival=0.75, timeline=tl, model=MODEL, stop_mps2=0.5
+    )
+    every = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, **args)
+    poses: list[Pose] = []
+    vs, ws = command_sequence(
+        copy.deepcopy(ctrl), CIRCLE, 2.5, pose, fine=10, coarse_every=3, poses=poses, **args
+    )
+    assert len(vs) == len(poses) == 31
+    assert (vs[:11], ws[:11]) == (every[0][:11], every[1][:11])
+    witness = copy.deepcopy(ctrl)
+    for k in range(11):  # the witness controller through the fine entries, as asked
+        v, w = witness.command(2.5 + 0.1 * k, poses[k], CIRCLE)
+    for k in range(11, 31):
+        asked = (k - 10) % 3 == 0
+        if asked:
+            v, w = witness.command(2.5 + 0.1 * k, poses[k], CIRCLE)
+        # the state carried one entry under entry k - 1 as sent
+        dt = (2.5 + k * 0.1) - (2.5 + (k - 1) * 0.1)
+        assert poses[k] == MODEL.advance(poses[k - 1], vs[k - 1], ws[k - 1], dt)
+        assert ws[k] == w
+        assert vs[k] == min(v, 0.5 * max(0.0, 2.5 + 3.0 - (2.5 + 0.1 * k)))
+        if not asked:
+            assert ws[k] == ws[k - 1]
+    assert vs[-1] == 0.0  # the stop tail brakes to rest by the horizon's end all the same
+
+
+def test_a_config_past_fine_asks_every_coarse_step() -> None:
+    seq = SCENARIO.controller.sequence
+    assert (seq.fine_s, seq.coarse_step_s) == (3.0, 0.3)
+    assert seq.coarse(0.1) == (30, 3)
+    assert seq.coarse(0.5) == (6, 1)  # a coarse step under the period: every entry asked
+    with pytest.raises(ValueError, match="fine_s"):
+        load_scenario(DEFAULT, ["controller.sequence.fine_s=-1"])
 
 
 def _twins(reuse: bool = False) -> tuple[PlannerCore, PlannerCore]:

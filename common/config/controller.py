@@ -158,6 +158,13 @@ class SequenceConfig:
     reuse_tolerance_rad: float = 0.02  # heading
     reuse_tolerance_rate_rps: float = 0.04  # yaw rate, state and command
     reuse_tolerance_mps: float = 0.03  # speed, state and command
+    # entries up to fine_s ahead are each the controller's answer to the state predicted for
+    # their time; beyond, it is asked every coarse_step_s (whole periods) and its answer held
+    # over the entries between. Those entries are applied only blind, in an outage longer
+    # than fine_s, and the rollout still carries the state over each of them under what it
+    # holds (sequence.py, "Coarse far entries"). fine_s >= horizon_s: every entry asked
+    fine_s: float = 3.0
+    coarse_step_s: float = 0.3
 
     def __post_init__(self) -> None:
         for name in (
@@ -168,12 +175,18 @@ class SequenceConfig:
             "reuse_tolerance_rad",
             "reuse_tolerance_rate_rps",
             "reuse_tolerance_mps",
+            "fine_s",
+            "coarse_step_s",
         ):
             nonneg(name, getattr(self, name))
 
     def entries(self, period_s: float) -> int:
         """Future entries n of a command at control period period_s (0: off)."""
         return int(self.horizon_s / period_s + 1e-9)
+
+    def coarse(self, period_s: float) -> tuple[int, int]:
+        """(k, m) at control period period_s: entries past k are asked every m-th (m >= 1)."""
+        return int(self.fine_s / period_s + 1e-9), max(1, int(self.coarse_step_s / period_s + 1e-9))
 
 
 @dataclass(frozen=True, kw_only=True)

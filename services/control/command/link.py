@@ -100,6 +100,8 @@ class CommandLink:
         self.jitter_margin_k = controller.jitter_margin_k
         self.compensate = controller.delay_compensation
         self.entries = controller.sequence.entries(planner.period_s)  # n; 0: single commands
+        # past entry `fine`, the controller is asked every coarse_every-th entry (sequence.py)
+        self.fine, self.coarse_every = controller.sequence.coarse(planner.period_s)
         self.step_s = round(planner.period_s * 1000) / 1000  # the wire's whole milliseconds
         self.fresh_s = controller.sequence.fresh_s
         # a sent sequence is shifted into the next step's prepared one while its tail is at
@@ -314,6 +316,8 @@ class CommandLink:
             last=last,
             scratch=scratch,
             poses=poses,
+            fine=self.fine,
+            coarse_every=self.coarse_every,
         )
 
     def follow(

@@ -55,6 +55,13 @@ state has just been checked to lie on. Its age is bounded (reuse_s): then a tail
 afresh. A shifted tail brakes to rest one period sooner per shift (its stop tail was made for
 an earlier horizon's end): after an outage of most of the horizon the vehicle stops at most
 reuse_s early, never later.
+
+Coarse far entries (controller.sequence.fine_s, coarse_step_s): entries past `fine` (3 s) are
+applied only blind, once an outage has outlasted them and the vehicle runs on the rest of the
+buffer open loop. There the controller is asked every `coarse_every`-th entry (0.3 s) and its
+answer held over the entries between, while the rollout still carries the state entry by
+entry under what is held: the prediction stays that of the commands sent, and a whole tail
+asks the controller ~55 times instead of 101 (docs/notes/0071).
 """
 
 from __future__ import annotations
@@ -87,13 +94,16 @@ def command_sequence(
     last: int | None = None,
     scratch: bool = False,
     poses: list[Pose] | None = None,
+    fine: int | None = None,
+    coarse_every: int = 1,
 ) -> tuple[list[float], list[float]]:
     """(vs, ws), each (last + 1,): the commands for t, t + step_s, ..., t + last step_s of a
     sequence of n + 1 (last: n by default), from the state `pose` predicted for t, the new
     command expected at the vehicle at `arrival`; stop_mps2 > 0 brings the vehicle to rest by
     t + n step_s (the stop tail). Entry k is the same floats whatever `last` is. `scratch`: the
     controller is a copy to be thrown away, stepped for every entry (no copy is made).
-    `poses`: appended with the state each entry was computed on."""
+    `poses`: appended with the state each entry was computed on. Past entry `fine` the
+    controller is asked every `coarse_every`-th entry, its answer held between (None: all)."""
     t_end = t + n * step_s
     last = n if last is None else min(last, n)
 
@@ -117,6 +127,8 @@ def command_sequence(
     # looked up once: this loop evaluates the controller ~40k times a mission
     command, advance = roll.command, model.advance
     v_prev, w_prev = vs[0], w
+    v_asked = v  # the controller's last answer, before the stop tail's cap
+    fine = last if fine is None else fine
     for k in range(1, last + 1):
         t_a, t_b = t + (k - 1) * step_s, t + k * step_s
         if t_a < arrival:  # until this command arrives, the vehicle applies the ones before it
@@ -125,8 +137,10 @@ def command_sequence(
             t_a = mid
         if t_a < t_b:  # then entry k - 1 of this one
             pose = advance(pose, v_prev, w_prev, t_b - t_a)
-        v, w_prev = command(t_b, pose, ref)
-        v_prev = v if stop_mps2 <= 0.0 else tail(t_b, v)  # tail's own test, one call less
+        if k <= fine or (k - fine) % coarse_every == 0:
+            v_asked, w_prev = command(t_b, pose, ref)
+        # held between asks: the same answer, capped by the stop tail at this entry's time
+        v_prev = v_asked if stop_mps2 <= 0.0 else tail(t_b, v_asked)  # tail's test, a call less
         vs.append(v_prev)
         ws.append(w_prev)
         if poses is not None:
