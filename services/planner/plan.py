@@ -361,6 +361,7 @@ def _planned(
     """The plan of a curve that passed its check."""
     return PlanResult.of_curve(
         curve,
+        chk.samples,
         reason="",
         strategy="searched",
         grid_path=waypoints,
