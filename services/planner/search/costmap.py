@@ -61,15 +61,20 @@ class CostMap:
         iy = np.minimum(np.maximum(np.floor(gy).astype(np.intp), 0), self.ny - 2)
         fx = np.minimum(np.maximum(gx - ix, 0.0), 1.0)
         fy = np.minimum(np.maximum(gy - iy, 0.0), 1.0)
-        c = self.static_clearance
-        v00, v10 = c[iy, ix], c[iy, ix + 1]
-        v01, v11 = c[iy + 1, ix], c[iy + 1, ix + 1]
+        # the four corners by flat index into the (contiguous) grid: one index array each
+        # instead of two (the refinement asks this ~35 times a plan; ~20% of its cost)
+        c = self.static_clearance.ravel()
+        k = iy * self.nx + ix
+        v00, v10 = c[k], c[k + 1]
+        k += self.nx
+        v01, v11 = c[k], c[k + 1]
         bottom = v00 + fx * (v10 - v00)
         top = v01 + fx * (v11 - v01)
         val = bottom + fy * (top - bottom)
-        dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
-        dy = (top - bottom) / res
-        return val, np.stack([dx, dy], axis=1)
+        grad = np.empty((len(val), 2))
+        grad[:, 0] = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
+        grad[:, 1] = (top - bottom) / res
+        return val, grad
 
 
 def smoothing_kernel(l_cells: int) -> FloatArray:
