@@ -41,11 +41,14 @@ class CostMap:
         y = self.area.y_min_m + (np.asarray(iy) + 0.5) * self.resolution_m
         return np.stack([x, y], axis=-1).astype(np.float64)
 
-    def lookup(self, pts: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """(ix, iy) cell indices of points (k, 2), clamped into the grid (vectorised)."""
+    def lookup(self, pts: FloatArray) -> NDArray[np.intp]:
+        """Flat cell indices iy * nx + ix (k,) of points (k, 2), clamped into the grid
+        (vectorised), into a grid's `ravel()`: one index array where a pair cost two (the
+        line-of-sight shortcuts look up every segment they try: prune.py)."""
         ix = ((pts[:, 0] - self.area.x_min_m) / self.resolution_m).astype(np.intp)
         iy = ((pts[:, 1] - self.area.y_min_m) / self.resolution_m).astype(np.intp)
-        return np.clip(ix, 0, self.nx - 1), np.clip(iy, 0, self.ny - 1)
+        ix = np.minimum(np.maximum(ix, 0), self.nx - 1)
+        return np.minimum(np.maximum(iy, 0), self.ny - 1) * self.nx + ix
 
     def static_clearance_at(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Bilinear interpolation of the static clearance (m,) and its gradient (m, 2).
