@@ -299,9 +299,10 @@ def _search_and_shape(
     search_cfg = _search_config(cfg)
     for _ in range(3):
         disc_key = (np.ascontiguousarray(discs, dtype=np.float64).tobytes(), r, escape)
-        cmap = _costmap(area, setup.static, disc_key, search_cfg, req.start, req.goal)
+        ends = _bits(req.start, req.goal, area)
+        cmap = _costmap(area, setup.static, disc_key, search_cfg, req.start, req.goal, ends)
         clk.lap("costmap_s")
-        route = _waypoints(cmap, req.start, req.goal, cfg.connectivity, cfg.search)
+        route = _waypoints(cmap, req.start, req.goal, cfg.connectivity, cfg.search, ends)
         clk.lap("search_s")
         if route is None:
             if len(discs) and not unswept:
@@ -360,6 +361,15 @@ def _search_config(cfg: PlannerConfig) -> PlannerConfig:
 _DEFAULTS = PlannerConfig()
 
 
+def _bits(start: Pose2D, goal: Pose2D, area: AreaConfig) -> bytes:
+    """The floats of a search's ends and area, bit for bit: in the caches' keys beside the
+    poses and the area themselves, whose equality takes -0.0 for 0.0 (a waypoint's sign)."""
+    return np.array(
+        [start.x, start.y, start.theta, goal.x, goal.y, goal.theta,
+         area.x_min_m, area.x_max_m, area.y_min_m, area.y_max_m]
+    ).tobytes()  # fmt: skip
+
+
 @functools.lru_cache(maxsize=4)
 def _costmap(
     area: AreaConfig,
@@ -368,11 +378,13 @@ def _costmap(
     cfg: PlannerConfig,
     start: Pose2D,
     goal: Pose2D,
+    ends: bytes,
 ) -> CostMap:
     """The cost map over `static` and the swept discs, start and goal let through, read-only;
     disc_key: the discs (k, 3) as bytes, the vehicle radius and the escape let through from
-    the start (m; None: none). Cached with `_waypoints`: an ask that makes its plan again
-    wider searches the same map (a map and its search: ~6 ms on the default 200 x 80 grid)."""
+    the start (m; None: none); `ends`: `_bits` of the rest, for the key. Cached with
+    `_waypoints`: an ask that makes its plan again wider searches the same map (a map and
+    its search: ~6 ms on the default 200 x 80 grid)."""
     raw, r, escape = disc_key
     discs = np.frombuffer(raw, dtype=np.float64).reshape(-1, 3)
     cmap = build_costmap(area, static, discs, r, cfg)
@@ -384,10 +396,11 @@ def _costmap(
 
 @functools.lru_cache(maxsize=4)
 def _waypoints(
-    cmap: CostMap, start: Pose2D, goal: Pose2D, connectivity: int, search: str
+    cmap: CostMap, start: Pose2D, goal: Pose2D, connectivity: int, search: str, ends: bytes
 ) -> FloatArray | None:
     """The pruned waypoints (k, 2) of the shortest path on `cmap` from start to goal,
-    read-only; None when the goal is walled off. Cached with `_costmap` (by its identity)."""
+    read-only; None when the goal is walled off. Cached with `_costmap` (by its identity;
+    `ends`: `_bits` of the ends and area, for the key)."""
     sx, sy = cmap.cell_of(start.x, start.y)
     gx, gy = cmap.cell_of(goal.x, goal.y)
     path = shortest_path(cmap, sy * cmap.nx + sx, gy * cmap.nx + gx, connectivity, search)

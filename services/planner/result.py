@@ -235,9 +235,7 @@ class PlanResult:
         return built
 
     @staticmethod
-    def of_curve(
-        curve: NurbsCurve, samples: FloatArray | None = None, **fields: Any
-    ) -> PlanResult:
+    def of_curve(curve: NurbsCurve, samples: FloatArray | None = None, **fields: Any) -> PlanResult:
         """An OK plan of `curve`, with the rest of its fields as given; `samples`: the curve's
         dense samples its check evaluated (`_samples`), if any."""
         result = PlanResult(
