@@ -21,6 +21,7 @@ from common.config.planner import PlannerConfig
 from common.world.geometry import vertices_array
 from services.planner.geometry.clearance import StaticField
 from services.planner.geometry.nurbs_curve import curvature
+from services.planner.geometry.planned_path import PlannedPath
 from services.planner.plan import Obstacles, PlanRequest, PlanResult, Pose2D, plan_path
 from services.planner.search.costmap import build_costmap
 from services.planner.search.graph import shortest_path
@@ -269,6 +270,20 @@ def test_plan_is_deterministic() -> None:
     b = plan_path(_paper_request(), CFG)
     assert np.array_equal(a.control_points, b.control_points)
     assert np.array_equal(a.knots, b.knots) and np.array_equal(a.grid_path, b.grid_path)
+
+
+def test_a_plans_path_tabulates_the_checks_samples_float_for_float() -> None:
+    # the dense check's evaluation is the path's table (the same parameters): the path is
+    # the one built afresh from the curve, every table the same floats
+    res = plan_path(_paper_request(), CFG)
+    assert res.ok and res._samples
+    kept, fresh = res.planned_path(), PlannedPath(res.curve())
+    assert kept._table_ders is res._samples[0][1]
+    for name in ("u_table", "xy_table", "s_table", "_table_ders"):
+        assert np.array_equal(getattr(kept, name), getattr(fresh, name)), name
+    # a result with other arrays (a curve made from it) does not take them
+    other = dataclasses.replace(res, control_points=res.control_points.copy())
+    assert other.planned_path()._table_ders is not res._samples[0][1]
 
 
 def test_astar_and_lbfgsb_variants_also_plan_safely() -> None:

@@ -182,6 +182,11 @@ class PlanResult:
     _path: list[tuple[tuple[int, FloatArray, FloatArray, FloatArray], PlannedPath]] = field(
         default_factory=list, compare=False, repr=False
     )
+    # the curve's dense samples (3, m, 2), with the arrays they are of: the check that passed
+    # it evaluated them (check.py `CurveCheck.samples`), and its PlannedPath's table is them
+    _samples: list[tuple[tuple[int, FloatArray, FloatArray, FloatArray], FloatArray]] = field(
+        default_factory=list, compare=False, repr=False
+    )
 
     @property
     def ok(self) -> bool:
@@ -222,14 +227,18 @@ class PlanResult:
             of, built = self._path[0]
             if _same_arrays(of, self._curve_of()):
                 return built
-        built = PlannedPath(self.curve())
+        samples = None
+        if self._samples and _same_arrays(self._samples[0][0], self._curve_of()):
+            samples = self._samples[0][1]
+        built = PlannedPath(self.curve(), samples=samples)
         self._path[:] = [(self._curve_of(), built)]
         return built
 
     @staticmethod
-    def of_curve(curve: NurbsCurve, **fields: Any) -> PlanResult:
-        """An OK plan of `curve`, with the rest of its fields as given."""
-        return PlanResult(
+    def of_curve(curve: NurbsCurve, samples: FloatArray | None = None, **fields: Any) -> PlanResult:
+        """An OK plan of `curve`, with the rest of its fields as given; `samples`: the curve's
+        dense samples its check evaluated (`_samples`), if any."""
+        result = PlanResult(
             status="OK",
             degree=curve.degree,
             control_points=curve.ctrl,
@@ -237,6 +246,9 @@ class PlanResult:
             knots=curve.knots,
             **fields,
         )
+        if samples is not None:
+            result._samples.append((result._curve_of(), samples))
+        return result
 
 
 def _same_arrays(

@@ -31,7 +31,12 @@ class PlannedPath:
     Newton steps on f(u) = (C(u) - q) . C'(u) = 0.
     """
 
-    def __init__(self, curve: NurbsCurve, n_table: int = 2000) -> None:
+    def __init__(
+        self, curve: NurbsCurve, n_table: int = 2000, samples: FloatArray | None = None
+    ) -> None:
+        """`samples`: the curve's points and first two derivatives (3, m, 2) at m parameters
+        uniform over its domain, evaluated already (the plan's dense check: check.py); the
+        table's own when m is n_table, for they are then the very same parameters."""
         self.curve = curve
         u = np.linspace(curve.u_min, curve.u_max, n_table)
         self.u_table = u
@@ -39,7 +44,10 @@ class PlannedPath:
         # for heading and curvature on this very table (path_arc_reference.py), and a lower
         # derivative comes out the same floats whatever n_ders (the Cox-de Boor triangle and
         # the quotient rule compute it alike)
-        self._table_ders = curve.evaluate(u, n_ders=2)
+        if samples is not None and samples.shape == (3, n_table, 2):
+            self._table_ders = samples
+        else:
+            self._table_ders = curve.evaluate(u, n_ders=2)
         self.xy_table = self._table_ders[0]
         # arc length between consecutive table parameters by Gauss-Legendre, eq. (16)/(18)
         h = np.diff(u)

@@ -41,11 +41,14 @@ class CostMap:
         y = self.area.y_min_m + (np.asarray(iy) + 0.5) * self.resolution_m
         return np.stack([x, y], axis=-1).astype(np.float64)
 
-    def lookup(self, pts: FloatArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """(ix, iy) cell indices of points (k, 2), clamped into the grid (vectorised)."""
+    def lookup(self, pts: FloatArray) -> NDArray[np.intp]:
+        """Flat cell indices iy * nx + ix (k,) of points (k, 2), clamped into the grid
+        (vectorised), into a grid's `ravel()`: one index array where a pair cost two (the
+        line-of-sight shortcuts look up every segment they try: prune.py)."""
         ix = ((pts[:, 0] - self.area.x_min_m) / self.resolution_m).astype(np.intp)
         iy = ((pts[:, 1] - self.area.y_min_m) / self.resolution_m).astype(np.intp)
-        return np.clip(ix, 0, self.nx - 1), np.clip(iy, 0, self.ny - 1)
+        ix = np.minimum(np.maximum(ix, 0), self.nx - 1)
+        return np.minimum(np.maximum(iy, 0), self.ny - 1) * self.nx + ix
 
     def static_clearance_at(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Bilinear interpolation of the static clearance (m,) and its gradient (m, 2).
@@ -61,15 +64,20 @@ class CostMap:
         iy = np.minimum(np.maximum(np.floor(gy).astype(np.intp), 0), self.ny - 2)
         fx = np.minimum(np.maximum(gx - ix, 0.0), 1.0)
         fy = np.minimum(np.maximum(gy - iy, 0.0), 1.0)
-        c = self.static_clearance
-        v00, v10 = c[iy, ix], c[iy, ix + 1]
-        v01, v11 = c[iy + 1, ix], c[iy + 1, ix + 1]
+        # the four corners by flat index into the (contiguous) grid: one index array each
+        # instead of two (the refinement asks this ~35 times a plan; ~20% of its cost)
+        c = self.static_clearance.ravel()
+        k = iy * self.nx + ix
+        v00, v10 = c[k], c[k + 1]
+        k += self.nx
+        v01, v11 = c[k], c[k + 1]
         bottom = v00 + fx * (v10 - v00)
         top = v01 + fx * (v11 - v01)
         val = bottom + fy * (top - bottom)
-        dx = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
-        dy = (top - bottom) / res
-        return val, np.stack([dx, dy], axis=1)
+        grad = np.empty((len(val), 2))
+        grad[:, 0] = ((1.0 - fy) * (v10 - v00) + fy * (v11 - v01)) / res
+        grad[:, 1] = (top - bottom) / res
+        return val, grad
 
 
 def smoothing_kernel(l_cells: int) -> FloatArray:

@@ -27,10 +27,10 @@ def segment_cost(cmap: CostMap, a: FloatArray, b: FloatArray) -> float:
     length = float(np.hypot(*(b - a)))
     n = max(2, int(math.ceil(3.0 * length / cmap.resolution_m)) + 1)
     t = np.linspace(0.0, 1.0, n)[:, None]
-    ix, iy = cmap.lookup(a[None, :] * (1.0 - t) + b[None, :] * t)
-    if cmap.blocked[iy, ix].any():
+    cells = cmap.lookup(a[None, :] * (1.0 - t) + b[None, :] * t)
+    if cmap.blocked.ravel()[cells].any():
         return math.inf
-    return length * (1.0 + float(cmap.cost[iy, ix].mean()))
+    return length * (1.0 + float(cmap.cost.ravel()[cells].mean()))
 
 
 def prune_path(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -20,7 +20,9 @@ FailKind = Literal["", "curvature", "static", "moving", "area"]
 
 @dataclass(frozen=True, kw_only=True)
 class CurveCheck:
-    """Outcome of the dense check; clearances are hull-to-surface distances (m)."""
+    """Outcome of the dense check; clearances are hull-to-surface distances (m). A check that
+    fails on curvature stops there: its length, turning cost and clearances are not measured
+    (nan; no caller reads them of a failed check)."""
 
     ok: bool
     reason: str
@@ -32,6 +34,9 @@ class CurveCheck:
     min_static_clearance_m: float
     min_moving_clearance_m: float
     turn_penalty: float  # eq. (19) f_R as F_R = int ds / (r - R_min) (inf if any r <= R_min)
+    # the curve's points and first two derivatives (3, n, 2) at the n dense parameters, uniform
+    # over its domain: its PlannedPath's table when n is the table's size (planned_path.py)
+    samples: FloatArray = field(default_factory=lambda: np.zeros((3, 0, 2)), repr=False)
 
 
 def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, FloatArray]:
@@ -45,7 +50,30 @@ def _gauss_legendre(knots: FloatArray, per_span: int) -> tuple[FloatArray, Float
 def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveCheck:
     """Sample the curve densely (uniform in u) and test every hard constraint."""
     u = np.linspace(curve.u_min, curve.u_max, n_samples)
-    c, d1, d2 = curve.evaluate(u, n_ders=2)
+    samples = curve.evaluate(u, n_ders=2)
+    c, d1, d2 = samples
+    k = curvature(d1, d2)
+    k_max = float(np.max(k))
+    if not np.isfinite(k_max) or k_max >= 1.0 / prob.r_min_m:  # eq. (20), strict
+        # most failed rounds fail here (27 of 34 checks in configs/ocean.toml): the rest of
+        # the check (exact distances near obstacles, the length's quadrature) would only fill
+        # fields no caller reads of a failed check
+        return CurveCheck(
+            ok=False,
+            reason=(
+                f"curvature {k_max:.3f} 1/m >= 1/R_min = {1.0 / prob.r_min_m:.3f} 1/m "
+                f"(turning radius {1.0 / max(k_max, 1e-12):.2f} m < R_min = "
+                f"{prob.r_min_m:.2f} m)"
+            ),
+            failed="curvature",
+            length_m=math.nan,
+            max_curvature=k_max,
+            min_clearance_m=math.nan,
+            min_static_clearance_m=math.nan,
+            min_moving_clearance_m=math.nan,
+            turn_penalty=math.nan,
+            samples=samples,
+        )
     speed = np.hypot(d1[:, 0], d1[:, 1])
     du = np.diff(u)
     s = np.concatenate([[0.0], np.cumsum(0.5 * du * (speed[1:] + speed[:-1]))])
@@ -54,8 +82,6 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
     _, dq1, dq2 = curve.evaluate(uq, n_ders=2)
     ds = wq * np.hypot(dq1[:, 0], dq1[:, 1])
     length = float(np.sum(ds))
-    k = curvature(d1, d2)
-    k_max = float(np.max(k))
     # eq. (19) on the same quadrature; infinite if the dense samples break eq. (20) already
     f_r = (
         turn_penalty(curvature(dq1, dq2), ds, prob.r_min_m)
@@ -82,13 +108,7 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
     )
     reason = ""
     failed: FailKind = ""
-    if not np.isfinite(k_max) or k_max >= 1.0 / prob.r_min_m:  # eq. (20), strict
-        reason = (
-            f"curvature {k_max:.3f} 1/m >= 1/R_min = {1.0 / prob.r_min_m:.3f} 1/m "
-            f"(turning radius {1.0 / max(k_max, 1e-12):.2f} m < R_min = {prob.r_min_m:.2f} m)"
-        )
-        failed = "curvature"
-    elif np.any(d_static < need):
+    if np.any(d_static < need):
         _, reason = _breach("static", d_static, need, c, r)
         failed = "static"
     elif np.any(d_moving < need):
@@ -108,6 +128,7 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         min_static_clearance_m=min_static,
         min_moving_clearance_m=min_moving,
         turn_penalty=f_r,
+        samples=samples,
     )
 
 
