@@ -46,6 +46,7 @@ class PlotWorker:
             self._proc = None
 
     def __enter__(self) -> PlotWorker:
+        """The worker, ended on leaving (close)."""
         return self
 
     def __exit__(
@@ -54,6 +55,7 @@ class PlotWorker:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        """End the worker if no draw used it (the run failed or was interrupted)."""
         self.close()
 
     def draw(self, calls: list[Call], path: Path) -> Path:

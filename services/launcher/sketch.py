@@ -58,10 +58,12 @@ class Sketch:
     calls: list[Call] = field(default_factory=list)
 
     def __getattr__(self, name: str) -> Any:
+        """The recorder of Axes method `name` (AttributeError for one not in AXES_CALLS)."""
         if name not in AXES_CALLS:
             raise AttributeError(name)
 
         def record(*args: Any, **kwargs: Any) -> None:
+            """Keep the call, to be made on the Axes when the sketch is drawn."""
             self.calls.append((name, args, kwargs))
 
         return record
