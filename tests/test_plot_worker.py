@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from helpers.launch_proc import REPO
 
 from common.config.scenario import load_scenario
@@ -44,3 +45,10 @@ def test_an_unused_worker_is_ended_on_leaving() -> None:
     with PlotWorker() as worker:
         proc = worker._proc
     assert proc is not None and proc.returncode is not None
+
+
+def test_a_png_the_worker_cannot_write_is_an_oserror_here(tmp_path: Path) -> None:
+    blocked = tmp_path / "a-file"
+    blocked.write_text("not a folder")  # the PNG's folder cannot be made
+    with PlotWorker() as worker, pytest.raises(OSError):
+        worker.draw(_calls(), blocked / "run.png")
