@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import logging
@@ -31,6 +32,7 @@ from services.cli.flags import (
 if TYPE_CHECKING:
     from common.config.scenario import ScenarioCheck
     from common.runtime.metrics_record import RunMetrics
+    from services.launcher.plot_worker import PlotWorker
 
 log = logging.getLogger("tidelink")
 
@@ -107,6 +109,15 @@ def cmd_check(a: argparse.Namespace) -> int:
 
 def cmd_run(a: argparse.Namespace) -> int:
     """run one mission and write DIR/metrics.json and DIR/run.png"""
+    from services.launcher.plot_worker import PlotWorker
+
+    # first: the worker imports matplotlib on the other core while we load and run
+    with PlotWorker() if not a.no_plot else contextlib.nullcontext() as worker:
+        return _run(a, worker)
+
+
+def _run(a: argparse.Namespace, worker: PlotWorker | None) -> int:
+    """cmd_run's work, the plot drawn by `worker` (None: no plot)."""
     from common.config.scenario import load_scenario
     from common.runtime.run import run_scenario
     from services.cli.summary import print_run_end
@@ -120,7 +131,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     )
     wall0 = time.monotonic()
     result = run_scenario(scenario, raw, log_dir=out / "logs")
-    saved = save_run(result, scenario, out, wall_s=time.monotonic() - wall0, plot=not a.no_plot)
+    wall_s = time.monotonic() - wall0
+    saved = save_run(result, scenario, out, wall_s=wall_s, plot=worker is not None, worker=worker)
     print_run_end(saved, out, json_output=a.json, all_metrics=a.all_metrics)
     return report_outcome(saved.metrics, json_output=a.json)
 
