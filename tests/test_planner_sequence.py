@@ -20,7 +20,7 @@ from common.runtime.model.core import Delivery
 from services.control.command.response import Pose, ResponseModel
 from services.control.command.sequence import command_sequence
 from services.control.command.timeline import CommandTimeline
-from services.control.controllers import Circle, Limits, make_controller
+from services.control.controllers import Circle, Controller, Limits, make_controller
 from services.planner.core import PlannerCore
 from services.vehicle.dynamics import PlantParams, rk4_step
 
@@ -225,18 +225,24 @@ def test_a_sequence_is_the_controller_rolled_on_a_copy(kind: str) -> None:
     assert (vs[4], ws[4]) == alone.command(t + 4 * 0.1, p, CIRCLE)
 
 
-@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
-def test_the_first_entries_are_the_same_floats_whatever_is_computed_after_them(kind: str) -> None:
-    # a step computes entries 0..last only (prepared tails): they must be the entries of
-    # the whole sequence, bit for bit, the stop tail's cap (set by the horizon) included
-    pose = (0.5, -0.3, 0.1, 1.6, 0.05)
+def _braking_sequence(kind: str) -> tuple[Controller, Pose, dict[str, Any]]:
+    """A controller of `kind`, a pose, and command_sequence's other arguments for a 3 s
+    horizon at 0.1 s with the stop tail, a command from before in flight until 0.75 s."""
     tl = _timeline()
     tl.add(0.2, 0.45, 0.1, [1.0] * 10, [0.08] * 10)
     ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
     args = dict(n=30, step_s=0.1, arrival=0.75, timeline=tl, model=MODEL, stop_mps2=0.5)
-    whole = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, **args)  # type: ignore[arg-type]
+    return ctrl, (0.5, -0.3, 0.1, 1.6, 0.05), args
+
+
+@pytest.mark.parametrize("kind", ["nurbs", "backstepping", "fuzzy_pid"])
+def test_the_first_entries_are_the_same_floats_whatever_is_computed_after_them(kind: str) -> None:
+    # a step computes entries 0..last only (prepared tails): they must be the entries of
+    # the whole sequence, bit for bit, the stop tail's cap (set by the horizon) included
+    ctrl, pose, args = _braking_sequence(kind)
+    whole = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, **args)
     for last in (0, 1, 6, 30, 40):
-        part = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, last=last, **args)  # type: ignore[arg-type]
+        part = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, last=last, **args)
         k = min(last, 30) + 1
         assert part == (whole[0][:k], whole[1][:k])
     assert whole[0][-1] == 0.0  # the stop tail brakes to rest by the horizon's end
@@ -247,13 +253,7 @@ def test_past_fine_the_controller_is_asked_every_mth_entry_and_its_answer_held(k
     # coarse far entries: up to `fine` the entries of a sequence asked at every entry, bit for
     # bit; past it the controller's answer for the state carried entry by entry under what
     # is held, asked at fine + m, fine + 2m, ... and held (the stop tail still capping v)
-    pose = (0.5, -0.3, 0.1, 1.6, 0.05)
-    tl = _timeline()
-    tl.add(0.2, 0.45, 0.1, [1.0] * 10, [0.08] * 10)
-    ctrl = make_controller(ControllerConfig(kind=kind), LIMITS)
-    args: dict[str, Any] = dict(
-        n=30, step_s=0.1, arrival=0.75, timeline=tl, model=MODEL, stop_mps2=0.5
-    )
+    ctrl, pose, args = _braking_sequence(kind)
     every = command_sequence(copy.deepcopy(ctrl), CIRCLE, 2.5, pose, **args)
     poses: list[Pose] = []
     vs, ws = command_sequence(
