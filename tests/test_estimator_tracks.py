@@ -328,6 +328,11 @@ def test_tracks_predicted_together_are_each_predicted_bit_for_bit() -> None:
         x, P = combine(*alone)
         xs, Ps = combine(*together)
         assert np.array_equal(x, xs[k]) and np.array_equal(P, Ps[k])
+    # the same beliefs again (their stack kept), then others (stacked afresh): the same floats
+    for a, b in zip(imm.predict_many(ms, dts), together, strict=True):
+        assert np.array_equal(a, b)
+    for a, b in zip(imm.predict_many(ms[::-1], dts[::-1]), together, strict=True):
+        assert np.array_equal(a, b[::-1])
 
 
 @settings(max_examples=200, deadline=None)

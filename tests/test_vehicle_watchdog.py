@@ -13,7 +13,7 @@ from common.messages import VehicleStatus, VelocityCommand, replace
 from common.runtime.model.core import Delivery
 from services.vehicle.core import VehicleCore
 from services.vehicle.dynamics import PlantParams, drag_n
-from services.vehicle.watchdog import Watchdog
+from services.vehicle.watchdog import Watchdog, _clamped
 
 # a finite HOLD ramp (0.2 m/s^2, the former default), so the ramp's times can be checked
 CFG = WatchdogConfig(
@@ -243,3 +243,16 @@ def test_the_vehicle_reports_rejections_by_reason_and_logs_each_reason_once_a_se
     assert status.commands_applied == 0 and status.mode == "IDLE"
     assert status.rejected_by_reason["wrong_source"] == 51
     assert status.commands_rejected == 51
+
+
+def test_the_clamp_is_min_of_max_entry_by_entry_and_object_by_object() -> None:
+    """_clamped writes min(max(x, lo), hi) out in one pass: the same objects as the builtins
+    give, for entries inside, below and above the bounds, infinite or NaN, and for bounds the
+    wrong way round."""
+    nan = math.nan
+    xs = (-3.0, -0.5, -0.0, 0.0, 0.25, 0.5, 2.0, math.inf, -math.inf, nan)
+    for lo, hi in ((-0.5, 0.5), (0.0, 2.0), (0.5, -0.5), (-math.inf, math.inf), (1.0, 1.0)):
+        got = _clamped(xs, lo, hi)
+        want = tuple(min(max(x, lo), hi) for x in xs)
+        assert len(got) == len(want)
+        assert all(g is w for g, w in zip(got, want, strict=True))

@@ -224,15 +224,23 @@ class ObstacleTracker:
 
     def predict_all(
         self, beliefs: Sequence[TrackBelief], t: float
-    ) -> list[tuple[FloatArray, FloatArray]]:
-        """`predict` of each track to t, those before t together (ImmFilter.predict_many: the
-        same floats, one numpy call per operation for all of them)."""
+    ) -> tuple[FloatArray, FloatArray]:
+        """`predict` of each track to t, stacked: x (k, 6), P (k, 6, 6); those before t
+        together (ImmFilter.predict_many: the same floats, one numpy call per operation for
+        all of them)."""
         ahead = [b for b in beliefs if t - b.stamp > 0.0]
-        if len(ahead) < 2:
-            return [self.predict(b, t) for b in beliefs]
-        modes = self._imm.predict_many([b.modes for b in ahead], [t - b.stamp for b in ahead])
-        together = iter(zip(*combine(*modes), strict=True))
-        return [next(together) if t - b.stamp > 0.0 else self.predict(b, t) for b in beliefs]
+        if len(ahead) >= 2:
+            modes = self._imm.predict_many([b.modes for b in ahead], [t - b.stamp for b in ahead])
+            if len(ahead) == len(beliefs):  # every one (nearly always): combine's own stack
+                return combine(*modes)
+            together = iter(zip(*combine(*modes), strict=True))
+            each = [next(together) if t - b.stamp > 0.0 else self.predict(b, t) for b in beliefs]
+        else:
+            each = [self.predict(b, t) for b in beliefs]
+        if not each:
+            return np.empty((0, 6)), np.empty((0, 6, 6))
+        # np.array of a list of equal arrays stacks them (copies: the same floats)
+        return np.array([x for x, _ in each]), np.array([P for _, P in each])
 
     def tracks_at(
         self, state: TrackerState, t: float, pose: tuple[float, float, float] | None = None
@@ -245,14 +253,19 @@ class ObstacleTracker:
         kept = [
             (oid, b) for oid, b in sorted(state.tracks.items()) if t - b.stamp <= self._memory_s
         ]
-        predicted = self.predict_all([b for _, b in kept], t)
-        for (oid, b), (x, P) in zip(kept, predicted, strict=True):
-            age = t - b.stamp
-            # Python floats, the covariance row-major in the wire's order (as healthy as P)
-            mean, covariance = x.tolist(), P.take(_TO_MSG_FLAT).tolist()
+        xs, Ps = self.predict_all([b for _, b in kept], t)
+        # Python floats, each covariance row-major in the wire's order (as healthy as P): for
+        # every track at once, a copy of the same floats (two numpy calls, not two a track)
+        means = xs.tolist()
+        covariances = Ps.reshape(len(kept), 36)[:, _TO_MSG_FLAT].tolist()
+        for i, ((oid, b), mean, covariance) in enumerate(
+            zip(kept, means, covariances, strict=True)
+        ):
             if not healthy_entries(mean, covariance):
                 continue  # never publish a non-finite track (its next detection restarts it)
-            if age > self.cfg.track_timeout_s and self._seen_there(x, P, b.radius, pose):
+            if t - b.stamp > self.cfg.track_timeout_s and self._seen_there(
+                xs[i], Ps[i], b.radius, pose
+            ):
                 continue  # where the sonar would see it, and does not: gone
             px, pvx, pax, py, pvy, pay = mean
             out.append(

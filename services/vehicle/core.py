@@ -118,10 +118,12 @@ class VehicleCore:
         after = self._watchdog.schedule
         if after is not before:
             start = max(d.t, self._t)  # a delivery in the plant's past takes effect now
-            if self._pieces[-1][0] == start:
-                self._pieces[-1] = (start, after)
-            else:
-                self._pieces.append((start, after))
+            # a piece starting at or after this one would never be in force again (the last
+            # listed that has started is): dropped, so the starts stay increasing (_windows)
+            pieces = self._pieces
+            while pieces and pieces[-1][0] >= start:
+                pieces.pop()
+            pieces.append((start, after))
         return []
 
     def resume(self, own: Mapping[str, Message], t: float) -> str | None:
@@ -264,17 +266,39 @@ class VehicleCore:
         # there does (_commit's tolerance): so a command's next entry acts exactly as the same
         # command delivered at that entry's start time would
         hi = t_b - _GRID_TOL_S
-        cands = [start for start, _ in self._pieces if t_a < start < hi]
-        for _, sc in self._pieces:  # its changes in (t_a, t_b)
-            cands += [x for x in sc.transitions_between(t_a, t_b) if x < hi]
-        seg_a, cur = t_a, self._applied_vw(t_a)
-        # a time listed twice changes nothing the second time (the value is already cur)
-        for c in sorted(cands):
-            val = self._applied_vw(c)
-            if val != cur:
-                state = self._rk4(state, seg_a, c, cur)
-                seg_a, cur = c, val
+        if hi <= t_a:
+            return self._rk4(state, t_a, t_b, self._applied_vw(t_a))
+        seg_a, cur = t_a, None
+        for lo, end, sc in self._windows(t_a, hi):
+            # the schedule's constant pieces, (v, w) = vw_at(their start): a piece whose (v, w)
+            # is the one applied already changes nothing (a cut only where it changes)
+            s = lo
+            for e, v, w in sc.pieces_between(lo, end):
+                if cur is None:
+                    cur = (v, w)
+                elif (v, w) != cur:
+                    state = self._rk4(state, seg_a, s, cur)
+                    seg_a, cur = s, (v, w)
+                s = e
+        assert cur is not None  # (t_a < hi: at least one window, of at least one piece)
         return self._rk4(state, seg_a, t_b, cur)
+
+    def _windows(self, t_a: float, t_b: float) -> list[tuple[float, float, Schedule]]:
+        """The schedules in force over [t_a, t_b) as (from, until, schedule) in turn: each
+        piece's from its start (increasing) to the next's, the first's also before its start
+        (_in_force's rule)."""
+        pieces = self._pieces
+        if len(pieces) == 1:
+            return [(t_a, t_b, pieces[0][1])]
+        out: list[tuple[float, float, Schedule]] = []
+        for i, (start, sc) in enumerate(pieces):
+            until = pieces[i + 1][0] if i + 1 < len(pieces) else t_b
+            lo = start if i and start > t_a else t_a
+            if until > t_b:
+                until = t_b
+            if lo < until:
+                out.append((lo, until, sc))
+        return out
 
     def _rk4(
         self, state: PlantState, t_a: float, t_b: float, vw: tuple[float, float]
