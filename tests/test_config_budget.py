@@ -123,7 +123,7 @@ def test_the_shipped_scenarios_are_well_inside_the_budget() -> None:
             ["planner.resolution_m=0.001"],
             "planner.resolution_m",
             ["planner.resolution_m=0.001 over a 100 m × 40 m area is a 4e+09-cell cost map",
-             "(~983 GiB at a replan's peak", "the budget is 4.07e+06 cells (~1 GiB)",
+             "(~894 GiB at a replan's peak", "the budget is 4.47e+06 cells (~1 GiB)",
              "coarsen the resolution or shrink world.area"],
         ),
         (
@@ -214,7 +214,7 @@ def _tidelink(*args: str) -> subprocess.CompletedProcess[str]:
 def test_check_prints_the_estimate_and_takes_a_budget_factor() -> None:
     ok = _tidelink("check", str(DEFAULT))
     assert ok.returncode == 0, ok.stderr
-    assert "estimated: planner grid 1.6e+04 cells (~4.03 MiB a replan)" in ok.stdout
+    assert "estimated: planner grid 1.6e+04 cells (~3.66 MiB a replan)" in ok.stdout
     fine = "planner.resolution_m=0.01"
     refused = _tidelink("check", str(DEFAULT), "--set", fine)
     assert refused.returncode == 2

@@ -32,13 +32,14 @@ if TYPE_CHECKING:
 # --- unit costs, from scripts/bench_budget.py on the project's 2-core machine
 # Bytes a grid cell costs at a replan's peak: a fixed part and a part per arc (per
 # neighbour: connectivity 8 or 16). Dijkstra: per arc the CSR column index (intp, kept
-# between replans), its weight (float64) and the contiguous copy edge_weights returns, 24 B;
-# per cell the cost map (clearance, static clearance, cost: float64; blocked: bool; 25 B),
-# the row pointers and the scratch of the map and of scipy's Dijkstra (distances,
-# predecessors), 72 B in all. A* adds Python lists of every arc's weight and column (an
-# object and a pointer each) and per-cell lists of g, h and parents.
-GRID_BYTES_FIXED = {"dijkstra": 72, "astar": 260}
-GRID_BYTES_PER_ARC = {"dijkstra": 24, "astar": 99}
+# between replans) and its weight (float64, written in the CSR layout at once), 16 B, and
+# the scratch of summing it, ~19 B in all; per cell the cost map (clearance, static
+# clearance, cost: float64; blocked: bool; 25 B), the row pointers and the scratch of the
+# map and of scipy's Dijkstra (distances, predecessors), 88 B in all (fitted to the resident
+# growth at K = 8 and 16). A* adds Python lists of every arc's weight and column (an object
+# and a pointer each) and per-cell lists of g, h and parents.
+GRID_BYTES_FIXED = {"dijkstra": 88, "astar": 260}
+GRID_BYTES_PER_ARC = {"dijkstra": 19, "astar": 99}
 # A message kept in the record (its decoded struct, arrays and the record's dict slot).
 RECORD_BYTES_PER_MESSAGE = 1040
 # Each future entry of a command's sequence kept in the record (two ints and their slots).

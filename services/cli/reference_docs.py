@@ -75,8 +75,8 @@ anything is allocated (`common/config/budget.py`; the estimate is in `common/con
 its unit costs measured by `scripts/bench budget`):
 
 - **planner grid**: (width / `planner.resolution_m`) × (height / `planner.resolution_m`)
-  cells of `world.area`, at a replan's peak 264 B a cell (Dijkstra, 8 neighbours; 456 B with
-  16; A* 1052 B and 1844 B); budget 1 GiB, i.e. 4.07e6 cells (e.g. 1 km × 1 km at 0.5 m);
+  cells of `world.area`, at a replan's peak 240 B a cell (Dijkstra, 8 neighbours; 392 B with
+  16; A* 1052 B and 1844 B); budget 1 GiB, i.e. 4.47e6 cells (e.g. 1 km × 1 km at 0.5 m);
 - **record**: every message a run publishes is kept in memory (~1 KiB each, plus ~60 B per
   entry of a command's sequence: 6 KiB a command at the default 10 s horizon) until its
   metrics are computed: the services' rates × `run.max_time_s`; budget 1 GiB (about 2 h of
@@ -88,7 +88,7 @@ its unit costs measured by `scripts/bench budget`):
 
 The error (exit 2) names the key that makes the work large (the one furthest from its
 default), e.g. `planner.resolution_m: planner.resolution_m=0.001 over a 100 m × 40 m area is
-a 4e+09-cell cost map (~983 GiB at a replan's peak, ...); the budget is 4.07e+06 cells (~1
+a 4e+09-cell cost map (~894 GiB at a replan's peak, ...); the budget is 4.47e+06 cells (~1
 GiB): coarsen the resolution or shrink world.area`. `--budget FACTOR` scales every budget (a
 bigger machine; a sweep with `--jobs N` runs N such runs at once).
 
