@@ -151,21 +151,18 @@ def rk4_step(
     return make_rk4_step(p)(s, h, v_cmd, w_cmd, t, current)
 
 
-def make_rk4_step(p: PlantParams) -> Rk4Step:
-    """rk4_step with p bound: step(s, h, v_cmd, w_cmd, t, current) -> the state h later.
+RatesFn = Callable[[float, float, float, float, float, float], tuple[float, float, float]]
 
-    The vehicle's hot loop (~8000 steps a mission): `derivatives`, `thrust_n`, `drag_n` and
-    `clamp` are written out here with p's fields read once, in the same expressions and
-    operation order, so the floats are theirs bit for bit (tests/test_vehicle_dynamics.py
-    holds the two equal); the drag feed-forward of the last v_cmd is kept (a command is
-    held over many steps)."""
-    v_max, w_min, w_max, r_min = p.v_max, p.w_min, p.w_max, p.r_min
+
+def _bind_rates(p: PlantParams) -> tuple[Callable[[float], float], RatesFn]:
+    """drag_n(v) and derivatives' (dv, dw, dz) at (v, w, z) under (v_cmd, w_cmd) with the
+    drag feed-forward ff, p's fields read once: make_rk4_step's stages."""
     half_rho_s, length_m, nu_m2ps = p.half_rho_s, p.length_m, p.nu_m2ps
     delta_cf, c_pv, mass_eff_kg = p.delta_cf, p.c_pv, p.mass_eff_kg
     t_min, t_max, kp, ki, int_band = p.thrust_min_n, p.thrust_max_n, p.kp, p.ki, p.int_band
     accel_max, yaw_tau_s, yaw_accel_max = p.accel_max, p.yaw_tau_s, p.yaw_accel_max
-    cos, sin, exp, log10 = math.cos, math.sin, math.exp, math.log10
-    ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
+    r_min = p.r_min
+    exp, log10 = math.exp, math.log10
 
     def drag(v: float) -> float:
         # drag_n and friction_coefficient
@@ -175,36 +172,54 @@ def make_rk4_step(p: PlantParams) -> Rk4Step:
         cf = 0.075 / (log10(re) - 2.0) ** 2
         return half_rho_s * v * abs(v) * (cf + delta_cf + c_pv)
 
-    def slope(
-        x: float,
-        y: float,
-        th: float,
-        v: float,
-        w: float,
-        z: float,
-        t: float,
-        v_cmd: float,
-        w_cmd: float,
-        ff: float,
-        current: CurrentFn | None,
-    ) -> State:
-        # derivatives' at (x, y, th, v, w, z) and t, with the water's velocity added to the
-        # kinematics; thrust_n's and the clamps' expressions written out, the stage point
-        # passed as scalars (a call for the rates and tuples for the stage points were ~15 %
-        # of a step's time)
-        cx, cy = (0.0, 0.0) if current is None else current(x, y, t)
+    def rates(
+        v: float, w: float, z: float, v_cmd: float, w_cmd: float, ff: float
+    ) -> tuple[float, float, float]:
+        # derivatives' dv, dw and dz (thrust_n's): the clamps are common.scalar.clamp's
+        # expression written out
         e = v_cmd - v
         t_raw = ff + kp * e + ki * z
-        thrust = t_min if t_raw < t_min else t_max if t_raw > t_max else t_raw
-        q = e / int_band
-        dz = exp(-q * q) * (e + (thrust - t_raw) / kp)
-        dv = (thrust - drag(v)) / mass_eff_kg
+        t = t_min if t_raw < t_min else t_max if t_raw > t_max else t_raw
+        x = e / int_band
+        dz = exp(-x * x) * (e + (t - t_raw) / kp)
+        dv = (t - drag(v)) / mass_eff_kg
         dv = -accel_max if dv < -accel_max else accel_max if dv > accel_max else dv
         w_room = abs(v) / r_min
         wc = -w_room if w_cmd < -w_room else w_room if w_cmd > w_room else w_cmd
         dw = (wc - w) / yaw_tau_s
         dw = -yaw_accel_max if dw < -yaw_accel_max else yaw_accel_max if dw > yaw_accel_max else dw
+        return dv, dw, dz
+
+    return drag, rates
+
+
+def make_rk4_step(p: PlantParams) -> Rk4Step:
+    """rk4_step with p bound: step(s, h, v_cmd, w_cmd, t, current) -> the state h later.
+
+    The vehicle's hot loop (~8000 steps a mission): `derivatives`, `thrust_n`, `drag_n` and
+    `clamp` are written out here with p's fields read once, in the same expressions and
+    operation order, so the floats are theirs bit for bit (tests/test_vehicle_dynamics.py
+    holds the two equal); the drag feed-forward of the last v_cmd is kept (a command is
+    held over many steps)."""
+    v_max, w_min, w_max, r_min = p.v_max, p.w_min, p.w_max, p.r_min
+    cos, sin = math.cos, math.sin
+    drag, rates = _bind_rates(p)
+    ff_of: list[float] = [math.nan, 0.0]  # (v_cmd, drag_n(v_cmd)) of the last step
+
+    def slope(
+        s: State, t: float, v_cmd: float, w_cmd: float, ff: float, current: CurrentFn | None
+    ) -> State:
+        # derivatives' at s and t, with the water's velocity added to the kinematics
+        x, y, th, v, w, z = s
+        cx, cy = (0.0, 0.0) if current is None else current(x, y, t)
+        dv, dw, dz = rates(v, w, z, v_cmd, w_cmd, ff)
         return v * cos(th) + cx, v * sin(th) + cy, w, dv, dw, dz
+
+    def ahead(s: State, a: float, k: State) -> State:
+        # s + a k: the point a stage is evaluated at
+        x, y, th, v, w, z = s
+        kx, ky, kt, kv, kw, kz = k
+        return x + a * kx, y + a * ky, th + a * kt, v + a * kv, w + a * kw, z + a * kz
 
     def step(
         s: State, h: float, v_cmd: float, w_cmd: float, t: float, current: CurrentFn | None
@@ -213,51 +228,18 @@ def make_rk4_step(p: PlantParams) -> Rk4Step:
             ff_of[0], ff_of[1] = v_cmd, drag(v_cmd)
         ff = ff_of[1]
         hh = 0.5 * h
-        th_h = t + hh
         # classical RK4: k1 at s, k2 and k3 at s + h/2 k (the stage before), k4 at s + h k3
-        x0, y0, th0, v0, w0, z0 = s
-        k1x, k1y, k1t, k1v, k1w, k1z = slope(x0, y0, th0, v0, w0, z0, t, v_cmd, w_cmd, ff, current)
-        k2x, k2y, k2t, k2v, k2w, k2z = slope(
-            x0 + hh * k1x,
-            y0 + hh * k1y,
-            th0 + hh * k1t,
-            v0 + hh * k1v,
-            w0 + hh * k1w,
-            z0 + hh * k1z,
-            th_h,
-            v_cmd,
-            w_cmd,
-            ff,
-            current,
-        )
-        k3x, k3y, k3t, k3v, k3w, k3z = slope(
-            x0 + hh * k2x,
-            y0 + hh * k2y,
-            th0 + hh * k2t,
-            v0 + hh * k2v,
-            w0 + hh * k2w,
-            z0 + hh * k2z,
-            th_h,
-            v_cmd,
-            w_cmd,
-            ff,
-            current,
-        )
-        k4x, k4y, k4t, k4v, k4w, k4z = slope(
-            x0 + h * k3x,
-            y0 + h * k3y,
-            th0 + h * k3t,
-            v0 + h * k3v,
-            w0 + h * k3w,
-            z0 + h * k3z,
-            t + h,
-            v_cmd,
-            w_cmd,
-            ff,
-            current,
-        )
+        k1 = slope(s, t, v_cmd, w_cmd, ff, current)
+        k2 = slope(ahead(s, hh, k1), t + hh, v_cmd, w_cmd, ff, current)
+        k3 = slope(ahead(s, hh, k2), t + hh, v_cmd, w_cmd, ff, current)
+        k4 = slope(ahead(s, h, k3), t + h, v_cmd, w_cmd, ff, current)
         h6 = h / 6.0
         # s + h/6 (k1 + 2 k2 + 2 k3 + k4), component by component
+        x0, y0, th0, v0, w0, z0 = s
+        k1x, k1y, _, k1v, k1w, k1z = k1
+        k2x, k2y, k2t, k2v, k2w, k2z = k2
+        k3x, k3y, k3t, k3v, k3w, k3z = k3
+        k4x, k4y, k4t, k4v, k4w, k4z = k4
         v = v0 + h6 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         w = w0 + h6 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
         v = 0.0 if v < 0.0 else v_max if v > v_max else v
