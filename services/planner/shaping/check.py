@@ -58,22 +58,7 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         # most failed rounds fail here (27 of 34 checks in configs/ocean.toml): the rest of
         # the check (exact distances near obstacles, the length's quadrature) would only fill
         # fields no caller reads of a failed check
-        return CurveCheck(
-            ok=False,
-            reason=(
-                f"curvature {k_max:.3f} 1/m >= 1/R_min = {1.0 / prob.r_min_m:.3f} 1/m "
-                f"(turning radius {1.0 / max(k_max, 1e-12):.2f} m < R_min = "
-                f"{prob.r_min_m:.2f} m)"
-            ),
-            failed="curvature",
-            length_m=math.nan,
-            max_curvature=k_max,
-            min_clearance_m=math.nan,
-            min_static_clearance_m=math.nan,
-            min_moving_clearance_m=math.nan,
-            turn_penalty=math.nan,
-            samples=samples,
-        )
+        return _too_curved(k_max, prob.r_min_m, samples)
     speed = np.hypot(d1[:, 0], d1[:, 1])
     du = np.diff(u)
     s = np.concatenate([[0.0], np.cumsum(0.5 * du * (speed[1:] + speed[:-1]))])
@@ -128,6 +113,26 @@ def check_curve(curve: NurbsCurve, prob: FitProblem, n_samples: int) -> CurveChe
         min_static_clearance_m=min_static,
         min_moving_clearance_m=min_moving,
         turn_penalty=f_r,
+        samples=samples,
+    )
+
+
+def _too_curved(k_max: float, r_min_m: float, samples: FloatArray) -> CurveCheck:
+    """The check of a curve that turns tighter than R_min somewhere (eq. (20)): failed there,
+    its other measures not taken (nan)."""
+    return CurveCheck(
+        ok=False,
+        reason=(
+            f"curvature {k_max:.3f} 1/m >= 1/R_min = {1.0 / r_min_m:.3f} 1/m "
+            f"(turning radius {1.0 / max(k_max, 1e-12):.2f} m < R_min = {r_min_m:.2f} m)"
+        ),
+        failed="curvature",
+        length_m=math.nan,
+        max_curvature=k_max,
+        min_clearance_m=math.nan,
+        min_static_clearance_m=math.nan,
+        min_moving_clearance_m=math.nan,
+        turn_penalty=math.nan,
         samples=samples,
     )
 
