@@ -10,7 +10,7 @@ gets that reason as a config error (common/config/loader.py), not a bare "unknow
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import ClassVar, Literal
 
 from common.config.checks import fraction, nonneg, positive
@@ -167,18 +167,9 @@ class SequenceConfig:
     coarse_step_s: float = 0.3
 
     def __post_init__(self) -> None:
-        for name in (
-            "horizon_s",
-            "fresh_s",
-            "reuse_s",
-            "reuse_tolerance_m",
-            "reuse_tolerance_rad",
-            "reuse_tolerance_rate_rps",
-            "reuse_tolerance_mps",
-            "fine_s",
-            "coarse_step_s",
-        ):
-            nonneg(name, getattr(self, name))
+        for f in fields(self):  # every time, tolerance and step: finite, >= 0
+            if f.type == "float":
+                nonneg(f.name, getattr(self, f.name))
 
     def entries(self, period_s: float) -> int:
         """Future entries n of a command at control period period_s (0: off)."""
