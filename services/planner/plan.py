@@ -370,7 +370,9 @@ def _bits(start: Pose2D, goal: Pose2D, area: AreaConfig) -> bytes:
     ).tobytes()  # fmt: skip
 
 
-@functools.lru_cache(maxsize=4)
+# one entry: a remake follows its first plan within the same ask, and a cost map kept longer
+# would hold memory the work budget counts only at a replan's peak (~25 B a cell)
+@functools.lru_cache(maxsize=1)
 def _costmap(
     area: AreaConfig,
     static: StaticField,
@@ -394,7 +396,7 @@ def _costmap(
     return cmap
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=1)  # (as _costmap; its key holds the cost map too)
 def _waypoints(
     cmap: CostMap, start: Pose2D, goal: Pose2D, connectivity: int, search: str, ends: bytes
 ) -> FloatArray | None:
