@@ -16,7 +16,6 @@ route no curve follows to the goal is followed part of the way (partway.py).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from collections.abc import Callable
 
@@ -281,6 +280,8 @@ def _search_and_shape(
     curve met blocked where it passes them. The result, and whether it is final (a plan, or
     a goal walled off); a failed curve is not: the fallbacks may still find one."""
     r, area, obs = req.vehicle_radius_m, req.area, req.obstacles
+    s_xy = np.array([req.start.x, req.start.y])
+    g_xy = np.array([req.goal.x, req.goal.y])
     escape = cfg.escape_len_m if setup.start_inside else None
     t_max = (
         2.0
@@ -296,15 +297,16 @@ def _search_and_shape(
     unswept = passed = False  # each retry below is made at most once (3 searches at most)
     search: Strategy = "searched"  # the search being made, after those `searched`
     searched: tuple[Strategy, ...] = ()
-    search_cfg = _search_config(cfg)
     for _ in range(3):
-        disc_key = (np.ascontiguousarray(discs, dtype=np.float64).tobytes(), r, escape)
-        ends = _bits(req.start, req.goal, area)
-        cmap = _costmap(area, setup.static, disc_key, search_cfg, req.start, req.goal, ends)
+        cmap = build_costmap(area, setup.static, discs, r, cfg)
+        cmap = _unblock_start_goal(cmap, req.start, req.goal, r, escape)
         clk.lap("costmap_s")
-        route = _waypoints(cmap, req.start, req.goal, cfg.connectivity, cfg.search, ends)
-        clk.lap("search_s")
-        if route is None:
+        sx, sy = cmap.cell_of(req.start.x, req.start.y)
+        gx, gy = cmap.cell_of(req.goal.x, req.goal.y)
+        start_i, goal_i = sy * cmap.nx + sx, gy * cmap.nx + gx
+        path = shortest_path(cmap, start_i, goal_i, cfg.connectivity, cfg.search)
+        if path is None:
+            clk.lap("search_s")
             if len(discs) and not unswept:
                 # the swept discs, a conservative stand-in for eq. (13), wall the start off
                 # near an obstacle's track: search the static field, and let the refinement
@@ -320,7 +322,8 @@ def _search_and_shape(
                 code="no_route",
                 rejected=(*searched, search),
             ), True
-        waypoints = route
+        waypoints = prune_path(cmap, path, s_xy, g_xy)
+        clk.lap("search_s")
         prob = fit_problem(req, cfg, setup.static, cmap, start_inside=setup.start_inside)
         curve, chk, n, met_moving = _fit_and_check(prob, waypoints, cfg, clk)
         rounds += n
@@ -344,73 +347,6 @@ def _search_and_shape(
         rejected=(*searched, search),
     )
     return failed, False
-
-
-def _search_config(cfg: PlannerConfig) -> PlannerConfig:
-    """`cfg` as the search sees it: the margins the refinement aims at (the clearance
-    margin, the curvature aimed at) set to the defaults, for they only shape the curve. A
-    plan made again wider, or with gentler bends (rollout.py), is then searched on the cost
-    map and route of the first."""
-    return dataclasses.replace(
-        cfg,
-        clearance_margin_m=_DEFAULTS.clearance_margin_m,
-        curvature_margin=_DEFAULTS.curvature_margin,
-    )
-
-
-_DEFAULTS = PlannerConfig()
-
-
-def _bits(start: Pose2D, goal: Pose2D, area: AreaConfig) -> bytes:
-    """The floats of a search's ends and area, bit for bit: in the caches' keys beside the
-    poses and the area themselves, whose equality takes -0.0 for 0.0 (a waypoint's sign)."""
-    return np.array(
-        [start.x, start.y, start.theta, goal.x, goal.y, goal.theta,
-         area.x_min_m, area.x_max_m, area.y_min_m, area.y_max_m]
-    ).tobytes()  # fmt: skip
-
-
-# one entry: a remake follows its first plan within the same ask, and a cost map kept longer
-# would hold memory the work budget counts only at a replan's peak (~25 B a cell)
-@functools.lru_cache(maxsize=1)
-def _costmap(
-    area: AreaConfig,
-    static: StaticField,
-    disc_key: tuple[bytes, float, float | None],
-    cfg: PlannerConfig,
-    start: Pose2D,
-    goal: Pose2D,
-    ends: bytes,
-) -> CostMap:
-    """The cost map over `static` and the swept discs, start and goal let through, read-only;
-    disc_key: the discs (k, 3) as bytes, the vehicle radius and the escape let through from
-    the start (m; None: none); `ends`: `_bits` of the rest, for the key. Cached with
-    `_waypoints`: an ask that makes its plan again wider searches the same map (a map and
-    its search: ~6 ms on the default 200 x 80 grid)."""
-    raw, r, escape = disc_key
-    discs = np.frombuffer(raw, dtype=np.float64).reshape(-1, 3)
-    cmap = build_costmap(area, static, discs, r, cfg)
-    cmap = _unblock_start_goal(cmap, start, goal, r, escape)
-    for a in (cmap.clearance, cmap.blocked, cmap.cost):
-        a.setflags(write=False)
-    return cmap
-
-
-@functools.lru_cache(maxsize=1)  # (as _costmap; its key holds the cost map too)
-def _waypoints(
-    cmap: CostMap, start: Pose2D, goal: Pose2D, connectivity: int, search: str, ends: bytes
-) -> FloatArray | None:
-    """The pruned waypoints (k, 2) of the shortest path on `cmap` from start to goal,
-    read-only; None when the goal is walled off. Cached with `_costmap` (by its identity;
-    `ends`: `_bits` of the ends and area, for the key)."""
-    sx, sy = cmap.cell_of(start.x, start.y)
-    gx, gy = cmap.cell_of(goal.x, goal.y)
-    path = shortest_path(cmap, sy * cmap.nx + sx, gy * cmap.nx + gx, connectivity, search)
-    if path is None:
-        return None
-    waypoints = prune_path(cmap, path, np.array([start.x, start.y]), np.array([goal.x, goal.y]))
-    waypoints.setflags(write=False)
-    return waypoints
 
 
 def _planned(
