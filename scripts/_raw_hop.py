@@ -12,9 +12,12 @@
                          Zenoh has here, not the one tidelink uses: a Unix socket instead
                          of TCP on loopback, and Zenoh's lowlatency transport (no transmit
                          queue or task: the putting thread writes the socket; no QoS)
-    _raw_hop.py rtt N    round trip through a router, the shape of a lockstep tick: this
-                         process is a router (as the lockstep coordinator is), the child a
-                         client that answers each ping; prints "p50_us p99_us"
+    _raw_hop.py rtt N [K]
+                         round trip through a router, the shape of a lockstep tick: this
+                         process is a router (as the lockstep coordinator is), each of K
+                         children (1 unless given) a client that answers every ping; a round
+                         ends when all K answers are in (K > 1: a tick's fan-out to its due
+                         services, with no work in them); prints "p50_us p99_us"
 
 The child publishes CLOCK_MONOTONIC stamps (system-wide on Linux).
 """
@@ -108,12 +111,12 @@ def parent(n: int, interval_s: float = 0.001, via_router: bool = False, fast: bo
     print(f"{np.percentile(a, 50):.1f} {np.percentile(a, 99):.1f}")
 
 
-def rtt_child(endpoint: str) -> None:
+def rtt_child(endpoint: str, name: str) -> None:
     """Answer every ping with a pong, in a Python callback handed to a loop (as a service)."""
     with zenoh.open(_conf(None, endpoint, "client")) as s:
         pong = s.declare_publisher("bench/pong", reliability=zenoh.Reliability.RELIABLE)
         pings = s.declare_subscriber("bench/ping", zenoh.handlers.FifoChannel(16))
-        token = s.liveliness().declare_token("bench/ready")
+        token = s.liveliness().declare_token(f"bench/ready/{name}")
         for sample in pings:
             b = sample.payload.to_bytes()
             pong.put(b)
@@ -123,26 +126,36 @@ def rtt_child(endpoint: str) -> None:
         pings.undeclare()
 
 
-def rtt_parent(n: int) -> None:
+def rtt_parent(n: int, k: int = 1) -> None:
     endpoint = _endpoint()
     with zenoh.open(_conf(endpoint, None, "router")) as s:
+        up: set[str] = set()
         ready = threading.Event()
-        live = s.liveliness().declare_subscriber(
-            "bench/ready", lambda smp: ready.set(), history=True
-        )
-        pongs = s.declare_subscriber("bench/pong", zenoh.handlers.FifoChannel(16))
+
+        def on_ready(smp: zenoh.Sample) -> None:
+            up.add(str(smp.key_expr))
+            if len(up) == k:
+                ready.set()
+
+        live = s.liveliness().declare_subscriber("bench/ready/*", on_ready, history=True)
+        pongs = s.declare_subscriber("bench/pong", zenoh.handlers.FifoChannel(16 * k))
         ping = s.declare_publisher("bench/ping", reliability=zenoh.Reliability.RELIABLE)
-        proc = subprocess.Popen([sys.executable, __file__, "rtt-child", endpoint])
+        procs = [
+            subprocess.Popen([sys.executable, __file__, "rtt-child", endpoint, str(i)])
+            for i in range(k)
+        ]
         if not ready.wait(30):
-            raise TimeoutError("the pong process did not come up")
+            raise TimeoutError(f"{k - len(up)} of the {k} pong processes did not come up")
         rtts = []
         for _ in range(n):
             t0 = time.monotonic_ns()
             ping.put(b"p")
-            pongs.recv()
+            for _ in range(k):
+                pongs.recv()
             rtts.append(time.monotonic_ns() - t0)
         ping.put(b"")
-        proc.wait(timeout=10)
+        for proc in procs:
+            proc.wait(timeout=10)
         live.undeclare()
         pongs.undeclare()
     a = np.array(rtts[100:]) / 1e3
@@ -166,9 +179,9 @@ if __name__ == "__main__":
     elif sys.argv[1] == "child":
         child(sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), sys.argv[5], sys.argv[6] == "fast")
     elif sys.argv[1] == "rtt-child":
-        rtt_child(sys.argv[2])
+        rtt_child(sys.argv[2], sys.argv[3])
     elif sys.argv[1] == "rtt":
-        rtt_parent(int(sys.argv[2]))
+        rtt_parent(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1)
     else:
         ms = float(sys.argv[2]) if len(sys.argv) > 2 else 1.0
         flags = sys.argv[3:]

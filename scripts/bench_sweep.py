@@ -4,8 +4,9 @@ The sweep of issue 63: the default mission, 12 seeds, NURBS, `--jobs 2`, once in
 lockstep, process start-up included; then the same sweep of the ocean (configs/ocean.toml: its
 current field, ocean plant and navigation), whose figures have no target of their own. Beside
 the first, the per-tick floor: the lockstep runtime's own cost per tick (the toy loop of
-trivial cores), against one raw Zenoh round trip through a router measured in the same run,
-and what that floor alone allows a sweep at the mission's ticks per simulated second.
+trivial cores), against one raw Zenoh round trip through a router measured in the same run
+and that round trip to three clients at once, and what that floor alone allows a sweep at the
+mission's ticks per simulated second.
 """
 
 from __future__ import annotations
@@ -43,17 +44,16 @@ def bench(runtime: str, exp: Experiment, jobs: int) -> tuple[float, float, int]:
 
 
 def tick_floor(ticks_per_sim_s: float) -> None:
-    """Print the lockstep tick floor (toy loop) against a raw round trip through a router."""
+    """Print the lockstep tick floor (toy loop) against the raw transport."""
     # scripts/bench_runtime.py measures both (it needs the runtime self-test loop, a fixture
     # of tests/, which it finds itself); imported here only when asked for
     import bench_runtime
 
     bench_runtime._find_the_test_loop()
     floor_ms, _ = bench_runtime.bench_floor()
-    rtt50, _ = bench_runtime.raw_latency_us("rtt", "2000")
     print(
-        f"per-tick floor: lockstep toy loop {floor_ms:.2f} ms per tick; raw zenoh round trip "
-        f"through a router p50 {rtt50:.0f} us (tick / round trip {1e3 * floor_ms / rtt50:.1f}x)"
+        f"per-tick floor: lockstep toy loop {floor_ms:.2f} ms per tick; "
+        f"{bench_runtime.against_transport(floor_ms)}"
     )
     print(
         f"  the mission ticks {ticks_per_sim_s:.1f} times per simulated second: the runtime's "
